@@ -1,0 +1,60 @@
+"""Column banding: one Gaussian offset per channel and column, constant down the column."""
+
+from __future__ import annotations
+
+import torch
+
+from darksynth.noise._broadcast import check_clip_shape, per_clip
+
+
+def banding_noise(
+    shape: torch.Size | tuple[int, ...],
+    sigma: torch.Tensor | float,
+    *,
+    generator: torch.Generator | None = None,
+    device: torch.device | str | None = None,
+) -> torch.Tensor:
+    """Per-frame column banding: b[..., t, c, :, w] ~ N(0, sigma^2), redrawn for every frame.
+
+    Args:
+        shape: clip shape (*batch, T, C, H, W).
+        sigma: standard deviation of a column's offset (a number or one value per clip).
+        generator: source of randomness; the global generator when None.
+        device: device of the result.
+
+    Returns:
+        A row pattern shaped (*batch, T, C, 1, W) that broadcasts down the columns of the clip.
+    """
+    check_clip_shape(shape)
+    dev = torch.device(device) if device is not None else torch.device("cpu")
+    *frames, _height, width = shape
+    pattern = torch.randn((*frames, 1, width), generator=generator, device=dev)
+    return per_clip(sigma, torch.Size(shape), device=dev) * pattern
+
+
+def temporal_banding_noise(
+    shape: torch.Size | tuple[int, ...],
+    sigma: torch.Tensor | float,
+    *,
+    generator: torch.Generator | None = None,
+    device: torch.device | str | None = None,
+) -> torch.Tensor:
+    """Fixed-pattern column banding: drawn once per clip and identical in each of its frames.
+
+    The authors' public code redraws this pattern for every frame, which makes it the same thing as
+    :func:`banding_noise`; the paper describes it as held over the clip, as here.
+
+    Args:
+        shape: clip shape (*batch, T, C, H, W).
+        sigma: standard deviation of a column's offset (a number or one value per clip).
+        generator: source of randomness; the global generator when None.
+        device: device of the result.
+
+    Returns:
+        A row pattern shaped (*batch, 1, C, 1, W) that broadcasts over frames and down columns.
+    """
+    check_clip_shape(shape)
+    dev = torch.device(device) if device is not None else torch.device("cpu")
+    *batch, _frames, channels, _height, width = shape
+    pattern = torch.randn((*batch, 1, channels, 1, width), generator=generator, device=dev)
+    return per_clip(sigma, torch.Size(shape), device=dev) * pattern

@@ -1,0 +1,68 @@
+"""Random draws of the parameters of the noise and darkening models (training, jitter, profile ranges)."""
+
+from __future__ import annotations
+
+from collections.abc import Mapping, Sequence
+
+import torch
+
+from darksynth.darkening import ALPHA_RANGE, GAMMA_RANGE
+from darksynth.noise.components import NOISE_PARAMETERS
+
+Range = tuple[float, float]
+
+
+def random_uniform(
+    ranges: Sequence[Range],
+    batch_shape: tuple[int, ...] = (),
+    *,
+    generator: torch.Generator | None = None,
+    device: torch.device | str | None = None,
+) -> torch.Tensor:
+    """Draw one value uniformly within each (low, high) interval, for each clip of a batch.
+
+    Returns:
+        Tensor (*batch_shape, len(ranges)).
+    """
+    low = torch.tensor([r[0] for r in ranges], dtype=torch.float32, device=device)
+    high = torch.tensor([r[1] for r in ranges], dtype=torch.float32, device=device)
+    unit = torch.rand((*batch_shape, len(ranges)), generator=generator, device=device)
+    return low + (high - low) * unit
+
+
+def random_noise_values(
+    ranges: Mapping[str, Sequence[Range]] | None = None,
+    batch_shape: tuple[int, ...] = (),
+    *,
+    generator: torch.Generator | None = None,
+    device: torch.device | str | None = None,
+) -> dict[str, torch.Tensor]:
+    """Draw every noise parameter uniformly within its range (the training range where none is given).
+
+    Returns:
+        Each parameter by name as a tensor (*batch_shape, size), in the order of the parameter table.
+    """
+    ranges = ranges or {}
+    return {
+        p.name: random_uniform(
+            ranges.get(p.name, (p.training_range,) * p.size), batch_shape, generator=generator, device=device
+        )
+        for p in NOISE_PARAMETERS
+    }
+
+
+def random_darkening_values(
+    alpha_range: Range = ALPHA_RANGE,
+    gamma_range: Range = GAMMA_RANGE,
+    batch_shape: tuple[int, ...] = (),
+    *,
+    generator: torch.Generator | None = None,
+    device: torch.device | str | None = None,
+) -> tuple[torch.Tensor, torch.Tensor]:
+    """Draw alpha and gamma of the darkening, one pair per clip (paper's ranges by default).
+
+    Returns:
+        (alpha, gamma), each a tensor shaped batch_shape.
+    """
+    drawn = random_uniform((alpha_range, gamma_range), batch_shape, generator=generator, device=device)
+    return drawn[..., 0], drawn[..., 1]

@@ -1,0 +1,325 @@
+"""Clean image, clip or stream -> darkened and noisy low-light version, with the exact parameters used.
+
+Three lines for a researcher::
+
+    profile = darksynth.load_profile("night.json")
+    result = darksynth.synthesize(clean, profile, generator=torch.Generator().manual_seed(0))
+    result.image, result.parameters
+
+The command line streams frames through :class:`ClipSynthesizer`, the same code that ``synthesize`` runs on
+8-bit input, so the library and the tool give the same output for the same seed.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Mapping
+from dataclasses import dataclass
+from typing import Any, Literal
+
+import numpy as np
+import torch
+
+from darksynth.darkening import ALPHA_RANGE, GAMMA_RANGE, Darkening, darken
+from darksynth.noise._broadcast import CLIP_DIMS
+from darksynth.noise.components import NOISE_PARAMETERS
+from darksynth.noise.kernel8 import (
+    FULL_SCALE,
+    PixelKernel,
+    compiled_pixel_kernel,
+    lookup_tables,
+    pixel_kernel_8bit,
+    quantization_level_step,
+)
+from darksynth.noise.sampling import random_uniform
+from darksynth.noise.simulate import add_noise, drawing_order, is_active
+from darksynth.profile import Profile
+
+DarkeningChoice = Darkening | Literal["profile"] | None
+"""``"profile"``: the profile's darkening, else alpha/gamma drawn from its ranges, else from the paper's
+ranges. A :class:`Darkening`: exactly that. None: no darkening (the input already has the target brightness)."""
+
+_FUSED_COMPONENTS = frozenset({"heteroscedastic", "quantization"})
+
+
+@dataclass(frozen=True)
+class ClipParameters:
+    """The parameters drawn for one clip (or one image): noise values and, if any, the darkening."""
+
+    noise: Mapping[str, tuple[float, ...]]
+    darkening: Darkening | None
+
+    def noise_tensors(self, device: torch.device | str | None = None) -> dict[str, torch.Tensor]:
+        """Noise values as tensors (size,), the form the noise components read."""
+        return {name: torch.tensor(values, dtype=torch.float32, device=device) for name, values in self.noise.items()}
+
+    def to_json(self) -> dict[str, Any]:
+        """JSON-ready record for manifests: scalars as numbers, vectors as lists."""
+        sizes = {p.name: p.size for p in NOISE_PARAMETERS}
+        noise = {name: (list(v) if sizes[name] > 1 else v[0]) for name, v in self.noise.items()}
+        darkening = None if self.darkening is None else {"alpha": self.darkening.alpha, "gamma": self.darkening.gamma}
+        return {"noise": noise, "darkening": darkening}
+
+
+def draw_clip_parameters(
+    profile: Profile, *, darkening: DarkeningChoice = "profile", generator: torch.Generator | None = None
+) -> ClipParameters:
+    """Fix the parameters for one clip: values from the profile, drawn within its ranges where it has them.
+
+    Draws happen in the order of the parameter table, then alpha and gamma, so a seed fixes them all.
+    """
+    noise: dict[str, tuple[float, ...]] = {}
+    for parameter in NOISE_PARAMETERS:
+        if parameter.name in profile.ranges:
+            drawn = random_uniform(profile.ranges[parameter.name], generator=generator)
+            noise[parameter.name] = tuple(float(v) for v in drawn)
+        else:
+            noise[parameter.name] = tuple(float(v) for v in profile.noise[parameter.name])
+    chosen: Darkening | None
+    if darkening is None or isinstance(darkening, Darkening):
+        chosen = darkening
+    elif "alpha" in profile.ranges or "gamma" in profile.ranges or profile.darkening is None:
+        fixed = profile.darkening
+        alpha_range = profile.ranges.get("alpha", ((fixed.alpha,) * 2,) if fixed else (ALPHA_RANGE,))[0]
+        gamma_range = profile.ranges.get("gamma", ((fixed.gamma,) * 2,) if fixed else (GAMMA_RANGE,))[0]
+        drawn = random_uniform((alpha_range, gamma_range), generator=generator)
+        chosen = Darkening(alpha=float(drawn[0]), gamma=float(drawn[1]))
+    else:
+        chosen = profile.darkening
+    return ClipParameters(noise=noise, darkening=chosen)
+
+
+class ClipSynthesizer:
+    """Darkening + f(v) for the frames of one clip, one frame at a time (memory does not grow with length).
+
+    Components that a clip holds fixed (temporal banding) are drawn at the first frame and reused. 8-bit frames
+    go through the fused kernel (:mod:`darksynth.noise.kernel8`); other dtypes through the general composer.
+
+    Args:
+        parameters: the clip's parameters (see :func:`draw_clip_parameters`).
+        generator: source of randomness, consumed frame after frame.
+        device: where the work runs (``"cpu"``, ``"cuda"``); frames are moved there and results returned there.
+        compile: fuse the 8-bit kernel with ``torch.compile``; worth it for a long stream of same-sized frames.
+    """
+
+    def __init__(
+        self,
+        parameters: ClipParameters,
+        *,
+        generator: torch.Generator | None = None,
+        device: torch.device | str = "cpu",
+        compile: bool = False,
+    ) -> None:
+        self.parameters = parameters
+        self.generator = generator
+        self.device = torch.device(device)
+        self._values = parameters.noise_tensors(self.device)
+        self._active = tuple(c for c in drawing_order() if is_active(c, self._values))
+        self._held: dict[str, torch.Tensor] = {}
+        self._kernel: PixelKernel = compiled_pixel_kernel() if compile else pixel_kernel_8bit
+        self._fusable = all(c.name in _FUSED_COMPONENTS for c in self._active if c.structure == "pixel")
+        self._tables: tuple[torch.Tensor, torch.Tensor] | None = None
+        self._buffers: dict[str, torch.Tensor] = {}
+
+    def _column_pattern(self, signal_shape: torch.Size) -> torch.Tensor:
+        """Sum of the active column components for one frame, (1, C, 1, W), on the [0, 1] scale."""
+        channels, width = signal_shape[-3], signal_shape[-1]
+        total = torch.zeros((1, channels, 1, width), device=self.device)
+        probe = torch.empty(signal_shape, device=self.device)  # the draw functions read only its shape
+        for component in self._active:
+            if component.structure != "column":
+                continue
+            if component.per_clip:
+                if component.name not in self._held:
+                    self._held[component.name] = component.draw(probe, self._values, self.generator)
+                pattern = self._held[component.name]
+            else:
+                pattern = component.draw(probe, self._values, self.generator)
+            if pattern.shape[-3] != channels or pattern.shape[-1] != width:
+                raise ValueError(f"frame size changed within a clip: {tuple(signal_shape)}")
+            total = total + pattern
+        return total
+
+    def __call__(self, frame: torch.Tensor) -> torch.Tensor:
+        """Low-light version of one frame (C, H, W): uint8 in, uint8 out; uint16 and float likewise."""
+        if frame.dim() != 3:
+            raise ValueError(f"expected a frame shaped (C, H, W), got shape {tuple(frame.shape)}")
+        frame = frame.to(self.device)
+        columns = self._column_pattern(torch.Size((1, *frame.shape)))[0]
+        if frame.dtype == torch.uint8 and self._fusable:
+            return self._fused(frame, columns)
+        scale = _full_scale(frame.dtype)
+        clean = frame.to(torch.float32) / scale if scale else frame.to(torch.float32)
+        signal = (
+            clean
+            if self.parameters.darkening is None
+            else darken(clean, self.parameters.darkening.alpha, self.parameters.darkening.gamma)
+        )
+        noisy = signal + columns
+        for component in self._active:
+            if component.structure != "column":
+                noisy = noisy + component.draw(signal, self._values, self.generator)
+        return _to_dtype(noisy.clamp(0.0, 1.0), frame.dtype)
+
+    def _buffer(self, name: str, shape: torch.Size, dtype: torch.dtype) -> torch.Tensor:
+        # Reusing buffers across frames spares an allocation and its page faults per frame.
+        buffer = self._buffers.get(name)
+        if buffer is None or buffer.shape != shape:
+            buffer = torch.zeros(shape, dtype=dtype, device=self.device)
+            self._buffers[name] = buffer
+        return buffer
+
+    def _fused(self, frame: torch.Tensor, columns: torch.Tensor) -> torch.Tensor:
+        if self._tables is None:
+            darkening = self.parameters.darkening
+            self._tables = lookup_tables(
+                darkening.alpha if darkening else None,
+                darkening.gamma if darkening else None,
+                self.parameters.noise["shot"][0],
+                self.parameters.noise["read"][0],
+                device=self.device,
+            )
+        normal = self._buffer("normal", frame.shape, torch.float32)
+        levels = self._buffer("levels", frame.shape, torch.uint8)
+        active = {c.name for c in self._active}
+        if "heteroscedastic" in active:
+            normal.normal_(generator=self.generator)
+        if "quantization" in active:
+            levels.random_(generator=self.generator)
+        step = quantization_level_step(self.parameters.noise["quantization"][0], device=self.device)
+        mean_table, std_table = self._tables
+        try:
+            return self._kernel(frame, normal, levels, mean_table, std_table, step, columns * FULL_SCALE)
+        except Exception:
+            if self._kernel is pixel_kernel_8bit:
+                raise
+            # A platform without a working compiler: the eager kernel gives the same bits, only slower.
+            self._kernel = pixel_kernel_8bit
+            return self._kernel(frame, normal, levels, mean_table, std_table, step, columns * FULL_SCALE)
+
+
+def _full_scale(dtype: torch.dtype) -> float | None:
+    if dtype == torch.uint8:
+        return 255.0
+    if dtype in (torch.uint16, torch.int32, torch.int64):
+        return 65535.0
+    if dtype.is_floating_point:
+        return None
+    raise ValueError(f"unsupported pixel type {dtype}")
+
+
+def _to_dtype(image: torch.Tensor, dtype: torch.dtype) -> torch.Tensor:
+    scale = _full_scale(dtype)
+    if scale is None:
+        return image.to(dtype)
+    rounded = (image * scale).round()
+    # torch has few kernels for uint16; int32 holds every 16-bit value exactly.
+    return rounded.to(torch.int32).to(dtype) if dtype == torch.uint16 else rounded.to(dtype)
+
+
+@dataclass(frozen=True)
+class LowLightResult:
+    """A synthesized low-light image or clip and the parameters drawn for it.
+
+    Attributes:
+        image: the result, in the layout and dtype of the input.
+        parameters: per clip (a list for batched input), a JSON-ready record of noise and darkening values.
+    """
+
+    image: torch.Tensor | np.ndarray
+    parameters: dict[str, Any] | list[dict[str, Any]]
+
+
+def synthesize(
+    clean: torch.Tensor | np.ndarray,
+    profile: Profile,
+    *,
+    generator: torch.Generator | None = None,
+    darkening: DarkeningChoice = "profile",
+    device: torch.device | str | None = None,
+) -> LowLightResult:
+    """Make a low-light version of a clean image or clip with a noise profile.
+
+    Args:
+        clean: a torch tensor (C, H, W) image or (*batch, T, C, H, W) clips, uint8, uint16 or float in [0, 1];
+            or a numpy array (H, W) grey, (H, W, C) image or (T, H, W, C) clip. Parameters are drawn once per
+            clip. 8-bit clips run frame by frame through the fused kernel, as the command line does; float clips
+            run through the vectorised composer.
+        profile: the noise profile (see :func:`darksynth.profile.load_profile`).
+        generator: source of randomness; pass a seeded one for reproducible output.
+        darkening: see :data:`DarkeningChoice`.
+        device: where to compute; the input's device by default.
+
+    Returns:
+        The low-light result in the input's layout and dtype, with the parameters used.
+    """
+    as_numpy = isinstance(clean, np.ndarray)
+    if isinstance(clean, np.ndarray):
+        clips, layout = _from_numpy(clean)
+    else:
+        clips, layout = (clean.unsqueeze(0), "image") if clean.dim() == 3 else (clean, "clips")
+    if clips.dim() < CLIP_DIMS:
+        raise ValueError(f"expected (C, H, W) or (..., T, C, H, W), got shape {tuple(clean.shape)}")
+    target = torch.device(device) if device is not None else clips.device
+    clips = clips.to(target)
+    batch_shape = tuple(clips.shape[: clips.dim() - CLIP_DIMS])
+    flat = clips.reshape(-1, *clips.shape[-CLIP_DIMS:])
+    outputs = []
+    records = []
+    for clip in flat:
+        parameters = draw_clip_parameters(profile, darkening=darkening, generator=generator)
+        records.append(parameters.to_json())
+        if clip.dtype == torch.uint8:
+            synthesizer = ClipSynthesizer(parameters, generator=generator, device=target)
+            outputs.append(torch.stack([synthesizer(frame) for frame in clip]))
+        else:
+            outputs.append(_synthesize_clip(clip, parameters, generator))
+    result = torch.stack(outputs).reshape(clips.shape)
+    record: dict[str, Any] | list[dict[str, Any]] = records[0] if not batch_shape else records
+    if as_numpy:
+        return LowLightResult(image=_to_numpy(result, layout), parameters=record)
+    return LowLightResult(image=result[0] if layout == "image" else result, parameters=record)
+
+
+def _synthesize_clip(clip: torch.Tensor, parameters: ClipParameters, generator: torch.Generator | None) -> torch.Tensor:
+    scale = _full_scale(clip.dtype)
+    clean = clip.to(torch.float32) / scale if scale else clip.to(torch.float32)
+    darkening = parameters.darkening
+    signal = clean if darkening is None else darken(clean, darkening.alpha, darkening.gamma)
+    noisy = add_noise(signal, parameters.noise_tensors(clip.device), generator=generator)
+    return _to_dtype(noisy, clip.dtype)
+
+
+def _from_numpy(array: np.ndarray) -> tuple[torch.Tensor, str]:
+    if array.dtype not in (np.uint8, np.uint16) and not np.issubdtype(array.dtype, np.floating):
+        raise ValueError(f"unsupported array dtype {array.dtype}; use uint8, uint16 or float in [0, 1]")
+    tensor = torch.from_numpy(np.ascontiguousarray(array.astype(np.int32) if array.dtype == np.uint16 else array))
+    if array.dtype == np.uint16:
+        tensor = tensor.to(torch.uint16)
+    if array.ndim == 2:
+        return tensor[None, None], "grey"
+    if array.ndim == 3:
+        return tensor.permute(2, 0, 1)[None], "hwc"
+    if array.ndim == 4:
+        return tensor.permute(0, 3, 1, 2), "thwc"
+    raise ValueError(f"expected a numpy array (H, W), (H, W, C) or (T, H, W, C), got shape {array.shape}")
+
+
+def _to_numpy(clip: torch.Tensor, layout: str) -> np.ndarray:
+    widened = clip.to(torch.int32) if clip.dtype == torch.uint16 else clip
+    array: np.ndarray = widened.cpu().numpy()
+    if clip.dtype == torch.uint16:
+        array = array.astype(np.uint16)
+    if layout == "grey":
+        return np.ascontiguousarray(array[0, 0])
+    if layout == "hwc":
+        return np.ascontiguousarray(array[0].transpose(1, 2, 0))
+    return np.ascontiguousarray(array.transpose(0, 2, 3, 1))
+
+
+__all__ = [
+    "ClipParameters",
+    "ClipSynthesizer",
+    "LowLightResult",
+    "draw_clip_parameters",
+    "synthesize",
+]
