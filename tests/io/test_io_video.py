@@ -1,0 +1,301 @@
+from __future__ import annotations
+
+import tracemalloc
+from fractions import Fraction
+from pathlib import Path
+
+import av
+import numpy as np
+import pytest
+
+from darksynth.errors import DarksynthError, InputFileError
+from darksynth.io.video import (
+    DEFAULT_CODEC,
+    VIDEO_SUFFIXES,
+    VideoInfo,
+    VideoWriter,
+    iter_video_frames,
+    probe_video,
+)
+
+
+def _gradient_frames(count: int, height: int = 48, width: int = 64) -> list[np.ndarray]:
+    y, x = np.mgrid[0:height, 0:width]
+    frames = []
+    for i in range(count):
+        red = (x * 255 // max(width - 1, 1) + 7 * i) % 256
+        green = y * 255 // max(height - 1, 1)
+        blue = np.full_like(x, (40 + 20 * i) % 256)
+        frames.append(np.stack([red, green, blue], axis=-1).astype(np.uint8))
+    return frames
+
+
+def _write(path: Path, frames: list[np.ndarray], fps: Fraction = Fraction(25), **kwargs: object) -> None:
+    height, width = frames[0].shape[:2]
+    with VideoWriter(path, width=width, height=height, fps=fps, **kwargs) as writer:  # type: ignore[arg-type]
+        for frame in frames:
+            writer.write(frame)
+
+
+def test_video_suffixes() -> None:
+    assert frozenset({".mp4", ".mov", ".avi", ".mkv"}) == VIDEO_SUFFIXES
+
+
+@pytest.mark.parametrize("fps", [Fraction(25), Fraction(30000, 1001)])
+def test_default_codec_round_trip(tmp_path: Path, fps: Fraction) -> None:
+    frames = _gradient_frames(10)
+    path = tmp_path / "clip.mp4"
+    _write(path, frames, fps=fps)
+    assert probe_video(path) == VideoInfo(width=64, height=48, fps=fps, frame_count=10, codec="h264")
+    back = list(iter_video_frames(path))
+    assert len(back) == 10
+    for original, decoded in zip(frames, back, strict=True):
+        assert decoded.shape == (48, 64, 3)
+        assert decoded.dtype == np.uint8
+        error = np.abs(decoded.astype(int) - original)
+        assert error.mean() < 1.5
+        assert error.max() <= 12
+    with av.open(str(path)) as container:
+        context = container.streams.video[0].codec_context
+        assert context.pix_fmt == "yuv444p"
+        assert context.profile == "High 4:4:4 Predictive"
+
+
+@pytest.mark.parametrize(("suffix", "codec", "crf"), [(".mkv", "ffv1", None), (".avi", "ffv1", None)])
+@pytest.mark.parametrize("fps", [Fraction(25), Fraction(30000, 1001)])
+def test_lossless_codecs_are_exact(tmp_path: Path, suffix: str, codec: str, crf: int | None, fps: Fraction) -> None:
+    frames = _gradient_frames(10)
+    path = tmp_path / f"clip{suffix}"
+    _write(path, frames, fps=fps, codec=codec, crf=crf)
+    info = probe_video(path)
+    assert (info.width, info.height, info.fps, info.codec) == (64, 48, fps, codec)
+    assert info.frame_count in (10, None)
+    back = list(iter_video_frames(path))
+    np.testing.assert_array_equal(np.stack(back), np.stack(frames))
+
+
+@pytest.mark.parametrize("suffix", [".mkv", ".mp4", ".mov"])
+def test_libx264rgb_crf0_is_exact(tmp_path: Path, suffix: str) -> None:
+    frames = _gradient_frames(6)
+    path = tmp_path / f"clip{suffix}"
+    _write(path, frames, codec="libx264rgb", crf=0)
+    np.testing.assert_array_equal(np.stack(list(iter_video_frames(path))), np.stack(frames))
+
+
+def test_mpeg4_avi_round_trip(tmp_path: Path) -> None:
+    frames = _gradient_frames(5)
+    path = tmp_path / "clip.avi"
+    _write(path, frames, codec="mpeg4")
+    assert probe_video(path).codec == "mpeg4"
+    back = np.stack(list(iter_video_frames(path)))
+    assert np.abs(back.astype(int) - np.stack(frames)).mean() < 4
+
+
+def test_odd_size_with_default_codec(tmp_path: Path) -> None:
+    frames = _gradient_frames(3, height=143, width=175)
+    path = tmp_path / "odd.mp4"
+    _write(path, frames, fps=Fraction(24000, 1001))
+    info = probe_video(path)
+    assert (info.width, info.height, info.fps) == (175, 143, Fraction(24000, 1001))
+    back = list(iter_video_frames(path))
+    assert [f.shape for f in back] == [(143, 175, 3)] * 3
+    assert np.abs(np.stack(back).astype(int) - np.stack(frames)).mean() < 1.5
+
+
+def test_noise_survives_default_codec(tmp_path: Path) -> None:
+    # The reason for yuv444p, a low CRF and tune=grain: fine per-pixel noise must not be smoothed away.
+    rng = np.random.default_rng(7)
+    base = _gradient_frames(1, height=72, width=96)[0].astype(float) * 0.2
+    frames = [np.clip(base + rng.normal(0, 4, base.shape), 0, 255).round().astype(np.uint8) for _ in range(8)]
+    path = tmp_path / "noisy.mp4"
+    _write(path, frames)
+    back = np.stack(list(iter_video_frames(path))).astype(float)
+    noise_in = np.std(np.stack(frames) - base)
+    noise_out = np.std(back - base)
+    assert 0.9 * noise_in < noise_out < 1.2 * noise_in
+
+
+def test_frames_are_streamed(tmp_path: Path) -> None:
+    path = tmp_path / "long.mkv"
+    frame = _gradient_frames(1, height=120, width=160)[0]
+    with VideoWriter(path, width=160, height=120, fps=Fraction(25), codec="ffv1") as writer:
+        for _ in range(60):
+            writer.write(frame)
+    tracemalloc.start()
+    try:
+        count = 0
+        for decoded in iter_video_frames(path):
+            count += 1
+            del decoded
+        _, peak = tracemalloc.get_traced_memory()
+    finally:
+        tracemalloc.stop()
+    assert count == 60
+    assert peak < 10 * frame.nbytes  # 60 frames kept would be 60 * frame.nbytes
+
+
+def test_display_rotation_is_applied(tmp_path: Path) -> None:
+    frame = _gradient_frames(1)[0]
+    path = tmp_path / "portrait.mp4"
+    with av.open(str(path), mode="w") as container:
+        stream = container.add_stream("libx264rgb", rate=25)
+        stream.width, stream.height, stream.pix_fmt = 64, 48, "rgb24"
+        stream.options = {"crf": "0"}
+        stream.set_display_rotation(-90)  # stored landscape, shown turned 90 degrees clockwise
+        for i in range(2):
+            video_frame = av.VideoFrame.from_ndarray(frame, format="rgb24")
+            video_frame.pts = i
+            container.mux(stream.encode(video_frame))
+        container.mux(stream.encode(None))
+    info = probe_video(path)
+    assert (info.width, info.height) == (48, 64)
+    back = list(iter_video_frames(path))
+    np.testing.assert_array_equal(back[0], np.rot90(frame, k=-1))
+
+
+def test_exception_inside_writer_leaves_nothing(tmp_path: Path) -> None:
+    path = tmp_path / "out" / "clip.mp4"
+    with pytest.raises(RuntimeError, match="stop"), VideoWriter(path, width=64, height=48, fps=Fraction(25)) as w:
+        for frame in _gradient_frames(3):
+            w.write(frame)
+        raise RuntimeError("stop")
+    assert list(path.parent.iterdir()) == []
+
+
+def test_exception_keeps_an_existing_output(tmp_path: Path) -> None:
+    path = tmp_path / "clip.mp4"
+    path.write_bytes(b"previous run")
+    with pytest.raises(KeyboardInterrupt), VideoWriter(path, width=64, height=48, fps=Fraction(25)) as writer:
+        writer.write(_gradient_frames(1)[0])
+        raise KeyboardInterrupt
+    assert path.read_bytes() == b"previous run"
+    assert [p.name for p in tmp_path.iterdir()] == ["clip.mp4"]
+
+
+def test_no_frames_written_leaves_nothing(tmp_path: Path) -> None:
+    path = tmp_path / "empty.mp4"
+    with (
+        pytest.raises(DarksynthError, match="no frames were written"),
+        VideoWriter(path, width=64, height=48, fps=Fraction(25)),
+    ):
+        pass
+    assert list(tmp_path.iterdir()) == []
+
+
+def test_wrong_frame_shape_is_a_programming_error(tmp_path: Path) -> None:
+    with (
+        pytest.raises(ValueError, match=r"\(48, 64, 3\) uint8"),
+        VideoWriter(tmp_path / "a.mp4", width=64, height=48, fps=Fraction(25)) as writer,
+    ):
+        writer.write(np.zeros((48, 64, 3), dtype=np.float32))
+    assert list(tmp_path.iterdir()) == []
+
+
+@pytest.mark.parametrize(
+    ("name", "kwargs", "message"),
+    [
+        ("a.mov", {"codec": "ffv1"}, r"a\.mov: the \.mov container cannot hold ffv1 video"),
+        ("a.mp4", {"codec": "nosuchcodec"}, "unknown video codec 'nosuchcodec'"),
+        ("a.mp4", {"codec": "aac"}, "aac is not a video codec"),
+        ("a.webm", {}, "not a video suffix"),
+        ("a.mkv", {"codec": "ffv1", "crf": 10}, "ffv1 has no CRF setting"),
+        ("a.avi", {"codec": "mpeg4", "width": 0}, "size must be positive"),
+        ("a.mp4", {"codec": "libx264", "crf": 99}, r"a\.mp4: CRF for libx264 must be in 0\.\.51, got 99"),
+        (
+            "a.mkv",
+            {"codec": "mpeg2video", "fps": Fraction(13)},
+            r"a\.mkv: cannot encode 64x48 at 13 fps with mpeg2video",
+        ),
+    ],
+)
+def test_unusable_settings_raise_one_line_errors(
+    tmp_path: Path, name: str, kwargs: dict[str, object], message: str
+) -> None:
+    settings: dict[str, object] = {"width": 64, "height": 48, "fps": Fraction(25)} | kwargs
+    with (
+        pytest.raises(DarksynthError, match=message) as info,
+        VideoWriter(tmp_path / name, **settings) as writer,  # type: ignore[arg-type]
+    ):
+        writer.write(_gradient_frames(1)[0])
+    assert "\n" not in str(info.value)
+    assert list(tmp_path.iterdir()) == []
+
+
+def test_write_outside_with_block_raises(tmp_path: Path) -> None:
+    writer = VideoWriter(tmp_path / "a.mp4", width=64, height=48, fps=Fraction(25))
+    with pytest.raises(RuntimeError, match="outside its with block"):
+        writer.write(_gradient_frames(1)[0])
+
+
+def test_default_codec_is_libx264() -> None:
+    assert DEFAULT_CODEC == "libx264"
+
+
+def test_codec_names_resolve_to_the_encoder(tmp_path: Path) -> None:
+    writer = VideoWriter(tmp_path / "a.mp4", width=64, height=48, fps=Fraction(25), codec="h264")
+    assert (writer.codec, writer.crf) == ("libx264", 14)
+
+
+# --- bad inputs --------------------------------------------------------------------------------------------------
+
+
+def test_missing_video(tmp_path: Path) -> None:
+    with pytest.raises(InputFileError, match="no such file"):
+        probe_video(tmp_path / "missing.mp4")
+    with pytest.raises(InputFileError, match="no such file"):
+        next(iter_video_frames(tmp_path / "missing.mp4"))
+
+
+def test_garbage_mp4(tmp_path: Path) -> None:
+    path = tmp_path / "garbage.mp4"
+    path.write_bytes(np.random.default_rng(3).integers(0, 256, 5000, dtype=np.uint8).tobytes())
+    with pytest.raises(InputFileError, match="not a readable video") as info:
+        probe_video(path)
+    assert info.value.path == path
+    with pytest.raises(InputFileError, match="not a readable video"):
+        list(iter_video_frames(path))
+
+
+def test_truncated_mp4(tmp_path: Path) -> None:
+    path = tmp_path / "cut.mp4"
+    _write(path, _gradient_frames(10))
+    data = path.read_bytes()
+    path.write_bytes(data[: len(data) // 2])
+    with pytest.raises(InputFileError) as info:
+        probe_video(path)
+    assert info.value.path == path
+    with pytest.raises(InputFileError):
+        list(iter_video_frames(path))
+
+
+def test_file_without_video_stream(tmp_path: Path) -> None:
+    path = tmp_path / "sound.mkv"
+    with av.open(str(path), mode="w") as container:
+        stream = container.add_stream("pcm_s16le", rate=8000)
+        frame = av.AudioFrame.from_ndarray(np.zeros((1, 800), dtype=np.int16), format="s16", layout="mono")
+        frame.sample_rate = 8000
+        container.mux(stream.encode(frame))
+        container.mux(stream.encode(None))
+    with pytest.raises(InputFileError, match="no video stream"):
+        probe_video(path)
+    with pytest.raises(InputFileError, match="no video stream"):
+        list(iter_video_frames(path))
+
+
+def test_corrupt_frames_mid_stream_name_the_frame(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
+    path = tmp_path / "clip.mkv"
+    _write(path, _gradient_frames(5), codec="ffv1")
+    real_decode = av.container.InputContainer.decode
+
+    def failing_decode(self: av.container.InputContainer, *args: object, **kwargs: object) -> object:
+        for index, frame in enumerate(real_decode(self, *args, **kwargs)):  # type: ignore[arg-type]
+            if index == 3:
+                raise av.InvalidDataError(1094995529, "Invalid data found when processing input")
+            yield frame
+
+    monkeypatch.setattr(av.container.InputContainer, "decode", failing_decode)
+    frames = iter_video_frames(path)
+    assert len([next(frames) for _ in range(3)]) == 3
+    with pytest.raises(InputFileError, match="cannot decode video frame 3") as info:
+        next(frames)
+    assert info.value.path == path
