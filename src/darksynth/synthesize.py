@@ -22,13 +22,13 @@ import torch
 from darksynth.darkening import ALPHA_RANGE, GAMMA_RANGE, Darkening, darken
 from darksynth.noise._broadcast import CLIP_DIMS
 from darksynth.noise.components import NOISE_PARAMETERS
+from darksynth.noise.counter_rng import random_key
 from darksynth.noise.kernel8 import (
     FULL_SCALE,
     PixelKernel,
     compiled_pixel_kernel,
-    lookup_tables,
+    kernel_scalars,
     pixel_kernel_8bit,
-    quantization_level_step,
 )
 from darksynth.noise.sampling import random_uniform
 from darksynth.noise.simulate import add_noise, drawing_order, is_active
@@ -70,21 +70,24 @@ def draw_clip_parameters(
     noise: dict[str, tuple[float, ...]] = {}
     for parameter in NOISE_PARAMETERS:
         if parameter.name in profile.ranges:
-            drawn = random_uniform(profile.ranges[parameter.name], generator=generator)
+            drawn = random_uniform(profile.ranges[parameter.name], generator=generator, dtype=torch.float64)
             noise[parameter.name] = tuple(float(v) for v in drawn)
         else:
             noise[parameter.name] = tuple(float(v) for v in profile.noise[parameter.name])
     chosen: Darkening | None
     if darkening is None or isinstance(darkening, Darkening):
         chosen = darkening
-    elif "alpha" in profile.ranges or "gamma" in profile.ranges or profile.darkening is None:
-        fixed = profile.darkening
-        alpha_range = profile.ranges.get("alpha", ((fixed.alpha,) * 2,) if fixed else (ALPHA_RANGE,))[0]
-        gamma_range = profile.ranges.get("gamma", ((fixed.gamma,) * 2,) if fixed else (GAMMA_RANGE,))[0]
-        drawn = random_uniform((alpha_range, gamma_range), generator=generator)
-        chosen = Darkening(alpha=float(drawn[0]), gamma=float(drawn[1]))
     else:
-        chosen = profile.darkening
+        # Fixed values stay exact; only what has a range (or no value at all) is drawn, alpha before gamma.
+        fixed = profile.darkening
+        values = {}
+        for name, paper_range in (("alpha", ALPHA_RANGE), ("gamma", GAMMA_RANGE)):
+            if name in profile.ranges or fixed is None:
+                interval = profile.ranges[name][0] if name in profile.ranges else paper_range
+                values[name] = float(random_uniform((interval,), generator=generator, dtype=torch.float64)[0])
+            else:
+                values[name] = getattr(fixed, name)
+        chosen = Darkening(alpha=values["alpha"], gamma=values["gamma"])
     return ClipParameters(noise=noise, darkening=chosen)
 
 
@@ -117,8 +120,7 @@ class ClipSynthesizer:
         self._held: dict[str, torch.Tensor] = {}
         self._kernel: PixelKernel = compiled_pixel_kernel() if compile else pixel_kernel_8bit
         self._fusable = all(c.name in _FUSED_COMPONENTS for c in self._active if c.structure == "pixel")
-        self._tables: tuple[torch.Tensor, torch.Tensor] | None = None
-        self._buffers: dict[str, torch.Tensor] = {}
+        self._scalars: tuple[torch.Tensor, ...] | None = None
 
     def _column_pattern(self, signal_shape: torch.Size) -> torch.Tensor:
         """Sum of the active column components for one frame, (1, C, 1, W), on the [0, 1] scale."""
@@ -160,41 +162,30 @@ class ClipSynthesizer:
                 noisy = noisy + component.draw(signal, self._values, self.generator)
         return _to_dtype(noisy.clamp(0.0, 1.0), frame.dtype)
 
-    def _buffer(self, name: str, shape: torch.Size, dtype: torch.dtype) -> torch.Tensor:
-        # Reusing buffers across frames spares an allocation and its page faults per frame.
-        buffer = self._buffers.get(name)
-        if buffer is None or buffer.shape != shape:
-            buffer = torch.zeros(shape, dtype=dtype, device=self.device)
-            self._buffers[name] = buffer
-        return buffer
-
     def _fused(self, frame: torch.Tensor, columns: torch.Tensor) -> torch.Tensor:
-        if self._tables is None:
+        if self._scalars is None:
             darkening = self.parameters.darkening
-            self._tables = lookup_tables(
+            active = {c.name for c in self._active}
+            noise = self.parameters.noise
+            heteroscedastic = "heteroscedastic" in active
+            self._scalars = kernel_scalars(
                 darkening.alpha if darkening else None,
                 darkening.gamma if darkening else None,
-                self.parameters.noise["shot"][0],
-                self.parameters.noise["read"][0],
+                noise["shot"][0] if heteroscedastic else 0.0,
+                noise["read"][0] if heteroscedastic else 0.0,
+                noise["quantization"][0] if "quantization" in active else 0.0,
                 device=self.device,
             )
-        normal = self._buffer("normal", frame.shape, torch.float32)
-        levels = self._buffer("levels", frame.shape, torch.uint8)
-        active = {c.name for c in self._active}
-        if "heteroscedastic" in active:
-            normal.normal_(generator=self.generator)
-        if "quantization" in active:
-            levels.random_(generator=self.generator)
-        step = quantization_level_step(self.parameters.noise["quantization"][0], device=self.device)
-        mean_table, std_table = self._tables
+        key = random_key(self.generator).to(self.device)
+        arguments = (frame, key, *self._scalars, columns * FULL_SCALE)
         try:
-            return self._kernel(frame, normal, levels, mean_table, std_table, step, columns * FULL_SCALE)
+            return self._kernel(*arguments)
         except Exception:
             if self._kernel is pixel_kernel_8bit:
                 raise
             # A platform without a working compiler: the eager kernel gives the same bits, only slower.
             self._kernel = pixel_kernel_8bit
-            return self._kernel(frame, normal, levels, mean_table, std_table, step, columns * FULL_SCALE)
+            return self._kernel(*arguments)
 
 
 def _full_scale(dtype: torch.dtype) -> float | None:

@@ -20,55 +20,44 @@ from darksynth.synthesize import ClipParameters, ClipSynthesizer, draw_clip_para
 ProfileFactory = Callable[..., Profile]
 
 
-def _levels_apart(image8: torch.Tensor, image_float: torch.Tensor) -> torch.Tensor:
-    return ((image_float.double() * 255.0).round() - image8.double()).abs()
+def _per_level_moments(clean: torch.Tensor, noisy: torch.Tensor) -> tuple[torch.Tensor, torch.Tensor]:
+    """Mean and variance of the output at each of the 256 clean input levels."""
+    index = clean.flatten().long()
+    values = noisy.flatten().double()
+    count = torch.bincount(index, minlength=256).double()
+    mean = torch.bincount(index, values, minlength=256) / count
+    second = torch.bincount(index, values.square(), minlength=256) / count
+    return mean, second - mean.square()
 
 
-def _assert_paths_agree(clean8: torch.Tensor, profile: Profile, seed: int) -> None:
-    fused = darksynth.synthesize(clean8, profile, generator=torch.Generator().manual_seed(seed))
-    composed = darksynth.synthesize(clean8.float() / 255.0, profile, generator=torch.Generator().manual_seed(seed))
-    assert fused.image.dtype == torch.uint8 and composed.image.dtype == torch.float32
-    assert fused.parameters == composed.parameters
-    difference = _levels_apart(fused.image, composed.image)
-    # Both paths consume the random stream in the same order, so they differ only where float rounding
-    # moves a value across a rounding boundary: one level, rarely.
-    assert difference.max().item() <= 1.0
-    assert (difference > 0).double().mean().item() < 0.01
-
-
-def test_uint8_and_float_paths_agree_with_the_default_profile() -> None:
+def test_uint8_and_float_paths_draw_from_the_same_distribution() -> None:
+    # The 8-bit kernel draws its per-pixel numbers from a counter-based hash keyed by the generator, the float
+    # composer from torch's normal stream: different samples, the same law. Every input level is repeated
+    # 3 * 64 * 16 = 3072 times, so per-level means have a standard error of std / 55 and variances of about
+    # var * sqrt(2 / 3072) = 2.6% of var; the bands below are 5 standard errors.
     profile = load_profile(default_profile_path())
     assert all(any(v != 0 for v in values) for values in profile.noise.values())
-    clean = torch.randint(0, 256, (3, 64, 96), dtype=torch.uint8, generator=torch.Generator().manual_seed(1))
-    _assert_paths_agree(clean, profile, seed=2)
+    levels = torch.arange(256, dtype=torch.uint8).repeat_interleave(16)
+    clean8 = levels.view(1, 1, 4096).expand(3, 64, 4096).contiguous()
+    fused = darksynth.synthesize(clean8, profile, generator=torch.Generator().manual_seed(2))
+    composed = darksynth.synthesize(clean8.float() / 255.0, profile, generator=torch.Generator().manual_seed(2))
+    assert fused.parameters == composed.parameters
+    fused_mean, fused_var = _per_level_moments(clean8, fused.image.double())
+    composed_mean, composed_var = _per_level_moments(clean8, (composed.image.double() * 255.0).round())
+    standard_error = (composed_var.clamp_min(0.1) / 3072).sqrt()
+    assert ((fused_mean - composed_mean).abs() <= 5 * math.sqrt(2) * standard_error + 1e-9).all()
+    relative = (fused_var - composed_var).abs() / composed_var.clamp_min(0.1)
+    assert (relative <= 5 * math.sqrt(2) * math.sqrt(2 / 3072) + 0.02).all()
 
 
-def test_uint8_and_float_paths_agree_with_strong_noise_and_ranges(make_profile: ProfileFactory) -> None:
-    # Strong noise clips at both ends; ranges make both paths draw parameters from the stream first.
-    profile = make_profile(
-        darkening=Darkening(0.6, 0.8),
-        ranges={"shot": [(0.1, 0.3)], "alpha": [(0.8, 1.0)], "periodic": [(0.0, 0.05)] * 3},
-        shot=0.2,
-        read=0.1,
-        quantization=0.02,
-        banding=0.03,
-        temporal_banding=0.03,
-        periodic=[0.02, 0.02, 0.02],
-    )
-    clean = torch.randint(0, 256, (2, 1, 3, 48, 64), dtype=torch.uint8, generator=torch.Generator().manual_seed(3))
-    _assert_paths_agree(clean, profile, seed=4)
-    # The noise really is strong enough to clip, so the clamp of both paths is exercised.
-    image = darksynth.synthesize(clean, profile, generator=torch.Generator().manual_seed(4)).image
-    assert (image == 0).any() and (image == 255).any()
-
-
-def test_a_different_seed_is_far_apart() -> None:
-    # Control for the agreement tests: unrelated streams differ by many levels at many pixels.
+def test_a_different_seed_gives_a_different_sample() -> None:
     profile = load_profile(default_profile_path())
     clean = torch.randint(0, 256, (3, 64, 96), dtype=torch.uint8, generator=torch.Generator().manual_seed(1))
-    fused = darksynth.synthesize(clean, profile, generator=torch.Generator().manual_seed(2)).image
-    composed = darksynth.synthesize(clean.float() / 255.0, profile, generator=torch.Generator().manual_seed(3)).image
-    assert (_levels_apart(fused, composed) > 1).double().mean().item() > 0.3
+    first = darksynth.synthesize(clean, profile, generator=torch.Generator().manual_seed(2)).image
+    again = darksynth.synthesize(clean, profile, generator=torch.Generator().manual_seed(2)).image
+    other = darksynth.synthesize(clean, profile, generator=torch.Generator().manual_seed(3)).image
+    assert torch.equal(first, again)
+    assert (first != other).double().mean().item() > 0.3
 
 
 def _parameters(darkening: Darkening | None = None, **nonzero: float) -> ClipParameters:

@@ -19,7 +19,7 @@ def periodic_basis(width: int, *, device: torch.device | str | None = None) -> t
     Row 0 is the constant (column frequency 0). Rows 1 and 2 are sqrt(2) cos and -sqrt(2) sin of a wave of
     one cycle per 4 columns, which is column frequency W/4 and, as its complex conjugate, 3W/4 of a W-wide
     frame. In Fourier terms the frame's column spectrum is non-zero only at 0, W/4 and 3W/4, with the
-    coefficient at W/4 equal to (a - i b) W / sqrt(2) and its conjugate at 3W/4, so the pattern is real.
+    coefficient at W/4 equal to (a + i b) W / sqrt(2) and its conjugate at 3W/4, so the pattern is real.
 
     Args:
         width: number of columns W.

@@ -18,16 +18,18 @@ def random_uniform(
     *,
     generator: torch.Generator | None = None,
     device: torch.device | str | None = None,
+    dtype: torch.dtype = torch.float32,
 ) -> torch.Tensor:
     """Draw one value uniformly within each (low, high) interval, for each clip of a batch.
 
     Returns:
-        Tensor (*batch_shape, len(ranges)).
+        Tensor (*batch_shape, len(ranges)), every value inside its closed interval.
     """
-    low = torch.tensor([r[0] for r in ranges], dtype=torch.float32, device=device)
-    high = torch.tensor([r[1] for r in ranges], dtype=torch.float32, device=device)
-    unit = torch.rand((*batch_shape, len(ranges)), generator=generator, device=device)
-    return low + (high - low) * unit
+    low = torch.tensor([r[0] for r in ranges], dtype=dtype, device=device)
+    high = torch.tensor([r[1] for r in ranges], dtype=dtype, device=device)
+    unit = torch.rand((*batch_shape, len(ranges)), generator=generator, device=device, dtype=dtype)
+    # The clamp keeps rounding of low + (high - low) * u from stepping past high.
+    return torch.minimum(low + (high - low) * unit, high)
 
 
 def random_noise_values(

@@ -1,0 +1,5 @@
+"""``python -m darksynth``: the command line."""
+
+from darksynth.cli import main
+
+main()

@@ -1,0 +1,333 @@
+"""``darksynth apply``: clean image, video or folder -> low-light output tree and a manifest.
+
+Each output file is derived from one task (an image, a video, or with ``clip`` a folder of frames), with a
+seed derived from the run seed and the task's path relative to the input, so the result does not depend on
+the order or the process in which tasks run.
+"""
+
+from __future__ import annotations
+
+import hashlib
+import json
+import os
+import sys
+import time
+from collections.abc import Callable, Iterator
+from concurrent.futures import ProcessPoolExecutor, as_completed
+from dataclasses import dataclass, field
+from multiprocessing import get_context
+from pathlib import Path
+from typing import Any, Literal
+
+import numpy as np
+import torch
+
+from darksynth import __version__
+from darksynth.errors import DarksynthError
+from darksynth.io.atomic import write_text_atomic
+from darksynth.io.discover import check_output_location, classify_input, scan_folder
+from darksynth.io.images import Image, read_image, write_image
+from darksynth.io.video import VideoWriter, iter_video_frames, probe_video
+from darksynth.profile import Profile, profile_to_dict
+from darksynth.synthesize import ClipParameters, ClipSynthesizer, DarkeningChoice, draw_clip_parameters
+
+TaskKind = Literal["image", "video", "clip"]
+
+COMPILE_MIN_FRAMES = 24
+"""Streams at least this long amortise the seconds that ``torch.compile`` costs at start-up."""
+
+Progress = Callable[[int], None]
+"""Called with the number of frames just finished."""
+
+
+@dataclass(frozen=True)
+class ApplyOptions:
+    """Everything ``apply`` needs besides the paths.
+
+    Attributes:
+        profile: the noise profile.
+        seed: run seed; each task's seed derives from it and the task's relative path.
+        darkening: see :data:`darksynth.synthesize.DarkeningChoice`.
+        clip: treat each folder of images as one clip (shared parameters and temporal banding).
+        workers: processes for folders.
+        codec: video codec (None: the writer's high-quality default); crf: its quality setting.
+        device: torch device for the computation.
+        compile: fuse the 8-bit kernel with torch.compile; None decides by stream length.
+        profile_source: where the profile came from, for the manifest.
+    """
+
+    profile: Profile
+    seed: int
+    darkening: DarkeningChoice = "profile"
+    clip: bool = False
+    workers: int = 1
+    codec: str | None = None
+    crf: int | None = None
+    device: str = "cpu"
+    compile: bool | None = None
+    profile_source: str = ""
+
+
+@dataclass(frozen=True)
+class Task:
+    """One unit of output: its kind, its input files (frames in order) and its output path(s)."""
+
+    kind: TaskKind
+    key: str
+    inputs: tuple[Path, ...]
+    outputs: tuple[Path, ...]
+
+
+@dataclass
+class ApplyReport:
+    """What a run did: one record per finished task, the failures with reasons, the skipped files."""
+
+    records: list[dict[str, Any]] = field(default_factory=list)
+    failures: list[str] = field(default_factory=list)
+    skipped: list[str] = field(default_factory=list)
+    manifest: Path | None = None
+    seconds: float = 0.0
+
+
+def derive_seed(run_seed: int, key: str) -> int:
+    """A task's seed from the run seed and its relative path: independent of processing order."""
+    digest = hashlib.sha256(f"darksynth:{run_seed}:{key}".encode()).digest()
+    return int.from_bytes(digest[:8], "little") & (2**63 - 1)
+
+
+def manifest_path(output: Path) -> Path:
+    """The manifest lies beside the output: ``OUTPUT.manifest.json``."""
+    return output.with_name(output.name + ".manifest.json")
+
+
+def plan(input_path: Path, output_path: Path, *, clip: bool) -> tuple[list[Task], list[str], Path]:
+    """List the tasks of a run, the files a folder run skips, and the output path (a file input given an
+    existing folder as output writes into it under its own name).
+
+    Raises:
+        DarksynthError: the input does not exist, is of an unknown type, or the output lies in the input.
+    """
+    kind = classify_input(input_path)
+    if kind != "folder" and output_path.is_dir():
+        output_path = output_path / input_path.name
+    check_output_location(input_path, output_path)
+    if kind != "folder":
+        return [Task(kind, input_path.name, (input_path,), (output_path,))], [], output_path
+    listing = scan_folder(input_path)
+    tasks: list[Task] = []
+    if clip:
+        by_folder: dict[Path, list[Path]] = {}
+        for relative in listing.images:
+            by_folder.setdefault(relative.parent, []).append(relative)
+        for folder, frames in sorted(by_folder.items()):
+            tasks.append(
+                Task(
+                    "clip",
+                    folder.as_posix() + "/",
+                    tuple(input_path / f for f in frames),
+                    tuple(output_path / f for f in frames),
+                )
+            )
+    else:
+        tasks.extend(Task("image", r.as_posix(), (input_path / r,), (output_path / r,)) for r in listing.images)
+    tasks.extend(Task("video", r.as_posix(), (input_path / r,), (output_path / r,)) for r in listing.videos)
+    tasks.sort(key=lambda t: t.key)
+    return tasks, [r.as_posix() for r in listing.skipped], output_path
+
+
+def _image_tensor(image: Image) -> torch.Tensor:
+    pixels = image.pixels
+    if pixels.dtype == np.uint16:
+        return torch.from_numpy(pixels.astype(np.int32)).permute(2, 0, 1).to(torch.uint16)
+    return torch.from_numpy(np.require(pixels, requirements=("C", "W"))).permute(2, 0, 1)
+
+
+def _tensor_pixels(frame: torch.Tensor) -> np.ndarray:
+    hwc = frame.permute(1, 2, 0).cpu()
+    if hwc.dtype == torch.uint16:
+        return hwc.to(torch.int32).numpy().astype(np.uint16)
+    return np.ascontiguousarray(hwc.numpy())
+
+
+def run_task(task: Task, options: ApplyOptions, progress: Progress | None = None) -> dict[str, Any]:
+    """Produce one task's output files atomically and return its manifest record.
+
+    Raises:
+        DarksynthError: an input that cannot be read or an output that cannot be written.
+    """
+    try:
+        return _run_task(task, options, progress)
+    except OSError as error:
+        # Disk full, permission denied, a folder where a file should go: one line naming the file.
+        where = error.filename or task.outputs[0]
+        raise DarksynthError(f"{where}: {error.strerror or error}") from None
+
+
+def _run_task(task: Task, options: ApplyOptions, progress: Progress | None) -> dict[str, Any]:
+    seed = derive_seed(options.seed, task.key)
+    generator = torch.Generator(device=options.device).manual_seed(seed)
+    parameters = draw_clip_parameters(options.profile, darkening=options.darkening, generator=generator)
+    frames = len(task.inputs)
+    if task.kind == "video":
+        frames = _run_video(task, options, parameters, generator, progress)
+    else:
+        compile_kernel = options.compile if options.compile is not None else frames >= COMPILE_MIN_FRAMES
+        synthesizer = ClipSynthesizer(parameters, generator=generator, device=options.device, compile=compile_kernel)
+        size: tuple[int, ...] | None = None
+        for source, target in zip(task.inputs, task.outputs, strict=True):
+            image = read_image(source)
+            if size is not None and image.pixels.shape != size:
+                raise DarksynthError(
+                    f"{source}: frame size {image.pixels.shape[:2]} differs from the clip's {size[:2]}"
+                )
+            size = image.pixels.shape
+            result = synthesizer(_image_tensor(image))
+            write_image(target, Image(_tensor_pixels(result), image.alpha, image.bit_depth, image.source_mode))
+            if progress:
+                progress(1)
+    return {
+        "input": task.key,
+        "kind": task.kind,
+        "outputs": [str(p) for p in task.outputs],
+        "frames": frames,
+        "seed": seed,
+        "parameters": parameters.to_json(),
+    }
+
+
+def _run_video(
+    task: Task,
+    options: ApplyOptions,
+    parameters: ClipParameters,
+    generator: torch.Generator,
+    progress: Progress | None,
+) -> int:
+    source, target = task.inputs[0], task.outputs[0]
+    info = probe_video(source)
+    long_stream = info.frame_count is None or info.frame_count >= COMPILE_MIN_FRAMES
+    compile_kernel = options.compile if options.compile is not None else long_stream
+    synthesizer = ClipSynthesizer(parameters, generator=generator, device=options.device, compile=compile_kernel)
+    writer_options: dict[str, Any] = {"width": info.width, "height": info.height, "fps": info.fps}
+    if options.codec:
+        writer_options["codec"] = options.codec
+    if options.crf is not None:
+        writer_options["crf"] = options.crf
+    count = 0
+    with VideoWriter(target, **writer_options) as writer:
+        for frame in iter_video_frames(source):
+            result = synthesizer(torch.from_numpy(frame).permute(2, 0, 1))
+            writer.write(_tensor_pixels(result))
+            count += 1
+            if progress:
+                progress(1)
+    if count == 0:
+        raise DarksynthError(f"{source}: the video has no decodable frames")
+    return count
+
+
+def _init_worker(threads: int) -> None:
+    torch.set_num_threads(threads)
+
+
+def _run_in_worker(task: Task, options: ApplyOptions) -> dict[str, Any]:
+    return run_task(task, options)
+
+
+def execute(
+    tasks: list[Task],
+    options: ApplyOptions,
+    *,
+    on_frames: Progress | None = None,
+) -> Iterator[tuple[Task, dict[str, Any] | None, str | None]]:
+    """Run tasks, in this process or in ``options.workers`` processes; yield (task, record, error) as each ends."""
+    if options.workers <= 1 or len(tasks) <= 1:
+        for task in tasks:
+            try:
+                yield task, run_task(task, options, on_frames), None
+            except DarksynthError as error:
+                yield task, None, str(error)
+        return
+    threads = max(1, (os.cpu_count() or 1) // options.workers)
+    # "spawn": forking a process that already runs torch's thread pools can deadlock.
+    context = get_context("spawn")
+    with ProcessPoolExecutor(
+        options.workers, mp_context=context, initializer=_init_worker, initargs=(threads,)
+    ) as pool:
+        futures = {pool.submit(_run_in_worker, task, options): task for task in tasks}
+        for future in as_completed(futures):
+            task = futures[future]
+            try:
+                yield task, future.result(), None
+            except DarksynthError as error:
+                yield task, None, str(error)
+
+
+def write_manifest(path: Path, input_path: Path, output_path: Path, options: ApplyOptions, report: ApplyReport) -> None:
+    """Record everything needed to reproduce each output: versions, profile, run seed, per-task seeds and values."""
+    document = {
+        "darksynth": __version__,
+        "torch": torch.__version__,
+        "command": sys.argv,
+        "input": str(input_path),
+        "output": str(output_path),
+        "profile_source": options.profile_source,
+        "profile": profile_to_dict(options.profile),
+        "seed": options.seed,
+        "device": options.device,
+        "darkening": options.darkening if isinstance(options.darkening, str | type(None)) else vars(options.darkening),
+        "clip": options.clip,
+        "codec": options.codec,
+        "crf": options.crf,
+        "files": sorted(report.records, key=lambda r: r["input"]),
+        "failures": report.failures,
+        "skipped": report.skipped,
+        "seconds": round(report.seconds, 3),
+    }
+    write_text_atomic(path, json.dumps(document, indent=2) + "\n")
+
+
+def apply(
+    input_path: Path,
+    output_path: Path,
+    options: ApplyOptions,
+    *,
+    on_start: Callable[[list[Task], int], None] | None = None,
+    on_frames: Progress | None = None,
+    on_task: Callable[[Task, str | None], None] | None = None,
+) -> ApplyReport:
+    """Run ``apply`` end to end and write the manifest; failures of single tasks are collected, not raised.
+
+    Args:
+        on_start: called with the tasks and the total frame count before work starts (for a progress bar).
+        on_frames: called as frames finish (single process only).
+        on_task: called as each task ends, with the error message or None.
+
+    Raises:
+        DarksynthError: the run cannot start (bad input path, output inside input, nothing to do).
+    """
+    started = time.perf_counter()
+    tasks, skipped, output_path = plan(input_path, output_path, clip=options.clip)
+    total_frames = sum(_frame_estimate(t) for t in tasks)
+    if on_start:
+        on_start(tasks, total_frames)
+    report = ApplyReport(skipped=skipped)
+    for task, record, error in execute(tasks, options, on_frames=on_frames):
+        if record is not None:
+            report.records.append(record)
+        if error is not None:
+            report.failures.append(error)
+        if on_task:
+            on_task(task, error)
+    report.seconds = time.perf_counter() - started
+    report.manifest = manifest_path(output_path)
+    write_manifest(report.manifest, input_path, output_path, options, report)
+    return report
+
+
+def _frame_estimate(task: Task) -> int:
+    if task.kind != "video":
+        return len(task.inputs)
+    try:
+        return probe_video(task.inputs[0]).frame_count or 0
+    except DarksynthError:
+        return 0

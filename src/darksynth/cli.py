@@ -1,0 +1,164 @@
+"""The command line: the only place that parses arguments and wires objects together."""
+
+from __future__ import annotations
+
+import secrets
+import sys
+from pathlib import Path
+from typing import Annotated
+
+import typer
+from rich.console import Console
+from rich.progress import BarColumn, MofNCompleteColumn, Progress, TextColumn, TimeRemainingColumn
+
+from darksynth import __version__
+from darksynth.apply import ApplyOptions, ApplyReport, Task, apply
+from darksynth.darkening import Darkening
+from darksynth.errors import DarksynthError
+from darksynth.profile import load_profile
+from darksynth.synthesize import DarkeningChoice
+
+app = typer.Typer(
+    name="darksynth",
+    help="Realistic synthetic low-light images and videos from clean ones.",
+    no_args_is_help=True,
+    add_completion=False,
+    pretty_exceptions_enable=False,
+)
+console = Console(stderr=True)
+
+
+def fail(message: str) -> typer.Exit:
+    """Print a one-line error and return the exit to raise."""
+    console.print(f"darksynth: error: {message}", markup=False, highlight=False, soft_wrap=True)
+    return typer.Exit(code=1)
+
+
+def darkening_choice(alpha: float | None, gamma: float | None, no_darken: bool) -> DarkeningChoice:
+    """Turn the darkening flags into a choice, rejecting contradictory ones."""
+    if no_darken:
+        if alpha is not None or gamma is not None:
+            raise DarksynthError("--no-darken cannot be combined with --alpha or --gamma")
+        return None
+    if (alpha is None) != (gamma is None):
+        raise DarksynthError("--alpha and --gamma must be given together")
+    if alpha is None or gamma is None:
+        return "profile"
+    if not 0.0 < alpha <= 1.0:
+        raise DarksynthError(f"--alpha must lie in (0, 1], got {alpha}")
+    if not 0.0 < gamma <= 10.0:
+        raise DarksynthError(f"--gamma must lie in (0, 10], got {gamma}")
+    return Darkening(alpha=alpha, gamma=gamma)
+
+
+def run_with_progress(input_path: Path, output_path: Path, options: ApplyOptions) -> ApplyReport:
+    """Run ``apply`` with a progress bar over frames and print the outcome of each failed task."""
+    columns = (
+        TextColumn("{task.description}"),
+        BarColumn(),
+        MofNCompleteColumn(),
+        TimeRemainingColumn(),
+    )
+    with Progress(*columns, console=console, transient=True) as progress:
+        bar = progress.add_task("frames", total=None)
+
+        def on_start(tasks: list[Task], total_frames: int) -> None:
+            progress.update(bar, total=total_frames or None, description=f"{len(tasks)} file(s)")
+
+        def on_frames(count: int) -> None:
+            progress.advance(bar, count)
+
+        def on_task(task: Task, error: str | None) -> None:
+            if options.workers > 1:
+                progress.advance(bar, len(task.inputs) if task.kind != "video" else 0)
+            if error is not None:
+                progress.console.print(f"darksynth: error: {error}", markup=False, highlight=False)
+
+        return apply(input_path, output_path, options, on_start=on_start, on_frames=on_frames, on_task=on_task)
+
+
+@app.command("apply")
+def apply_command(
+    input_path: Annotated[Path, typer.Argument(metavar="INPUT", help="Clean image, video, or folder of them.")],
+    output_path: Annotated[Path, typer.Argument(metavar="OUTPUT", help="Output file or folder (never inside INPUT).")],
+    profile: Annotated[Path, typer.Option("--profile", "-p", help="Noise profile JSON.")],
+    seed: Annotated[int | None, typer.Option(help="Run seed; random (and recorded) when omitted.")] = None,
+    alpha: Annotated[float | None, typer.Option(help="Darkening scale, with --gamma.")] = None,
+    gamma: Annotated[float | None, typer.Option(help="Darkening exponent: x_d = alpha * x ** (1/gamma).")] = None,
+    no_darken: Annotated[bool, typer.Option("--no-darken", help="Add noise only, keep the brightness.")] = False,
+    clip: Annotated[bool, typer.Option("--clip", help="Each folder of frames is one clip.")] = False,
+    workers: Annotated[int, typer.Option(min=1, help="Processes for folders.")] = 1,
+    codec: Annotated[str | None, typer.Option(help="Video codec, e.g. libx264 (default), ffv1.")] = None,
+    crf: Annotated[int | None, typer.Option(min=0, max=63, help="Video quality (lower is better).")] = None,
+    device: Annotated[str, typer.Option(help="torch device: cpu, cuda, cuda:1 ...")] = "cpu",
+    compile_kernel: Annotated[
+        bool | None, typer.Option("--compile/--no-compile", help="Fuse the 8-bit kernel (default: for long clips).")
+    ] = None,
+) -> None:
+    """Make low-light versions of clean images, videos or folders with a noise profile."""
+    try:
+        options = ApplyOptions(
+            profile=load_profile(profile),
+            seed=seed if seed is not None else secrets.randbits(31),
+            darkening=darkening_choice(alpha, gamma, no_darken),
+            clip=clip,
+            workers=workers,
+            codec=codec,
+            crf=crf,
+            device=device,
+            compile=compile_kernel,
+            profile_source=str(profile),
+        )
+        report = run_with_progress(input_path, output_path, options)
+    except DarksynthError as error:
+        raise fail(str(error)) from None
+    frames = sum(int(r["frames"]) for r in report.records)
+    console.print(
+        f"wrote {len(report.records)} file(s), {frames} frame(s) in {report.seconds:.1f} s; "
+        f"seed {options.seed}; manifest {report.manifest}",
+        markup=False,
+        highlight=False,
+    )
+    if report.skipped:
+        console.print(
+            f"skipped {len(report.skipped)} file(s) that are not images or videos: {', '.join(report.skipped)}",
+            markup=False,
+            highlight=False,
+        )
+    if report.failures:
+        raise fail(f"{len(report.failures)} file(s) failed; see the messages above and the manifest")
+
+
+@app.command("demo")
+def demo_command(
+    out: Annotated[Path, typer.Option(help="Folder to write the demo into.")] = Path("darksynth-demo"),
+    seed: Annotated[int, typer.Option(help="Seed of the demo.")] = 0,
+) -> None:
+    """Run the whole job on the shipped sample: low-light image, clip and a side-by-side preview."""
+    from darksynth.demo import run_demo
+
+    try:
+        written = run_demo(out, seed=seed)
+    except DarksynthError as error:
+        raise fail(str(error)) from None
+    for path in written:
+        console.print(f"wrote {path}", markup=False, highlight=False)
+
+
+@app.callback(invoke_without_command=True)
+def root(
+    version: Annotated[bool, typer.Option("--version", help="Print the version and exit.")] = False,
+) -> None:
+    """darksynth: realistic synthetic low-light data."""
+    if version:
+        typer.echo(f"darksynth {__version__}")
+        raise typer.Exit()
+
+
+def main() -> None:
+    """Console-script entry point."""
+    try:
+        app()
+    except KeyboardInterrupt:
+        console.print("darksynth: interrupted; finished files are complete, no partial file was left")
+        sys.exit(130)
