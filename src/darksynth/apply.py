@@ -26,8 +26,8 @@ from darksynth import __version__
 from darksynth.errors import DarksynthError
 from darksynth.io.atomic import write_text_atomic
 from darksynth.io.discover import check_output_location, classify_input, scan_folder
-from darksynth.io.images import Image, read_image, write_image
-from darksynth.io.video import VideoWriter, iter_video_frames, probe_video
+from darksynth.io.images import IMAGE_SUFFIXES, Image, read_image, write_image
+from darksynth.io.video import VIDEO_SUFFIXES, VideoWriter, iter_video_frames, probe_video
 from darksynth.profile import Profile, profile_to_dict
 from darksynth.synthesize import ClipParameters, ClipSynthesizer, DarkeningChoice, draw_clip_parameters
 
@@ -112,6 +112,11 @@ def plan(input_path: Path, output_path: Path, *, clip: bool) -> tuple[list[Task]
         output_path = output_path / input_path.name
     check_output_location(input_path, output_path)
     if kind != "folder":
+        suffixes = IMAGE_SUFFIXES if kind == "image" else VIDEO_SUFFIXES
+        if output_path.suffix.lower() not in suffixes:
+            raise DarksynthError(
+                f"{output_path}: an output {kind} needs one of the suffixes {' '.join(sorted(suffixes))}"
+            )
         return [Task(kind, input_path.name, (input_path,), (output_path,))], [], output_path
     listing = scan_folder(input_path)
     tasks: list[Task] = []
@@ -295,7 +300,10 @@ def apply(
     on_frames: Progress | None = None,
     on_task: Callable[[Task, str | None], None] | None = None,
 ) -> ApplyReport:
-    """Run ``apply`` end to end and write the manifest; failures of single tasks are collected, not raised.
+    """Run ``apply`` end to end and write the manifest.
+
+    In a folder run, a task that fails is recorded with its reason and the others go on; a single-file run
+    raises the file's error and writes no manifest.
 
     Args:
         on_start: called with the tasks and the total frame count before work starts (for a progress bar).
@@ -303,7 +311,8 @@ def apply(
         on_task: called as each task ends, with the error message or None.
 
     Raises:
-        DarksynthError: the run cannot start (bad input path, output inside input, nothing to do).
+        DarksynthError: the run cannot start (bad input path, output inside input, nothing to do), or the
+            single input file fails.
     """
     started = time.perf_counter()
     tasks, skipped, output_path = plan(input_path, output_path, clip=options.clip)
@@ -311,13 +320,17 @@ def apply(
     if on_start:
         on_start(tasks, total_frames)
     report = ApplyReport(skipped=skipped)
-    for task, record, error in execute(tasks, options, on_frames=on_frames):
-        if record is not None:
-            report.records.append(record)
-        if error is not None:
-            report.failures.append(error)
-        if on_task:
-            on_task(task, error)
+    if input_path.is_dir():
+        for task, record, error in execute(tasks, options, on_frames=on_frames):
+            if record is not None:
+                report.records.append(record)
+            if error is not None:
+                report.failures.append(error)
+            if on_task:
+                on_task(task, error)
+    else:
+        # One file: its failure is the run's failure, raised as such, and then there is nothing to record.
+        report.records.append(run_task(tasks[0], options, on_frames))
     report.seconds = time.perf_counter() - started
     report.manifest = manifest_path(output_path)
     write_manifest(report.manifest, input_path, output_path, options, report)

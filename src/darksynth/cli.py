@@ -28,9 +28,14 @@ app = typer.Typer(
 console = Console(stderr=True)
 
 
+def say(message: str, target: Console = console) -> None:
+    """Print a message as is: no markup, no highlighting, never wrapped, so that an error stays one line."""
+    target.print(message, markup=False, highlight=False, soft_wrap=True)
+
+
 def fail(message: str) -> typer.Exit:
     """Print a one-line error and return the exit to raise."""
-    console.print(f"darksynth: error: {message}", markup=False, highlight=False, soft_wrap=True)
+    say(f"darksynth: error: {message}")
     return typer.Exit(code=1)
 
 
@@ -72,7 +77,7 @@ def run_with_progress(input_path: Path, output_path: Path, options: ApplyOptions
             if options.workers > 1:
                 progress.advance(bar, len(task.inputs) if task.kind != "video" else 0)
             if error is not None:
-                progress.console.print(f"darksynth: error: {error}", markup=False, highlight=False)
+                say(f"darksynth: error: {error}", progress.console)
 
         return apply(input_path, output_path, options, on_start=on_start, on_frames=on_frames, on_task=on_task)
 
@@ -113,18 +118,12 @@ def apply_command(
     except DarksynthError as error:
         raise fail(str(error)) from None
     frames = sum(int(r["frames"]) for r in report.records)
-    console.print(
+    say(
         f"wrote {len(report.records)} file(s), {frames} frame(s) in {report.seconds:.1f} s; "
-        f"seed {options.seed}; manifest {report.manifest}",
-        markup=False,
-        highlight=False,
+        f"seed {options.seed}; manifest {report.manifest}"
     )
     if report.skipped:
-        console.print(
-            f"skipped {len(report.skipped)} file(s) that are not images or videos: {', '.join(report.skipped)}",
-            markup=False,
-            highlight=False,
-        )
+        say(f"skipped {len(report.skipped)} file(s) that are not images or videos: {', '.join(report.skipped)}")
     if report.failures:
         raise fail(f"{len(report.failures)} file(s) failed; see the messages above and the manifest")
 
@@ -142,7 +141,7 @@ def demo_command(
     except DarksynthError as error:
         raise fail(str(error)) from None
     for path in written:
-        console.print(f"wrote {path}", markup=False, highlight=False)
+        say(f"wrote {path}")
 
 
 @app.callback(invoke_without_command=True)
@@ -160,5 +159,5 @@ def main() -> None:
     try:
         app()
     except KeyboardInterrupt:
-        console.print("darksynth: interrupted; finished files are complete, no partial file was left")
+        say("darksynth: interrupted; finished files are complete, no partial file was left")
         sys.exit(130)

@@ -170,10 +170,12 @@ def test_image_kinds(tmp_path: Path, profile_file: Path) -> None:
     assert _pixels(tmp_path / "out" / "palette.png").shape == (4, 4, 3)
 
 
-def _assert_one_line_error(code: int, err: str, *needles: str) -> None:
+def _assert_one_line_error(code: int, err: str, *needles: str, only_line: bool = True) -> None:
     assert code == 1
     lines = [line for line in err.strip().splitlines() if line.strip()]
     assert lines and lines[-1].startswith("darksynth: error:"), err
+    if only_line:
+        assert len(lines) == 1, err
     assert "Traceback" not in err
     for needle in needles:
         assert needle in err, (needle, err)
@@ -193,14 +195,15 @@ def test_bad_image_inputs(tmp_path: Path, profile_file: Path) -> None:
         code, _, err = run_cli("apply", source, out, "-p", profile_file)
         _assert_one_line_error(code, err, source.name)
         assert not out.exists()
-        assert not [p for p in tmp_path.iterdir() if ".tmp-" in p.name]
+        assert not [p for p in tmp_path.iterdir() if ".tmp-" in p.name or p.name.endswith(".manifest.json")]
 
 
 def test_bad_folder_entry_is_reported_and_rest_converted(tmp_path: Path, profile_file: Path) -> None:
     root = _folder(tmp_path)
     (root / "broken.png").write_bytes(b"broken")
     code, _, err = run_cli("apply", root, tmp_path / "out", "-p", profile_file)
-    _assert_one_line_error(code, err, "broken.png")
+    _assert_one_line_error(code, err, "broken.png", only_line=False)
+    assert next(line for line in err.splitlines() if "broken.png" in line).startswith("darksynth: error:")
     assert (tmp_path / "out" / "a.png").is_file()
     assert not (tmp_path / "out" / "broken.png").exists()
     manifest = json.loads((tmp_path / "out.manifest.json").read_text())
@@ -222,13 +225,17 @@ def test_bad_paths(tmp_path: Path, profile_file: Path, rgb_image: Path) -> None:
         (("apply", rgb_image, tmp_path / "o.png", "-p", profile_file, "--alpha", "0.2"), "--gamma"),
         (("apply", rgb_image, tmp_path / "o.png", "-p", profile_file, "--alpha", "2", "--gamma", "1"), "--alpha"),
         (("apply", rgb_image, tmp_path / "o.png", "-p", profile_file, "--no-darken", "--alpha", "0.2"), "--no-darken"),
+        (("apply", rgb_image, tmp_path / "o.mp4", "-p", profile_file), "o.mp4"),
+        (("apply", rgb_image, tmp_path / "o", "-p", profile_file), "suffixes"),
+        (("apply", unreadable_video.with_name("empty.mp4"), tmp_path / "o.mkv", "-p", profile_file), "empty.mp4"),
     ]
+    (tmp_path / "empty.mp4").write_bytes(b"")
     before = sorted(p.name for p in rgb_image.parent.iterdir())
     for arguments, needle in cases:
         code, _, err = run_cli(*arguments)
         _assert_one_line_error(code, err, needle)
     assert sorted(p.name for p in rgb_image.parent.iterdir()) == before  # nothing written into the input
-    assert not (tmp_path / "o.png").exists() and not (tmp_path / "o.mp4").exists()
+    assert not [p for p in tmp_path.iterdir() if p.name.startswith("o.") or p.name == "o"]
 
 
 @pytest.mark.parametrize(
