@@ -67,10 +67,14 @@ def draw_clip_parameters(
 
     Draws happen in the order of the parameter table, then alpha and gamma, so a seed fixes them all.
     """
+    # Draws happen on the generator's device (a CUDA generator cannot fill a CPU tensor).
+    device = generator.device if generator is not None else None
     noise: dict[str, tuple[float, ...]] = {}
     for parameter in NOISE_PARAMETERS:
         if parameter.name in profile.ranges:
-            drawn = random_uniform(profile.ranges[parameter.name], generator=generator, dtype=torch.float64)
+            drawn = random_uniform(
+                profile.ranges[parameter.name], generator=generator, device=device, dtype=torch.float64
+            )
             noise[parameter.name] = tuple(float(v) for v in drawn)
         else:
             noise[parameter.name] = tuple(float(v) for v in profile.noise[parameter.name])
@@ -84,7 +88,8 @@ def draw_clip_parameters(
         for name, paper_range in (("alpha", ALPHA_RANGE), ("gamma", GAMMA_RANGE)):
             if name in profile.ranges or fixed is None:
                 interval = profile.ranges[name][0] if name in profile.ranges else paper_range
-                values[name] = float(random_uniform((interval,), generator=generator, dtype=torch.float64)[0])
+                drawn = random_uniform((interval,), generator=generator, device=device, dtype=torch.float64)
+                values[name] = float(drawn[0])
             else:
                 values[name] = getattr(fixed, name)
         chosen = Darkening(alpha=values["alpha"], gamma=values["gamma"])

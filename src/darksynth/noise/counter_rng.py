@@ -45,8 +45,9 @@ def splitmix64(counter: torch.Tensor) -> torch.Tensor:
 
 
 def random_key(generator: torch.Generator | None = None) -> torch.Tensor:
-    """A 0-dim int64 key drawn from the generator (CPU), for one frame's counter-based draws."""
-    return torch.randint(0, KEY_LIMIT, (), generator=generator, dtype=torch.int64)
+    """A 0-dim int64 key drawn from the generator, on its device, for one frame's counter-based draws."""
+    device = generator.device if generator is not None else None
+    return torch.randint(0, KEY_LIMIT, (), generator=generator, dtype=torch.int64, device=device)
 
 
 def normal_and_byte(shape: torch.Size | tuple[int, ...], key: torch.Tensor) -> tuple[torch.Tensor, torch.Tensor]:
