@@ -282,3 +282,11 @@ def test_console_script_exit_code_and_single_line(tmp_path: Path, profile_file: 
     )
     assert completed.returncode == 1
     assert completed.stderr.strip().splitlines() == [f"darksynth: error: {missing}: no such file or folder"]
+
+
+@pytest.mark.slow
+def test_compiled_and_eager_runs_write_the_same_bytes(rgb_image: Path, profile_file: Path, tmp_path: Path) -> None:
+    for name, flag in (("eager.png", "--no-compile"), ("compiled.png", "--compile")):
+        code, _, err = run_cli("apply", rgb_image, tmp_path / name, "-p", profile_file, "--seed", "11", flag)
+        assert code == 0, err
+    assert (tmp_path / "eager.png").read_bytes() == (tmp_path / "compiled.png").read_bytes()
