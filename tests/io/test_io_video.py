@@ -11,6 +11,7 @@ import pytest
 from darksynth.errors import DarksynthError, InputFileError
 from darksynth.io.video import (
     DEFAULT_CODEC,
+    DEFAULT_CRF,
     VIDEO_SUFFIXES,
     VideoInfo,
     VideoWriter,
@@ -233,7 +234,7 @@ def test_default_codec_is_libx264() -> None:
 
 def test_codec_names_resolve_to_the_encoder(tmp_path: Path) -> None:
     writer = VideoWriter(tmp_path / "a.mp4", width=64, height=48, fps=Fraction(25), codec="h264")
-    assert (writer.codec, writer.crf) == ("libx264", 14)
+    assert (writer.codec, writer.crf) == ("libx264", DEFAULT_CRF)
 
 
 # --- bad inputs --------------------------------------------------------------------------------------------------
