@@ -19,11 +19,11 @@ from multiprocessing import get_context
 from pathlib import Path
 from typing import Any, Literal
 
-import numpy as np
 import torch
 
 from darksynth import __version__
 from darksynth.errors import DarksynthError
+from darksynth.io.arrays import chw_to_hwc, hwc_to_chw
 from darksynth.io.atomic import write_text_atomic
 from darksynth.io.discover import check_output_location, classify_input, scan_folder
 from darksynth.io.images import IMAGE_SUFFIXES, Image, read_image, write_image
@@ -145,20 +145,6 @@ def plan(input_path: Path, output_path: Path, *, clip: bool) -> tuple[list[Task]
     return tasks, [r.as_posix() for r in listing.skipped], output_path
 
 
-def _image_tensor(image: Image) -> torch.Tensor:
-    pixels = image.pixels
-    if pixels.dtype == np.uint16:
-        return torch.from_numpy(pixels.astype(np.int32)).permute(2, 0, 1).to(torch.uint16)
-    return torch.from_numpy(np.require(pixels, requirements=("C", "W"))).permute(2, 0, 1)
-
-
-def _tensor_pixels(frame: torch.Tensor) -> np.ndarray:
-    hwc = frame.permute(1, 2, 0).cpu()
-    if hwc.dtype == torch.uint16:
-        return hwc.to(torch.int32).numpy().astype(np.uint16)
-    return np.ascontiguousarray(hwc.numpy())
-
-
 def run_task(task: Task, options: ApplyOptions, progress: Progress | None = None) -> dict[str, Any]:
     """Produce one task's output files atomically and return its manifest record.
 
@@ -195,8 +181,8 @@ def _run_task(task: Task, options: ApplyOptions, progress: Progress | None) -> d
                     f"{source}: frame size {image.pixels.shape[:2]} differs from the clip's {size[:2]}"
                 )
             size = image.pixels.shape
-            result = synthesizer(_image_tensor(image))
-            write_image(target, Image(_tensor_pixels(result), image.alpha, image.bit_depth, image.source_mode))
+            result = synthesizer(hwc_to_chw(image.pixels))
+            write_image(target, Image(chw_to_hwc(result), image.alpha, image.bit_depth, image.source_mode))
             if progress:
                 progress(1)
     return {
@@ -230,8 +216,8 @@ def _run_video(
     count = 0
     with VideoWriter(target, **writer_options) as writer:
         for frame in iter_video_frames(source):
-            result = synthesizer(torch.from_numpy(frame).permute(2, 0, 1))
-            writer.write(_tensor_pixels(result))
+            result = synthesizer(hwc_to_chw(frame))
+            writer.write(chw_to_hwc(result))
             count += 1
             if progress:
                 progress(1)
@@ -246,10 +232,6 @@ def _worth_compiling(options: ApplyOptions, values: int) -> bool:
 
 def _init_worker(threads: int) -> None:
     torch.set_num_threads(threads)
-
-
-def _run_in_worker(task: Task, options: ApplyOptions) -> dict[str, Any]:
-    return run_task(task, options)
 
 
 def execute(
@@ -272,7 +254,7 @@ def execute(
     with ProcessPoolExecutor(
         options.workers, mp_context=context, initializer=_init_worker, initargs=(threads,)
     ) as pool:
-        futures = {pool.submit(_run_in_worker, task, options): task for task in tasks}
+        futures = {pool.submit(run_task, task, options): task for task in tasks}
         for future in as_completed(futures):
             task = futures[future]
             try:

@@ -20,6 +20,7 @@ import numpy as np
 import torch
 
 from darksynth.darkening import ALPHA_RANGE, GAMMA_RANGE, Darkening, darken
+from darksynth.io.arrays import numpy_to_tensor, tensor_to_numpy
 from darksynth.noise._broadcast import CLIP_DIMS
 from darksynth.noise.components import NOISE_PARAMETERS
 from darksynth.noise.counter_rng import random_key
@@ -288,9 +289,7 @@ def _synthesize_clip(clip: torch.Tensor, parameters: ClipParameters, generator: 
 def _from_numpy(array: np.ndarray) -> tuple[torch.Tensor, str]:
     if array.dtype not in (np.uint8, np.uint16) and not np.issubdtype(array.dtype, np.floating):
         raise ValueError(f"unsupported array dtype {array.dtype}; use uint8, uint16 or float in [0, 1]")
-    tensor = torch.from_numpy(np.ascontiguousarray(array.astype(np.int32) if array.dtype == np.uint16 else array))
-    if array.dtype == np.uint16:
-        tensor = tensor.to(torch.uint16)
+    tensor = numpy_to_tensor(array)
     if array.ndim == 2:
         return tensor[None, None], "grey"
     if array.ndim == 3:
@@ -301,15 +300,11 @@ def _from_numpy(array: np.ndarray) -> tuple[torch.Tensor, str]:
 
 
 def _to_numpy(clip: torch.Tensor, layout: str) -> np.ndarray:
-    widened = clip.to(torch.int32) if clip.dtype == torch.uint16 else clip
-    array: np.ndarray = widened.cpu().numpy()
-    if clip.dtype == torch.uint16:
-        array = array.astype(np.uint16)
     if layout == "grey":
-        return np.ascontiguousarray(array[0, 0])
+        return tensor_to_numpy(clip[0, 0])
     if layout == "hwc":
-        return np.ascontiguousarray(array[0].transpose(1, 2, 0))
-    return np.ascontiguousarray(array.transpose(0, 2, 3, 1))
+        return tensor_to_numpy(clip[0].permute(1, 2, 0))
+    return tensor_to_numpy(clip.permute(0, 2, 3, 1))
 
 
 __all__ = [

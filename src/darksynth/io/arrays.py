@@ -1,0 +1,32 @@
+"""Conversion between numpy images (H, W, C) and torch frames (C, H, W), uint16 included."""
+
+from __future__ import annotations
+
+import numpy as np
+import torch
+
+
+def numpy_to_tensor(array: np.ndarray) -> torch.Tensor:
+    """A tensor sharing the array's memory where it can; uint16 goes through int32, as torch has few uint16 kernels."""
+    if array.dtype == np.uint16:
+        return torch.from_numpy(array.astype(np.int32)).to(torch.uint16)
+    # torch warns about (and must not write through) read-only arrays, such as those of decoded images.
+    return torch.from_numpy(np.require(array, requirements=("C", "W")))
+
+
+def tensor_to_numpy(tensor: torch.Tensor) -> np.ndarray:
+    """A contiguous numpy copy or view of a tensor (on any device), uint16 included."""
+    tensor = tensor.cpu()
+    if tensor.dtype == torch.uint16:
+        return tensor.to(torch.int32).numpy().astype(np.uint16)
+    return np.ascontiguousarray(tensor.numpy())
+
+
+def hwc_to_chw(array: np.ndarray) -> torch.Tensor:
+    """An (H, W, C) image array as a (C, H, W) tensor."""
+    return numpy_to_tensor(array).permute(2, 0, 1)
+
+
+def chw_to_hwc(frame: torch.Tensor) -> np.ndarray:
+    """A (C, H, W) frame tensor as a contiguous (H, W, C) array."""
+    return tensor_to_numpy(frame.permute(1, 2, 0))
