@@ -128,6 +128,76 @@ def apply_command(
         raise fail(f"{len(report.failures)} file(s) failed; see the messages above and the manifest")
 
 
+@app.command("train")
+def train_command(
+    data: Annotated[list[Path], typer.Argument(help="Clean images, folders of them, and videos.")],
+    out: Annotated[Path, typer.Option("--out", help="Weights file to write (.safetensors).")],
+    clips: Annotated[
+        list[Path] | None, typer.Option("--clips", help="Folder whose sub-folders of frames and videos are clips.")
+    ] = None,
+    holdout: Annotated[
+        list[Path] | None, typer.Option("--holdout", help="Clean material for validation only (never trained on).")
+    ] = None,
+    variant: Annotated[str, typer.Option(help="v3 (U-Net + head) or v2 (encoder + head).")] = "v3",
+    width: Annotated[int, typer.Option(min=4, help="Channels of the first level.")] = 8,
+    depth: Annotated[int, typer.Option(min=1, max=5, help="Down-sampling steps.")] = 3,
+    steps: Annotated[int, typer.Option(min=1)] = 2400,
+    batch: Annotated[int, typer.Option(min=1)] = 8,
+    frames: Annotated[int, typer.Option(min=1, help="Frames per training clip.")] = 4,
+    crop: Annotated[int, typer.Option(min=32, help="Side of the square training crops.")] = 128,
+    learning_rate: Annotated[float, typer.Option("--lr", help="Adam learning rate (paper: 2e-4).")] = 2e-4,
+    lambda_parameters: Annotated[float, typer.Option("--lambda1", help="Weight of MSE(v_hat, v).")] = 1.0,
+    lambda_reconstruction: Annotated[float, typer.Option("--lambda2", help="Weight of L1(x_hat_d, x_d).")] = 1.0,
+    validate_every: Annotated[int, typer.Option(min=1)] = 200,
+    seed: Annotated[int, typer.Option()] = 0,
+    resume: Annotated[bool, typer.Option("--resume", help="Continue from OUT's checkpoint.")] = False,
+    device: Annotated[str, typer.Option(help="torch device.")] = "cpu",
+) -> None:
+    """Train the DEN self-supervised on clean material: random crops, darkening, random v, f(v)."""
+    from darksynth.models.den import DENConfig
+    from darksynth.training.corpus import load_corpus
+    from darksynth.training.loop import TrainConfig, train
+
+    if variant not in ("v2", "v3"):
+        raise fail(f"--variant must be v2 or v3, got {variant!r}")
+    try:
+        config = TrainConfig(
+            model=DENConfig(variant=variant, width=width, depth=depth),  # type: ignore[arg-type]
+            steps=steps,
+            batch=batch,
+            frames=frames,
+            crop=crop,
+            learning_rate=learning_rate,
+            lambda_parameters=lambda_parameters,
+            lambda_reconstruction=lambda_reconstruction,
+            validate_every=validate_every,
+            seed=seed,
+            device=device,
+        )
+        corpus = load_corpus(data, clips or [], minimum_side=crop)
+        held = load_corpus(holdout, minimum_side=crop) if holdout else corpus
+        say(f"training on {len(corpus.images)} images and {len(corpus.clips)} clips; validating on {len(held)}")
+        with Progress(
+            TextColumn("step"),
+            BarColumn(),
+            MofNCompleteColumn(),
+            TextColumn("{task.description}"),
+            TimeRemainingColumn(),
+            console=console,
+        ) as progress:
+            bar = progress.add_task("", total=steps)
+
+            def on_step(step: int, loss: float, report: dict[str, object] | None) -> None:
+                progress.update(bar, completed=step, description=f"loss {loss:.4f}")
+                if report is not None:
+                    say(f"step {step}: validation R2 {report['r2']}", progress.console)
+
+            summary = train(corpus, held, config, out, resume=resume, progress=on_step)
+    except DarksynthError as error:
+        raise fail(str(error)) from None
+    say(f"wrote {out} and {out.with_suffix('.json')} after {summary['steps']} steps")
+
+
 @app.command("demo")
 def demo_command(
     out: Annotated[Path, typer.Option(help="Folder to write the demo into.")] = Path("darksynth-demo"),

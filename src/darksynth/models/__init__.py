@@ -1,0 +1,1 @@
+"""Networks: the Degradation Estimation Network (DEN) and its ablation variants."""

@@ -1,0 +1,171 @@
+"""The Degradation Estimation Network: a U-Net whose encoder feeds an MLP head that predicts v.
+
+The encoder reads each frame of a clip beside the frame minus the clip's mean frame (what changes over the
+clip), so that patterns held over the clip (temporal banding) can be told from per-frame ones. Its
+bottleneck is pooled over frames and positions (mean and standard deviation of every channel) and goes,
+with fixed noise statistics of the clip (:mod:`darksynth.models.noise_statistics`), into an MLP that
+predicts v in a normalised space: a sigmoid over each parameter's training range, so every prediction is a
+valid value. The decoder (variant v3) reconstructs the dark clean clip from the encoder's features, which is
+the paper's auxiliary task. Nothing depends on the frame size: frames are padded to a multiple of
+2 ** (depth + 1) and cropped back.
+
+Variants (the paper's ablation): ``v3`` the full DEN; ``v2`` encoder and head only (no decoder).
+"""
+
+from __future__ import annotations
+
+from dataclasses import asdict, dataclass
+from typing import Literal
+
+import torch
+import torch.nn.functional as F
+from torch import nn
+
+from darksynth.models.noise_statistics import STATISTICS_SIZE, noise_statistics
+from darksynth.noise.components import NOISE_PARAMETERS, NOISE_VECTOR_SIZE
+
+Variant = Literal["v2", "v3"]
+MODEL_NAME = "darksynth-den"
+MODEL_VERSION = 1
+"""Weights carry this version; a model of another version is refused on load."""
+
+
+@dataclass(frozen=True)
+class DENConfig:
+    """Shape of the network, stored beside its weights.
+
+    Attributes:
+        variant: ``v3`` (U-Net + head, the default) or ``v2`` (encoder + head).
+        width: channels of the first level; each level below doubles them.
+        depth: number of down-sampling steps after the 2x2 stem; sides are padded to a multiple of 2 ** (depth + 1).
+        head_width: hidden units of the MLP head.
+        channels: colour channels of the input (grey references are repeated to 3).
+    """
+
+    variant: Variant = "v3"
+    width: int = 16
+    depth: int = 3
+    head_width: int = 128
+    channels: int = 3
+
+    def to_dict(self) -> dict[str, object]:
+        return asdict(self)
+
+
+def parameter_bounds(device: torch.device | str | None = None) -> tuple[torch.Tensor, torch.Tensor]:
+    """Low and high ends of every entry of v, from the training ranges of the parameter table."""
+    low = [p.training_range[0] for p in NOISE_PARAMETERS for _ in range(p.size)]
+    high = [p.training_range[1] for p in NOISE_PARAMETERS for _ in range(p.size)]
+    return torch.tensor(low, device=device), torch.tensor(high, device=device)
+
+
+def normalise(vector: torch.Tensor) -> torch.Tensor:
+    """v (..., NOISE_VECTOR_SIZE) -> [0, 1] per entry over its training range."""
+    low, high = parameter_bounds(vector.device)
+    return (vector - low) / (high - low)
+
+
+def denormalise(normalised: torch.Tensor) -> torch.Tensor:
+    """Inverse of :func:`normalise`."""
+    low, high = parameter_bounds(normalised.device)
+    return low + normalised * (high - low)
+
+
+class ConvBlock(nn.Module):
+    """Two 3x3 convolutions with GELU."""
+
+    def __init__(self, inputs: int, outputs: int) -> None:
+        super().__init__()
+        self.body = nn.Sequential(
+            nn.Conv2d(inputs, outputs, 3, padding=1),
+            nn.GELU(),
+            nn.Conv2d(outputs, outputs, 3, padding=1),
+            nn.GELU(),
+        )
+
+    def forward(self, x: torch.Tensor) -> torch.Tensor:
+        return self.body(x)  # type: ignore[no-any-return]
+
+
+@dataclass
+class DENOutput:
+    """What the network returns: v in normalised space, and the dark clean clip (v3 only)."""
+
+    normalised: torch.Tensor
+    dark: torch.Tensor | None
+
+    @property
+    def values(self) -> torch.Tensor:
+        """v on the [0, 1] intensity scale, (B, NOISE_VECTOR_SIZE)."""
+        return denormalise(self.normalised)
+
+
+class DEN(nn.Module):
+    """Degradation Estimation Network (see the module docstring)."""
+
+    def __init__(self, config: DENConfig | None = None) -> None:
+        super().__init__()
+        self.config = config = config or DENConfig()
+        widths = [config.width * 2**level for level in range(config.depth + 1)]
+        self.encoders = nn.ModuleList()
+        self.downs = nn.ModuleList()
+        # A lossless 2x2 space-to-depth stem: the convolutions run at half resolution, 4x cheaper on a CPU.
+        self.stem = nn.PixelUnshuffle(2)
+        inputs = 4 * 2 * config.channels
+        for level in range(config.depth):
+            self.encoders.append(ConvBlock(inputs, widths[level]))
+            self.downs.append(nn.Conv2d(widths[level], widths[level + 1], 2, stride=2))
+            inputs = widths[level + 1]
+        self.bottleneck = ConvBlock(widths[-1], widths[-1])
+        self.ups = nn.ModuleList()
+        self.decoders = nn.ModuleList()
+        if config.variant == "v3":
+            for level in reversed(range(config.depth)):
+                self.ups.append(nn.ConvTranspose2d(widths[level + 1], widths[level], 2, stride=2))
+                self.decoders.append(ConvBlock(2 * widths[level], widths[level]))
+            self.to_image = nn.Sequential(nn.Conv2d(widths[0], 4 * config.channels, 1), nn.PixelShuffle(2))
+        self.head = nn.Sequential(
+            nn.Linear(2 * widths[-1] + STATISTICS_SIZE, config.head_width),
+            nn.GELU(),
+            nn.Linear(config.head_width, config.head_width),
+            nn.GELU(),
+            nn.Linear(config.head_width, NOISE_VECTOR_SIZE),
+        )
+
+    @property
+    def multiple(self) -> int:
+        """Frame sides are padded to a multiple of this."""
+        return int(2 ** (self.config.depth + 1))
+
+    def forward(self, clip: torch.Tensor) -> DENOutput:
+        """Estimate v from noisy clips.
+
+        Args:
+            clip: (B, T, C, H, W), values in [0, 1], C = config.channels.
+
+        Returns:
+            v in normalised space (B, NOISE_VECTOR_SIZE) and, for v3, the dark clean clip (B, T, C, H, W).
+        """
+        if clip.dim() != 5 or clip.shape[2] != self.config.channels:
+            raise ValueError(f"expected clips (B, T, {self.config.channels}, H, W), got shape {tuple(clip.shape)}")
+        batch, frames, channels, height, width = clip.shape
+        statistics = noise_statistics(clip)
+        moving = clip - clip.mean(dim=1, keepdim=True)
+        x = torch.cat([clip, moving], dim=2).flatten(0, 1)
+        pad_h, pad_w = (-height) % self.multiple, (-width) % self.multiple
+        x = self.stem(F.pad(x, (0, pad_w, 0, pad_h), mode="replicate"))
+        skips = []
+        for encoder, down in zip(self.encoders, self.downs, strict=True):
+            x = encoder(x)
+            skips.append(x)
+            x = down(x)
+        x = self.bottleneck(x)
+        pooled = x.reshape(batch, frames, x.shape[1], -1).transpose(1, 2).flatten(2)
+        features = torch.cat([pooled.mean(-1), pooled.std(-1), statistics], dim=-1)
+        normalised = torch.sigmoid(self.head(features))
+        dark = None
+        if self.config.variant == "v3":
+            for up, decoder, skip in zip(self.ups, self.decoders, reversed(skips), strict=True):
+                x = decoder(torch.cat([up(x), skip], dim=1))
+            dark = self.to_image(x)[..., :height, :width].reshape(batch, frames, channels, height, width)
+        return DENOutput(normalised=normalised, dark=dark)

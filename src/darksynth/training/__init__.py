@@ -1,0 +1,1 @@
+"""Self-supervised training of the DEN on clean images and clips: crop -> darken -> sample v -> f(v) -> DEN."""

@@ -1,0 +1,69 @@
+"""DEN weights on disk: safetensors with the model's name, version and shape in the metadata. No pickle."""
+
+from __future__ import annotations
+
+import json
+from pathlib import Path
+from typing import Any
+
+import torch
+from safetensors import SafetensorError
+from safetensors.torch import load_file, save_file
+
+from darksynth.errors import DarksynthError
+from darksynth.io.atomic import atomic_output
+from darksynth.models.den import DEN, MODEL_NAME, MODEL_VERSION, DENConfig
+
+
+def save_weights(path: Path, model: DEN, *, training: dict[str, Any] | None = None) -> None:
+    """Write the model's weights atomically, with what is needed to rebuild and to trust it."""
+    metadata = {
+        "model": MODEL_NAME,
+        "version": str(MODEL_VERSION),
+        "config": json.dumps(model.config.to_dict()),
+        "training": json.dumps(training or {}),
+    }
+    tensors = {name: tensor.detach().cpu().contiguous() for name, tensor in model.state_dict().items()}
+    with atomic_output(path) as temporary:
+        save_file(tensors, str(temporary), metadata=metadata)
+
+
+def read_metadata(path: Path) -> dict[str, str]:
+    """The metadata of a weights file, checked to be this model's and this version's."""
+    from safetensors import safe_open
+
+    try:
+        with safe_open(str(path), framework="pt") as handle:
+            metadata = handle.metadata() or {}
+    except FileNotFoundError:
+        raise DarksynthError(f"{path}: no such weights file") from None
+    except (SafetensorError, OSError, ValueError) as error:
+        raise DarksynthError(f"{path}: not a readable safetensors file ({error})") from None
+    if metadata.get("model") != MODEL_NAME:
+        raise DarksynthError(f"{path}: not darksynth DEN weights (model {metadata.get('model')!r})")
+    if metadata.get("version") != str(MODEL_VERSION):
+        raise DarksynthError(
+            f"{path}: weights of DEN version {metadata.get('version')}, this darksynth reads version {MODEL_VERSION}"
+        )
+    return metadata
+
+
+def load_weights(path: Path, *, device: torch.device | str = "cpu") -> DEN:
+    """Rebuild a DEN from a weights file.
+
+    Raises:
+        DarksynthError: missing, corrupted, another model's or another version's weights.
+    """
+    metadata = read_metadata(path)
+    try:
+        config = DENConfig(**json.loads(metadata["config"]))
+        model = DEN(config)
+        model.load_state_dict(load_file(str(path), device=str(device)))
+    except (SafetensorError, KeyError, TypeError, ValueError, RuntimeError) as error:
+        raise DarksynthError(f"{path}: weights do not fit the DEN they describe ({error})") from None
+    return model.to(device).eval()
+
+
+def default_weights_path() -> Path:
+    """The DEN shipped with the package."""
+    return Path(__file__).resolve().parent.parent / "data" / "den_v3.safetensors"
