@@ -198,6 +198,39 @@ def train_command(
     say(f"wrote {out} and {out.with_suffix('.json')} after {summary['steps']} steps")
 
 
+@app.command("estimate")
+def estimate_command(
+    reference: Annotated[Path, typer.Argument(help="Real low-light image, video, or frame folder (with --clip).")],
+    out: Annotated[Path | None, typer.Option("--out", help="Profile JSON to write (stdout when omitted).")] = None,
+    clip: Annotated[bool, typer.Option("--clip", help="REFERENCE is a folder of frames of one clip.")] = False,
+    weights: Annotated[Path | None, typer.Option(help="DEN weights (default: the shipped v3 model).")] = None,
+    device: Annotated[str, typer.Option(help="torch device.")] = "cpu",
+) -> None:
+    """Estimate a noise profile from one real low-light reference, zero-shot."""
+    import json
+
+    from darksynth.estimate import estimate, load_reference
+    from darksynth.profile import profile_to_dict, save_profile
+    from darksynth.training.weights import default_weights_path, load_weights
+
+    try:
+        model = load_weights(weights or default_weights_path(), device=device)
+        frames = load_reference(reference, clip=clip)
+        result = estimate(frames, model, source=str(reference), device=device)
+    except DarksynthError as error:
+        raise fail(str(error)) from None
+    for warning in result.warnings:
+        say(f"darksynth: warning: {warning}")
+    if out is None:
+        typer.echo(json.dumps(profile_to_dict(result.profile), indent=2))
+        return
+    try:
+        save_profile(out, result.profile)
+    except OSError as error:
+        raise fail(f"{out}: {error.strerror or error}") from None
+    say(f"wrote {out} from {len(result.per_crop)} crops")
+
+
 @app.command("demo")
 def demo_command(
     out: Annotated[Path, typer.Option(help="Folder to write the demo into.")] = Path("darksynth-demo"),

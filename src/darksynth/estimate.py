@@ -1,0 +1,166 @@
+"""Reference -> crops or clips -> DEN -> robust aggregate -> noise profile.
+
+The estimate of every crop is a full v; the profile holds their median (robust to crops where content,
+clipping or a light source misleads the network) and, as ``ranges``, the 10th to 90th percentile across crops,
+so that ``apply`` can reproduce the spread the reference shows.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+import torch
+
+from darksynth.errors import DarksynthError
+from darksynth.io.discover import classify_input, scan_folder
+from darksynth.io.images import read_image
+from darksynth.io.video import iter_video_frames
+from darksynth.models.den import DEN
+from darksynth.noise.components import NOISE_PARAMETERS, vector_to_values
+from darksynth.profile import Profile
+
+CROP = 128
+"""Side of the square crops; the network was trained on crops of this size."""
+
+MIN_SIDE = 32
+"""References smaller than this on either side are refused: the column statistics need some extent."""
+
+MAX_FRAMES = 16
+"""Frames read from a video or frame folder: enough for temporal statistics, bounded in memory and time."""
+
+CLIP_FRAMES = 4
+"""Frames per clip given to the network (it was trained on clips of 4 and single frames)."""
+
+BRIGHT_MEAN = 0.35
+"""A reference whose mean level is above this is not low-light; its estimate is less reliable."""
+
+
+@dataclass
+class Estimate:
+    """A profile and what was learned on the way: per-crop values and warnings."""
+
+    profile: Profile
+    per_crop: np.ndarray  # (N, NOISE_VECTOR_SIZE)
+    warnings: list[str] = field(default_factory=list)
+
+
+def _as_rgb_float(pixels: np.ndarray) -> torch.Tensor:
+    scale = 65535.0 if pixels.dtype == np.uint16 else 255.0
+    tensor = torch.from_numpy(pixels.astype(np.float32) / scale).permute(2, 0, 1)
+    return tensor.expand(3, -1, -1).contiguous() if tensor.shape[0] == 1 else tensor
+
+
+def load_reference(path: Path, *, clip: bool = False, max_frames: int = MAX_FRAMES) -> torch.Tensor:
+    """Read a reference as frames (T, 3, H, W) in [0, 1].
+
+    An image gives one frame; a video its first ``max_frames`` frames; a folder, with ``clip``, its images in
+    name order (the first ``max_frames``).
+
+    Raises:
+        DarksynthError: unreadable, a folder without ``clip``, frames of different sizes, or too small.
+    """
+    kind = classify_input(path)
+    frames: list[torch.Tensor] = []
+    if kind == "image":
+        frames = [_as_rgb_float(read_image(path).pixels)]
+    elif kind == "video":
+        for frame in iter_video_frames(path):
+            frames.append(_as_rgb_float(frame))
+            if len(frames) == max_frames:
+                break
+        if not frames:
+            raise DarksynthError(f"{path}: the video has no decodable frames")
+    else:
+        if not clip:
+            raise DarksynthError(f"{path}: a folder is a reference only as a clip of frames; add --clip")
+        for name in scan_folder(path).images[:max_frames]:
+            image = _as_rgb_float(read_image(path / name).pixels)
+            if frames and image.shape != frames[0].shape:
+                raise DarksynthError(
+                    f"{path / name}: frame size {tuple(image.shape[1:])} differs from {tuple(frames[0].shape[1:])}"
+                )
+            frames.append(image)
+    reference = torch.stack(frames)
+    if min(reference.shape[-2:]) < MIN_SIDE:
+        raise DarksynthError(
+            f"{path}: {reference.shape[-1]}x{reference.shape[-2]} is smaller than the estimator's minimum "
+            f"{MIN_SIDE}x{MIN_SIDE}"
+        )
+    return reference
+
+
+def crop_grid(
+    reference: torch.Tensor, *, crop: int = CROP, clip_frames: int = CLIP_FRAMES, max_crops: int = 48
+) -> torch.Tensor:
+    """Crops covering the reference, as clips (N, T, 3, S, S).
+
+    Crops lie on a regular grid over the frame, left edges at multiples of 4 (the phase of periodic noise is
+    measured from column 0), with up to ``clip_frames`` consecutive frames each, in windows over the clip.
+    """
+    frames, _, height, width = reference.shape
+    side = min(crop, height, width - width % 4 if width >= 4 else width)
+    t = min(clip_frames, frames)
+    windows = list(range(0, frames - t + 1, t)) or [0]
+    rows = max(1, math.ceil(height / side))
+    columns = max(1, math.ceil(width / side))
+    tops = np.linspace(0, height - side, rows).round().astype(int)
+    lefts = (np.linspace(0, width - side, columns) // 4 * 4).astype(int)
+    crops = [
+        reference[start : start + t, :, top : top + side, left : left + side]
+        for start in windows
+        for top in tops
+        for left in lefts
+    ]
+    if len(crops) > max_crops:
+        keep = np.linspace(0, len(crops) - 1, max_crops).round().astype(int)
+        crops = [crops[i] for i in keep]
+    return torch.stack(crops)
+
+
+@torch.no_grad()
+def estimate(
+    reference: torch.Tensor,
+    model: DEN,
+    *,
+    source: str = "",
+    batch: int = 16,
+    device: torch.device | str = "cpu",
+) -> Estimate:
+    """Estimate a noise profile from reference frames (T, 3, H, W) in [0, 1]."""
+    crops = crop_grid(reference)
+    model = model.to(device).eval()
+    values = torch.cat([model(crops[i : i + batch].to(device)).values.cpu() for i in range(0, len(crops), batch)])
+    median = values.median(dim=0).values
+    low = torch.quantile(values, 0.1, dim=0)
+    high = torch.quantile(values, 0.9, dim=0)
+    named = vector_to_values(median)
+    named_low, named_high = vector_to_values(low), vector_to_values(high)
+    noise = {p.name: tuple(float(v) for v in named[p.name]) for p in NOISE_PARAMETERS}
+    ranges = {
+        p.name: tuple((float(a), float(b)) for a, b in zip(named_low[p.name], named_high[p.name], strict=True))
+        for p in NOISE_PARAMETERS
+    }
+    warnings = []
+    level = float(reference.mean())
+    if level > BRIGHT_MEAN:
+        warnings.append(
+            f"{source or 'reference'}: mean level {level:.2f} is bright for a low-light reference; "
+            "the estimate may be unreliable"
+        )
+    if noise["shot"][0] < 0.005 and noise["read"][0] < 0.003:
+        warnings.append(f"{source or 'reference'}: nearly noise-free; the profile will add almost no noise")
+    meta: dict[str, Any] = {
+        "source": source,
+        "estimator": f"DEN {model.config.variant} width {model.config.width} depth {model.config.depth}",
+        "crops": len(crops),
+        "frames": int(reference.shape[0]),
+        "aggregate": "median over crops; ranges are the 10th-90th percentiles",
+    }
+    if reference.shape[0] == 1:
+        meta["note"] = "single image: temporal banding cannot be told from banding and is a prior, not a measurement"
+    profile = Profile(noise=noise, ranges=ranges, meta=meta)
+    return Estimate(profile=profile, per_crop=values.numpy(), warnings=warnings)
