@@ -5,11 +5,12 @@ Run: ``.venv/bin/python benchmarks/bench_video_memory.py [--seconds 120] [--shor
 
 A synthetic clean source video (a few distinct frames of a moving gradient and pattern, cycled) is encoded
 cheaply (libx264 ultrafast, yuv420p, CRF 23) in this process and timed on its own. ``darksynth apply`` then runs
-as a child process (``sys.executable -m darksynth``, default profile, seed 0): first on a 1-second clip as a
-warm-up (it fills torch.compile's on-disk cache so that neither measured run pays a cold compile), then on the
-short video, then on the long one. If the peak resident memory of the long run is no larger than that of the short
-one, memory does not grow with the length of the video. With ``--profile-stages N`` the time per frame of decoding,
-synthesis and encoding is measured in this process on N frames, after the children have finished.
+as a child process (``sys.executable -m darksynth``, default profile, seed 0): first on a 2-second clip as a
+warm-up (long enough for ``apply`` to compile its kernel, it fills torch.compile's on-disk cache so that neither
+measured run pays a cold compile), then on the short video, then on the long one. If the peak resident memory of
+the long run is no larger than that of the short one, memory does not grow with the length of the video. With
+``--profile-stages N`` the time per frame of decoding, synthesis and encoding is measured in this process on N
+frames, after the children have finished.
 
 The last line is ``video_seconds=<n> frames=<n> apply_s=<t> fps=<f> peak_rss_mib=<m> peak_rss_short_mib=<m2>``.
 """
@@ -37,6 +38,8 @@ PROFILE = REPO / "src" / "darksynth" / "data" / "default_profile.json"
 DISTINCT_FRAMES = 15
 """Distinct source frames, cycled: enough motion for the decoder and encoder, cheap to generate."""
 POLL_S = 0.25
+WARMUP_SECONDS = 2.0
+"""At 1080p, 60 frames are 3.7e8 values: above the stream size from which ``apply`` compiles its kernel."""
 MIB = 1024.0
 
 
@@ -158,8 +161,10 @@ def run_apply(source: Path, output: Path, codec: str | None) -> ChildRun:
         done.set()
         poller.join()
         stderr.seek(0)
-        lines = stderr.read().strip().splitlines()
-        run.stderr_tail = lines[-1] if lines else ""
+        text = stderr.read()
+        # The CLI's summary ("wrote 1 file(s), N frame(s) in T s; ...") may be wrapped over several lines.
+        start = text.rfind("wrote ") if "wrote " in text else max(text.rstrip().rfind("\n"), 0)
+        run.stderr_tail = " ".join(text[start:].split())
     if child.returncode != 0:
         raise SystemExit(f"darksynth apply failed with status {child.returncode}: {run.stderr_tail}")
     run.maxrss_kib = usage.ru_maxrss  # KiB on Linux
@@ -260,12 +265,16 @@ def main() -> None:
     workdir.mkdir(parents=True, exist_ok=True)
     suffix = ".mkv" if args.codec == "ffv1" else ".mp4"
     try:
+        commit = subprocess.run(
+            ["git", "-C", str(REPO), "describe", "--always", "--dirty"], capture_output=True, text=True, check=False
+        ).stdout.strip()
+        print(f"darksynth at {commit or 'unknown commit'}")
         print(
             f"{args.width}x{args.height} at {args.fps} fps; {os.cpu_count()} cores, torch {torch.__version__} "
             f"with {torch.get_num_threads()} threads, PyAV {av.__version__}; codec {args.codec or 'default'}"
         )
         sources = {}
-        for name, seconds in (("warmup", 1.0), ("short", args.short_seconds), ("long", args.seconds)):
+        for name, seconds in (("warmup", WARMUP_SECONDS), ("short", args.short_seconds), ("long", args.seconds)):
             path = workdir / f"source_{name}.mp4"
             frames, took = generate_source(path, seconds=seconds, fps=args.fps, width=args.width, height=args.height)
             size = path.stat().st_size / MIB / MIB
@@ -284,8 +293,11 @@ def main() -> None:
         long, short = runs["long"], runs["short"]
         if long.frames > short.frames and long.seconds > short.seconds:
             steady = (long.frames - short.frames) / (long.seconds - short.seconds)
-            startup = short.seconds - short.frames / steady
-            print(f"steady-state throughput (long minus short): {steady:.2f} fps; start-up and end ~{startup:.1f} s")
+            overhead = short.seconds - short.frames / steady
+            if overhead >= 0:
+                print(f"steady-state throughput (long minus short): {steady:.2f} fps; fixed cost ~{overhead:.1f} s")
+            else:  # the short run was faster per frame than the long one: the machine's speed varied
+                print("per-frame speed differed between the runs more than the fixed start-up cost; none separable")
         growth = (long.maxrss_kib - short.maxrss_kib) / MIB
         print(f"peak RSS long - short: {growth:+.0f} MiB; under 1 GiB: {long.maxrss_kib < 1024 * 1024}")
 
