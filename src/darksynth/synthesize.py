@@ -30,6 +30,7 @@ from darksynth.noise.kernel8 import (
     compiled_pixel_kernel,
     kernel_scalars,
     pixel_kernel_8bit,
+    pixel_kernel_in_pieces,
 )
 from darksynth.noise.sampling import random_uniform
 from darksynth.noise.simulate import add_noise, drawing_order, is_active
@@ -183,15 +184,14 @@ class ClipSynthesizer:
                 device=self.device,
             )
         key = random_key(self.generator).to(self.device)
-        arguments = (frame, key, *self._scalars, columns * FULL_SCALE)
-        try:
-            return self._kernel(*arguments)
-        except Exception:
-            if self._kernel is pixel_kernel_8bit:
-                raise
-            # A platform without a working compiler: the eager kernel gives the same bits, only slower.
-            self._kernel = pixel_kernel_8bit
-            return self._kernel(*arguments)
+        columns_8bit = columns * FULL_SCALE
+        if self._kernel is not pixel_kernel_8bit:
+            try:
+                return self._kernel(frame, key, *self._scalars, columns_8bit)
+            except Exception:
+                # A platform without a working compiler: the eager kernel gives the same bits, only slower.
+                self._kernel = pixel_kernel_8bit
+        return pixel_kernel_in_pieces(self._kernel, frame, key, self._scalars, columns_8bit)
 
 
 def _full_scale(dtype: torch.dtype) -> float | None:

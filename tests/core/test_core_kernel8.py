@@ -160,3 +160,18 @@ def test_compiled_kernel_is_bit_identical_to_eager() -> None:
     slow = ClipSynthesizer(parameters, generator=torch.Generator().manual_seed(8))
     for _ in range(3):
         assert torch.equal(fast(frame), slow(frame))
+
+
+def test_kernel_in_pieces_is_bit_identical_to_one_call() -> None:
+    from darksynth.noise.kernel8 import kernel_scalars, pixel_kernel_in_pieces
+
+    generator = torch.Generator().manual_seed(5)
+    frame = torch.randint(0, 256, (3, 301, 517), dtype=torch.uint8, generator=generator)
+    columns = torch.randn(3, 1, 517, generator=generator) * 3
+    key = torch.tensor(123_456_789, dtype=torch.int64)
+    scalars = kernel_scalars(0.3, 0.6, 0.1, 0.02, 0.01, device=torch.device("cpu"))
+    whole = pixel_kernel_8bit(frame, key, *scalars, columns)
+    # Pieces of 7 rows (3619 values) cut every channel into many blocks, the last one partial.
+    pieces = pixel_kernel_in_pieces(pixel_kernel_8bit, frame, key, scalars, columns, piece_values=3619)
+    assert torch.equal(whole, pieces)
+    assert not torch.equal(whole, pixel_kernel_8bit(frame, key + 1, *scalars, columns))

@@ -90,6 +90,42 @@ def kernel_scalars(
     return tuple(torch.tensor(v, dtype=torch.float32, device=device) for v in values)
 
 
+EAGER_CHUNK_VALUES = 1 << 19
+"""The eager kernel works through a frame in pieces of about this many values: its chain of operations
+materialises some twenty frame-sized temporaries, over 1 GiB for a 1080p frame if done in one piece."""
+
+
+def pixel_kernel_in_pieces(
+    kernel: PixelKernel,
+    frame: torch.Tensor,
+    key: torch.Tensor,
+    scalars: tuple[torch.Tensor, ...],
+    column_pattern: torch.Tensor,
+    *,
+    piece_values: int = EAGER_CHUNK_VALUES,
+) -> torch.Tensor:
+    """Run the kernel on blocks of rows of each channel; the result is bit-identical to one call on the frame.
+
+    The counter-based draws depend only on a value's flat index plus the key, so a block starting at flat
+    index ``offset`` gets exactly its own numbers when the key is advanced by ``offset``.
+    """
+    channels, height, width = frame.shape
+    rows = max(1, piece_values // max(width, 1))
+    if rows >= height and channels == 1:
+        return kernel(frame, key, *scalars, column_pattern)
+    out = torch.empty_like(frame)
+    for channel in range(channels):
+        for top in range(0, height, rows):
+            offset = (channel * height + top) * width
+            out[channel : channel + 1, top : top + rows] = kernel(
+                frame[channel : channel + 1, top : top + rows],
+                key + offset,
+                *scalars,
+                column_pattern[channel : channel + 1],
+            )
+    return out
+
+
 _compiled: PixelKernel | None = None
 
 

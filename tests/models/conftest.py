@@ -1,0 +1,62 @@
+"""Clean test material made on the spot: smooth gradients and shapes, saved as PNGs, and tiny networks."""
+
+from __future__ import annotations
+
+from collections.abc import Callable
+from pathlib import Path
+
+import numpy as np
+import pytest
+import torch
+from PIL import Image
+
+from darksynth.models.den import DEN, DENConfig
+
+TINY = DENConfig(width=4, depth=1)
+
+
+def smooth_rgb(height: int, width: int, phase: int = 0) -> np.ndarray:
+    """(H, W, 3) uint8: a gradient per channel and a bright disc, shifted by ``phase``."""
+    y, x = np.mgrid[0:height, 0:width].astype(np.float64)
+    red = 30 + 180 * x / max(width - 1, 1)
+    green = 40 + 150 * y / max(height - 1, 1)
+    blue = 120 + 80 * np.sin((x + y + 7 * phase) / 11.0)
+    disc = ((x - width / 2 - phase) ** 2 + (y - height / 2) ** 2) < (min(height, width) / 4) ** 2
+    pixels = np.stack([red, green, blue], axis=-1) + 40 * disc[..., None]
+    return np.clip(pixels, 0, 255).round().astype(np.uint8)
+
+
+def write_png(path: Path, pixels: np.ndarray) -> Path:
+    path.parent.mkdir(parents=True, exist_ok=True)
+    Image.fromarray(pixels).save(path)
+    return path
+
+
+@pytest.fixture
+def image_folder(tmp_path: Path) -> Path:
+    """Three 96x96 stills."""
+    folder = tmp_path / "stills"
+    for index in range(3):
+        write_png(folder / f"still_{index}.png", smooth_rgb(96, 96, phase=5 * index))
+    return folder
+
+
+@pytest.fixture
+def clip_root(tmp_path: Path) -> Path:
+    """A folder holding one clip: a sub-folder of four 96x96 frames of a moving disc."""
+    root = tmp_path / "clips"
+    for index in range(4):
+        write_png(root / "walk" / f"frame_{index:03d}.png", smooth_rgb(96, 96, phase=3 * index))
+    return root
+
+
+@pytest.fixture
+def tiny_model() -> Callable[..., DEN]:
+    """A freshly initialised, seeded DEN of ``width=4, depth=1`` (or other settings) in eval mode."""
+
+    def make(seed: int = 0, **settings: object) -> DEN:
+        torch.manual_seed(seed)
+        config = DENConfig(**{**TINY.to_dict(), **settings})  # type: ignore[arg-type]
+        return DEN(config).eval()
+
+    return make
