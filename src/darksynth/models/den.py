@@ -103,6 +103,9 @@ class DENOutput:
 class DEN(nn.Module):
     """Degradation Estimation Network (see the module docstring)."""
 
+    statistics_mean: torch.Tensor
+    statistics_scale: torch.Tensor
+
     def __init__(self, config: DENConfig | None = None) -> None:
         super().__init__()
         self.config = config = config or DENConfig()
@@ -124,6 +127,11 @@ class DEN(nn.Module):
                 self.ups.append(nn.ConvTranspose2d(widths[level + 1], widths[level], 2, stride=2))
                 self.decoders.append(ConvBlock(2 * widths[level], widths[level]))
             self.to_image = nn.Sequential(nn.Conv2d(widths[0], 4 * config.channels, 1), nn.PixelShuffle(2))
+        # The statistics span many decades and are standardised with the mean and spread measured on training
+        # data before training starts (set_statistics_scale); the buffers travel with the weights.
+        self.register_buffer("statistics_mean", torch.zeros(STATISTICS_SIZE))
+        self.register_buffer("statistics_scale", torch.ones(STATISTICS_SIZE))
+        self.pooled_norm = nn.LayerNorm(2 * widths[-1])
         self.head = nn.Sequential(
             nn.Linear(2 * widths[-1] + STATISTICS_SIZE, config.head_width),
             nn.GELU(),
@@ -131,6 +139,12 @@ class DEN(nn.Module):
             nn.GELU(),
             nn.Linear(config.head_width, NOISE_VECTOR_SIZE),
         )
+
+    @torch.no_grad()
+    def set_statistics_scale(self, statistics: torch.Tensor) -> None:
+        """Standardise the head's statistics input with those measured on training clips (N, STATISTICS_SIZE)."""
+        self.statistics_mean.copy_(statistics.mean(0))
+        self.statistics_scale.copy_(statistics.std(0).clamp_min(1e-3))
 
     @property
     def multiple(self) -> int:
@@ -149,7 +163,7 @@ class DEN(nn.Module):
         if clip.dim() != 5 or clip.shape[2] != self.config.channels:
             raise ValueError(f"expected clips (B, T, {self.config.channels}, H, W), got shape {tuple(clip.shape)}")
         batch, frames, channels, height, width = clip.shape
-        statistics = noise_statistics(clip)
+        statistics = (noise_statistics(clip) - self.statistics_mean) / self.statistics_scale
         moving = clip - clip.mean(dim=1, keepdim=True)
         x = torch.cat([clip, moving], dim=2).flatten(0, 1)
         pad_h, pad_w = (-height) % self.multiple, (-width) % self.multiple
@@ -161,7 +175,7 @@ class DEN(nn.Module):
             x = down(x)
         x = self.bottleneck(x)
         pooled = x.reshape(batch, frames, x.shape[1], -1).transpose(1, 2).flatten(2)
-        features = torch.cat([pooled.mean(-1), pooled.std(-1), statistics], dim=-1)
+        features = torch.cat([self.pooled_norm(torch.cat([pooled.mean(-1), pooled.std(-1)], -1)), statistics], dim=-1)
         normalised = torch.sigmoid(self.head(features))
         dark = None
         if self.config.variant == "v3":

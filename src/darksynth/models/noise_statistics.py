@@ -19,10 +19,10 @@ from __future__ import annotations
 
 import torch
 
-LEVEL_BINS = 8
+LEVEL_BINS = 12
 """Intensity bins of the pixel-noise statistics over [0, LEVEL_MAX]."""
 
-LEVEL_MAX = 0.5
+LEVEL_MAX = 0.3
 """Upper edge of the last bin: low-light references rarely go brighter; brighter pixels fall in the last bin."""
 
 STATISTICS_SIZE = 3 * LEVEL_BINS + 9

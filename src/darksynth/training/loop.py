@@ -151,6 +151,21 @@ def _load_checkpoint(
     return int(metadata["step"]), json.loads(metadata.get("history", "[]"))
 
 
+def _calibrate_statistics(model: DEN, corpus: CleanCorpus, config: TrainConfig, generator: torch.Generator) -> None:
+    """Measure the head's statistics on training batches of both clip lengths and standardise with them."""
+    from darksynth.models.noise_statistics import noise_statistics
+
+    measured = []
+    for index in range(16):
+        frames = 1 if index % 2 else config.frames
+        clean = sample_clean_clips(
+            corpus, config.batch, frames, config.crop, clip_fraction=config.clip_fraction, generator=generator
+        )
+        batch = synthesize_batch(clean, generator=generator, absent_probability=config.absent_probability)
+        measured.append(noise_statistics(batch.noisy))
+    model.set_statistics_scale(torch.cat(measured).to(next(model.parameters()).device))
+
+
 ProgressCallback = Callable[[int, float, dict[str, Any] | None], None]
 
 
@@ -177,6 +192,8 @@ def train(
     step, history = 0, list[dict[str, Any]]()
     if resume:
         step, history = _load_checkpoint(checkpoint, model, optimizer, generator, config)
+    else:
+        _calibrate_statistics(model, corpus, config, generator)
     validation = validation_set(holdout, config)
     single_frames = validation_set(holdout, config, frames=1)
     started = time.perf_counter()
