@@ -2,7 +2,7 @@
 
 from __future__ import annotations
 
-from collections.abc import Callable
+from collections.abc import Callable, Iterator
 from pathlib import Path
 
 import numpy as np
@@ -13,6 +13,15 @@ from PIL import Image
 from darksynth.models.den import DEN, DENConfig
 
 TINY = DENConfig(width=4, depth=1)
+
+
+@pytest.fixture(autouse=True, scope="module")
+def one_torch_thread() -> Iterator[None]:
+    """Run the tiny networks on one thread: on a busy CPU, two threads make a 4-step run ~30x slower."""
+    threads = torch.get_num_threads()
+    torch.set_num_threads(1)
+    yield
+    torch.set_num_threads(threads)
 
 
 def smooth_rgb(height: int, width: int, phase: int = 0) -> np.ndarray:

@@ -49,9 +49,7 @@ def test_pixel_statistic_is_log10_of_the_noise_variance_in_the_matching_bin(
     clip = signal + heteroscedastic_noise(signal, shot, read, generator=torch.Generator().manual_seed(bin_index))
     statistics = pixel_noise_statistics(clip)[0]
     # ~48k differences: the sample variance is within ~1% (0.003 in log10) of the true one.
-    assert statistics[MEAN_SQUARE + bin_index].item() == pytest.approx(
-        math.log10(shot**2 * level + read**2), abs=0.02
-    )
+    assert statistics[MEAN_SQUARE + bin_index].item() == pytest.approx(math.log10(shot**2 * level + read**2), abs=0.02)
 
 
 def test_doubling_read_noise_raises_the_mean_square_statistic_by_log10_of_four() -> None:
@@ -106,7 +104,9 @@ def test_per_frame_banding_shows_as_own_column_energy() -> None:
     assert statistics[OWN] - statistics[SHARED] > 0.5
 
 
-@pytest.mark.parametrize(("sigmas", "strong", "weak"), [((0.0, SIGMA, 0.0), COSINE, SINE), ((0.0, 0.0, SIGMA), SINE, COSINE)])
+@pytest.mark.parametrize(
+    ("sigmas", "strong", "weak"), [((0.0, SIGMA, 0.0), COSINE, SINE), ((0.0, 0.0, SIGMA), SINE, COSINE)]
+)
 def test_period_four_wave_projects_on_its_own_phase(sigmas: tuple[float, ...], strong: int, weak: int) -> None:
     noise = periodic_noise(CLIP_SHAPE, torch.tensor(sigmas), generator=torch.Generator().manual_seed(14))
     statistics = _column_statistics(noise, seed=15)

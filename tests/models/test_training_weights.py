@@ -138,7 +138,9 @@ def test_weights_of_another_shape_give_a_one_line_error(tmp_path: Path, tiny_mod
     assert "\n" not in str(raised.value)
 
 
-def test_saving_replaces_a_file_atomically_and_keeps_only_tensors(tmp_path: Path, tiny_model: Callable[..., DEN]) -> None:
+def test_saving_replaces_a_file_atomically_and_keeps_only_tensors(
+    tmp_path: Path, tiny_model: Callable[..., DEN]
+) -> None:
     path = tmp_path / "den.safetensors"
     save_weights(path, tiny_model(seed=1))
     save_weights(path, tiny_model(seed=2))

@@ -1,0 +1,138 @@
+"""'darksynth estimate' in-process: a valid profile on stdout or in --out; every failure one error line."""
+
+from __future__ import annotations
+
+import json
+from collections.abc import Callable
+from pathlib import Path
+
+import pytest
+from safetensors.torch import save_file
+from typer.testing import CliRunner
+
+from darksynth.cli import app
+from darksynth.models.den import DEN, DENConfig
+from darksynth.profile import load_profile, parse_profile
+from darksynth.training.weights import save_weights
+from tests.models.conftest import smooth_rgb, write_png
+
+
+def run_cli(*args: str | Path) -> tuple[int, str, str]:
+    """Invoke the CLI in-process; returns (exit code, stdout, stderr)."""
+    result = CliRunner().invoke(app, [str(a) for a in args])
+    if result.exception is not None and not isinstance(result.exception, SystemExit):
+        raise result.exception
+    return result.exit_code, result.stdout, result.stderr
+
+
+@pytest.fixture
+def weights(tmp_path: Path, tiny_model: Callable[..., DEN]) -> Path:
+    path = tmp_path / "den.safetensors"
+    save_weights(path, tiny_model())
+    return path
+
+
+@pytest.fixture
+def dark_image(tmp_path: Path) -> Path:
+    return write_png(tmp_path / "dark.png", smooth_rgb(96, 96) // 8)
+
+
+def _single_error_line(stderr: str) -> str:
+    lines = stderr.strip().splitlines()
+    assert len(lines) == 1, stderr
+    assert lines[0].startswith("darksynth: error: ")
+    return lines[0]
+
+
+def test_estimate_prints_a_valid_profile_to_stdout(dark_image: Path, weights: Path) -> None:
+    code, stdout, stderr = run_cli("estimate", dark_image, "--weights", weights)
+    assert code == 0, stderr
+    profile = parse_profile(json.loads(stdout), source="stdout")
+    assert profile.meta["source"] == str(dark_image)
+    assert profile.meta["frames"] == 1
+    assert "width 4 depth 1" in str(profile.meta["estimator"])
+    assert "darksynth: error" not in stderr
+
+
+def test_estimate_out_writes_the_same_profile(dark_image: Path, weights: Path, tmp_path: Path) -> None:
+    out = tmp_path / "profiles" / "estimated.json"
+    out.parent.mkdir()
+    code, stdout, stderr = run_cli("estimate", dark_image, "--weights", weights, "--out", out)
+    assert code == 0, stderr
+    assert stdout == ""
+    assert f"wrote {out} from 1 crops" in stderr
+    written = load_profile(out)
+    _, printed, _ = run_cli("estimate", dark_image, "--weights", weights)
+    assert written.noise == parse_profile(json.loads(printed)).noise
+
+
+def test_estimate_of_a_frame_folder_with_clip(tmp_path: Path, weights: Path) -> None:
+    for index in range(5):
+        write_png(tmp_path / "frames" / f"{index}.png", smooth_rgb(64, 64, phase=index) // 8)
+    code, stdout, stderr = run_cli("estimate", tmp_path / "frames", "--clip", "--weights", weights)
+    assert code == 0, stderr
+    profile = parse_profile(json.loads(stdout))
+    assert profile.meta["frames"] == 5
+    assert "note" not in profile.meta
+
+
+def test_bright_reference_warns_on_stderr_and_still_succeeds(tmp_path: Path, weights: Path) -> None:
+    bright = write_png(tmp_path / "bright.png", (200 + smooth_rgb(64, 64) // 8).astype("uint8"))
+    code, stdout, stderr = run_cli("estimate", bright, "--weights", weights)
+    assert code == 0
+    parse_profile(json.loads(stdout))
+    assert any(line.startswith("darksynth: warning: ") and "bright" in line for line in stderr.splitlines())
+
+
+def test_missing_reference_is_one_error_line(tmp_path: Path, weights: Path) -> None:
+    missing = tmp_path / "absent.png"
+    code, stdout, stderr = run_cli("estimate", missing, "--weights", weights)
+    assert code == 1
+    assert stdout == ""
+    assert _single_error_line(stderr) == f"darksynth: error: {missing}: no such file or folder"
+
+
+@pytest.mark.parametrize("damage", ["garbage", "truncated", "missing"])
+def test_unusable_weights_are_one_error_line(dark_image: Path, weights: Path, tmp_path: Path, damage: str) -> None:
+    bad = tmp_path / f"{damage}.safetensors"
+    if damage == "garbage":
+        bad.write_bytes(b"not weights " * 50)
+    elif damage == "truncated":
+        bad.write_bytes(weights.read_bytes()[:-64])
+    code, stdout, stderr = run_cli("estimate", dark_image, "--weights", bad)
+    assert code == 1
+    assert stdout == ""
+    assert _single_error_line(stderr).startswith(f"darksynth: error: {bad}: ")
+
+
+@pytest.mark.xfail(
+    strict=True,
+    reason="BUG: weights whose tensors do not fit their config give load_state_dict's multi-line RuntimeError "
+    "text on stderr instead of one 'darksynth: error:' line",
+)
+def test_weights_of_another_shape_are_one_error_line(
+    dark_image: Path, tiny_model: Callable[..., DEN], tmp_path: Path
+) -> None:
+    bad = tmp_path / "mismatch.safetensors"
+    tensors = {name: t.contiguous() for name, t in tiny_model().state_dict().items()}
+    config = json.dumps(DENConfig(width=8, depth=1).to_dict())
+    save_file(tensors, str(bad), metadata={"model": "darksynth-den", "version": "1", "config": config})
+    code, _, stderr = run_cli("estimate", dark_image, "--weights", bad)
+    assert code == 1
+    _single_error_line(stderr)
+
+
+def test_folder_without_clip_is_one_error_line(tmp_path: Path, weights: Path) -> None:
+    for index in range(2):
+        write_png(tmp_path / "frames" / f"{index}.png", smooth_rgb(64, 64))
+    code, stdout, stderr = run_cli("estimate", tmp_path / "frames", "--weights", weights)
+    assert code == 1
+    assert stdout == ""
+    assert "add --clip" in _single_error_line(stderr)
+
+
+def test_too_small_reference_is_one_error_line(tmp_path: Path, weights: Path) -> None:
+    small = write_png(tmp_path / "small.png", smooth_rgb(20, 20))
+    code, _, stderr = run_cli("estimate", small, "--weights", weights)
+    assert code == 1
+    assert "smaller than the estimator's minimum" in _single_error_line(stderr)

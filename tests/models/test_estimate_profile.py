@@ -1,0 +1,116 @@
+"""estimate(): median over crops, percentile ranges, warnings and meta, with tiny untrained or rigged networks."""
+
+from __future__ import annotations
+
+from collections.abc import Callable
+
+import numpy as np
+import pytest
+import torch
+
+from darksynth.estimate import estimate
+from darksynth.models.den import DEN
+from darksynth.noise.components import NOISE_PARAMETERS, NOISE_VECTOR_SIZE
+from darksynth.profile import validate_profile
+
+
+def _reference(frames: int, height: int, width: int, *, mean: float = 0.1, seed: int = 0) -> torch.Tensor:
+    """Dark frames with noise that grows from left to right, so that crops differ."""
+    generator = torch.Generator().manual_seed(seed)
+    strength = torch.linspace(0.005, 0.08, width)
+    noise = torch.randn(frames, 3, height, width, generator=generator) * strength
+    return (mean + noise).clamp(0, 1)
+
+
+def _profile_vector(result_noise: dict[str, tuple[float, ...]]) -> np.ndarray:
+    return np.array([v for p in NOISE_PARAMETERS for v in result_noise[p.name]])
+
+
+def test_profile_is_the_median_over_crops_and_ranges_the_10th_to_90th_percentile(
+    tiny_model: Callable[..., DEN],
+) -> None:
+    # 1 frame of 48 x 240: side 48, a 1 x 5 grid, so an odd number of crops and an unambiguous median.
+    result = estimate(_reference(1, 48, 240), tiny_model(head_width=16))
+    per_crop = result.per_crop
+    assert per_crop.shape == (5, NOISE_VECTOR_SIZE)
+    assert result.profile.meta["crops"] == 5
+    assert np.ptp(per_crop, axis=0).min() > 0  # the crops really disagree
+    np.testing.assert_allclose(_profile_vector(result.profile.noise), np.median(per_crop, axis=0), rtol=1e-6)
+    low, high = np.percentile(per_crop, [10, 90], axis=0)
+    ranges = np.array([pair for p in NOISE_PARAMETERS for pair in result.profile.ranges[p.name]])
+    np.testing.assert_allclose(ranges[:, 0], low, rtol=1e-5)
+    np.testing.assert_allclose(ranges[:, 1], high, rtol=1e-5)
+    profile = _profile_vector(result.profile.noise)
+    assert (ranges[:, 0] <= profile).all() and (profile <= ranges[:, 1]).all()
+    validate_profile(result.profile)
+
+
+def test_even_number_of_crops_gives_a_value_between_the_middle_two(tiny_model: Callable[..., DEN]) -> None:
+    # 8 frames of 48 x 144: two windows of four frames times a 1 x 3 grid.
+    result = estimate(_reference(8, 48, 144), tiny_model())
+    per_crop = np.sort(result.per_crop, axis=0)
+    assert len(per_crop) == 6
+    profile = _profile_vector(result.profile.noise)
+    assert (profile >= per_crop[2] - 1e-7).all() and (profile <= per_crop[3] + 1e-7).all()
+    for name, pairs in result.profile.ranges.items():
+        for (a, b), value in zip(pairs, result.profile.noise[name], strict=True):
+            assert a <= value <= b
+
+
+def _rigged(model: DEN, normalised: torch.Tensor) -> DEN:
+    """A network that predicts ``normalised`` for every input (its last layer reduced to a bias)."""
+    with torch.no_grad():
+        model.head[-1].weight.zero_()
+        model.head[-1].bias.copy_(torch.logit(normalised))
+    return model
+
+
+def test_each_network_output_lands_in_its_named_profile_entry(tiny_model: Callable[..., DEN]) -> None:
+    fractions = torch.tensor([0.1, 0.2, 0.3, 0.4, 0.5, 0.6, 0.7, 0.8])
+    result = estimate(_reference(1, 64, 64), _rigged(tiny_model(), fractions))
+    expected = {
+        "shot": (0.1 * 0.2,),
+        "read": (0.2 * 0.1,),
+        "quantization": (0.3 * 0.02,),
+        "banding": (0.4 * 0.03,),
+        "temporal_banding": (0.5 * 0.03,),
+        "periodic": (0.6 * 0.02, 0.7 * 0.02, 0.8 * 0.02),
+    }
+    for name, values in expected.items():
+        assert result.profile.noise[name] == pytest.approx(values, rel=1e-5)
+        for (low, high), value in zip(result.profile.ranges[name], values, strict=True):
+            assert (low, high) == pytest.approx((value, value), rel=1e-5)
+
+
+def test_nearly_noise_free_estimate_warns(tiny_model: Callable[..., DEN]) -> None:
+    quiet = estimate(_reference(1, 64, 64), _rigged(tiny_model(), torch.full((8,), 0.001)), source="quiet.png")
+    assert any(w.startswith("quiet.png: nearly noise-free") for w in quiet.warnings)
+    noisy = estimate(_reference(1, 64, 64), _rigged(tiny_model(), torch.full((8,), 0.5)), source="noisy.png")
+    assert not any("noise-free" in w for w in noisy.warnings)
+
+
+def test_bright_reference_warns_and_a_dark_one_does_not(tiny_model: Callable[..., DEN]) -> None:
+    model = tiny_model()
+    bright = estimate(_reference(1, 64, 64, mean=0.8), model, source="bright.png")
+    assert any(w.startswith("bright.png: mean level 0.80 is bright") for w in bright.warnings)
+    dark = estimate(_reference(1, 64, 64, mean=0.1), model, source="dark.png")
+    assert not any("bright" in w for w in dark.warnings)
+
+
+def test_single_frame_adds_a_note_and_clips_do_not(tiny_model: Callable[..., DEN]) -> None:
+    model = tiny_model()
+    single = estimate(_reference(1, 64, 64), model, source="one.png")
+    assert "single image" in str(single.profile.meta["note"])
+    assert single.profile.meta["frames"] == 1
+    assert single.profile.meta["source"] == "one.png"
+    clip = estimate(_reference(5, 64, 64), model)
+    assert "note" not in clip.profile.meta
+    assert clip.profile.meta["frames"] == 5
+
+
+def test_batch_size_does_not_change_the_estimate(tiny_model: Callable[..., DEN]) -> None:
+    model = tiny_model()
+    reference = _reference(1, 48, 240)
+    whole = estimate(reference, model, batch=16)
+    one_by_one = estimate(reference, model, batch=1)
+    np.testing.assert_allclose(one_by_one.per_crop, whole.per_crop, rtol=1e-5, atol=1e-7)
