@@ -12,6 +12,7 @@ from safetensors.torch import load_file, save_file
 
 from darksynth.errors import DarksynthError
 from darksynth.models.den import DEN, MODEL_NAME, MODEL_VERSION, DENConfig
+from darksynth.models.noise_statistics import STATISTICS_SIZE
 from darksynth.training.weights import load_weights, read_metadata, save_weights
 
 
@@ -24,11 +25,15 @@ def test_saved_weights_load_into_a_model_with_identical_outputs(
     tmp_path: Path, tiny_model: Callable[..., DEN], settings: dict[str, object]
 ) -> None:
     model = tiny_model(seed=5, **settings)
+    # The statistics' standardisation is state too (buffers, not parameters): it must travel with the weights.
+    model.set_statistics_scale(torch.randn(10, STATISTICS_SIZE, generator=torch.Generator().manual_seed(1)))
     path = tmp_path / "den.safetensors"
     save_weights(path, model, training={"steps": 7})
     loaded = load_weights(path)
     assert loaded.config == model.config
     assert not loaded.training
+    assert torch.equal(loaded.statistics_scale, model.statistics_scale)
+    assert not torch.equal(loaded.statistics_scale, torch.ones(STATISTICS_SIZE))
     with torch.no_grad():
         expected, actual = model(_clip()), loaded(_clip())
     assert torch.equal(actual.normalised, expected.normalised)
