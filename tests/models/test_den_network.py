@@ -132,11 +132,6 @@ def test_wrong_input_layout_raises_value_error(tiny_model: Callable[..., DEN], s
         tiny_model()(torch.rand(shape))
 
 
-@pytest.mark.xfail(
-    strict=True,
-    reason="BUG: with depth >= 4 a 32x32 single frame (the estimator's MIN_SIDE, the CLI's smallest --crop) pools "
-    "to one bottleneck position, and std over one value is NaN (torch also warns), so every prediction is NaN",
-)
 def test_smallest_single_frame_gives_finite_estimates_at_every_depth(tiny_model: Callable[..., DEN]) -> None:
     model = tiny_model(depth=4)
     with torch.no_grad():

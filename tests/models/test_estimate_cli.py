@@ -105,11 +105,6 @@ def test_unusable_weights_are_one_error_line(dark_image: Path, weights: Path, tm
     assert _single_error_line(stderr).startswith(f"darksynth: error: {bad}: ")
 
 
-@pytest.mark.xfail(
-    strict=True,
-    reason="BUG: weights whose tensors do not fit their config give load_state_dict's multi-line RuntimeError "
-    "text on stderr instead of one 'darksynth: error:' line",
-)
 def test_weights_of_another_shape_are_one_error_line(
     dark_image: Path, tiny_model: Callable[..., DEN], tmp_path: Path
 ) -> None:

@@ -42,11 +42,6 @@ def test_no_usable_material_is_an_error(tmp_path: Path) -> None:
         load_corpus([tmp_path / "small"])
 
 
-@pytest.mark.xfail(
-    strict=True,
-    reason="BUG: corpus.py's 'no training images or clips of at least {minimum_side} pixels' lacks the f prefix, "
-    "so the message shows the literal '{minimum_side}' instead of the size",
-)
 def test_no_usable_material_error_names_the_minimum_side(tmp_path: Path) -> None:
     write_png(tmp_path / "small" / "a.png", smooth_rgb(40, 40))
     with pytest.raises(DarksynthError) as raised:

@@ -128,11 +128,6 @@ def test_unreadable_weights_files_are_refused_naming_the_file(
     assert "\n" not in str(raised.value)
 
 
-@pytest.mark.xfail(
-    strict=True,
-    reason="BUG: load_weights wraps load_state_dict's RuntimeError text, which spans one line per mismatched "
-    "tensor, so the DarksynthError (and the CLI's 'darksynth: error:' output) is many lines, not one",
-)
 def test_weights_of_another_shape_give_a_one_line_error(tmp_path: Path, tiny_model: Callable[..., DEN]) -> None:
     path = tmp_path / "other-shape.safetensors"
     save_file(

@@ -175,7 +175,9 @@ class DEN(nn.Module):
             x = down(x)
         x = self.bottleneck(x)
         pooled = x.reshape(batch, frames, x.shape[1], -1).transpose(1, 2).flatten(2)
-        features = torch.cat([self.pooled_norm(torch.cat([pooled.mean(-1), pooled.std(-1)], -1)), statistics], dim=-1)
+        # A bottleneck of a single position (a small frame through a deep network) has no spread, not a NaN one.
+        spread = pooled.std(-1) if pooled.shape[-1] > 1 else torch.zeros_like(pooled[..., 0])
+        features = torch.cat([self.pooled_norm(torch.cat([pooled.mean(-1), spread], -1)), statistics], dim=-1)
         normalised = torch.sigmoid(self.head(features))
         dark = None
         if self.config.variant == "v3":

@@ -90,7 +90,7 @@ def load_corpus(data: Sequence[Path], clip_roots: Sequence[Path] = (), *, minimu
     corpus.images = [i for i in corpus.images if min(i.shape[:2]) >= minimum_side]
     corpus.clips = [c for c in corpus.clips if min(c.shape[1:3]) >= minimum_side]
     if not len(corpus):
-        raise DarksynthError("no training images or clips of at least {minimum_side} pixels were found")
+        raise DarksynthError(f"no training images or clips of at least {minimum_side} pixels were found")
     return corpus
 
 

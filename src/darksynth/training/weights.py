@@ -60,7 +60,9 @@ def load_weights(path: Path, *, device: torch.device | str = "cpu") -> DEN:
         model = DEN(config)
         model.load_state_dict(load_file(str(path), device=str(device)))
     except (SafetensorError, KeyError, TypeError, ValueError, RuntimeError) as error:
-        raise DarksynthError(f"{path}: weights do not fit the DEN they describe ({error})") from None
+        # torch lists every mismatched tensor on its own line; the first line says what is wrong.
+        first_line = str(error).strip().splitlines()[0] if str(error).strip() else type(error).__name__
+        raise DarksynthError(f"{path}: weights do not fit the DEN they describe ({first_line})") from None
     return model.to(device).eval()
 
 
