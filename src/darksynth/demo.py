@@ -5,15 +5,17 @@ from __future__ import annotations
 from pathlib import Path
 
 import numpy as np
-import torch
 from PIL import Image as PILImage
 from PIL import ImageDraw
 
 from darksynth.apply import ApplyOptions, apply
 from darksynth.darkening import darken
 from darksynth.errors import DarksynthError
+from darksynth.estimate import estimate, load_reference
+from darksynth.io.arrays import hwc_to_chw
 from darksynth.io.images import Image, read_image, write_image
-from darksynth.profile import default_profile_path, load_profile, save_profile
+from darksynth.profile import Profile, default_profile_path, load_profile, save_profile
+from darksynth.training.weights import default_weights_path, load_weights
 
 SAMPLE = Path(__file__).parent / "data" / "sample"
 LABEL_HEIGHT = 18
@@ -55,6 +57,22 @@ def preview(panels: list[tuple[str, np.ndarray]], *, brighten_from: int = 1) -> 
     return np.asarray(canvas)
 
 
+def demo_profile() -> tuple[Profile, str]:
+    """The demo's profile: noise estimated from the sample reference by the shipped DEN, darkening from the
+    shipped default profile (estimating darkening is later work); the shipped profile alone without weights."""
+    fallback = load_profile(default_profile_path())
+    weights = default_weights_path()
+    if not weights.is_file():
+        return fallback, "profile shipped with darksynth (no DEN weights installed)"
+    estimated = estimate(load_reference(sample_path("reference.png")), load_weights(weights), source="reference.png")
+    profile = Profile(
+        noise=estimated.profile.noise,
+        darkening=fallback.darkening,
+        meta={**estimated.profile.meta, "darkening": "from the shipped default profile"},
+    )
+    return profile, f"estimated from the sample reference by {weights.name}"
+
+
 def run_demo(out: Path, *, seed: int = 0) -> list[Path]:
     """Write the low-light sample image and clip, the profile used and a preview into ``out``.
 
@@ -69,8 +87,7 @@ def run_demo(out: Path, *, seed: int = 0) -> list[Path]:
     for name in ("clean.png", "clean_clip.mp4", "reference.png"):
         if not sample_path(name).is_file():
             raise DarksynthError(f"{sample_path(name)}: demo sample missing from the installation")
-    profile = load_profile(default_profile_path())
-    source = "profile shipped with darksynth (estimation from the reference arrives with the DEN)"
+    profile, source = demo_profile()
     options = ApplyOptions(profile=profile, seed=seed, profile_source=source)
     out.mkdir(parents=True, exist_ok=True)
     profile_out = out / "profile.json"
@@ -83,7 +100,7 @@ def run_demo(out: Path, *, seed: int = 0) -> list[Path]:
 
     clean = read_image(sample_path("clean.png")).pixels
     darkening = image_report.records[0]["parameters"]["darkening"]
-    clean_tensor = torch.from_numpy(clean).permute(2, 0, 1).float() / 255.0
+    clean_tensor = hwc_to_chw(clean).float() / 255.0
     darkened = darken(clean_tensor, darkening["alpha"], darkening["gamma"])
     darkened_pixels = (darkened * 255.0).round().byte().permute(1, 2, 0).numpy()
     noisy = read_image(out / "clean_lowlight.png").pixels

@@ -1,0 +1,101 @@
+"""Round-trip acceptance of the DEN on held-out clean images: apply known parameters, estimate, compare.
+
+Run: ``.venv/bin/python scripts/evaluate_den.py [--weights W] [--trials N] [--data ../shared/data]``.
+
+Held-out material: the 24 Kodak images (never used in training). Each trial picks an image, draws alpha and
+gamma from the paper's ranges and every noise parameter from its training range (all components on), makes
+the low-light reference exactly as ``darksynth apply`` does (the 8-bit path, through a PNG file), and runs
+``estimate`` on it. Three settings: single images (T = 1), static clips of 8 frames (noise redrawn every
+frame, temporal banding held), and for shot and read the same single images. Prints R^2 per parameter and a
+JSON line with everything.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import sys
+import tempfile
+from pathlib import Path
+
+import torch
+
+from darksynth.apply import ApplyOptions, apply
+from darksynth.darkening import ALPHA_RANGE, GAMMA_RANGE, Darkening
+from darksynth.estimate import estimate, load_reference
+from darksynth.noise.components import NOISE_PARAMETERS
+from darksynth.profile import Profile
+from darksynth.training.loop import VECTOR_NAMES, r_squared
+from darksynth.training.weights import default_weights_path, load_weights
+
+
+def draw_profile(generator: torch.Generator) -> Profile:
+    noise = {}
+    for parameter in NOISE_PARAMETERS:
+        low, high = parameter.training_range
+        noise[parameter.name] = tuple(
+            float(low + (high - low) * torch.rand((), generator=generator)) for _ in range(parameter.size)
+        )
+    alpha = float(ALPHA_RANGE[0] + (ALPHA_RANGE[1] - ALPHA_RANGE[0]) * torch.rand((), generator=generator))
+    gamma = float(GAMMA_RANGE[0] + (GAMMA_RANGE[1] - GAMMA_RANGE[0]) * torch.rand((), generator=generator))
+    return Profile(noise=noise, darkening=Darkening(alpha, gamma))
+
+
+def vector(profile: Profile) -> list[float]:
+    return [v for p in NOISE_PARAMETERS for v in profile.noise[p.name]]
+
+
+def main() -> int:
+    parser = argparse.ArgumentParser(description=__doc__)
+    parser.add_argument("--weights", type=Path, default=default_weights_path())
+    parser.add_argument("--trials", type=int, default=48)
+    parser.add_argument("--frames", type=int, default=8)
+    parser.add_argument("--data", type=Path, default=Path(__file__).resolve().parents[2] / "shared" / "data")
+    parser.add_argument("--seed", type=int, default=0)
+    args = parser.parse_args()
+    images = sorted((args.data / "clean" / "images" / "kodak24").glob("*.png"))
+    if not images:
+        print(f"{args.data}: held-out Kodak images not found", file=sys.stderr)
+        return 1
+    model = load_weights(args.weights)
+    generator = torch.Generator().manual_seed(args.seed)
+    results: dict[str, dict[str, list[list[float]]]] = {
+        "image": {"true": [], "estimated": []},
+        "clip": {"true": [], "estimated": []},
+    }
+    with tempfile.TemporaryDirectory() as folder:
+        work = Path(folder)
+        for trial in range(args.trials):
+            source = images[trial % len(images)]
+            profile = draw_profile(generator)
+            seed = int(torch.randint(0, 2**31, (), generator=generator))
+            options = ApplyOptions(profile=profile, seed=seed)
+            single = work / f"single_{trial}.png"
+            apply(source, single, options)
+            clip_in, clip_out = work / f"clip_in_{trial}", work / f"clip_out_{trial}"
+            clip_in.mkdir()
+            for frame in range(args.frames):
+                (clip_in / f"{frame:02d}.png").symlink_to(source)
+            apply(clip_in, clip_out, ApplyOptions(profile=profile, seed=seed, clip=True))
+            for setting, reference in (
+                ("image", load_reference(single)),
+                ("clip", load_reference(clip_out, clip=True)),
+            ):
+                estimated = estimate(reference, model).profile
+                results[setting]["true"].append(vector(profile))
+                results[setting]["estimated"].append(vector(estimated))
+            print(f"trial {trial + 1}/{args.trials}", file=sys.stderr, end="\r")
+    summary = {}
+    for setting, pairs in results.items():
+        r2 = r_squared(torch.tensor(pairs["estimated"]), torch.tensor(pairs["true"]))
+        summary[setting] = {name: round(float(v), 3) for name, v in zip(VECTOR_NAMES, r2, strict=True)}
+    print(f"weights {args.weights}, {args.trials} trials, clips of {args.frames} frames, seed {args.seed}")
+    print(f"{'parameter':18s} {'R2 image':>9s} {'R2 clip':>9s}")
+    for name in VECTOR_NAMES:
+        print(f"{name:18s} {summary['image'][name]:9.3f} {summary['clip'][name]:9.3f}")
+    print(json.dumps({"summary": summary, "trials": args.trials, "frames": args.frames, "seed": args.seed}))
+    return 0
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())
