@@ -16,6 +16,7 @@ import numpy as np
 import torch
 
 from darksynth.errors import DarksynthError
+from darksynth.io.arrays import hwc_to_chw
 from darksynth.io.discover import classify_input, scan_folder
 from darksynth.io.images import read_image
 from darksynth.io.video import iter_video_frames
@@ -48,10 +49,18 @@ class Estimate:
     warnings: list[str] = field(default_factory=list)
 
 
-def _as_rgb_float(pixels: np.ndarray) -> torch.Tensor:
-    scale = 65535.0 if pixels.dtype == np.uint16 else 255.0
-    tensor = torch.from_numpy(pixels.astype(np.float32) / scale).permute(2, 0, 1)
-    return tensor.expand(3, -1, -1).contiguous() if tensor.shape[0] == 1 else tensor
+def _as_rgb(pixels: np.ndarray) -> torch.Tensor:
+    tensor = hwc_to_chw(pixels)
+    return tensor.expand(3, -1, -1) if tensor.shape[0] == 1 else tensor
+
+
+def _to_unit_float(frames: list[torch.Tensor]) -> torch.Tensor:
+    # Stack the integer frames first and convert once: one pass over the clip instead of one per frame.
+    stacked = torch.stack(frames)
+    scale = 65535.0 if stacked.dtype == torch.uint16 else 255.0
+    if stacked.dtype == torch.uint16:
+        stacked = stacked.to(torch.int32)
+    return stacked.to(torch.float32).div_(scale)
 
 
 def load_reference(path: Path, *, clip: bool = False, max_frames: int = MAX_FRAMES) -> torch.Tensor:
@@ -66,10 +75,10 @@ def load_reference(path: Path, *, clip: bool = False, max_frames: int = MAX_FRAM
     kind = classify_input(path)
     frames: list[torch.Tensor] = []
     if kind == "image":
-        frames = [_as_rgb_float(read_image(path).pixels)]
+        frames = [_as_rgb(read_image(path).pixels)]
     elif kind == "video":
         for frame in iter_video_frames(path):
-            frames.append(_as_rgb_float(frame))
+            frames.append(_as_rgb(frame))
             if len(frames) == max_frames:
                 break
         if not frames:
@@ -78,13 +87,13 @@ def load_reference(path: Path, *, clip: bool = False, max_frames: int = MAX_FRAM
         if not clip:
             raise DarksynthError(f"{path}: a folder is a reference only as a clip of frames; add --clip")
         for name in scan_folder(path).images[:max_frames]:
-            image = _as_rgb_float(read_image(path / name).pixels)
+            image = _as_rgb(read_image(path / name).pixels)
             if frames and image.shape != frames[0].shape:
                 raise DarksynthError(
                     f"{path / name}: frame size {tuple(image.shape[1:])} differs from {tuple(frames[0].shape[1:])}"
                 )
             frames.append(image)
-    reference = torch.stack(frames)
+    reference = _to_unit_float(frames)
     if min(reference.shape[-2:]) < MIN_SIDE:
         raise DarksynthError(
             f"{path}: {reference.shape[-1]}x{reference.shape[-2]} is smaller than the estimator's minimum "
