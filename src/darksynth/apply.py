@@ -33,13 +33,14 @@ from darksynth.synthesize import ClipParameters, ClipSynthesizer, DarkeningChoic
 
 TaskKind = Literal["image", "video", "clip"]
 
-COMPILE_MIN_ELEMENTS = 200_000_000
+COMPILE_MIN_ELEMENTS = 500_000_000
 """Streams of at least this many values (frames x channels x pixels) are worth ``torch.compile``.
 
-The eager 8-bit kernel costs about 55 ns a value on the development machine, the compiled one about 2 ns, and
-compiling costs about 13 s the first time and 2-4 s with the on-disk cache of later runs: 2e8 values (about
-32 frames of 1080p RGB, 500 frames of 480x270) take 11 s eagerly, so compiling pays off from there on even
-from a cold cache."""
+Measured on the development machine (docs/performance.md): the eager 8-bit kernel, run in blocks of rows,
+costs about 14 ns a value (88 ms a 1080p RGB frame), the compiled one about 2.2 ns (14 ms), and compiling
+costs about 13 s the first time on a machine and 3-4 s with the on-disk cache of later runs. At 5e8 values
+(about 80 frames of 1080p RGB) the saving, about 6 s, exceeds a warm compilation; a cold one pays off from
+about 1.1e9 values on."""
 
 Progress = Callable[[int], None]
 """Called with the number of frames just finished."""
