@@ -38,8 +38,8 @@ PROFILE = REPO / "src" / "darksynth" / "data" / "default_profile.json"
 DISTINCT_FRAMES = 15
 """Distinct source frames, cycled: enough motion for the decoder and encoder, cheap to generate."""
 POLL_S = 0.25
-WARMUP_SECONDS = 2.0
-"""At 1080p, 60 frames are 3.7e8 values: above the stream size from which ``apply`` compiles its kernel."""
+WARMUP_SECONDS = 3.0
+"""At 1080p and 30 fps, 90 frames are 5.6e8 values: above the stream size (5e8) from which ``apply`` compiles."""
 MIB = 1024.0
 
 
