@@ -21,24 +21,22 @@ from pathlib import Path
 import torch
 
 from darksynth.apply import ApplyOptions, apply
-from darksynth.darkening import ALPHA_RANGE, GAMMA_RANGE, Darkening
+from darksynth.darkening import Darkening
 from darksynth.estimate import estimate, load_reference
 from darksynth.noise.components import NOISE_PARAMETERS
+from darksynth.noise.sampling import random_darkening_values, random_noise_values
 from darksynth.profile import Profile
 from darksynth.training.loop import VECTOR_NAMES, r_squared
 from darksynth.training.weights import default_weights_path, load_weights
 
 
 def draw_profile(generator: torch.Generator) -> Profile:
-    noise = {}
-    for parameter in NOISE_PARAMETERS:
-        low, high = parameter.training_range
-        noise[parameter.name] = tuple(
-            float(low + (high - low) * torch.rand((), generator=generator)) for _ in range(parameter.size)
-        )
-    alpha = float(ALPHA_RANGE[0] + (ALPHA_RANGE[1] - ALPHA_RANGE[0]) * torch.rand((), generator=generator))
-    gamma = float(GAMMA_RANGE[0] + (GAMMA_RANGE[1] - GAMMA_RANGE[0]) * torch.rand((), generator=generator))
-    return Profile(noise=noise, darkening=Darkening(alpha, gamma))
+    noise = random_noise_values(generator=generator, dtype=torch.float64)
+    alpha, gamma = random_darkening_values(generator=generator)
+    return Profile(
+        noise={name: tuple(float(v) for v in values) for name, values in noise.items()},
+        darkening=Darkening(float(alpha), float(gamma)),
+    )
 
 
 def vector(profile: Profile) -> list[float]:

@@ -38,6 +38,7 @@ def random_noise_values(
     *,
     generator: torch.Generator | None = None,
     device: torch.device | str | None = None,
+    dtype: torch.dtype = torch.float32,
 ) -> dict[str, torch.Tensor]:
     """Draw every noise parameter uniformly within its range (the training range where none is given).
 
@@ -47,7 +48,11 @@ def random_noise_values(
     ranges = ranges or {}
     return {
         p.name: random_uniform(
-            ranges.get(p.name, (p.training_range,) * p.size), batch_shape, generator=generator, device=device
+            ranges.get(p.name, (p.training_range,) * p.size),
+            batch_shape,
+            generator=generator,
+            device=device,
+            dtype=dtype,
         )
         for p in NOISE_PARAMETERS
     }
