@@ -116,8 +116,9 @@ def crop_grid(
     windows = list(range(0, frames - t + 1, t)) or [0]
     rows = max(1, math.ceil(height / side))
     columns = max(1, math.ceil(width / side))
-    tops = np.linspace(0, height - side, rows).round().astype(int)
-    lefts = (np.linspace(0, width - side, columns) // 4 * 4).astype(int)
+    # np.unique: a frame only slightly larger than the crop would otherwise get the same crop twice.
+    tops = np.unique(np.linspace(0, height - side, rows).round().astype(int))
+    lefts = np.unique((np.linspace(0, width - side, columns) // 4 * 4).astype(int))
     crops = [
         reference[start : start + t, :, top : top + side, left : left + side]
         for start in windows
@@ -143,7 +144,8 @@ def estimate(
     crops = crop_grid(reference)
     model = model.to(device).eval()
     values = torch.cat([model(crops[i : i + batch].to(device)).values.cpu() for i in range(0, len(crops), batch)])
-    median = values.median(dim=0).values
+    # quantile(0.5) averages the two middle crops of an even count, where Tensor.median takes the lower one.
+    median = torch.quantile(values, 0.5, dim=0)
     low = torch.quantile(values, 0.1, dim=0)
     high = torch.quantile(values, 0.9, dim=0)
     named = vector_to_values(median)

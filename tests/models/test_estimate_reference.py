@@ -176,3 +176,15 @@ def test_number_of_crops_is_bounded_and_spread_over_the_grid(max_crops: int) -> 
     if max_crops > 1:
         # The first and the last crop of the full grid are kept: the selection spans the whole grid.
         assert torch.equal(kept[0], everything[0]) and torch.equal(kept[-1], everything[-1])
+
+
+def test_crop_grid_has_no_duplicate_crops_when_the_frame_barely_exceeds_the_crop() -> None:
+    from darksynth.estimate import crop_grid
+
+    rows = torch.arange(131, dtype=torch.float32).view(131, 1)
+    columns = torch.arange(130, dtype=torch.float32).view(1, 130)
+    # Each pixel holds row * 1000 + column, so a crop's first pixel names its top-left corner.
+    reference = (rows * 1000 + columns).expand(1, 3, 131, 130).contiguous()
+    crops = crop_grid(reference, crop=128)
+    corners = [divmod(int(c[0, 0, 0, 0]), 1000) for c in crops]
+    assert len(set(corners)) == len(corners) == 2  # tops 0 and 3; the only left edge that is a multiple of 4 is 0
