@@ -133,7 +133,9 @@ class ClipSynthesizer:
         """Sum of the active column components for one frame, (1, C, 1, W), on the [0, 1] scale."""
         channels, width = signal_shape[-3], signal_shape[-1]
         total = torch.zeros((1, channels, 1, width), device=self.device)
-        probe = torch.empty(signal_shape, device=self.device)  # the draw functions read only its shape
+        # Column components read only the shape and device of the signal: a zero-stride view has both and
+        # costs no frame-sized allocation per frame.
+        probe = torch.empty((), device=self.device).expand(signal_shape)
         for component in self._active:
             if component.structure != "column":
                 continue

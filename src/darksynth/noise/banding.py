@@ -26,10 +26,8 @@ def banding_noise(
         A row pattern shaped (*batch, T, C, 1, W) that broadcasts down the columns of the clip.
     """
     check_clip_shape(shape)
-    dev = torch.device(device) if device is not None else torch.device("cpu")
     *frames, _height, width = shape
-    pattern = torch.randn((*frames, 1, width), generator=generator, device=dev)
-    return per_clip(sigma, torch.Size(shape), device=dev) * pattern
+    return _column_offsets((*frames, 1, width), shape, sigma, generator, device)
 
 
 def temporal_banding_noise(
@@ -54,7 +52,18 @@ def temporal_banding_noise(
         A row pattern shaped (*batch, 1, C, 1, W) that broadcasts over frames and down columns.
     """
     check_clip_shape(shape)
-    dev = torch.device(device) if device is not None else torch.device("cpu")
     *batch, _frames, channels, _height, width = shape
-    pattern = torch.randn((*batch, 1, channels, 1, width), generator=generator, device=dev)
-    return per_clip(sigma, torch.Size(shape), device=dev) * pattern
+    return _column_offsets((*batch, 1, channels, 1, width), shape, sigma, generator, device)
+
+
+def _column_offsets(
+    pattern_shape: tuple[int, ...],
+    clip_shape: torch.Size | tuple[int, ...],
+    sigma: torch.Tensor | float,
+    generator: torch.Generator | None,
+    device: torch.device | str | None,
+) -> torch.Tensor:
+    """N(0, sigma^2) offsets of the given pattern shape, sigma broadcast per clip of ``clip_shape``."""
+    dev = torch.device(device) if device is not None else torch.device("cpu")
+    pattern = torch.randn(pattern_shape, generator=generator, device=dev)
+    return per_clip(sigma, torch.Size(clip_shape), device=dev) * pattern
