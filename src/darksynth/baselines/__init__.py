@@ -1,0 +1,1 @@
+"""Noise generators that darksynth is compared against, re-implemented and trained here."""

@@ -1,0 +1,1 @@
+"""darksynth evaluate: real noise pairs, noise-generation methods, metrics and reports."""
