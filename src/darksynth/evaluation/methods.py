@@ -1,0 +1,186 @@
+"""The noise-synthesis methods compared by `darksynth evaluate`, by name.
+
+A method fits its parameters to one real pair (zero-shot methods read only the noisy image; oracle methods
+may read the clean one too) and synthesises a noisy version of a clean image with them. The clean image of a
+real pair already has the reference's brightness, so no method darkens. Every output is clipped and rounded
+to 8-bit levels, as the real noisy image was.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable, Sequence
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+import torch
+
+from darksynth.errors import DarksynthError
+from darksynth.evaluation.classical import (
+    PoissonGaussian,
+    add_poisson_gaussian,
+    blind_gaussian_sigma,
+    blind_poisson_gaussian,
+    oracle_poisson_gaussian,
+    to_8bit_levels,
+)
+from darksynth.noise.simulate import add_noise
+from darksynth.training.weights import default_weights_path
+
+AWGN_SIGMA = 5.0 / 255.0
+"""Fixed sigma of the `awgn` baseline: 5 of 255, the middle of the real sets' noise std (2.2-8.3 of 255 on
+polyu and nam-cc15), fixed before any metric was computed."""
+
+PG_FIXED = PoissonGaussian(a=(8e-4, 8e-4, 8e-4), b=((2.0 / 255.0) ** 2,) * 3)
+"""Fixed law of the `pg` baseline: var = 8e-4 x + (2/255)^2, a std of 2/255 in black and 5.9/255 at mid-grey,
+the same middle of the real sets."""
+
+Fit = Callable[[torch.Tensor, torch.Tensor], Any]
+Synthesize = Callable[[torch.Tensor, Any, torch.Generator], torch.Tensor]
+
+
+@dataclass(frozen=True)
+class NoiseMethod:
+    """A named way to make synthetic noise.
+
+    Attributes:
+        fit: (noisy, clean) -> parameters; zero-shot methods must not read ``clean``.
+        synthesize: (clean, parameters, generator) -> synthetic noisy image on 8-bit levels.
+    """
+
+    name: str
+    summary: str
+    fit: Fit
+    synthesize: Synthesize
+    oracle: bool = False
+    details: dict[str, Any] = field(default_factory=dict)
+
+
+class MethodUnavailableError(DarksynthError):
+    """A method that cannot run here: unknown name or missing weights."""
+
+
+def _gaussian(sigmas: Sequence[float]) -> PoissonGaussian:
+    return PoissonGaussian(a=(0.0, 0.0, 0.0), b=(sigmas[0] ** 2, sigmas[1] ** 2, sigmas[2] ** 2))
+
+
+def _fixed(law: PoissonGaussian) -> Fit:
+    return lambda noisy, clean: law
+
+
+def _poisson_gaussian_method(name: str, summary: str, fit: Fit, *, oracle: bool = False) -> NoiseMethod:
+    return NoiseMethod(
+        name=name,
+        summary=summary,
+        fit=fit,
+        synthesize=lambda clean, law, generator: add_poisson_gaussian(clean, law, generator),
+        oracle=oracle,
+    )
+
+
+def _den_method(name: str, weights: Path, device: str) -> NoiseMethod:
+    from darksynth.estimate import estimate
+    from darksynth.training.weights import load_weights
+
+    if not weights.is_file():
+        raise MethodUnavailableError(f"{name}: no trained weights at {weights}")
+    model = load_weights(weights, device=device)
+
+    def fit(noisy: torch.Tensor, clean: torch.Tensor) -> dict[str, torch.Tensor]:
+        profile = estimate(noisy.to(torch.float32)[None], model, device=device).profile
+        return {k: torch.tensor(v, dtype=torch.float64) for k, v in profile.noise.items()}
+
+    def synthesize(clean: torch.Tensor, values: dict[str, torch.Tensor], generator: torch.Generator) -> torch.Tensor:
+        # The paper's model f(v) on the clean image as it is: it already has the reference's brightness.
+        return to_8bit_levels(add_noise(clean[None], values, generator=generator)[0])
+
+    return NoiseMethod(
+        name=name,
+        summary=f"DEN {model.config.variant} ({weights.name}): v from the noisy image, f(v) added to the clean",
+        fit=fit,
+        synthesize=synthesize,
+        details={"weights": str(weights)},
+    )
+
+
+def _starlight_method(device: str) -> NoiseMethod:
+    try:
+        from darksynth.baselines.starlight import load_starlight
+    except ImportError:
+        raise MethodUnavailableError("starlight: the Starlight baseline is not built in this version") from None
+    generator_model = load_starlight(device=device)
+
+    def synthesize(clean: torch.Tensor, _: None, generator: torch.Generator) -> torch.Tensor:
+        with torch.no_grad():
+            noisy = generator_model(clean.to(device=device, dtype=torch.float32)[None], generator=generator)[0]
+        return to_8bit_levels(noisy.to(clean.dtype).cpu())
+
+    return NoiseMethod(
+        name="starlight",
+        summary="Starlight generator (physics + U-Net residual) trained on darksynth's synthetic data; not adaptive",
+        fit=lambda noisy, clean: None,
+        synthesize=synthesize,
+    )
+
+
+METHOD_NAMES: tuple[str, ...] = (
+    "den",
+    "den-v1",
+    "den-v2",
+    "awgn",
+    "awgn-blind",
+    "pg",
+    "pg-blind",
+    "pg-oracle",
+    "starlight",
+)
+
+
+def build_method(name: str, *, weights: dict[str, Path] | None = None, device: str = "cpu") -> NoiseMethod:
+    """The method called ``name``.
+
+    Args:
+        weights: weights files by method name for the DEN variants (den: the shipped weights by default).
+
+    Raises:
+        MethodUnavailableError: an unknown name, or a method whose weights do not exist.
+    """
+    weights = weights or {}
+    if name == "den":
+        return _den_method(name, weights.get(name, default_weights_path()), device)
+    if name == "den-v2":
+        if name not in weights:
+            raise MethodUnavailableError(
+                "den-v2: no trained v2 weights are shipped; pass them with --weights den-v2=FILE"
+            )
+        return _den_method(name, weights[name], device)
+    if name == "den-v1":
+        raise MethodUnavailableError("den-v1: the v1 variant (a U-Net that outputs the noisy image) is not built")
+    if name == "awgn":
+        return _poisson_gaussian_method(
+            name, f"Gaussian, fixed sigma {AWGN_SIGMA * 255:.0f}/255", _fixed(_gaussian([AWGN_SIGMA] * 3))
+        )
+    if name == "awgn-blind":
+        return _poisson_gaussian_method(
+            name,
+            "Gaussian, per-channel sigma from skimage.restoration.estimate_sigma on the noisy image",
+            lambda noisy, clean: _gaussian(blind_gaussian_sigma(noisy)),
+        )
+    if name == "pg":
+        return _poisson_gaussian_method(name, "Poisson-Gaussian, fixed var = 8e-4 x + (2/255)^2", _fixed(PG_FIXED))
+    if name == "pg-blind":
+        return _poisson_gaussian_method(
+            name,
+            "Poisson-Gaussian fitted on the noisy image alone (smooth blocks, after Foi et al. 2008)",
+            lambda noisy, clean: blind_poisson_gaussian(noisy),
+        )
+    if name == "pg-oracle":
+        return _poisson_gaussian_method(
+            name,
+            "Poisson-Gaussian fitted with the clean image (variance against intensity, per channel)",
+            oracle_poisson_gaussian,
+            oracle=True,
+        )
+    if name == "starlight":
+        return _starlight_method(device)
+    raise MethodUnavailableError(f"{name}: unknown method (known: {', '.join(METHOD_NAMES)})")

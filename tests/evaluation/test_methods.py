@@ -1,0 +1,76 @@
+"""The evaluation's methods: names, availability, zero-shot discipline, 8-bit outputs, adaptivity."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import pytest
+import torch
+
+from darksynth.evaluation.classical import to_8bit_levels
+from darksynth.evaluation.methods import AWGN_SIGMA, METHOD_NAMES, MethodUnavailableError, build_method
+from tests.evaluation.test_classical import smooth_scene
+
+ZERO_SHOT_ADAPTIVE = ("awgn-blind", "pg-blind", "den")
+
+
+def noisy_version(clean: torch.Tensor, sigma: float, seed: int) -> torch.Tensor:
+    generator = torch.Generator().manual_seed(seed)
+    return to_8bit_levels(clean + sigma * torch.randn(clean.shape, generator=generator, dtype=clean.dtype))
+
+
+@pytest.fixture(scope="module")
+def clean() -> torch.Tensor:
+    return to_8bit_levels(smooth_scene(192))
+
+
+def test_unknown_and_unbuilt_methods_are_unavailable(tmp_path: Path) -> None:
+    with pytest.raises(MethodUnavailableError, match="nope: unknown method"):
+        build_method("nope")
+    with pytest.raises(MethodUnavailableError, match=r"den-v1: .*not built"):
+        build_method("den-v1")
+    with pytest.raises(MethodUnavailableError, match="den-v2: no trained v2 weights"):
+        build_method("den-v2")
+    with pytest.raises(MethodUnavailableError, match=r"den-v2: no trained weights at .*absent"):
+        build_method("den-v2", weights={"den-v2": tmp_path / "absent.safetensors"})
+
+
+@pytest.mark.parametrize("name", ZERO_SHOT_ADAPTIVE)
+def test_zero_shot_methods_never_read_the_clean_image(name: str, clean: torch.Tensor) -> None:
+    method = build_method(name)
+    noisy = noisy_version(clean, 0.03, seed=0)
+    fitted = method.fit(noisy, clean)
+    other = method.fit(noisy, torch.zeros_like(clean))
+    first = method.synthesize(clean, fitted, torch.Generator().manual_seed(5))
+    second = method.synthesize(clean, other, torch.Generator().manual_seed(5))
+    assert torch.equal(first, second)
+
+
+@pytest.mark.parametrize("name", [n for n in METHOD_NAMES if n not in ("den-v1", "den-v2", "starlight")])
+def test_outputs_are_8bit_images_of_the_clean_size(name: str, clean: torch.Tensor) -> None:
+    method = build_method(name)
+    noisy = noisy_version(clean, 0.03, seed=1)
+    synthetic = method.synthesize(clean, method.fit(noisy, clean), torch.Generator().manual_seed(0))
+    assert synthetic.shape == clean.shape
+    assert torch.equal(synthetic * 255, (synthetic * 255).round())
+    assert float(synthetic.min()) >= 0.0 and float(synthetic.max()) <= 1.0
+
+
+def test_fixed_awgn_does_not_adapt(clean: torch.Tensor) -> None:
+    method = build_method("awgn")
+    for sigma in (0.01, 0.06):
+        synthetic = method.synthesize(clean, method.fit(noisy_version(clean, sigma, 2), clean), torch.Generator())
+        assert float((synthetic - clean).std()) == pytest.approx(AWGN_SIGMA, rel=0.1)
+
+
+@pytest.mark.parametrize("name", (*ZERO_SHOT_ADAPTIVE, "pg-oracle"))
+def test_adaptive_methods_follow_the_reference_noise_level(name: str, clean: torch.Tensor) -> None:
+    method = build_method(name)
+    stds = []
+    for sigma in (0.01, 0.06):
+        noisy = noisy_version(clean, sigma, seed=3)
+        synthetic = method.synthesize(clean, method.fit(noisy, clean), torch.Generator().manual_seed(0))
+        stds.append(float((synthetic - clean).std()))
+    assert stds[1] > 2.5 * stds[0]
+    if name != "den":  # the classical estimators are built for white Gaussian noise like this
+        assert stds == pytest.approx([0.01, 0.06], rel=0.2)
