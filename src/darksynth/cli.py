@@ -231,6 +231,75 @@ def estimate_command(
     say(f"wrote {out} from {len(result.per_crop)} crops")
 
 
+def parse_weights(entries: list[str]) -> dict[str, Path]:
+    """``NAME=FILE`` options into a mapping, rejecting malformed ones."""
+    weights: dict[str, Path] = {}
+    for entry in entries:
+        name, sep, file = entry.partition("=")
+        if not sep or not name or not file:
+            raise DarksynthError(f"--weights {entry!r}: expected METHOD=FILE, for example den-v2=den_v2.safetensors")
+        weights[name] = Path(file)
+    return weights
+
+
+@app.command("evaluate")
+def evaluate_command(
+    pairs: Annotated[
+        list[Path], typer.Option("--pairs", help="Folder of real pairs (noisy/NAME, clean/NAME); repeatable.")
+    ],
+    out: Annotated[Path, typer.Option("--out", help="Folder for results.json, results.md and report.html.")],
+    methods: Annotated[
+        str, typer.Option(help="Comma-separated methods (default: all): den,den-v1,den-v2,awgn,awgn-blind,...")
+    ] = "",
+    weights: Annotated[
+        list[str] | None, typer.Option("--weights", help="METHOD=FILE weights for a DEN variant; repeatable.")
+    ] = None,
+    seed: Annotated[int, typer.Option(help="Seed of the synthetic noise.")] = 0,
+    device: Annotated[str, typer.Option(help="torch device.")] = "cpu",
+    inception: Annotated[bool, typer.Option("--fid/--no-fid", help="Compute FID and KID (InceptionV3).")] = True,
+) -> None:
+    """Compare each method's synthetic noise with real noise on sets of real noisy/clean pairs."""
+    import json
+    import shlex
+
+    from darksynth.evaluation.methods import METHOD_NAMES
+    from darksynth.evaluation.report import write_html_report, write_markdown
+    from darksynth.evaluation.runner import EvaluationOptions, evaluate_pairs
+    from darksynth.io.atomic import write_text_atomic
+
+    chosen = [m.strip() for m in methods.split(",") if m.strip()] or list(METHOD_NAMES)
+    # The command as parsed, so that the report states exactly what produced it.
+    arguments = [part for path in pairs for part in ("--pairs", str(path))]
+    arguments += ["--methods", ",".join(chosen)] + [part for w in weights or [] for part in ("--weights", w)]
+    arguments += ["--seed", str(seed), "--device", device] + ([] if inception else ["--no-fid"])
+    command = shlex.join(["darksynth", "evaluate", *arguments, "--out", str(out)])
+    try:
+        options = EvaluationOptions(
+            methods=chosen,
+            seed=seed,
+            device=device,
+            weights=parse_weights(weights or []),
+            inception=inception,
+            command=command,
+        )
+        with console.status("evaluating") as status:
+            outcome = evaluate_pairs(pairs, options, progress=lambda message: status.update(message))
+        out.mkdir(parents=True, exist_ok=True)
+        write_text_atomic(out / "results.json", json.dumps(outcome.results, indent=2) + "\n")
+        write_markdown(outcome.results, out / "results.md")
+        write_html_report(outcome.results, outcome.examples, out / "report.html")
+    except DarksynthError as error:
+        raise fail(str(error)) from None
+    except OSError as error:
+        raise fail(f"{error.filename or out}: {error.strerror or error}") from None
+    for problem in outcome.results["problems"]:
+        say(f"darksynth: warning: {problem}")
+    for name, report in outcome.results["sets"].items():
+        ranked = sorted(report["methods"].items(), key=lambda item: item[1]["kld"])
+        say(f"{name} ({report['pairs']} pairs), kld: " + ", ".join(f"{m} {r['kld']:.3f}" for m, r in ranked))
+    say(f"wrote {out / 'results.json'}, {out / 'results.md'} and {out / 'report.html'}")
+
+
 @app.command("demo")
 def demo_command(
     out: Annotated[Path, typer.Option(help="Folder to write the demo into.")] = Path("darksynth-demo"),

@@ -33,6 +33,10 @@ def test_unknown_and_unbuilt_methods_are_unavailable(tmp_path: Path) -> None:
         build_method("den-v2")
     with pytest.raises(MethodUnavailableError, match=r"den-v2: no trained weights at .*absent"):
         build_method("den-v2", weights={"den-v2": tmp_path / "absent.safetensors"})
+    corrupt = tmp_path / "corrupt.safetensors"
+    corrupt.write_bytes(b"not safetensors")
+    with pytest.raises(MethodUnavailableError, match=r"den: .*corrupt\.safetensors: not a readable safetensors"):
+        build_method("den", weights={"den": corrupt})
 
 
 @pytest.mark.parametrize("name", ZERO_SHOT_ADAPTIVE)

@@ -84,7 +84,10 @@ def _den_method(name: str, weights: Path, device: str) -> NoiseMethod:
 
     if not weights.is_file():
         raise MethodUnavailableError(f"{name}: no trained weights at {weights}")
-    model = load_weights(weights, device=device)
+    try:
+        model = load_weights(weights, device=device)
+    except DarksynthError as error:
+        raise MethodUnavailableError(f"{name}: {error}") from None
 
     def fit(noisy: torch.Tensor, clean: torch.Tensor) -> dict[str, torch.Tensor]:
         profile = estimate(noisy.to(torch.float32)[None], model, device=device).profile
@@ -108,7 +111,10 @@ def _starlight_method(device: str) -> NoiseMethod:
         from darksynth.baselines.starlight import load_starlight
     except ImportError:
         raise MethodUnavailableError("starlight: the Starlight baseline is not built in this version") from None
-    generator_model = load_starlight(device=device)
+    try:
+        generator_model = load_starlight(device=device)
+    except DarksynthError as error:
+        raise MethodUnavailableError(f"starlight: {error}") from None
 
     def synthesize(clean: torch.Tensor, _: None, generator: torch.Generator) -> torch.Tensor:
         with torch.no_grad():

@@ -1,0 +1,111 @@
+"""'darksynth evaluate' end to end on small sets made on the spot: results, report, and every bad input."""
+
+from __future__ import annotations
+
+import json
+from pathlib import Path
+
+import numpy as np
+import pytest
+from PIL import Image
+from typer.testing import CliRunner
+
+from darksynth.cli import app
+from darksynth.evaluation.runner import EvaluationOptions, evaluate_pairs
+from tests.evaluation.conftest import MakeSet
+
+
+def run_cli(*args: str | Path) -> tuple[int, str, str]:
+    result = CliRunner().invoke(app, [str(a) for a in args])
+    if result.exception is not None and not isinstance(result.exception, SystemExit):
+        raise result.exception
+    return result.exit_code, result.stdout, result.stderr
+
+
+def test_results_have_the_documented_shape_and_rank_methods_sensibly(make_pair_set: MakeSet) -> None:
+    root = make_pair_set("strong", count=4, sigma=14.0, size=96)
+    outcome = evaluate_pairs([root], EvaluationOptions(methods=["awgn", "pg-oracle", "awgn-blind"], inception=False))
+    report = outcome.results["sets"]["strong"]
+    assert report["pairs"] == 4
+    assert set(report["methods"]) == {"awgn", "pg-oracle", "awgn-blind"}
+    for entry in report["methods"].values():
+        low, high = entry["kld_ci95"]
+        assert low <= entry["kld"] <= high
+        assert set(entry["per_camera"]) == {"camA", "camB"}
+        assert entry["per_camera"]["camA"]["pairs"] == 2
+        assert entry["fid"] is None and entry["kid"] is None
+    methods = report["methods"]
+    # Real noise is white Gaussian of 14/255: the clean-aided fit matches it, a fixed 5/255 does not.
+    assert methods["pg-oracle"]["oracle"] is True and methods["awgn"]["oracle"] is False
+    assert methods["pg-oracle"]["kld"] < 0.05 < methods["awgn"]["kld"]
+    assert methods["pg-oracle"]["kld_srgb"] < methods["awgn"]["kld_srgb"]
+    assert outcome.results["problems"] == []
+    assert [e.pair_name for e in outcome.examples] == ["pair_0.png", "pair_1.png"]
+    assert set(outcome.examples[0].noisy) == {"real", "awgn", "pg-oracle", "awgn-blind"}
+
+
+def test_same_seed_same_results(make_pair_set: MakeSet) -> None:
+    root = make_pair_set(count=2)
+    options = EvaluationOptions(methods=["awgn", "pg-blind"], inception=False, seed=3)
+    first = evaluate_pairs([root], options).results["sets"]
+    second = evaluate_pairs([root], options).results["sets"]
+    assert first == second
+
+
+def test_cli_writes_results_markdown_and_report(make_pair_set: MakeSet, tmp_path: Path) -> None:
+    root = make_pair_set("setA", count=2)
+    out = tmp_path / "out"
+    code, _, stderr = run_cli("evaluate", "--pairs", root, "--methods", "awgn,pg-oracle", "--no-fid", "--out", out)
+    assert code == 0, stderr
+    results = json.loads((out / "results.json").read_text())
+    assert set(results["sets"]["setA"]["methods"]) == {"awgn", "pg-oracle"}
+    assert "darksynth evaluate --pairs" in results["command"]
+    assert "--methods awgn,pg-oracle" in results["command"]
+    assert "setA" in (out / "results.md").read_text()
+    assert (out / "report.html").read_text().lstrip().lower().startswith("<!doctype html")
+    assert "setA (2 pairs), kld: pg-oracle" in stderr
+
+
+def test_bad_pairs_and_names_are_reported_and_the_rest_runs(make_pair_set: MakeSet, tmp_path: Path) -> None:
+    root = make_pair_set("messy", count=4)
+    (root / "clean" / "pair_1.png").unlink()  # missing partner
+    Image.fromarray(np.zeros((8, 8, 3), np.uint8)).save(root / "clean" / "pair_2.png")  # mismatched size
+    (root / "noisy" / "readme.txt").write_text("not an image")
+    out = tmp_path / "out"
+    code, _, stderr = run_cli(
+        "evaluate", "--pairs", root, "--pairs", tmp_path / "absent", "--methods", "awgn,nope,den-v2",
+        "--no-fid", "--out", out,
+    )  # fmt: skip
+    assert code == 0, stderr
+    results = json.loads((out / "results.json").read_text())
+    assert results["sets"]["messy"]["pairs"] == 2
+    problems = "\n".join(results["problems"])
+    for expected in ("pair_1.png: no clean partner", "pair_2.png: size", "readme.txt: not an image", "absent",
+                     "nope: unknown method", "den-v2: no trained v2 weights"):  # fmt: skip
+        assert expected in problems
+        assert expected in stderr
+    assert "Traceback" not in stderr
+
+
+@pytest.mark.parametrize(
+    ("arguments", "message"),
+    [
+        (["--methods", "nope"], "no method can run: nope: unknown method"),
+        (["--weights", "den-v2"], "expected METHOD=FILE"),
+    ],
+)
+def test_fatal_inputs_give_one_error_line(
+    make_pair_set: MakeSet, tmp_path: Path, arguments: list[str], message: str
+) -> None:
+    root = make_pair_set(count=1)
+    code, _, stderr = run_cli("evaluate", "--pairs", root, "--no-fid", "--out", tmp_path / "out", *arguments)
+    assert code == 1
+    lines = stderr.strip().splitlines()
+    assert len(lines) == 1 and lines[0].startswith("darksynth: error: ") and message in lines[0]
+    assert not (tmp_path / "out" / "results.json").exists()
+
+
+def test_no_readable_set_is_fatal(tmp_path: Path) -> None:
+    code, _, stderr = run_cli("evaluate", "--pairs", tmp_path / "absent", "--methods", "awgn", "--out", tmp_path / "o")
+    assert code == 1
+    assert "no set of pairs could be read" in stderr and "absent: no such folder" in stderr
