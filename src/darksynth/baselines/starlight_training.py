@@ -1,0 +1,409 @@
+"""Training of the Starlight generator under the DEN's self-supervised settings, and its held-out figures.
+
+The target distribution is exactly the DEN's synthetic training data: clean crops from
+:func:`~darksynth.training.corpus.sample_clean_clips`, darkened and made noisy by
+:func:`~darksynth.training.batches.synthesize_batch` (alpha ~ U(0.05, 0.3), gamma ~ U(0.1, 1), v from the
+training ranges with each component absent with probability 0.15, 8-bit output). The generator receives the
+dark clean clip (``batch.dark``) and must make noisy clips distributed like ``batch.noisy``.
+
+Loss, as in Starlight, adversarial: a small patch discriminator with spectral normalisation judges the noise
+residual (noisy - dark) of each frame beside the dark frame it belongs to, the residual minus its mean over the
+clip (what is held over frames) and its column means (column patterns span the whole frame height, beyond
+a small patch's reach); least-squares GAN losses. Added to the generator's loss, with weight
+``lambda_statistics``, a statistics-matching term: the squared difference between the batch means of the
+DEN's fixed noise statistics (:mod:`darksynth.models.noise_statistics`, log variances of pixel noise binned
+by level, of column patterns split into per-frame and held parts, and of period-4 projections) of generated
+and target clips. The adversarial term alone is slow to find the column components within a 15-minute CPU
+budget; the statistics make every component's strength observable from the first step.
+"""
+
+from __future__ import annotations
+
+import copy
+import itertools
+import json
+import time
+from collections.abc import Callable
+from dataclasses import asdict, dataclass, field
+from functools import partial
+from pathlib import Path
+from typing import Any
+
+import torch
+from torch import nn
+from torch.nn.utils.parametrizations import spectral_norm
+
+from darksynth.baselines.starlight_model import (
+    MODEL_NAME,
+    MODEL_VERSION,
+    StarlightConfig,
+    StarlightGenerator,
+    save_starlight,
+)
+from darksynth.io.atomic import write_text_atomic
+from darksynth.models.noise_statistics import LEVEL_BINS, noise_statistics
+from darksynth.noise.components import NOISE_PARAMETERS
+from darksynth.training.batches import TrainingBatch, synthesize_batch
+from darksynth.training.corpus import CleanCorpus, sample_clean_clips
+
+RESIDUAL_FEATURE_SCALE = 10.0
+"""The discriminator reads residuals times this (they are of the order of 0.01-0.1)."""
+
+DARK_FEATURE_SCALE = 4.0
+"""The discriminator reads the dark frame times this (its values lie in [0, 0.3])."""
+
+STATISTICS_WITH_GRADIENT = [*range(2 * LEVEL_BINS), *range(3 * LEVEL_BINS, 3 * LEVEL_BINS + 8)]
+"""Entries of :func:`noise_statistics` that depend on the noise values (not the bin shares, not 1 / T)."""
+
+KL_BINS = 200
+KL_RANGE = (-0.5, 0.5)
+"""Histogram of the noise residual for the KL divergence: 200 bins of 0.005 (1.3 8-bit levels) over
+[-0.5, 0.5]; values beyond fall in the end bins."""
+
+KL_SMOOTHING = 1e-6
+"""Probability mass added to every bin before the KL divergence, so that empty bins count (not dropped)."""
+
+LEVEL_EDGES = (0.0, 0.01, 0.03, 0.1, 0.3, 1.0)
+"""Dark-level bins of the noise-level table in the summary."""
+
+
+@dataclass(frozen=True)
+class StarlightTrainConfig:
+    """Training settings, written beside the weights. Defaults: those of the shipped weights."""
+
+    model: StarlightConfig = field(default_factory=StarlightConfig)
+    steps: int = 2000
+    batch: int = 8
+    frames: int = 4
+    crop: int = 64
+    clip_fraction: float = 0.5
+    single_frame_every: int = 2
+    absent_probability: float = 0.15
+    learning_rate: float = 5e-4
+    physics_learning_rate: float = 2e-2
+    discriminator_learning_rate: float = 5e-4
+    betas: tuple[float, float] = (0.5, 0.999)
+    decay_from: float = 0.5
+    """From this fraction of the steps on, every learning rate falls linearly to a tenth at the last step."""
+    lambda_adversarial: float = 1.0
+    lambda_statistics: float = 1.0
+    discriminator_width: int = 16
+    seed: int = 0
+    max_seconds: float | None = None
+    """Stop early once training has taken this long (the summary records the steps done); None: no limit."""
+    log_every: int = 50
+    holdout_size: int = 64
+    holdout_crop: int = 128
+    device: str = "cpu"
+
+    def to_dict(self) -> dict[str, Any]:
+        document = asdict(self)
+        document["model"] = self.model.to_dict()
+        return document
+
+
+class PatchDiscriminator(nn.Module):
+    """Per-frame patch discriminator: (N, 12, H, W) -> (N, 1, H / 4, W / 4) scores (LSGAN, no sigmoid)."""
+
+    def __init__(self, width: int = 16, inputs: int = 12) -> None:
+        super().__init__()
+
+        def conv(a: int, b: int, kernel: int, stride: int) -> nn.Module:
+            padding = (kernel - 1) // 2 if stride == 1 else 1
+            return spectral_norm(nn.Conv2d(a, b, kernel, stride=stride, padding=padding))
+
+        self.body = nn.Sequential(
+            conv(inputs, width, 3, 1),
+            nn.LeakyReLU(0.2),
+            conv(width, 2 * width, 4, 2),
+            nn.LeakyReLU(0.2),
+            conv(2 * width, 2 * width, 4, 2),
+            nn.LeakyReLU(0.2),
+            conv(2 * width, 2 * width, 3, 1),
+            nn.LeakyReLU(0.2),
+            conv(2 * width, 1, 3, 1),
+        )
+
+    def forward(self, x: torch.Tensor) -> torch.Tensor:
+        result: torch.Tensor = self.body(x)
+        return result
+
+
+def discriminator_features(dark: torch.Tensor, noisy: torch.Tensor) -> torch.Tensor:
+    """What the discriminator reads of a clip batch (B, T, C, H, W): (B * T, 4 C, H, W).
+
+    Per frame: the dark frame, the noise residual, the residual minus its mean over the clip's frames, and the
+    residual's column means broadcast down the columns.
+    """
+    residual = noisy - dark
+    held = residual - residual.mean(dim=1, keepdim=True)
+    columns = residual.mean(dim=-2, keepdim=True).expand_as(residual)
+    features = torch.cat(
+        [
+            dark * DARK_FEATURE_SCALE,
+            residual * RESIDUAL_FEATURE_SCALE,
+            held * RESIDUAL_FEATURE_SCALE,
+            columns * (3.0 * RESIDUAL_FEATURE_SCALE),
+        ],
+        dim=2,
+    )
+    return features.flatten(0, 1)
+
+
+def statistics_loss(fake: torch.Tensor, real: torch.Tensor) -> torch.Tensor:
+    """Mean squared difference of the batch means of the DEN's noise statistics (log10 units)."""
+    fake_statistics = noise_statistics(fake)[:, STATISTICS_WITH_GRADIENT].mean(0)
+    real_statistics = noise_statistics(real)[:, STATISTICS_WITH_GRADIENT].mean(0)
+    return (fake_statistics - real_statistics).square().mean()
+
+
+def histogram_kl(first: torch.Tensor, second: torch.Tensor) -> float:
+    """Symmetric KL divergence between the histograms of two sets of noise values (see KL_BINS, KL_RANGE)."""
+    low, high = KL_RANGE
+
+    def histogram(values: torch.Tensor) -> torch.Tensor:
+        clamped = values.detach().double().flatten().clamp(low, high)
+        counts = torch.histc(clamped, bins=KL_BINS, min=low, max=high)
+        probability = counts / counts.sum()
+        return (probability + KL_SMOOTHING) / (1.0 + KL_BINS * KL_SMOOTHING)
+
+    p, q = histogram(first), histogram(second)
+    forward = (p * (p / q).log()).sum()
+    inverse = (q * (q / p).log()).sum()
+    return float(0.5 * (forward + inverse))
+
+
+def holdout_batches(holdout: CleanCorpus, config: StarlightTrainConfig) -> list[TrainingBatch]:
+    """A fixed set of target batches from held-out material (its own seed: every run sees the same set)."""
+    generator = torch.Generator().manual_seed(config.seed + 1_000_003)
+    batches = []
+    for _ in range(max(1, config.holdout_size // config.batch)):
+        clean = sample_clean_clips(
+            holdout,
+            config.batch,
+            config.frames,
+            config.holdout_crop,
+            clip_fraction=config.clip_fraction,
+            generator=generator,
+        )
+        batches.append(synthesize_batch(clean, generator=generator, absent_probability=config.absent_probability))
+    return batches
+
+
+def _noise_levels(dark: torch.Tensor, residual: torch.Tensor) -> list[float | None]:
+    """Standard deviation of the residual in each dark-level bin of LEVEL_EDGES (None for an empty bin)."""
+    levels = []
+    for low, high in itertools.pairwise(LEVEL_EDGES):
+        inside = (dark >= low) & (dark < high)
+        levels.append(round(float(residual[inside].std()), 5) if int(inside.sum()) > 1 else None)
+    return levels
+
+
+@torch.no_grad()
+def evaluate_starlight(
+    model: StarlightGenerator, batches: list[TrainingBatch], *, seed: int = 0, absent_probability: float = 0.15
+) -> dict[str, Any]:
+    """Figures of a generator against a target set: KL divergence of noise histograms, noise levels.
+
+    Also reported: the same for the physics part alone (the U-Net's residual zeroed), and the KL divergence
+    between the target and a second, independent draw of the target on the same clean crops (the floor the
+    figure can reach with a finite sample and per-clip random parameters).
+    """
+    device = next(model.parameters()).device
+    physics = copy.deepcopy(model)
+    physics.zero_residual()
+    was_training = model.training
+    model.eval()
+    generator = torch.Generator().manual_seed(seed)
+    redraw = torch.Generator().manual_seed(seed + 1)
+    target, generated, physics_only, second_draw, darks = [], [], [], [], []
+    for batch in batches:
+        dark = batch.dark.to(device)
+        darks.append(batch.dark)
+        target.append(batch.noisy - batch.dark)
+        generated.append((model(dark, generator) - dark).cpu())
+        physics_only.append((physics(dark, generator) - dark).cpu())
+        # The floor: the target's own law drawn again (new v, new noise) on the same dark crops.
+        second = _redraw_target(batch, redraw, absent_probability)
+        second_draw.append(second - batch.dark)
+    model.train(was_training)
+    dark_all = torch.cat(darks)
+    target_all, generated_all = torch.cat(target), torch.cat(generated)
+    physics_all, second_all = torch.cat(physics_only), torch.cat(second_draw)
+    return {
+        "kl_generated_vs_target": round(histogram_kl(generated_all, target_all), 5),
+        "kl_physics_only_vs_target": round(histogram_kl(physics_all, target_all), 5),
+        "kl_second_target_draw_vs_target": round(histogram_kl(second_all, target_all), 5),
+        "residual_std": {
+            "generated": round(float(generated_all.std()), 5),
+            "physics_only": round(float(physics_all.std()), 5),
+            "target": round(float(target_all.std()), 5),
+        },
+        "residual_std_by_dark_level": {
+            "level_edges": list(LEVEL_EDGES),
+            "generated": _noise_levels(dark_all, generated_all),
+            "target": _noise_levels(dark_all, target_all),
+        },
+        "samples": int(target_all.shape[0]),
+        "frames": int(target_all.shape[1]),
+        "crop": int(target_all.shape[-1]),
+    }
+
+
+def _redraw_target(batch: TrainingBatch, generator: torch.Generator, absent_probability: float) -> torch.Tensor:
+    """Another draw of the target's noise law on the same dark clips (new v, new noise), as 8-bit levels."""
+    from darksynth.noise.components import NOISE_COMPONENTS
+    from darksynth.noise.sampling import random_noise_values
+    from darksynth.noise.simulate import add_noise
+
+    size = batch.dark.shape[0]
+    values = random_noise_values(batch_shape=(size,), generator=generator)
+    for component in NOISE_COMPONENTS:
+        present = torch.rand(size, 1, generator=generator) >= absent_probability
+        for parameter in component.parameters:
+            values[parameter.name] = values[parameter.name] * present
+    noisy = add_noise(batch.dark, values, generator=generator)
+    return (noisy * 255.0).round() / 255.0
+
+
+def prior_mean_values(absent_probability: float = 0.15) -> dict[str, float]:
+    """Mean of each noise parameter under the target's prior (uniform over its range, present or not)."""
+    return {
+        p.name: round((1.0 - absent_probability) * 0.5 * (p.training_range[0] + p.training_range[1]), 6)
+        for p in NOISE_PARAMETERS
+    }
+
+
+ProgressCallback = Callable[[int, dict[str, Any]], None]
+
+
+def train_starlight(
+    corpus: CleanCorpus,
+    config: StarlightTrainConfig | None = None,
+    *,
+    holdout: CleanCorpus | None = None,
+    out: Path | None = None,
+    progress: ProgressCallback | None = None,
+) -> tuple[StarlightGenerator, dict[str, Any]]:
+    """Train a Starlight generator adversarially on the DEN's synthetic data; optionally save it.
+
+    Args:
+        corpus: clean training material.
+        config: training settings (the shipped weights' by default).
+        holdout: clean held-out material for the final figures (none when None).
+        out: weights path; its summary goes to ``OUT_STEM_training.json`` beside it. Nothing is written when None.
+        progress: called every ``log_every`` steps (and at the last) with the step and the logged figures.
+
+    Returns:
+        The trained generator (eval mode) and the summary.
+    """
+    config = config or StarlightTrainConfig()
+    torch.manual_seed(config.seed)  # initialisation only; every data and noise draw uses the explicit generator
+    device = torch.device(config.device)
+    model = StarlightGenerator(config.model).to(device)
+    discriminator = PatchDiscriminator(config.discriminator_width, inputs=4 * config.model.channels).to(device)
+    initial = copy.deepcopy(model)
+    physics = [p for n, p in model.named_parameters() if n.startswith("log_")]
+    network = [p for n, p in model.named_parameters() if not n.startswith("log_")]
+    groups: list[dict[str, Any]] = [{"params": network}, {"params": physics, "lr": config.physics_learning_rate}]
+    optimizer = torch.optim.Adam(
+        groups,
+        lr=config.learning_rate,
+        betas=config.betas,
+    )
+    optimizer_d = torch.optim.Adam(
+        discriminator.parameters(), lr=config.discriminator_learning_rate, betas=config.betas
+    )
+    schedules = [torch.optim.lr_scheduler.LambdaLR(o, partial(_decay, config)) for o in (optimizer, optimizer_d)]
+    generator = torch.Generator().manual_seed(config.seed)
+    history: list[dict[str, Any]] = []
+    steps_done = 0
+    sums = {"discriminator": 0.0, "adversarial": 0.0, "statistics": 0.0}
+    count = 0
+    started = time.perf_counter()
+    model.train()
+    for step in range(1, config.steps + 1):
+        frames = 1 if config.single_frame_every and step % config.single_frame_every == 0 else config.frames
+        clean = sample_clean_clips(
+            corpus, config.batch, frames, config.crop, clip_fraction=config.clip_fraction, generator=generator
+        )
+        batch = synthesize_batch(clean, generator=generator, absent_probability=config.absent_probability)
+        dark, real = batch.dark.to(device), batch.noisy.to(device)
+        fake = model(dark, generator)
+
+        scores_real = discriminator(discriminator_features(dark, real))
+        scores_fake = discriminator(discriminator_features(dark, fake.detach()))
+        loss_d = 0.5 * ((scores_real - 1.0).square().mean() + scores_fake.square().mean())
+        optimizer_d.zero_grad(set_to_none=True)
+        loss_d.backward()
+        optimizer_d.step()
+
+        adversarial = (discriminator(discriminator_features(dark, fake)) - 1.0).square().mean()
+        matching = statistics_loss(fake, real)
+        loss_g = config.lambda_adversarial * adversarial + config.lambda_statistics * matching
+        optimizer.zero_grad(set_to_none=True)
+        loss_g.backward()
+        optimizer.step()
+        for schedule in schedules:
+            schedule.step()
+
+        sums["discriminator"] += float(loss_d.detach())
+        sums["adversarial"] += float(adversarial.detach())
+        sums["statistics"] += float(matching.detach())
+        count += 1
+        steps_done = step
+        out_of_time = config.max_seconds is not None and time.perf_counter() - started > config.max_seconds
+        if step % config.log_every == 0 or step == config.steps or out_of_time:
+            entry: dict[str, Any] = {"step": step, **{k: round(v / count, 5) for k, v in sums.items()}}
+            entry["physics"] = _rounded(model.physics_values())
+            entry["seconds"] = round(time.perf_counter() - started, 1)
+            history.append(entry)
+            sums = dict.fromkeys(sums, 0.0)
+            count = 0
+            if progress:
+                progress(step, entry)
+        if out_of_time:
+            break
+    seconds = time.perf_counter() - started
+    model.eval()
+    summary: dict[str, Any] = {
+        "model": MODEL_NAME,
+        "version": MODEL_VERSION,
+        "config": config.to_dict(),
+        "steps": steps_done,
+        "stopped_by_time_limit": steps_done < config.steps,
+        "training_seconds": round(seconds, 1),
+        "torch_threads": torch.get_num_threads(),
+        "training_sources": len(corpus),
+        "final_physics": _rounded(model.physics_values()),
+        "target_prior_mean": prior_mean_values(config.absent_probability),
+        "history": history,
+    }
+    if holdout is not None:
+        batches = holdout_batches(holdout, config)
+        absent = config.absent_probability
+        summary["holdout_sources"] = holdout.sources
+        summary["holdout"] = evaluate_starlight(model, batches, seed=config.seed, absent_probability=absent)
+        untrained = evaluate_starlight(initial, batches, seed=config.seed, absent_probability=absent)
+        summary["holdout_untrained"] = {"kl_generated_vs_target": untrained["kl_generated_vs_target"]}
+    if out is not None:
+        save_starlight(out, model, training={"steps": steps_done, "final_physics": summary["final_physics"]})
+        write_text_atomic(summary_path(out), json.dumps(summary, indent=2) + "\n")
+    return model, summary
+
+
+def _decay(config: StarlightTrainConfig, step: int) -> float:
+    """Learning-rate factor after ``step`` steps: 1, then linear down to 0.1 from ``decay_from`` of the steps."""
+    start = config.decay_from * config.steps
+    if step <= start or config.steps <= start:
+        return 1.0
+    return 1.0 - 0.9 * min(1.0, (step - start) / (config.steps - start))
+
+
+def summary_path(weights: Path) -> Path:
+    """Where the training summary of a weights file goes: ``STEM_training.json`` beside it."""
+    return weights.with_name(weights.stem + "_training.json")
+
+
+def _rounded(values: dict[str, float | list[float]]) -> dict[str, float | list[float]]:
+    return {k: [round(x, 6) for x in v] if isinstance(v, list) else round(v, 6) for k, v in values.items()}
