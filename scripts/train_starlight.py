@@ -2,7 +2,7 @@
 
 The shipped weights (src/darksynth/data/starlight.safetensors) come from::
 
-    .venv/bin/python scripts/train_starlight.py --seed 0 --steps 2000 \
+    .venv/bin/python scripts/train_starlight.py --seed 0 --steps 1500 --threads 1 --max-minutes 14.5 \
         --out src/darksynth/data/starlight.safetensors
 
 with the default data paths below (see docs/starlight.md).

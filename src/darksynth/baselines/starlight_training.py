@@ -72,7 +72,7 @@ class StarlightTrainConfig:
     """Training settings, written beside the weights. Defaults: those of the shipped weights."""
 
     model: StarlightConfig = field(default_factory=StarlightConfig)
-    steps: int = 2000
+    steps: int = 1500
     batch: int = 8
     frames: int = 4
     crop: int = 64
