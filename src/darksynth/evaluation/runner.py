@@ -123,7 +123,11 @@ class _Features:
             return {"fid": None, "kid": None, "kid_std": None}
         real = np.concatenate(self.collected["real"])
         synthetic = np.concatenate(self.collected[method])
-        kid, kid_std = kernel_inception_distance(real, synthetic)
+        # Subsets of half the smaller set: the spread over subsets then says something (with subsets of
+        # the whole set every round would see the same vectors).
+        kid, kid_std = kernel_inception_distance(
+            real, synthetic, subset_size=max(2, min(len(real), len(synthetic)) // 2)
+        )
         return {"fid": float(frechet_distance(real, synthetic)), "kid": float(kid), "kid_std": float(kid_std)}
 
 

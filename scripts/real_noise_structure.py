@@ -1,0 +1,54 @@
+"""How far real noise is from white: the figures behind the analysis in docs/results.md.
+
+Run: ``.venv/bin/python scripts/real_noise_structure.py [--data ../shared/data]``. For up to 16 pairs of each
+set in ``real-pairs``, on the real noise map noisy - clean:
+- spatial correlation: the noise std divided by the std that fine-scale statistics see (vertical differences,
+  sqrt(var(n[y+1] - n[y]) / 2)); 1.00 for white noise, larger when neighbouring pixels are correlated;
+- chromatic correlation: the mean correlation coefficient between the noise of two colour channels;
+- brightness: the mean level of the noisy image (the shipped DEN was trained on darkened images, mean <= 0.3);
+- the std of the `den` method's synthetic noise divided by the real noise std (1.00 when the level is right).
+"""
+
+from __future__ import annotations
+
+import argparse
+from pathlib import Path
+
+import numpy as np
+import torch
+
+from darksynth.evaluation.methods import build_method
+from darksynth.evaluation.pairs import list_pair_set, load_pair
+
+
+def main() -> int:
+    parser = argparse.ArgumentParser(description=__doc__)
+    parser.add_argument("--data", type=Path, default=Path(__file__).resolve().parents[2] / "shared" / "data")
+    args = parser.parse_args()
+    den = build_method("den")
+    for root in sorted(p for p in (args.data / "real-pairs").iterdir() if (p / "noisy").is_dir()):
+        pair_set = list_pair_set(root)
+        ratios, levels, correlations, stds, den_ratios = [], [], [], [], []
+        for pair in pair_set.pairs[:: max(1, len(pair_set.pairs) // 16)]:
+            loaded = load_pair(pair)
+            noise = loaded.noise
+            fine = ((noise[:, 1:, :] - noise[:, :-1, :]).var() / 2).sqrt()
+            ratios.append(float(noise.std() / fine))
+            stds.append(float(noise.std()) * 255)
+            levels.append(float(loaded.noisy.mean()))
+            matrix = torch.corrcoef(noise.reshape(3, -1))
+            correlations.append(float((matrix[0, 1] + matrix[0, 2] + matrix[1, 2]) / 3))
+            synthetic = den.synthesize(
+                loaded.clean, den.fit(loaded.noisy, loaded.clean), torch.Generator().manual_seed(0)
+            )
+            den_ratios.append(float((synthetic - loaded.clean).std() / noise.std()))
+        print(
+            f"{pair_set.name:10s} pairs {len(ratios):3d}  noise std {np.median(stds):5.2f}/255  "
+            f"std / fine-scale std {np.median(ratios):.2f}  channel correlation {np.mean(correlations):.2f}  "
+            f"mean level {np.mean(levels):.2f}  den std / real std {np.median(den_ratios):.2f}"
+        )
+    return 0
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())
