@@ -109,3 +109,20 @@ def test_no_readable_set_is_fatal(tmp_path: Path) -> None:
     code, _, stderr = run_cli("evaluate", "--pairs", tmp_path / "absent", "--methods", "awgn", "--out", tmp_path / "o")
     assert code == 1
     assert "no set of pairs could be read" in stderr and "absent: no such folder" in stderr
+
+
+def test_downstream_check_lands_in_the_results(make_pair_set: MakeSet, tmp_path: Path) -> None:
+    root = make_pair_set("setD", count=2)
+    out = tmp_path / "out"
+    code, _, stderr = run_cli(
+        "evaluate", "--pairs", root, "--methods", "awgn,pg-oracle", "--no-fid", "--out", out,
+        "--downstream", root / "clean", "--downstream-steps", "3",
+    )  # fmt: skip
+    assert code == 0, stderr
+    results = json.loads((out / "results.json").read_text())
+    downstream = results["downstream"]
+    assert downstream["settings"]["steps"] == 3
+    assert set(downstream["setD"]) >= {"awgn", "pg-oracle", "noisy input"}
+    assert "--downstream-steps 3" in results["command"]
+    assert downstream["setD"]["awgn"]["psnr"] > 0 and 0 < downstream["setD"]["awgn"]["ssim"] <= 1
+    assert "noisy input" in (out / "results.md").read_text()
