@@ -126,3 +126,16 @@ def test_downstream_check_lands_in_the_results(make_pair_set: MakeSet, tmp_path:
     assert "--downstream-steps 3" in results["command"]
     assert downstream["setD"]["awgn"]["psnr"] > 0 and 0 < downstream["setD"]["awgn"]["ssim"] <= 1
     assert "noisy input" in (out / "results.md").read_text()
+
+
+def test_reports_state_the_headline_plainly(make_pair_set: MakeSet, tmp_path: Path) -> None:
+    root = make_pair_set("loud", count=2, sigma=14.0)
+    out = tmp_path / "out"
+    code, _, stderr = run_cli("evaluate", "--pairs", root, "--methods", "den,awgn,pg", "--no-fid", "--out", out)
+    assert code == 0, stderr
+    results = json.loads((out / "results.json").read_text())
+    methods = results["sets"]["loud"]["methods"]
+    holds = methods["den"]["kld"] < min(methods["awgn"]["kld"], methods["pg"]["kld"])
+    verdict = "loud: yes" if holds else "loud: NO, the headline does not hold here"
+    assert verdict in (out / "results.md").read_text()
+    assert verdict in (out / "report.html").read_text()

@@ -307,12 +307,35 @@ def _md_table(
     return lines
 
 
+HEADLINE_TITLE = "Headline: does den have a lower kld than awgn and pg?"
+
+
+def headline_lines(results: Mapping[str, Any]) -> list[str]:
+    """One plain sentence per set on the paper's headline claim (den's kld below awgn's and pg's)."""
+    lines = []
+    for set_name, entry in _sets(results).items():
+        methods = _set_methods(entry)
+        if not all(name in methods for name in ("den", "awgn", "pg")):
+            continue
+        values = {name: methods[name].get("kld") for name in ("den", "awgn", "pg")}
+        kld = {name: float(v) for name, v in values.items() if isinstance(v, (int, float))}
+        if len(kld) < len(values):
+            continue
+        holds = kld["den"] < min(kld["awgn"], kld["pg"])
+        verdict = "yes" if holds else "NO, the headline does not hold here"
+        lines.append(f"{set_name}: {verdict} (den {kld['den']:.3f}, awgn {kld['awgn']:.3f}, pg {kld['pg']:.3f})")
+    return lines
+
+
 def render_markdown(results: Mapping[str, Any]) -> str:
     """The Markdown summary of a results document (see :func:`write_markdown`)."""
     order = _method_order(results)
     oracles = _oracles(results)
     label = _labeller(oracles)
     lines = ["# darksynth evaluate: real vs synthetic noise", "", LEGEND]
+    headline = headline_lines(results)
+    if headline:
+        lines += ["", f"## {HEADLINE_TITLE}", ""] + [f"- {_md(line)}" for line in headline]
     headers = [f"{c.title} [95% CI]" if c.ci else f"{c.title} ± std" if c.std else c.title for c in SET_COLUMNS]
     for set_name, entry in _sets(results).items():
         methods = _set_methods(entry)
@@ -772,10 +795,17 @@ class _Html:
         out += [f"<dt>{_e(k)}</dt><dd>{_e(v)}</dd>" for k, v in self.metric_text.items()]
         return [*out, "</dl>", "</section>"]
 
+    def headline_section(self) -> list[str]:
+        lines = headline_lines(self.results)
+        if not lines:
+            return []
+        items = "".join(f"<li>{_e(line)}</li>" for line in lines)
+        return [f'<section id="headline"><h2>{_e(HEADLINE_TITLE)}</h2><ul>{items}</ul></section>']
+
     def page(self) -> str:
         sets = _sets(self.results)
         title = "darksynth evaluate" + (": " + ", ".join(sets) if sets else "")
-        body = [*self.header(), "<main>", *self.methods_section()]
+        body = [*self.header(), "<main>", *self.headline_section(), *self.methods_section()]
         for name, entry in sets.items():
             body += self.set_section(name, entry)
         body += [
