@@ -31,7 +31,7 @@ from torch import nn
 from darksynth.apply import derive_seed
 from darksynth.errors import DarksynthError
 from darksynth.evaluation.methods import NoiseMethod, build_method
-from darksynth.evaluation.pairs import LoadedPair, Pair, list_pair_set, load_pair
+from darksynth.evaluation.pairs import LoadedPair, Pair, list_pair_sets, load_pair
 
 LPIPS_STATUS = (
     "not computed: the PyPI package lpips (0.1.4) ships only its small linear layers (lpips/weights/v0.1/"
@@ -373,14 +373,8 @@ def run_downstream(
             problems.append(str(error))
     if not built:
         raise DarksynthError("no method can run: " + "; ".join(problems))
-    pair_sets = []
-    for root in pair_roots:
-        try:
-            pair_sets.append(list_pair_set(root))
-        except DarksynthError as error:
-            problems.append(str(error))
-    if not pair_sets:
-        raise DarksynthError("no set of pairs could be read: " + "; ".join(problems))
+    pair_sets, listing_problems = list_pair_sets(pair_roots)
+    problems.extend(listing_problems)
     corpus = load_corpus(list(clean_roots), minimum_side=settings.crop)
     if not corpus.images:
         raise DarksynthError(f"no clean still image of at least {settings.crop} pixels in {list(clean_roots)}")

@@ -8,6 +8,7 @@ goes on with the pairs that are usable.
 from __future__ import annotations
 
 import csv
+from collections.abc import Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
 
@@ -111,6 +112,24 @@ def list_pair_set(root: Path) -> PairSet:
         if name not in noisy:
             result.problems.append(f"{path}: no noisy partner noisy/{name}, skipped")
     return result
+
+
+def list_pair_sets(roots: Sequence[Path]) -> tuple[list[PairSet], list[str]]:
+    """List several sets; a folder that cannot be listed is a problem, not an error, while another can.
+
+    Raises:
+        DarksynthError: none of the folders could be listed.
+    """
+    sets: list[PairSet] = []
+    problems: list[str] = []
+    for root in roots:
+        try:
+            sets.append(list_pair_set(root))
+        except DarksynthError as error:
+            problems.append(str(error))
+    if not sets:
+        raise DarksynthError("no set of pairs could be read: " + "; ".join(problems))
+    return sets, problems
 
 
 def _as_rgb_unit(path: Path) -> torch.Tensor:

@@ -27,7 +27,7 @@ from darksynth.evaluation.metrics import (
     kl_divergence_srgb,
     mean_and_interval,
 )
-from darksynth.evaluation.pairs import LoadedPair, PairSet, list_pair_set, load_pair
+from darksynth.evaluation.pairs import LoadedPair, PairSet, list_pair_sets, load_pair
 from darksynth.evaluation.report import ReportExample
 
 METRIC_DESCRIPTIONS = {
@@ -230,14 +230,11 @@ def evaluate_pairs(
             problems.append(str(error))
     if not methods:
         raise DarksynthError("no method can run: " + "; ".join(problems))
-    pair_sets: list[PairSet] = []
-    for root in pair_roots:
-        try:
-            pair_sets.append(list_pair_set(root))
-        except DarksynthError as error:
-            problems.append(str(error))
-    if not pair_sets:
-        raise DarksynthError("no set of pairs could be read: " + "; ".join(problems))
+    try:
+        pair_sets, listing_problems = list_pair_sets(pair_roots)
+    except DarksynthError as error:
+        raise DarksynthError(f"{error}; {'; '.join(problems)}" if problems else str(error)) from None
+    problems.extend(listing_problems)
     results: dict[str, Any] = {
         "command": options.command,
         "seed": options.seed,
