@@ -43,6 +43,7 @@ from torch import nn
 
 from darksynth.errors import DarksynthError
 from darksynth.io.atomic import atomic_output
+from darksynth.io.weights_file import read_checked_metadata
 from darksynth.noise.periodic import periodic_basis
 
 MODEL_NAME = "darksynth-starlight"
@@ -291,22 +292,8 @@ def load_starlight(path: Path | str | None = None, device: torch.device | str = 
     Raises:
         DarksynthError: a missing or corrupted file, another model's weights or another version's.
     """
-    from safetensors import safe_open
-
     path = Path(path) if path is not None else default_starlight_path()
-    try:
-        with safe_open(str(path), framework="pt") as handle:
-            metadata = handle.metadata() or {}
-    except FileNotFoundError:
-        raise DarksynthError(f"{path}: no such Starlight weights file") from None
-    except (SafetensorError, OSError, ValueError) as error:
-        raise DarksynthError(f"{path}: not a readable safetensors file ({_first_line(error)})") from None
-    if metadata.get("model") != MODEL_NAME:
-        raise DarksynthError(f"{path}: not darksynth Starlight weights (model {metadata.get('model')!r})")
-    if metadata.get("version") != str(MODEL_VERSION):
-        raise DarksynthError(
-            f"{path}: Starlight weights of version {metadata.get('version')}, this darksynth reads {MODEL_VERSION}"
-        )
+    metadata = read_checked_metadata(path, model=MODEL_NAME, version=MODEL_VERSION, label="Starlight")
     try:
         config = StarlightConfig(**json.loads(metadata["config"]))
         model = StarlightGenerator(config)

@@ -12,6 +12,7 @@ from safetensors.torch import load_file, save_file
 
 from darksynth.errors import DarksynthError
 from darksynth.io.atomic import atomic_output
+from darksynth.io.weights_file import read_checked_metadata
 from darksynth.models.den import DEN, MODEL_NAME, MODEL_VERSION, DENConfig
 
 
@@ -30,22 +31,7 @@ def save_weights(path: Path, model: DEN, *, training: dict[str, Any] | None = No
 
 def read_metadata(path: Path) -> dict[str, str]:
     """The metadata of a weights file, checked to be this model's and this version's."""
-    from safetensors import safe_open
-
-    try:
-        with safe_open(str(path), framework="pt") as handle:
-            metadata = handle.metadata() or {}
-    except FileNotFoundError:
-        raise DarksynthError(f"{path}: no such weights file") from None
-    except (SafetensorError, OSError, ValueError) as error:
-        raise DarksynthError(f"{path}: not a readable safetensors file ({error})") from None
-    if metadata.get("model") != MODEL_NAME:
-        raise DarksynthError(f"{path}: not darksynth DEN weights (model {metadata.get('model')!r})")
-    if metadata.get("version") != str(MODEL_VERSION):
-        raise DarksynthError(
-            f"{path}: weights of DEN version {metadata.get('version')}, this darksynth reads version {MODEL_VERSION}"
-        )
-    return metadata
+    return read_checked_metadata(path, model=MODEL_NAME, version=MODEL_VERSION, label="DEN")
 
 
 def load_weights(path: Path, *, device: torch.device | str = "cpu") -> DEN:
