@@ -129,6 +129,42 @@ def _starlight_method(device: str) -> NoiseMethod:
     )
 
 
+_SRGB_ORACLES: dict[str, tuple[str, tuple[bool, bool, bool]]] = {
+    "srgb-oracle": (
+        "Extended sRGB model fitted with the clean image: per-channel Poisson-Gaussian, gains, spatial "
+        "correlation (x/y lengths), channel correlation rho, JPEG quality (or none) by search",
+        (True, True, True),
+    ),
+    "srgb-nojpeg-oracle": (
+        "Poisson-Gaussian + spatial correlation + channel correlation, fitted with the clean image; no JPEG",
+        (True, True, False),
+    ),
+    "pg-corr-oracle": (
+        "Poisson-Gaussian + spatial correlation (x/y lengths), fitted with the clean image",
+        (True, False, False),
+    ),
+    "pg-rho-oracle": (
+        "Poisson-Gaussian + channel correlation rho, fitted with the clean image",
+        (False, True, False),
+    ),
+}
+"""The extended sRGB model's oracle and its ablations: summary and which components are fitted (spatial
+correlation, channel correlation, JPEG search with per-channel gains)."""
+
+
+def _srgb_method(name: str) -> NoiseMethod:
+    from darksynth.evaluation.srgb_fit import fit_srgb_noise, synthesize_srgb
+
+    summary, (spatial, chromatic, jpeg) = _SRGB_ORACLES[name]
+    return NoiseMethod(
+        name=name,
+        summary=summary,
+        fit=lambda noisy, clean: fit_srgb_noise(noisy, clean, spatial=spatial, chromatic=chromatic, jpeg=jpeg),
+        synthesize=synthesize_srgb,
+        oracle=True,
+    )
+
+
 METHOD_NAMES: tuple[str, ...] = (
     "den",
     "den-v1",
@@ -139,6 +175,10 @@ METHOD_NAMES: tuple[str, ...] = (
     "pg-blind",
     "pg-oracle",
     "starlight",
+    "srgb-oracle",
+    "srgb-nojpeg-oracle",
+    "pg-corr-oracle",
+    "pg-rho-oracle",
 )
 
 
@@ -189,4 +229,6 @@ def build_method(name: str, *, weights: dict[str, Path] | None = None, device: s
         )
     if name == "starlight":
         return _starlight_method(device)
+    if name in _SRGB_ORACLES:
+        return _srgb_method(name)
     raise MethodUnavailableError(f"{name}: unknown method (known: {', '.join(METHOD_NAMES)})")

@@ -1,0 +1,113 @@
+"""Statistics of the correlated sRGB noise components, with fixed seeds."""
+
+from __future__ import annotations
+
+import math
+
+import pytest
+import torch
+
+from darksynth.noise.correlated import (
+    add_correlated_noise,
+    apply_channel_gains,
+    correlated_normal,
+    gaussian_kernel1d,
+    heteroscedastic_std,
+    jpeg_compress,
+    kernel_autocorrelation,
+    mix_channels,
+)
+
+
+def lag_correlation(noise: torch.Tensor, lag: int, axis: int) -> float:
+    noise = noise - noise.mean()
+    length = noise.shape[axis]
+    product = noise.narrow(axis, 0, length - lag) * noise.narrow(axis, lag, length - lag)
+    return float(product.mean() / noise.square().mean())
+
+
+def test_kernel_is_normalised_and_white_for_zero_length() -> None:
+    assert torch.equal(gaussian_kernel1d(0.0), torch.ones(1, dtype=torch.float64))
+    kernel = gaussian_kernel1d(1.3)
+    assert math.isclose(float(kernel.sum()), 1.0, rel_tol=1e-12)
+    assert kernel.numel() == 2 * math.ceil(3 * 1.3) + 1
+    with pytest.raises(ValueError, match="correlation length"):
+        gaussian_kernel1d(-1.0)
+
+
+@pytest.mark.parametrize("length", [0.0, 0.6, 1.5])
+def test_filter_preserves_variance(length: float) -> None:
+    noise = correlated_normal((3, 256, 256), torch.Generator().manual_seed(1), length, dtype=torch.float64)
+    assert noise.shape == (3, 256, 256)
+    assert abs(float(noise.var()) - 1.0) < 0.03
+
+
+@pytest.mark.parametrize("length", [0.6, 1.0, 2.0])
+def test_lag_autocorrelation_matches_the_kernel(length: float) -> None:
+    noise = correlated_normal((2, 256, 256), torch.Generator().manual_seed(2), length, dtype=torch.float64)
+    for lag in (1, 2):
+        theory = kernel_autocorrelation(length, lag)
+        assert abs(lag_correlation(noise, lag, -1) - theory) < 0.03
+        assert abs(lag_correlation(noise, lag, -2) - theory) < 0.03
+    # the continuous limit: exp(-d^2 / (4 l^2))
+    if length >= 1.0:
+        assert abs(kernel_autocorrelation(length, 1) - math.exp(-1 / (4 * length**2))) < 0.01
+
+
+def test_anisotropic_lengths_are_separate() -> None:
+    noise = correlated_normal((1, 256, 256), torch.Generator().manual_seed(3), 2.0, 0.0, dtype=torch.float64)
+    assert abs(lag_correlation(noise, 1, -1) - kernel_autocorrelation(2.0, 1)) < 0.03
+    assert abs(lag_correlation(noise, 1, -2)) < 0.03
+
+
+def test_white_noise_of_any_size_and_batch() -> None:
+    noise = correlated_normal((2, 3, 17, 9), torch.Generator().manual_seed(0), 1.2)
+    assert noise.shape == (2, 3, 17, 9) and noise.dtype == torch.float32
+
+
+@pytest.mark.parametrize("rho", [0.0, 0.3, 0.66])
+def test_channel_correlation_equals_rho(rho: float) -> None:
+    white = torch.randn((3, 200, 200), generator=torch.Generator().manual_seed(4), dtype=torch.float64)
+    mixed = mix_channels(white, rho)
+    matrix = torch.corrcoef(mixed.reshape(3, -1))
+    for i, j in ((0, 1), (0, 2), (1, 2)):
+        assert abs(float(matrix[i, j]) - rho) < 0.02
+    assert torch.allclose(mixed.reshape(3, -1).var(dim=1), torch.ones(3, dtype=torch.float64), atol=0.03)
+    with pytest.raises(ValueError, match="rho"):
+        mix_channels(white, 1.0)
+
+
+def test_gains_scale_the_std_per_channel() -> None:
+    clean = torch.full((3, 128, 128), 0.4, dtype=torch.float64)
+    gains = (0.5, 1.0, 2.0)
+    std = heteroscedastic_std(clean, (1e-3,) * 3, (1e-4,) * 3, gains)
+    base = math.sqrt(1e-3 * 0.4 + 1e-4)
+    for channel, gain in enumerate(gains):
+        assert math.isclose(float(std[channel, 0, 0]), gain * base, rel_tol=1e-12)
+    white = torch.randn(clean.shape, generator=torch.Generator().manual_seed(5), dtype=torch.float64)
+    scaled = apply_channel_gains(white, gains)
+    for channel, gain in enumerate(gains):
+        assert abs(float(scaled[channel].std()) / gain - 1.0) < 0.03
+
+
+def test_jpeg_quality_lowers_fine_scale_energy() -> None:
+    clean = torch.full((3, 128, 128), 0.5)
+    noisy = add_correlated_noise(clean, torch.Generator().manual_seed(6), a=(0.0,) * 3, b=(0.03**2,) * 3)
+
+    def fine_energy(image: torch.Tensor) -> float:
+        return float((image[..., :, 1:] - image[..., :, :-1]).square().mean())
+
+    energies = [fine_energy(jpeg_compress(noisy, q)) for q in (95, 75, 40)]
+    assert fine_energy(noisy) > energies[0] > energies[1] > energies[2]
+    compressed = jpeg_compress(noisy[None], 75)
+    assert compressed.shape == (1, 3, 128, 128) and compressed.dtype == noisy.dtype
+    assert torch.equal(compressed * 255, (compressed * 255).round())
+
+
+def test_add_correlated_noise_is_reproducible_and_8bit() -> None:
+    clean = torch.rand((3, 40, 30), generator=torch.Generator().manual_seed(0), dtype=torch.float64)
+    kwargs = {"a": (1e-3,) * 3, "b": (1e-4,) * 3, "correlation_length": 0.8, "rho": 0.4}
+    first = add_correlated_noise(clean, torch.Generator().manual_seed(9), **kwargs)  # type: ignore[arg-type]
+    second = add_correlated_noise(clean, torch.Generator().manual_seed(9), **kwargs)  # type: ignore[arg-type]
+    assert torch.equal(first, second)
+    assert torch.equal(first * 255, (first * 255).round())
