@@ -2,7 +2,9 @@
 
 The estimate of every crop is a full v; the profile holds their median (robust to crops where content,
 clipping or a light source misleads the network) and, as ``ranges``, the 10th to 90th percentile across crops,
-so that ``apply`` can reproduce the spread the reference shows.
+so that ``apply`` can reproduce the spread the reference shows. The darkening (alpha, gamma) is read from the
+reference's tone distribution (:mod:`darksynth.darkening_estimate`); for a clip, its ``ranges`` are the 10th
+to 90th percentile of the per-frame estimates.
 """
 
 from __future__ import annotations
@@ -15,6 +17,8 @@ from typing import Any
 import numpy as np
 import torch
 
+from darksynth.darkening import Darkening
+from darksynth.darkening_estimate import estimate_darkening, estimate_darkening_spread
 from darksynth.errors import DarksynthError
 from darksynth.io.arrays import hwc_to_chw
 from darksynth.io.discover import classify_input, scan_folder
@@ -173,5 +177,63 @@ def estimate(
     }
     if reference.shape[0] == 1:
         meta["note"] = "single image: temporal banding cannot be told from banding and is a prior, not a measurement"
-    profile = Profile(noise=noise, ranges=ranges, meta=meta)
+    darkening = _estimate_darkening(reference, source or "reference", ranges, meta, warnings)
+    profile = Profile(noise=noise, darkening=darkening, ranges=ranges, meta=meta)
     return Estimate(profile=profile, per_crop=values.numpy(), warnings=warnings)
+
+
+LOW_DARKENING_CONFIDENCE = 0.2
+"""Below this confidence (:attr:`DarkeningEstimate.confidence`) the darkening estimate comes with a warning."""
+
+
+def _estimate_darkening(
+    reference: torch.Tensor,
+    source: str,
+    ranges: dict[str, tuple[tuple[float, float], ...]],
+    meta: dict[str, Any],
+    warnings: list[str],
+) -> Darkening | None:
+    """The reference's darkening, its per-frame range for a clip, and how it was found (in ``meta``).
+
+    A reference too dark to read gives no darkening (``apply`` then falls back to the paper's ranges) and a
+    warning, not an error: the noise estimate is still good.
+    """
+    try:
+        found = estimate_darkening(reference, source=source)
+    except DarksynthError as error:
+        warnings.append(f"{error}; the profile has no darkening, apply will draw it from the paper's ranges")
+        meta["darkening"] = "not estimated: too dark or too flat"
+        return None
+    regions = estimate_darkening_spread(reference[:1])
+    meta["darkening"] = {
+        "method": "tone quantiles of 4x4 block medians fitted to the clean-image prior (docs/darkening-estimate.md)",
+        "quantiles_used": found.quantiles_used,
+        "fit_rms": round(found.fit_rms, 4),
+        "confidence": round(found.confidence, 3),
+        "region_alpha": [round(float(v), 4) for v in np.percentile([e.darkening.alpha for e in regions], [10, 90])]
+        if regions
+        else None,
+        "region_gamma": [round(float(v), 4) for v in np.percentile([e.darkening.gamma for e in regions], [10, 90])]
+        if regions
+        else None,
+    }
+    if found.confidence < LOW_DARKENING_CONFIDENCE:
+        warnings.append(
+            f"{source}: the darkening estimate is uncertain (confidence {found.confidence:.2f}): the scene's tones "
+            "are far from an average natural image's"
+        )
+    if reference.shape[0] > 1:
+        per_frame = []
+        for frame in reference:
+            try:
+                per_frame.append(estimate_darkening(frame, source=source).darkening)
+            except DarksynthError:
+                continue
+        if len(per_frame) > 1:
+            for name in ("alpha", "gamma"):
+                values = [getattr(d, name) for d in per_frame]
+                point = getattr(found.darkening, name)
+                low, high = np.percentile(values, [10, 90])
+                ranges[name] = ((min(float(low), point), max(float(high), point)),)
+            meta["darkening"]["ranges"] = "10th-90th percentile over frames"
+    return found.darkening

@@ -8,6 +8,7 @@ import numpy as np
 import pytest
 import torch
 
+from darksynth.darkening import darken
 from darksynth.estimate import estimate
 from darksynth.models.den import DEN
 from darksynth.noise.components import NOISE_PARAMETERS, NOISE_VECTOR_SIZE
@@ -52,9 +53,46 @@ def test_even_number_of_crops_gives_a_value_between_the_middle_two(tiny_model: C
     assert len(per_crop) == 6
     profile = _profile_vector(result.profile.noise)
     assert (profile >= per_crop[2] - 1e-7).all() and (profile <= per_crop[3] + 1e-7).all()
-    for name, pairs in result.profile.ranges.items():
-        for (a, b), value in zip(pairs, result.profile.noise[name], strict=True):
+    for name, values in result.profile.noise.items():
+        for (a, b), value in zip(result.profile.ranges[name], values, strict=True):
             assert a <= value <= b
+    darkening = result.profile.darkening
+    assert darkening is not None
+    for name in ("alpha", "gamma"):
+        ((a, b),) = result.profile.ranges[name]
+        assert a <= getattr(darkening, name) <= b
+
+
+def _dark_scene(frames: int, alphas: list[float], gamma: float = 0.5) -> torch.Tensor:
+    """A textured scene with a wide spread of tones, darkened frame by frame with the given alphas."""
+    generator = torch.Generator().manual_seed(3)
+    base = torch.rand(1, 3, 24, 24, generator=generator)
+    scene = torch.nn.functional.interpolate(base, size=(96, 96), mode="bilinear", align_corners=False)[0]
+    scene = (scene - scene.min()) / (scene.max() - scene.min())
+    return torch.stack([darken(scene, alphas[i], gamma) for i in range(frames)])
+
+
+def test_darkening_is_estimated_and_a_clip_gets_its_per_frame_range(tiny_model: Callable[..., DEN]) -> None:
+    alphas = [0.1, 0.12, 0.14, 0.16, 0.18, 0.2]
+    result = estimate(_dark_scene(6, alphas), tiny_model(), source="clip")
+    darkening = result.profile.darkening
+    assert darkening is not None
+    ((low, high),) = result.profile.ranges["alpha"]
+    assert low < high and low <= darkening.alpha <= high
+    # The frames' exposures differ by up to 2x (1.7x between the 10th and 90th percentile); the prior on
+    # alpha and gamma pulls the per-frame estimates together, and part of the difference goes into gamma.
+    assert 1.15 < high / low < 2.0
+    assert result.profile.meta["darkening"]["ranges"] == "10th-90th percentile over frames"
+    single = estimate(_dark_scene(1, alphas), tiny_model())
+    assert single.profile.darkening is not None and "alpha" not in single.profile.ranges
+    validate_profile(result.profile)
+
+
+def test_black_reference_warns_and_leaves_the_darkening_to_apply(tiny_model: Callable[..., DEN]) -> None:
+    result = estimate(torch.zeros(1, 3, 64, 64), tiny_model(), source="black.png")
+    assert result.profile.darkening is None
+    assert "alpha" not in result.profile.ranges
+    assert any(w.startswith("black.png: too dark") for w in result.warnings)
 
 
 def _rigged(model: DEN, normalised: torch.Tensor) -> DEN:

@@ -1,0 +1,335 @@
+"""Estimate the darkening x_d = alpha * x ** (1 / gamma) of a real low-light reference from its tone distribution.
+
+The reference's content is unknown; only its intensity distribution is seen. Against a prior, the average tone
+distribution of clean natural images, the darkening is a straight line in log-log coordinates::
+
+    log q_ref(p) = log alpha + (1 / gamma) * log q_clean(p)
+
+where q(p) is the quantile function of the pooled R, G and B values. Because darkening acts on each value
+through the same increasing function, it maps quantiles to quantiles exactly. Both quantile functions are
+taken over the medians of small blocks (:data:`BLOCK` pixels square, per channel): a median commutes with any
+increasing function, so the block medians of a darkened image are exactly the darkened block medians, while
+noise in them shrinks by about the block side and clipping at 0 does not bias them (the median of
+clip(x + n) is clip(x) for symmetric noise). Quantiles still too close to the noise or to 8-bit rounding, and
+those near saturation, are left out; the line is fitted by a Huber-weighted least-squares regression.
+
+See docs/darkening-estimate.md for the measured accuracy and scripts/evaluate_darkening.py for the commands.
+"""
+
+from __future__ import annotations
+
+import itertools
+import math
+from dataclasses import dataclass
+
+import numpy as np
+import torch
+
+from darksynth.darkening import ALPHA_RANGE, GAMMA_RANGE, Darkening
+from darksynth.errors import DarksynthError
+
+BLOCK = 4
+"""Side of the square blocks whose per-channel medians make the tone distribution."""
+
+PROBABILITIES: tuple[float, ...] = tuple(round(0.02 * i, 2) for i in range(1, 50))
+"""The quantile levels p fitted: 0.02, 0.04, ..., 0.98."""
+
+# The mean over clean training images (cbsd68, mcmaster, mirflickr; kodak24 held out) of log q_clean(p) at
+# PROBABILITIES, with q the quantile of the 4x4 block medians of all channels, floored at 0.5 / 255. Made by
+#   .venv/bin/python scripts/evaluate_darkening.py prior
+# fmt: off
+TONE_PRIOR_LOG_QUANTILES: tuple[float, ...] = (
+    -3.3185, -2.9568, -2.6828, -2.5049, -2.3703, -2.2531, -2.1380, -2.0347,
+    -1.9551, -1.8802, -1.8114, -1.7466, -1.6835, -1.6283, -1.5735, -1.5127,
+    -1.4624, -1.4171, -1.3714, -1.3221, -1.2757, -1.2354, -1.1860, -1.1461,
+    -1.1000, -1.0498, -1.0008, -0.9601, -0.9207, -0.8777, -0.8350, -0.7859,
+    -0.7479, -0.7115, -0.6769, -0.6442, -0.6123, -0.5823, -0.5531, -0.5231,
+    -0.4921, -0.4611, -0.4297, -0.3957, -0.3599, -0.3229, -0.2812, -0.2273,
+    -0.1567,
+)
+# fmt: on
+
+# The standard deviation across the same images of log q_clean(p): how far one scene's tone departs from the
+# average; it weighs each quantile in the fit (the dark end of the distribution varies most between scenes).
+# fmt: off
+TONE_PRIOR_LOG_SPREAD: tuple[float, ...] = (
+    1.4142, 1.3006, 1.1834, 1.1267, 1.0926, 1.0656, 1.0071, 0.9605,
+    0.9503, 0.9382, 0.9254, 0.9118, 0.8933, 0.8866, 0.8754, 0.8390,
+    0.8262, 0.8218, 0.8145, 0.7770, 0.7585, 0.7496, 0.6860, 0.6722,
+    0.6152, 0.5549, 0.5173, 0.4919, 0.4631, 0.4405, 0.4062, 0.3835,
+    0.3634, 0.3446, 0.3286, 0.3138, 0.3012, 0.2882, 0.2754, 0.2654,
+    0.2554, 0.2457, 0.2350, 0.2236, 0.2123, 0.1986, 0.1834, 0.1650,
+    0.1435,
+)
+# fmt: on
+
+ALPHA_BOUNDS: tuple[float, float] = (0.005, 1.0)
+"""Estimates of alpha are clipped into this interval."""
+
+GAMMA_BOUNDS: tuple[float, float] = (0.1, 2.0)
+"""Estimates of gamma are clipped into this interval: the paper's [0.1, 1] widened to allow brighter mid-tones."""
+
+NOISE_FLOOR_FACTOR = 3.0
+"""A quantile is used only if it exceeds this many standard deviations of the noise left in a block median."""
+
+MIN_LEVEL = 4.0 / 255.0
+"""Quantiles below this level are too coarsely rounded in an 8-bit reference to be used."""
+
+MAX_LEVEL = 0.97
+"""Quantiles above this level may be saturated; they are left out."""
+
+MIN_LOG_SPAN = 0.05
+"""The usable quantiles must span at least this much in log (5%): a flat grey reference tells no tone curve."""
+
+MIN_QUANTILES = 6
+"""Fewer usable quantiles than this and the reference is too dark (or too flat) to estimate its darkening."""
+
+EFFECTIVE_QUANTILES = 3.0
+"""The tone quantiles of a scene move together: their content scatter counts as this many independent values
+when the fit is weighed against the prior on alpha and gamma."""
+
+_HUBER = 1.345
+_MEDIAN_EFFICIENCY = 1.2533  # std of the median of n normal samples is about 1.2533 sigma / sqrt(n)
+
+
+@dataclass(frozen=True)
+class DarkeningEstimate:
+    """The darkening read from a reference, and how well the tone prior fitted it.
+
+    Attributes:
+        darkening: alpha and gamma, clipped to :data:`ALPHA_BOUNDS` and :data:`GAMMA_BOUNDS`.
+        quantiles_used: how many of the :data:`PROBABILITIES` lay above the noise floor and below saturation.
+        fit_rms: root mean square of the log residuals of the fit (0: the reference has exactly the prior's
+            tone distribution, darkened); above about 0.3 the content is far from an average natural image.
+        noise_floor: the level below which quantiles were left out, on the [0, 1] scale.
+        clipped: alpha or gamma hit a bound.
+    """
+
+    darkening: Darkening
+    quantiles_used: int
+    fit_rms: float
+    noise_floor: float
+    clipped: bool
+
+    @property
+    def confidence(self) -> float:
+        """A score in [0, 1]: the fraction of quantiles used, lowered by a poor fit and by hitting a bound."""
+        score = self.quantiles_used / len(PROBABILITIES) / (1.0 + (self.fit_rms / 0.15) ** 2)
+        return score * (0.5 if self.clipped else 1.0)
+
+
+def _tiles(frames: torch.Tensor, block: int) -> torch.Tensor:
+    """(..., C, H, W) -> (..., C, H // s, W // s, s * s), s = ``block`` or the shorter side if smaller."""
+    side = max(1, min(block, frames.shape[-2], frames.shape[-1]))
+    rows, columns = frames.shape[-2] // side, frames.shape[-1] // side
+    lead = frames.shape[:-2]
+    tiles = frames[..., : rows * side, : columns * side].reshape(*lead, rows, side, columns, side)
+    return tiles.transpose(-3, -2).reshape(*lead, rows, columns, side * side)
+
+
+def block_medians(frames: torch.Tensor, block: int = BLOCK) -> torch.Tensor:
+    """Per-channel medians of non-overlapping ``block`` x ``block`` tiles.
+
+    Args:
+        frames: (..., C, H, W) values on the [0, 1] scale; rows and columns past a multiple of ``block`` are
+            dropped.
+        block: tile side; smaller frames use their shorter side.
+
+    Returns:
+        (..., C, H // block, W // block) medians (the lower middle value of an even count, so an actual pixel
+        value: the medians of a darkened frame are exactly the darkened medians).
+    """
+    if frames.dim() < 3:
+        raise ValueError(f"expected frames shaped (..., C, H, W), got shape {tuple(frames.shape)}")
+    tiles = _tiles(frames, block)
+    medians: torch.Tensor = tiles.median(dim=-1).values
+    return medians
+
+
+def tone_quantiles(
+    frames: torch.Tensor, *, block: int = BLOCK, probabilities: tuple[float, ...] = PROBABILITIES
+) -> np.ndarray:
+    """Quantiles q(p) of the block medians of all channels and frames.
+
+    Args:
+        frames: (..., C, H, W) values on the [0, 1] scale.
+
+    Returns:
+        (len(probabilities),) float64 array.
+    """
+    values = block_medians(frames.to(torch.float32), block).flatten().to(torch.float64)
+    return torch.quantile(values, torch.tensor(probabilities, dtype=torch.float64)).numpy()
+
+
+def median_noise(frames: torch.Tensor, block: int = BLOCK) -> float:
+    """Standard deviation of the noise left in one block median, on the [0, 1] scale.
+
+    The noise of a block is read from its upper half, (75th percentile - median) / 0.6745, which clipping at
+    0 leaves intact for any block whose median is above 0; the median over blocks with a non-zero 75th
+    percentile keeps texture in a few blocks from weighing. The median of ``block ** 2`` pixels has about
+    1.25 / ``block`` of that standard deviation.
+    """
+    frames = frames.to(torch.float32)
+    side = max(1, min(block, frames.shape[-2], frames.shape[-1]))
+    tiles = _tiles(frames, block).flatten(0, -2)
+    centre, upper = torch.quantile(tiles, torch.tensor([0.5, 0.75]), dim=-1)
+    lit = upper > 0
+    if not bool(lit.any()):
+        return 0.0
+    return float((upper - centre)[lit].median()) / 0.6745 * _MEDIAN_EFFICIENCY / side
+
+
+def _paper_prior() -> tuple[float, float, float, float]:
+    """Mean and standard deviation of log alpha and of 1 / gamma under the paper's uniform ranges."""
+    alpha = np.linspace(*ALPHA_RANGE, 10001)
+    exponent = 1.0 / np.linspace(*GAMMA_RANGE, 10001)
+    return float(np.log(alpha).mean()), float(np.log(alpha).std()), float(exponent.mean()), float(exponent.std())
+
+
+PAPER_PRIOR: tuple[float, float, float, float] = _paper_prior()
+"""(mean, std) of log alpha and (mean, std) of 1 / gamma when drawn from the paper's ranges."""
+
+
+def _fit_line(
+    x: np.ndarray, y: np.ndarray, spread: np.ndarray, *, use_prior: bool, iterations: int = 30
+) -> tuple[float, float]:
+    """Intercept log alpha and slope 1 / gamma of y = a + b x.
+
+    Each point is weighed by 1 / (b spread)^2 (a scene's log quantile departs from the prior's by about
+    ``spread``, scaled by the exponent), Huber-downweighted where its residual is an outlier, and the whole
+    data term counts as :data:`EFFECTIVE_QUANTILES` values against the paper's prior on (a, b).
+    """
+    mean_a, std_a, mean_b, std_b = PAPER_PRIOR
+    huber = np.ones_like(x)
+    intercept, slope = mean_a, mean_b
+    for _ in range(iterations):
+        exponent = max(slope, 1.0)
+        weights = huber / (exponent * spread) ** 2 * (EFFECTIVE_QUANTILES / x.size)
+        rows = [np.stack([np.ones_like(x), x], axis=1) * np.sqrt(weights)[:, None]]
+        targets = [y * np.sqrt(weights)]
+        if use_prior:
+            rows.append(np.array([[1.0 / std_a, 0.0], [0.0, 1.0 / std_b]]))
+            targets.append(np.array([mean_a / std_a, mean_b / std_b]))
+        (new_intercept, new_slope), *_ = np.linalg.lstsq(np.concatenate(rows), np.concatenate(targets), rcond=None)
+        standardised = (y - new_intercept - new_slope * x) / (max(new_slope, 1.0) * spread)
+        ratio = np.abs(standardised) / _HUBER
+        huber = np.where(ratio <= 1.0, 1.0, 1.0 / np.maximum(ratio, 1e-12))
+        done = abs(new_intercept - intercept) < 1e-6 and abs(new_slope - slope) < 1e-6
+        intercept, slope = float(new_intercept), float(new_slope)
+        if done:
+            break
+    return intercept, slope
+
+
+def fit_darkening(
+    quantiles: np.ndarray,
+    noise_floor: float = 0.0,
+    *,
+    prior: tuple[float, ...] | np.ndarray = TONE_PRIOR_LOG_QUANTILES,
+    spread: tuple[float, ...] | np.ndarray = TONE_PRIOR_LOG_SPREAD,
+    use_prior: bool = True,
+    source: str = "reference",
+) -> DarkeningEstimate:
+    """Fit alpha and gamma to a reference's tone quantiles (at :data:`PROBABILITIES`) against the prior.
+
+    Args:
+        quantiles: the reference's :func:`tone_quantiles`.
+        noise_floor: standard deviation of the noise in a block median (:func:`median_noise`).
+        prior: mean log quantiles of clean images at the same levels (:data:`TONE_PRIOR_LOG_QUANTILES`).
+        spread: their standard deviation across images (:data:`TONE_PRIOR_LOG_SPREAD`).
+        use_prior: pull the estimate towards the paper's ranges as far as the data leave it undetermined.
+        source: the name error messages start with.
+
+    Raises:
+        DarksynthError: fewer than :data:`MIN_QUANTILES` quantiles lie between the floor and saturation
+            (an all-black, nearly black or saturated reference), or they span too little of the prior.
+    """
+    prior = np.asarray(prior, dtype=np.float64)
+    quantiles = np.asarray(quantiles, dtype=np.float64)
+    if quantiles.shape != prior.shape:
+        raise ValueError(f"expected {prior.size} quantiles, got shape {quantiles.shape}")
+    floor = max(MIN_LEVEL, NOISE_FLOOR_FACTOR * noise_floor)
+    usable = (quantiles > floor) & (quantiles < MAX_LEVEL)
+    used = int(usable.sum())
+    if used < MIN_QUANTILES:
+        raise DarksynthError(
+            f"{source}: too dark or too flat to estimate its darkening: {used} of {prior.size} tone quantiles "
+            f"lie between the noise floor {floor:.4f} and saturation (at least {MIN_QUANTILES} are needed)"
+        )
+    x, y = prior[usable], np.log(quantiles[usable])
+    if np.ptp(x) < 0.2 or np.ptp(y) < MIN_LOG_SPAN:
+        raise DarksynthError(
+            f"{source}: too flat to estimate its darkening: its usable tone quantiles span a factor of only "
+            f"{math.exp(float(np.ptp(y))):.3f} (at least {math.exp(MIN_LOG_SPAN):.3f} is needed)"
+        )
+    log_alpha, exponent = _fit_line(x, y, np.asarray(spread, dtype=np.float64)[usable], use_prior=use_prior)
+    gamma = 1.0 / exponent if exponent > 0 else math.inf
+    alpha = math.exp(log_alpha)
+    clipped_alpha = min(max(alpha, ALPHA_BOUNDS[0]), ALPHA_BOUNDS[1])
+    clipped_gamma = min(max(gamma, GAMMA_BOUNDS[0]), GAMMA_BOUNDS[1])
+    clipped = clipped_alpha != alpha or clipped_gamma != gamma
+    residual = y - (math.log(clipped_alpha) + x / clipped_gamma)
+    return DarkeningEstimate(
+        darkening=Darkening(alpha=clipped_alpha, gamma=clipped_gamma),
+        quantiles_used=used,
+        fit_rms=float(np.sqrt(np.mean(residual**2))),
+        noise_floor=floor,
+        clipped=clipped,
+    )
+
+
+def estimate_darkening(
+    frames: torch.Tensor,
+    *,
+    block: int = BLOCK,
+    prior: tuple[float, ...] | np.ndarray = TONE_PRIOR_LOG_QUANTILES,
+    use_prior: bool = True,
+    source: str = "reference",
+) -> DarkeningEstimate:
+    """Estimate alpha and gamma of a low-light reference.
+
+    Args:
+        frames: reference frames (T, C, H, W) or one frame (C, H, W), values on the [0, 1] scale; all frames
+            are pooled.
+        block: side of the median blocks (the prior was measured with :data:`BLOCK`; keep it).
+        prior: mean clean log quantiles measured with the same ``block``.
+        use_prior: see :func:`fit_darkening`.
+        source: the name error messages start with.
+
+    Returns:
+        The estimate; see :class:`DarkeningEstimate` for its confidence.
+
+    Raises:
+        DarksynthError: the reference is too dark (all black) or too flat to tell a tone curve.
+    """
+    if frames.dim() not in (3, 4):
+        raise ValueError(f"expected frames shaped (T, C, H, W) or (C, H, W), got shape {tuple(frames.shape)}")
+    quantiles = tone_quantiles(frames, block=block)
+    return fit_darkening(quantiles, median_noise(frames, block), prior=prior, use_prior=use_prior, source=source)
+
+
+def estimate_darkening_spread(
+    frames: torch.Tensor, *, regions: int = 2, block: int = BLOCK, source: str = "reference"
+) -> list[DarkeningEstimate]:
+    """Estimates on parts of the reference: each frame cut into ``regions`` x ``regions`` tiles.
+
+    The spread of these estimates shows how much the content, rather than the camera, moves the estimate;
+    regions too dark to fit are skipped (the list may be empty).
+    """
+    if frames.dim() == 3:
+        frames = frames[None]
+    height, width = frames.shape[-2], frames.shape[-1]
+    rows = np.linspace(0, height, regions + 1).round().astype(int)
+    columns = np.linspace(0, width, regions + 1).round().astype(int)
+    estimates = []
+    for frame in frames:
+        for top, bottom in itertools.pairwise(rows):
+            for left, right in itertools.pairwise(columns):
+                part = frame[:, top:bottom, left:right]
+                if min(part.shape[-2:]) < block:
+                    continue
+                try:
+                    estimates.append(estimate_darkening(part, block=block, source=source))
+                except DarksynthError:
+                    continue
+    return estimates

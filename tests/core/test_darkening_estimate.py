@@ -1,0 +1,147 @@
+"""Darkening from a reference's tone distribution: round trips on images with a known tone distribution."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+import torch
+
+from darksynth.darkening import Darkening, darken
+from darksynth.darkening_estimate import (
+    PROBABILITIES,
+    TONE_PRIOR_LOG_QUANTILES,
+    TONE_PRIOR_LOG_SPREAD,
+    block_medians,
+    estimate_darkening,
+    estimate_darkening_spread,
+    fit_darkening,
+    tone_quantiles,
+)
+from darksynth.errors import DarksynthError
+from darksynth.noise.simulate import add_noise
+
+
+def _scene(seed: int, size: int = 192, shift: float = 0.0) -> torch.Tensor:
+    """(3, S, S) smooth random scene, constant over 4x4 blocks, whose block values follow the prior's tone
+    distribution (shifted in log by ``shift``): a natural-like image made on the spot."""
+    generator = torch.Generator().manual_seed(seed)
+    coarse = torch.rand(1, 3, size // 16, size // 16, generator=generator)
+    field = torch.nn.functional.interpolate(coarse, size=(size // 4, size // 4), mode="bicubic", align_corners=False)
+    ranks = field.flatten().argsort().argsort().double() / (field.numel() - 1)
+    levels = np.concatenate([[0.0], PROBABILITIES, [1.0]])
+    tones = np.exp(np.concatenate([[np.log(1e-3)], np.asarray(TONE_PRIOR_LOG_QUANTILES) + shift, [0.0]]))
+    values = torch.from_numpy(np.interp(ranks.numpy(), levels, np.clip(tones, 0.0, 1.0))).float()
+    return values.reshape(field.shape)[0].repeat_interleave(4, dim=-2).repeat_interleave(4, dim=-1)
+
+
+def _noisy(clean: torch.Tensor, darkening: Darkening, read: float, seed: int) -> torch.Tensor:
+    values = {
+        "shot": torch.tensor([0.02]),
+        "read": torch.tensor([read]),
+        "quantization": torch.tensor([0.0]),
+        "banding": torch.tensor([0.0]),
+        "temporal_banding": torch.tensor([0.0]),
+        "periodic": torch.zeros(3),
+    }
+    signal = darken(clean, darkening.alpha, darkening.gamma)[None]
+    noisy = add_noise(signal, values, generator=torch.Generator().manual_seed(seed))[0]
+    return (noisy * 255).round() / 255
+
+
+def test_block_medians_commute_with_darkening() -> None:
+    clean = torch.rand(2, 3, 17, 22, generator=torch.Generator().manual_seed(0))
+    medians = block_medians(clean, 4)
+    assert medians.shape == (2, 3, 4, 5)
+    torch.testing.assert_close(block_medians(darken(clean, 0.2, 0.4), 4), darken(medians, 0.2, 0.4))
+
+
+def test_prior_tables_are_consistent() -> None:
+    assert len(TONE_PRIOR_LOG_QUANTILES) == len(TONE_PRIOR_LOG_SPREAD) == len(PROBABILITIES)
+    assert np.all(np.diff(TONE_PRIOR_LOG_QUANTILES) > 0)
+    assert np.all(np.asarray(TONE_PRIOR_LOG_SPREAD) > 0)
+
+
+@pytest.mark.parametrize(("alpha", "gamma"), [(0.05, 0.9), (0.15, 0.5), (0.3, 0.25), (0.2, 1.0)])
+def test_noise_free_round_trip_recovers_alpha_and_gamma(alpha: float, gamma: float) -> None:
+    clean = _scene(1)
+    dark = darken(clean, alpha, gamma)
+    result = estimate_darkening(dark, use_prior=False)
+    assert result.darkening.alpha == pytest.approx(alpha, rel=0.1)
+    assert result.darkening.gamma == pytest.approx(gamma, rel=0.1)
+    assert result.fit_rms < 0.1
+    assert 0.0 < result.confidence <= 1.0
+
+
+@pytest.mark.parametrize(("seed", "alpha", "gamma"), [(2, 0.08, 0.7), (3, 0.2, 0.4), (4, 0.25, 0.9)])
+def test_noisy_8bit_round_trip_recovers_the_tone_curve(seed: int, alpha: float, gamma: float) -> None:
+    clean = _scene(seed)
+    true = Darkening(alpha, gamma)
+    result = estimate_darkening(_noisy(clean, true, read=0.01, seed=seed))
+    estimated = result.darkening
+    # alpha and gamma trade off against each other; the tone curve they give is the fair check.
+    levels = torch.linspace(0.05, 0.95, 19)
+    ours = torch.quantile(darken(clean, estimated.alpha, estimated.gamma).flatten(), levels)
+    theirs = torch.quantile(darken(clean, alpha, gamma).flatten(), levels)
+    mean_level = float(darken(clean, alpha, gamma).mean())
+    assert float((ours - theirs).abs().mean()) / mean_level < 0.25
+    assert float(darken(clean, estimated.alpha, estimated.gamma).mean()) == pytest.approx(mean_level, rel=0.2)
+
+
+def test_a_darker_reference_gives_a_darker_estimate() -> None:
+    clean = _scene(5)
+    levels = []
+    for alpha in (0.05, 0.1, 0.2, 0.3):
+        estimated = estimate_darkening(_noisy(clean, Darkening(alpha, 0.6), read=0.01, seed=5)).darkening
+        levels.append(float(darken(clean, estimated.alpha, estimated.gamma).mean()))
+    assert np.all(np.diff(levels) > 0), levels
+
+
+def test_scene_brighter_than_the_prior_reads_as_a_larger_alpha() -> None:
+    # Content is not identifiable from exposure: a scene brighter than average looks like a brighter exposure.
+    plain = estimate_darkening(darken(_scene(6), 0.1, 0.8), use_prior=False).darkening
+    bright = estimate_darkening(darken(_scene(6, shift=0.3), 0.1, 0.8), use_prior=False).darkening
+    assert bright.alpha > plain.alpha
+
+
+def test_all_black_reference_is_a_clear_error() -> None:
+    with pytest.raises(DarksynthError, match=r"^black.png: too dark or too flat .* 0 of 49 tone quantiles"):
+        estimate_darkening(torch.zeros(3, 64, 64), source="black.png")
+
+
+def test_nearly_black_noisy_reference_is_refused_not_guessed() -> None:
+    clean = _scene(7)
+    with pytest.raises(DarksynthError, match="too dark"):
+        estimate_darkening(_noisy(clean, Darkening(0.05, 0.1), read=0.05, seed=7))
+
+
+def test_flat_grey_reference_is_refused() -> None:
+    with pytest.raises(DarksynthError, match="too flat"):
+        fit_darkening(np.full(len(PROBABILITIES), 0.1))
+
+
+def test_wrong_number_of_quantiles_is_a_value_error() -> None:
+    with pytest.raises(ValueError, match="expected 49 quantiles"):
+        fit_darkening(np.ones(3))
+
+
+def test_estimates_are_clipped_to_their_bounds() -> None:
+    # A reference brighter than any darkening: alpha would exceed 1.
+    quantiles = np.minimum(np.exp(np.asarray(TONE_PRIOR_LOG_QUANTILES) + 0.5), 0.96)
+    result = fit_darkening(quantiles, use_prior=False)
+    assert result.darkening.alpha == 1.0
+    assert result.clipped
+
+
+def test_regions_give_one_estimate_each() -> None:
+    dark = darken(_scene(8), 0.15, 0.6)
+    spread = estimate_darkening_spread(dark, regions=2)
+    assert len(spread) == 4
+    alphas = [e.darkening.alpha for e in spread]
+    assert min(alphas) < 0.15 * 1.5 and max(alphas) > 0.15 / 1.5
+    assert estimate_darkening_spread(torch.zeros(2, 3, 32, 32)) == []
+
+
+def test_tone_quantiles_pool_frames_and_channels() -> None:
+    frames = torch.stack([torch.full((3, 8, 8), 0.2), torch.full((3, 8, 8), 0.6)])
+    quantiles = tone_quantiles(frames)
+    assert quantiles[0] == pytest.approx(0.2) and quantiles[-1] == pytest.approx(0.6)
