@@ -62,7 +62,9 @@ def test_jpeg_search_finds_compression(clean: torch.Tensor) -> None:
     assert fit_srgb_noise(uncompressed, clean, candidates=candidates).jpeg_quality in (None, 95)
 
 
-@pytest.mark.parametrize("name", ["srgb-oracle", "pg-corr-oracle", "pg-rho-oracle", "srgb-nojpeg-oracle"])
+@pytest.mark.parametrize(
+    "name", ["srgb-oracle", "pg-corr-oracle", "pg-rho-oracle", "srgb-nojpeg-oracle", "srgb-gains-oracle"]
+)
 def test_methods_are_oracles_with_8bit_outputs(name: str, clean: torch.Tensor) -> None:
     method = build_method(name)
     assert method.oracle

@@ -24,6 +24,7 @@ from darksynth.evaluation.classical import (
     oracle_poisson_gaussian,
     to_8bit_levels,
 )
+from darksynth.evaluation.srgb_fit import JPEG_CANDIDATES
 from darksynth.noise.simulate import add_noise
 from darksynth.training.weights import default_weights_path
 
@@ -129,23 +130,28 @@ def _starlight_method(device: str) -> NoiseMethod:
     )
 
 
-_SRGB_ORACLES: dict[str, tuple[str, tuple[bool, bool, bool]]] = {
+_SRGB_ORACLES: dict[str, tuple[str, tuple[bool, bool, bool, tuple[int | None, ...]]]] = {
     "srgb-oracle": (
         "Extended sRGB model fitted with the clean image: per-channel Poisson-Gaussian, gains, spatial "
         "correlation (x/y lengths), channel correlation rho, JPEG quality (or none) by search",
-        (True, True, True),
+        (True, True, True, JPEG_CANDIDATES),
     ),
     "srgb-nojpeg-oracle": (
         "Poisson-Gaussian + spatial correlation + channel correlation, fitted with the clean image; no JPEG",
-        (True, True, False),
+        (True, True, False, ()),
+    ),
+    "srgb-gains-oracle": (
+        "Poisson-Gaussian + spatial + channel correlation + per-channel gains matching the real std, fitted with "
+        "the clean image; no JPEG",
+        (True, True, True, (None,)),
     ),
     "pg-corr-oracle": (
         "Poisson-Gaussian + spatial correlation (x/y lengths), fitted with the clean image",
-        (True, False, False),
+        (True, False, False, ()),
     ),
     "pg-rho-oracle": (
         "Poisson-Gaussian + channel correlation rho, fitted with the clean image",
-        (False, True, False),
+        (False, True, False, ()),
     ),
 }
 """The extended sRGB model's oracle and its ablations: summary and which components are fitted (spatial
@@ -155,11 +161,13 @@ correlation, channel correlation, JPEG search with per-channel gains)."""
 def _srgb_method(name: str) -> NoiseMethod:
     from darksynth.evaluation.srgb_fit import fit_srgb_noise, synthesize_srgb
 
-    summary, (spatial, chromatic, jpeg) = _SRGB_ORACLES[name]
+    summary, (spatial, chromatic, jpeg, candidates) = _SRGB_ORACLES[name]
     return NoiseMethod(
         name=name,
         summary=summary,
-        fit=lambda noisy, clean: fit_srgb_noise(noisy, clean, spatial=spatial, chromatic=chromatic, jpeg=jpeg),
+        fit=lambda noisy, clean: fit_srgb_noise(
+            noisy, clean, spatial=spatial, chromatic=chromatic, jpeg=jpeg, candidates=candidates
+        ),
         synthesize=synthesize_srgb,
         oracle=True,
     )
@@ -177,6 +185,7 @@ METHOD_NAMES: tuple[str, ...] = (
     "starlight",
     "srgb-oracle",
     "srgb-nojpeg-oracle",
+    "srgb-gains-oracle",
     "pg-corr-oracle",
     "pg-rho-oracle",
 )
