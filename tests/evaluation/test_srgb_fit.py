@@ -5,9 +5,10 @@ from __future__ import annotations
 import pytest
 import torch
 
-from darksynth.evaluation.classical import PoissonGaussian, to_8bit_levels
+from darksynth.evaluation.classical import PoissonGaussian
 from darksynth.evaluation.methods import build_method
 from darksynth.evaluation.srgb_fit import SrgbNoise, fit_srgb_noise, synthesize_srgb
+from darksynth.io.arrays import to_8bit_levels
 
 
 def smooth_scene(size: int) -> torch.Tensor:

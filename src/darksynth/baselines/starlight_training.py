@@ -252,18 +252,9 @@ def evaluate_starlight(
 
 def _redraw_target(batch: TrainingBatch, generator: torch.Generator, absent_probability: float) -> torch.Tensor:
     """Another draw of the target's noise law on the same dark clips (new v, new noise), as 8-bit levels."""
-    from darksynth.noise.components import NOISE_COMPONENTS
-    from darksynth.noise.sampling import random_noise_values
-    from darksynth.noise.simulate import add_noise
+    from darksynth.training.batches import random_noisy_version
 
-    size = batch.dark.shape[0]
-    values = random_noise_values(batch_shape=(size,), generator=generator)
-    for component in NOISE_COMPONENTS:
-        present = torch.rand(size, 1, generator=generator) >= absent_probability
-        for parameter in component.parameters:
-            values[parameter.name] = values[parameter.name] * present
-    noisy = add_noise(batch.dark, values, generator=generator)
-    return (noisy * 255.0).round() / 255.0
+    return random_noisy_version(batch.dark, generator=generator, absent_probability=absent_probability)[0]
 
 
 def prior_mean_values(absent_probability: float = 0.15) -> dict[str, float]:

@@ -12,6 +12,8 @@ import numpy as np
 import torch
 import torch.nn.functional as F
 
+from darksynth.io.arrays import to_8bit_levels
+
 LEVEL_BINS = 16
 """Intensity bins of the variance-against-level fits."""
 
@@ -40,11 +42,6 @@ def add_poisson_gaussian(clean: torch.Tensor, law: PoissonGaussian, generator: t
     """clean + N(0, a x + b), clipped to [0, 1] and rounded to 8-bit levels as a real sRGB image is."""
     noise = torch.randn(clean.shape, generator=generator, dtype=clean.dtype, device=clean.device)
     return to_8bit_levels(clean + noise * law.std(clean))
-
-
-def to_8bit_levels(image: torch.Tensor) -> torch.Tensor:
-    """Clip to [0, 1] and round to the 256 levels of an 8-bit file."""
-    return (image.clamp(0.0, 1.0) * 255.0).round() / 255.0
 
 
 def _weighted_line(level: np.ndarray, variance: np.ndarray, weight: np.ndarray) -> tuple[float, float]:

@@ -22,9 +22,9 @@ from darksynth.evaluation.classical import (
     blind_gaussian_sigma,
     blind_poisson_gaussian,
     oracle_poisson_gaussian,
-    to_8bit_levels,
 )
 from darksynth.evaluation.srgb_fit import JPEG_CANDIDATES
+from darksynth.io.arrays import to_8bit_levels
 from darksynth.noise.simulate import add_noise
 from darksynth.training.weights import default_weights_path
 

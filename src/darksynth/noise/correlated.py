@@ -31,6 +31,8 @@ import torch
 import torch.nn.functional as F
 from PIL import Image
 
+from darksynth.io.arrays import to_8bit_levels
+
 KERNEL_RADIUS_STDS = 3.0
 """The Gaussian kernel is cut at this many standard deviations (at least one pixel each side)."""
 
@@ -204,4 +206,4 @@ def add_correlated_noise(
     )
     if jpeg_quality is not None:
         return jpeg_compress(noisy, jpeg_quality)
-    return (noisy.clamp(0.0, 1.0) * 255.0).round() / 255.0
+    return to_8bit_levels(noisy)

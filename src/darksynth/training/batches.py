@@ -7,6 +7,7 @@ from dataclasses import dataclass
 import torch
 
 from darksynth.darkening import darken
+from darksynth.io.arrays import to_8bit_levels
 from darksynth.noise.components import NOISE_COMPONENTS, values_to_vector
 from darksynth.noise.sampling import random_darkening_values, random_noise_values
 from darksynth.noise.simulate import add_noise
@@ -32,10 +33,24 @@ def synthesize_batch(
     batch = clean.shape[0]
     alpha, gamma = random_darkening_values(batch_shape=(batch,), generator=generator, device=clean.device)
     dark = darken(clean, alpha, gamma)
-    values = random_noise_values(batch_shape=(batch,), generator=generator, device=clean.device)
+    noisy, values = random_noisy_version(dark, generator=generator, absent_probability=absent_probability)
+    return TrainingBatch(noisy=noisy, dark=dark, vector=values_to_vector(values))
+
+
+def random_noisy_version(
+    dark: torch.Tensor, *, generator: torch.Generator | None = None, absent_probability: float = 0.15
+) -> tuple[torch.Tensor, dict[str, torch.Tensor]]:
+    """Dark clips (B, T, C, H, W) made noisy with v drawn from the training ranges, on 8-bit levels.
+
+    Each component is switched off for a clip with probability ``absent_probability``.
+
+    Returns:
+        The noisy clips and the values drawn, each (B, size) by parameter name.
+    """
+    batch = dark.shape[0]
+    values = random_noise_values(batch_shape=(batch,), generator=generator, device=dark.device)
     for component in NOISE_COMPONENTS:
-        present = torch.rand(batch, 1, generator=generator, device=clean.device) >= absent_probability
+        present = torch.rand(batch, 1, generator=generator, device=dark.device) >= absent_probability
         for parameter in component.parameters:
             values[parameter.name] = values[parameter.name] * present
-    noisy = add_noise(dark, values, generator=generator)
-    return TrainingBatch(noisy=(noisy * 255.0).round() / 255.0, dark=dark, vector=values_to_vector(values))
+    return to_8bit_levels(add_noise(dark, values, generator=generator)), values
