@@ -16,13 +16,13 @@ import tempfile
 import time
 from pathlib import Path
 
-from darksynth.evaluation.methods import METHOD_NAMES
+from darksynth.evaluation.methods import DEFAULT_METHODS
 
 
 def main() -> int:
     parser = argparse.ArgumentParser(description=__doc__)
     parser.add_argument("--data", type=Path, default=Path(__file__).resolve().parents[2] / "shared" / "data")
-    parser.add_argument("--methods", default=",".join(METHOD_NAMES))
+    parser.add_argument("--methods", default=",".join(DEFAULT_METHODS))
     args = parser.parse_args()
     sets = sorted(p for p in (args.data / "real-pairs").iterdir() if (p / "noisy").is_dir())
     if not sets:

@@ -249,7 +249,11 @@ def evaluate_command(
     ],
     out: Annotated[Path, typer.Option("--out", help="Folder for results.json, results.md and report.html.")],
     methods: Annotated[
-        str, typer.Option(help="Comma-separated methods (default: all): den,den-v1,den-v2,awgn,awgn-blind,...")
+        str,
+        typer.Option(
+            help="Comma-separated methods. Default: den,den-v1,den-v2,awgn,awgn-blind,pg,pg-blind,pg-oracle,"
+            "starlight. Also by name: srgb-oracle and its ablations (docs/srgb-noise.md)."
+        ),
     ] = "",
     weights: Annotated[
         list[str] | None, typer.Option("--weights", help="METHOD=FILE weights for a DEN variant; repeatable.")
@@ -271,12 +275,12 @@ def evaluate_command(
     import json
     import shlex
 
-    from darksynth.evaluation.methods import METHOD_NAMES
+    from darksynth.evaluation.methods import DEFAULT_METHODS
     from darksynth.evaluation.report import write_html_report, write_markdown
     from darksynth.evaluation.runner import EvaluationOptions, evaluate_pairs
     from darksynth.io.atomic import write_text_atomic
 
-    chosen = [m.strip() for m in methods.split(",") if m.strip()] or list(METHOD_NAMES)
+    chosen = [m.strip() for m in methods.split(",") if m.strip()] or list(DEFAULT_METHODS)
     # The command as parsed, so that the report states exactly what produced it.
     arguments = [part for path in pairs for part in ("--pairs", str(path))]
     arguments += ["--methods", ",".join(chosen)] + [part for w in weights or [] for part in ("--weights", w)]

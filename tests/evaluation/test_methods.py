@@ -78,3 +78,12 @@ def test_adaptive_methods_follow_the_reference_noise_level(name: str, clean: tor
     assert stds[1] > 2.5 * stds[0]
     if name != "den":  # the classical estimators are built for white Gaussian noise like this
         assert stds == pytest.approx([0.01, 0.06], rel=0.2)
+
+
+def test_the_default_comparison_is_the_papers_and_every_name_is_known() -> None:
+    from darksynth.evaluation.methods import DEFAULT_METHODS
+
+    assert DEFAULT_METHODS == (
+        "den", "den-v1", "den-v2", "awgn", "awgn-blind", "pg", "pg-blind", "pg-oracle", "starlight",
+    )  # fmt: skip
+    assert set(DEFAULT_METHODS) < set(METHOD_NAMES)

@@ -173,7 +173,7 @@ def _srgb_method(name: str) -> NoiseMethod:
     )
 
 
-METHOD_NAMES: tuple[str, ...] = (
+DEFAULT_METHODS: tuple[str, ...] = (
     "den",
     "den-v1",
     "den-v2",
@@ -183,6 +183,12 @@ METHOD_NAMES: tuple[str, ...] = (
     "pg-blind",
     "pg-oracle",
     "starlight",
+)
+"""What `darksynth evaluate` compares unless told otherwise: the DEN, its ablations and the paper's peers."""
+
+METHOD_NAMES: tuple[str, ...] = (
+    *DEFAULT_METHODS,
+    # Clean-aided ablations of the extended sRGB noise model (docs/srgb-noise.md), run by name only.
     "srgb-oracle",
     "srgb-nojpeg-oracle",
     "srgb-gains-oracle",
