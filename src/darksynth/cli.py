@@ -203,7 +203,10 @@ def estimate_command(
     reference: Annotated[Path, typer.Argument(help="Real low-light image, video, or frame folder (with --clip).")],
     out: Annotated[Path | None, typer.Option("--out", help="Profile JSON to write (stdout when omitted).")] = None,
     clip: Annotated[bool, typer.Option("--clip", help="REFERENCE is a folder of frames of one clip.")] = False,
-    weights: Annotated[Path | None, typer.Option(help="DEN weights (default: the shipped v3 model).")] = None,
+    weights: Annotated[Path | None, typer.Option(help="DEN weights (default: the shipped model of --variant).")] = None,
+    variant: Annotated[
+        str, typer.Option(help="Shipped DEN to use without --weights: v3 (full, default) or v2 (ablation).")
+    ] = "v3",
     device: Annotated[str, typer.Option(help="torch device.")] = "cpu",
 ) -> None:
     """Estimate a noise profile from one real low-light reference, zero-shot."""
@@ -214,7 +217,9 @@ def estimate_command(
     from darksynth.training.weights import default_weights_path, load_weights
 
     try:
-        model = load_weights(weights or default_weights_path(), device=device)
+        if variant not in ("v2", "v3"):
+            raise DarksynthError(f"--variant must be v2 or v3, got {variant!r}")
+        model = load_weights(weights or default_weights_path(variant), device=device)
         frames = load_reference(reference, clip=clip)
         result = estimate(frames, model, source=str(reference), device=device)
     except DarksynthError as error:

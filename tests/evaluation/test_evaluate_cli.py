@@ -74,6 +74,7 @@ def test_bad_pairs_and_names_are_reported_and_the_rest_runs(make_pair_set: MakeS
     out = tmp_path / "out"
     code, _, stderr = run_cli(
         "evaluate", "--pairs", root, "--pairs", tmp_path / "absent", "--methods", "awgn,nope,den-v2",
+        "--weights", f"den-v2={tmp_path / 'absent.safetensors'}",
         "--no-fid", "--out", out,
     )  # fmt: skip
     assert code == 0, stderr
@@ -81,7 +82,7 @@ def test_bad_pairs_and_names_are_reported_and_the_rest_runs(make_pair_set: MakeS
     assert results["sets"]["messy"]["pairs"] == 2
     problems = "\n".join(results["problems"])
     for expected in ("pair_1.png: no clean partner", "pair_2.png: size", "readme.txt: not an image", "absent",
-                     "nope: unknown method", "den-v2: no trained v2 weights"):  # fmt: skip
+                     "nope: unknown method", "den-v2: no trained weights at"):  # fmt: skip
         assert expected in problems
         assert expected in stderr
     assert "Traceback" not in stderr

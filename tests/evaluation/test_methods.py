@@ -29,8 +29,6 @@ def test_unknown_and_unbuilt_methods_are_unavailable(tmp_path: Path) -> None:
         build_method("nope")
     with pytest.raises(MethodUnavailableError, match=r"den-v1: .*not built"):
         build_method("den-v1")
-    with pytest.raises(MethodUnavailableError, match="den-v2: no trained v2 weights"):
-        build_method("den-v2")
     with pytest.raises(MethodUnavailableError, match=r"den-v2: no trained weights at .*absent"):
         build_method("den-v2", weights={"den-v2": tmp_path / "absent.safetensors"})
     corrupt = tmp_path / "corrupt.safetensors"
@@ -87,3 +85,8 @@ def test_the_default_comparison_is_the_papers_and_every_name_is_known() -> None:
         "den", "den-v1", "den-v2", "awgn", "awgn-blind", "pg", "pg-blind", "pg-oracle", "starlight",
     )  # fmt: skip
     assert set(DEFAULT_METHODS) < set(METHOD_NAMES)
+
+
+def test_the_shipped_v2_ablation_is_a_den_without_decoder() -> None:
+    method = build_method("den-v2")
+    assert "DEN v2" in method.summary and method.details["weights"].endswith("den_v2.safetensors")

@@ -131,3 +131,15 @@ def test_too_small_reference_is_one_error_line(tmp_path: Path, weights: Path) ->
     code, _, stderr = run_cli("estimate", small, "--weights", weights)
     assert code == 1
     assert "smaller than the estimator's minimum" in _single_error_line(stderr)
+
+
+def test_variant_picks_the_shipped_v2_ablation(dark_image: Path) -> None:
+    code, stdout, stderr = run_cli("estimate", dark_image, "--variant", "v2")
+    assert code == 0, stderr
+    assert json.loads(stdout)["meta"]["estimator"].startswith("DEN v2")
+
+
+def test_unknown_variant_is_one_error_line(dark_image: Path) -> None:
+    code, _, stderr = run_cli("estimate", dark_image, "--variant", "v1")
+    assert code == 1
+    assert stderr.strip() == "darksynth: error: --variant must be v2 or v3, got 'v1'"

@@ -210,11 +210,7 @@ def build_method(name: str, *, weights: dict[str, Path] | None = None, device: s
     if name == "den":
         return _den_method(name, weights.get(name, default_weights_path()), device)
     if name == "den-v2":
-        if name not in weights:
-            raise MethodUnavailableError(
-                "den-v2: no trained v2 weights are shipped; pass them with --weights den-v2=FILE"
-            )
-        return _den_method(name, weights[name], device)
+        return _den_method(name, weights.get(name, default_weights_path("v2")), device)
     if name == "den-v1":
         raise MethodUnavailableError("den-v1: the v1 variant (a U-Net that outputs the noisy image) is not built")
     if name == "awgn":

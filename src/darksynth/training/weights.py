@@ -52,6 +52,6 @@ def load_weights(path: Path, *, device: torch.device | str = "cpu") -> DEN:
     return model.to(device).eval()
 
 
-def default_weights_path() -> Path:
-    """The DEN shipped with the package."""
-    return Path(__file__).resolve().parent.parent / "data" / "den_v3.safetensors"
+def default_weights_path(variant: str = "v3") -> Path:
+    """The DEN shipped with the package: the full v3 (default) or the v2 ablation (encoder and head only)."""
+    return Path(__file__).resolve().parent.parent / "data" / f"den_{variant}.safetensors"
