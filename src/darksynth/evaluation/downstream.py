@@ -30,7 +30,7 @@ from torch import nn
 
 from darksynth.apply import derive_seed
 from darksynth.errors import DarksynthError
-from darksynth.evaluation.methods import NoiseMethod, build_method
+from darksynth.evaluation.methods import NoiseMethod, build_methods
 from darksynth.evaluation.pairs import LoadedPair, Pair, list_pair_sets, load_pair
 
 LPIPS_STATUS = (
@@ -364,15 +364,7 @@ def run_downstream(
 
     say = progress or (lambda message: None)
     started = time.perf_counter()
-    problems: list[str] = []
-    built: dict[str, NoiseMethod] = {}
-    for name in methods:
-        try:
-            built[name] = build_method(name, weights=weights, device=settings.device)
-        except DarksynthError as error:  # MethodUnavailableError, or weights that cannot be loaded
-            problems.append(str(error))
-    if not built:
-        raise DarksynthError("no method can run: " + "; ".join(problems))
+    built, problems = build_methods(methods, weights=weights, device=settings.device)
     pair_sets, listing_problems = list_pair_sets(pair_roots)
     problems.extend(listing_problems)
     corpus = load_corpus(list(clean_roots), minimum_side=settings.crop)

@@ -243,3 +243,23 @@ def build_method(name: str, *, weights: dict[str, Path] | None = None, device: s
     if name in _SRGB_ORACLES:
         return _srgb_method(name)
     raise MethodUnavailableError(f"{name}: unknown method (known: {', '.join(METHOD_NAMES)})")
+
+
+def build_methods(
+    names: Sequence[str], *, weights: dict[str, Path] | None = None, device: str = "cpu"
+) -> tuple[dict[str, NoiseMethod], list[str]]:
+    """The methods that can run, by name, and one problem line for each that cannot.
+
+    Raises:
+        DarksynthError: none of them can run.
+    """
+    methods: dict[str, NoiseMethod] = {}
+    problems: list[str] = []
+    for name in names:
+        try:
+            methods[name] = build_method(name, weights=weights, device=device)
+        except MethodUnavailableError as error:
+            problems.append(str(error))
+    if not methods:
+        raise DarksynthError("no method can run: " + "; ".join(problems))
+    return methods, problems

@@ -19,7 +19,7 @@ import torch
 
 from darksynth.apply import derive_seed
 from darksynth.errors import DarksynthError
-from darksynth.evaluation.methods import MethodUnavailableError, NoiseMethod, build_method
+from darksynth.evaluation.methods import NoiseMethod, build_methods
 from darksynth.evaluation.metrics import (
     frechet_distance,
     kernel_inception_distance,
@@ -221,15 +221,7 @@ def evaluate_pairs(
     """
     progress = progress or (lambda message: None)
     started = time.perf_counter()
-    problems: list[str] = []
-    methods: dict[str, NoiseMethod] = {}
-    for name in options.methods:
-        try:
-            methods[name] = build_method(name, weights=options.weights, device=options.device)
-        except MethodUnavailableError as error:
-            problems.append(str(error))
-    if not methods:
-        raise DarksynthError("no method can run: " + "; ".join(problems))
+    methods, problems = build_methods(options.methods, weights=options.weights, device=options.device)
     try:
         pair_sets, listing_problems = list_pair_sets(pair_roots)
     except DarksynthError as error:
