@@ -26,7 +26,7 @@ from darksynth.estimate import estimate, load_reference
 from darksynth.noise.components import NOISE_PARAMETERS
 from darksynth.noise.sampling import random_darkening_values, random_noise_values
 from darksynth.profile import Profile
-from darksynth.training.loop import VECTOR_NAMES, r_squared
+from darksynth.training.loop import r_squared, vector_names
 from darksynth.training.weights import default_weights_path, load_weights
 
 
@@ -86,10 +86,12 @@ def main() -> int:
     summary = {}
     for setting, pairs in results.items():
         r2 = r_squared(torch.tensor(pairs["estimated"]), torch.tensor(pairs["true"]))
-        summary[setting] = {name: round(float(v), 3) for name, v in zip(VECTOR_NAMES, r2, strict=True)}
+        summary[setting] = {
+            name: round(float(v), 3) for name, v in zip(vector_names(model.noise_model), r2, strict=True)
+        }
     print(f"weights {args.weights}, {args.trials} trials, clips of {args.frames} frames, seed {args.seed}")
     print(f"{'parameter':18s} {'R2 image':>9s} {'R2 clip':>9s}")
-    for name in VECTOR_NAMES:
+    for name in vector_names(model.noise_model):
         print(f"{name:18s} {summary['image'][name]:9.3f} {summary['clip'][name]:9.3f}")
     print(json.dumps({"summary": summary, "trials": args.trials, "frames": args.frames, "seed": args.seed}))
     return 0

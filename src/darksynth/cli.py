@@ -15,6 +15,7 @@ from darksynth import __version__
 from darksynth.apply import ApplyOptions, ApplyReport, Task, apply
 from darksynth.darkening import Darkening
 from darksynth.errors import DarksynthError
+from darksynth.noise.components import NOISE_MODELS
 from darksynth.profile import load_profile
 from darksynth.synthesize import DarkeningChoice
 
@@ -139,6 +140,9 @@ def train_command(
         list[Path] | None, typer.Option("--holdout", help="Clean material for validation only (never trained on).")
     ] = None,
     variant: Annotated[str, typer.Option(help="v3 (U-Net + head) or v2 (encoder + head).")] = "v3",
+    model: Annotated[
+        str, typer.Option("--model", help="Noise model: srgb (paper + sRGB structure, default) or paper.")
+    ] = "srgb",
     width: Annotated[int, typer.Option(min=4, help="Channels of the first level.")] = 8,
     depth: Annotated[int, typer.Option(min=1, max=5, help="Down-sampling steps.")] = 3,
     steps: Annotated[int, typer.Option(min=1)] = 2400,
@@ -149,6 +153,14 @@ def train_command(
     lambda_parameters: Annotated[float, typer.Option("--lambda1", help="Weight of MSE(v_hat, v).")] = 1.0,
     lambda_reconstruction: Annotated[float, typer.Option("--lambda2", help="Weight of L1(x_hat_d, x_d).")] = 1.0,
     validate_every: Annotated[int, typer.Option(min=1)] = 200,
+    bright_fraction: Annotated[
+        float,
+        typer.Option(
+            min=0.0,
+            max=1.0,
+            help="Share of clips darkened less than the paper's ranges (real references are often brighter).",
+        ),
+    ] = 0.0,
     seed: Annotated[int, typer.Option()] = 0,
     resume: Annotated[bool, typer.Option("--resume", help="Continue from OUT's checkpoint.")] = False,
     device: Annotated[str, typer.Option(help="torch device.")] = "cpu",
@@ -160,9 +172,11 @@ def train_command(
 
     if variant not in ("v2", "v3"):
         raise fail(f"--variant must be v2 or v3, got {variant!r}")
+    if model not in NOISE_MODELS:
+        raise fail(f"--model must be {' or '.join(NOISE_MODELS)}, got {model!r}")
     try:
         config = TrainConfig(
-            model=DENConfig(variant=variant, width=width, depth=depth),  # type: ignore[arg-type]
+            model=DENConfig(variant=variant, width=width, depth=depth, noise_model=model),  # type: ignore[arg-type]
             steps=steps,
             batch=batch,
             frames=frames,
@@ -171,6 +185,7 @@ def train_command(
             lambda_parameters=lambda_parameters,
             lambda_reconstruction=lambda_reconstruction,
             validate_every=validate_every,
+            bright_fraction=bright_fraction,
             seed=seed,
             device=device,
         )
@@ -207,6 +222,14 @@ def estimate_command(
     variant: Annotated[
         str, typer.Option(help="Shipped DEN to use without --weights: v3 (full, default) or v2 (ablation).")
     ] = "v3",
+    model: Annotated[
+        str,
+        typer.Option(
+            "--model",
+            help="Shipped noise model without --weights: srgb (the paper's components plus sRGB structure, "
+            "default) or paper (the paper's five components, white noise).",
+        ),
+    ] = "paper",
     device: Annotated[str, typer.Option(help="torch device.")] = "cpu",
 ) -> None:
     """Estimate a noise profile from one real low-light reference, zero-shot."""
@@ -219,9 +242,13 @@ def estimate_command(
     try:
         if variant not in ("v2", "v3"):
             raise DarksynthError(f"--variant must be v2 or v3, got {variant!r}")
-        model = load_weights(weights or default_weights_path(variant), device=device)
+        if model not in NOISE_MODELS:
+            raise DarksynthError(f"--model must be {' or '.join(NOISE_MODELS)}, got {model!r}")
+        if weights is None and model == "srgb" and variant != "v3":
+            raise DarksynthError("--variant v2 is shipped for --model paper only")
+        network = load_weights(weights or default_weights_path(variant, model), device=device)
         frames = load_reference(reference, clip=clip)
-        result = estimate(frames, model, source=str(reference), device=device)
+        result = estimate(frames, network, source=str(reference), device=device)
     except DarksynthError as error:
         raise fail(str(error)) from None
     for warning in result.warnings:

@@ -25,7 +25,7 @@ from darksynth.io.discover import classify_input, scan_folder
 from darksynth.io.images import read_image
 from darksynth.io.video import iter_video_frames
 from darksynth.models.den import DEN
-from darksynth.noise.components import NOISE_PARAMETERS, vector_to_values
+from darksynth.noise.components import NOISE_PARAMETERS, model_parameters, neutral_values, vector_to_values
 from darksynth.profile import Profile
 
 CROP = 128
@@ -49,7 +49,7 @@ class Estimate:
     """A profile and what was learned on the way: per-crop values and warnings."""
 
     profile: Profile
-    per_crop: np.ndarray  # (N, NOISE_VECTOR_SIZE)
+    per_crop: np.ndarray  # (N, vector_size(model)): the estimating model's v per crop
     warnings: list[str] = field(default_factory=list)
 
 
@@ -152,12 +152,16 @@ def estimate(
     median = torch.quantile(values, 0.5, dim=0)
     low = torch.quantile(values, 0.1, dim=0)
     high = torch.quantile(values, 0.9, dim=0)
-    named = vector_to_values(median)
-    named_low, named_high = vector_to_values(low), vector_to_values(high)
-    noise = {p.name: tuple(float(v) for v in named[p.name]) for p in NOISE_PARAMETERS}
+    noise_model = model.noise_model
+    estimated = model_parameters(noise_model)
+    named = vector_to_values(median, noise_model)
+    named_low, named_high = vector_to_values(low, noise_model), vector_to_values(high, noise_model)
+    # What the model does not estimate (the sRGB structure, for the paper's model) is neutral: white noise.
+    noise = {**neutral_values(noise_model), **{p.name: tuple(float(v) for v in named[p.name]) for p in estimated}}
+    noise = {p.name: noise[p.name] for p in NOISE_PARAMETERS}
     ranges = {
         p.name: tuple((float(a), float(b)) for a, b in zip(named_low[p.name], named_high[p.name], strict=True))
-        for p in NOISE_PARAMETERS
+        for p in estimated
     }
     warnings = []
     level = float(reference.mean())
@@ -171,6 +175,7 @@ def estimate(
     meta: dict[str, Any] = {
         "source": source,
         "estimator": f"DEN {model.config.variant} width {model.config.width} depth {model.config.depth}",
+        "noise_model": noise_model,
         "crops": len(crops),
         "frames": int(reference.shape[0]),
         "aggregate": "median over crops; ranges are the 10th-90th percentiles",

@@ -1,8 +1,10 @@
 """The noise profile: the JSON document that ``estimate`` writes and ``apply`` reads.
 
 ```
-{"format": "darksynth-profile", "version": 1,
- "noise": {"shot": s, "read": r, "quantization": q, "banding": b, "temporal_banding": bt, "periodic": [p1, p2, p3]},
+{"format": "darksynth-profile", "version": 2,
+ "noise": {"shot": s, "read": r, "quantization": q, "banding": b, "temporal_banding": bt, "periodic": [p1, p2, p3],
+           "channel_gain": [g_red, g_blue], "correlation_length": l, "channel_correlation": [rg, gb, rb],
+           "compression": c},                  the last four optional (neutral when absent)
  "darkening": {"alpha": a, "gamma": g},        optional
  "ranges": {"shot": [lo, hi], "alpha": [lo, hi], ...},   optional: sample per image or clip within these
  "meta": {...}}                                optional: free-form provenance, carried but not read
@@ -10,6 +12,10 @@
 
 The fields of ``noise`` come from :data:`darksynth.noise.components.NOISE_PARAMETERS`; nothing here names a
 component, so a new one needs no change in this module. Values are on the [0, 1] intensity scale.
+
+Versions: 1 has the paper's parameters only (all required). 2 adds the sRGB model's (``model="srgb"`` in the
+table), each optional and neutral when absent, so a version-1 document is read as the same noise. Profiles
+are always written as version 2.
 """
 
 from __future__ import annotations
@@ -27,7 +33,8 @@ from darksynth.io.atomic import write_text_atomic
 from darksynth.noise.components import NOISE_PARAMETER_NAMES, NOISE_PARAMETERS, Parameter
 
 PROFILE_FORMAT = "darksynth-profile"
-PROFILE_VERSION = 1
+PROFILE_VERSION = 2
+READABLE_VERSIONS = (1, 2)
 
 DARKENING_LIMITS: dict[str, tuple[float, float]] = {"alpha": (0.0, 1.0), "gamma": (0.0, 10.0)}
 """Valid (exclusive low, inclusive high) bounds of the darkening parameters."""
@@ -64,8 +71,10 @@ def _number(value: Any, where: str) -> float:
 
 def _noise_value(value: Any, where: str, parameter: Parameter) -> float:
     number = _number(value, where)
-    if not 0.0 <= number <= parameter.maximum:
-        raise ProfileError(f"{where} must lie in [0, {parameter.maximum:g}] ({parameter.unit}), got {value!r}")
+    if not parameter.minimum <= number <= parameter.maximum:
+        raise ProfileError(
+            f"{where} must lie in [{parameter.minimum:g}, {parameter.maximum:g}] ({parameter.unit}), got {value!r}"
+        )
     return number
 
 
@@ -148,8 +157,9 @@ def _parse(document: dict[str, Any]) -> Profile:
     if document.get("format") != PROFILE_FORMAT:
         raise ProfileError(f"format must be {PROFILE_FORMAT!r}, got {document.get('format')!r}")
     version = document.get("version")
-    if version != PROFILE_VERSION or isinstance(version, bool):
-        raise ProfileError(f"unsupported version {version!r}; this darksynth reads version {PROFILE_VERSION}")
+    if version not in READABLE_VERSIONS or isinstance(version, bool):
+        readable = " and ".join(str(v) for v in READABLE_VERSIONS)
+        raise ProfileError(f"unsupported version {version!r}; this darksynth reads versions {readable}")
     raw_noise = document.get("noise")
     if not isinstance(raw_noise, dict):
         raise ProfileError(f"noise must be an object with {', '.join(NOISE_PARAMETER_NAMES)}, got {raw_noise!r}")
@@ -158,9 +168,17 @@ def _parse(document: dict[str, Any]) -> Profile:
         raise ProfileError(f"noise.{extra[0]} is not a noise parameter; known: {', '.join(NOISE_PARAMETER_NAMES)}")
     noise: dict[str, tuple[float, ...]] = {}
     for parameter in NOISE_PARAMETERS:
-        if parameter.name not in raw_noise:
-            raise ProfileError(f"noise.{parameter.name} is missing")
-        noise[parameter.name] = _values(raw_noise[parameter.name], f"noise.{parameter.name}", parameter)
+        key = f"noise.{parameter.name}"
+        if parameter.model != "paper":
+            # sRGB-model parameters arrived with version 2 and are optional there: neutral when absent.
+            if parameter.name in raw_noise and version == 1:
+                raise ProfileError(f"{key} needs profile version 2, this document is version 1")
+            if parameter.name not in raw_noise:
+                noise[parameter.name] = (parameter.neutral,) * parameter.size
+                continue
+        elif parameter.name not in raw_noise:
+            raise ProfileError(f"{key} is missing")
+        noise[parameter.name] = _values(raw_noise[parameter.name], key, parameter)
 
     darkening = None
     if document.get("darkening") is not None:

@@ -33,7 +33,7 @@ from darksynth.noise.kernel8 import (
     pixel_kernel_in_pieces,
 )
 from darksynth.noise.sampling import random_uniform
-from darksynth.noise.simulate import add_noise, drawing_order, is_active
+from darksynth.noise.simulate import add_noise, drawing_order, is_active, output_stages
 from darksynth.profile import Profile
 
 DarkeningChoice = Darkening | Literal["profile"] | None
@@ -126,7 +126,19 @@ class ClipSynthesizer:
         self._active = tuple(c for c in drawing_order() if is_active(c, self._values))
         self._held: dict[str, torch.Tensor] = {}
         self._kernel: PixelKernel = compiled_pixel_kernel() if compile else pixel_kernel_8bit
-        self._fusable = all(c.name in _FUSED_COMPONENTS for c in self._active if c.structure == "pixel")
+        self._stages = tuple(c for c in output_stages() if is_active(c, self._values))
+        # The fused kernel draws white noise and writes 8-bit levels: sRGB structure or compression need the
+        # general path.
+        self._fusable = (
+            not self._stages
+            and all(c.name in _FUSED_COMPONENTS for c in self._active if c.structure == "pixel")
+            and all(
+                self.parameters.noise.get(p.name, (p.neutral,)) == (p.neutral,) * p.size
+                for c in self._active
+                for p in c.parameters
+                if p.role == "shape"
+            )
+        )
         self._scalars: tuple[torch.Tensor, ...] | None = None
 
     def _column_pattern(self, signal_shape: torch.Size) -> torch.Tensor:
@@ -169,7 +181,10 @@ class ClipSynthesizer:
         for component in self._active:
             if component.structure != "column":
                 noisy = noisy + component.draw(signal, self._values, self.generator)
-        return _to_dtype(noisy.clamp(0.0, 1.0), frame.dtype)
+        noisy = noisy.clamp(0.0, 1.0)
+        for stage in self._stages:
+            noisy = stage.draw(noisy, self._values, self.generator)
+        return _to_dtype(noisy, frame.dtype)
 
     def _fused(self, frame: torch.Tensor, columns: torch.Tensor) -> torch.Tensor:
         if self._scalars is None:

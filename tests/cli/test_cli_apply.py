@@ -243,7 +243,7 @@ def test_bad_paths(tmp_path: Path, profile_file: Path, rgb_image: Path) -> None:
     [
         ({"noise": {"read": None}}, "noise.read"),
         ({"noise": {"shot": -0.1}}, "noise.shot"),
-        ({"version": 2}, "version"),
+        ({"version": 3}, "version"),
         ({"noise": {"periodic": [0.1, 0.1]}}, "noise.periodic"),
     ],
 )
@@ -290,3 +290,40 @@ def test_compiled_and_eager_runs_write_the_same_bytes(rgb_image: Path, profile_f
         code, _, err = run_cli("apply", rgb_image, tmp_path / name, "-p", profile_file, "--seed", "11", flag)
         assert code == 0, err
     assert (tmp_path / "eager.png").read_bytes() == (tmp_path / "compiled.png").read_bytes()
+
+
+def test_srgb_profile_applies_to_every_image_kind(tmp_path: Path, write_profile: Callable[..., Path]) -> None:
+    """A version-2 profile with the sRGB structure and JPEG works on 8/16-bit, grey, RGBA, palette and 1x1."""
+    profile = write_profile(
+        noise={
+            "read": 0.03,
+            "channel_gain": [1.4, 1.2],
+            "correlation_length": 1.0,
+            "channel_correlation": [0.5, 0.4, 0.6],
+            "compression": 0.4,
+        },
+        version=2,
+    )
+    folder = tmp_path / "kinds"
+    folder.mkdir()
+    Image.fromarray(np.full((40, 48), 30000, np.uint16)).save(folder / "deep.png")
+    Image.fromarray(np.full((40, 48), 120, np.uint8)).save(folder / "grey.png")
+    Image.fromarray(np.zeros((1, 1, 3), np.uint8)).save(folder / "tiny.png")
+    rgba = np.dstack([np.full((32, 32, 3), 200, np.uint8), np.arange(1024, dtype=np.uint8).reshape(32, 32)])
+    Image.fromarray(rgba, "RGBA").save(folder / "alpha.png")
+    Image.fromarray(np.full((32, 32, 3), 90, np.uint8)).convert("P").save(folder / "palette.png")
+    Image.fromarray(np.full((64, 64, 3), 128, np.uint8)).save(folder / "colour.png")
+    code, _, err = run_cli("apply", folder, tmp_path / "out", "-p", profile, "--seed", "0")
+    assert code == 0, err
+    with Image.open(tmp_path / "out" / "deep.png") as deep:
+        values = np.asarray(deep)
+        # Still 16 bit; the JPEG stage leaves it on 8-bit levels scaled to 16 bits.
+        assert deep.mode.startswith("I") and values.max() > 255
+        assert np.all(values % 257 == 0)
+    assert _pixels(tmp_path / "out" / "grey.png").ndim == 2
+    assert _pixels(tmp_path / "out" / "tiny.png").shape == (1, 1, 3)
+    assert np.array_equal(_pixels(tmp_path / "out" / "alpha.png")[..., 3], rgba[..., 3])
+    colour = _pixels(tmp_path / "out" / "colour.png").astype(np.float64)
+    residual = colour - colour.mean(axis=(0, 1))
+    # Correlated across channels, as the profile asks (JPEG's chroma subsampling only adds to it).
+    assert np.corrcoef(residual.reshape(-1, 3).T)[0, 1] > 0.3

@@ -19,10 +19,11 @@ def build_profile(
     ranges: Mapping[str, Sequence[tuple[float, float]]] | None = None,
     **noise: float | Sequence[float],
 ) -> Profile:
-    """A validated profile whose unnamed noise parameters are zero."""
+    """A validated profile whose unnamed noise parameters are neutral (zero, or one for a gain)."""
     values: dict[str, tuple[float, ...]] = {}
     for parameter in NOISE_PARAMETERS:
-        raw: Any = noise.pop(parameter.name, [0.0] * parameter.size if parameter.size > 1 else 0.0)
+        neutral = parameter.neutral
+        raw: Any = noise.pop(parameter.name, [neutral] * parameter.size if parameter.size > 1 else neutral)
         values[parameter.name] = tuple(float(v) for v in raw) if parameter.size > 1 else (float(raw),)
     if noise:
         raise TypeError(f"unknown noise parameters {sorted(noise)}")

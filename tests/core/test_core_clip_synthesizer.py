@@ -16,7 +16,7 @@ from darksynth.synthesize import ClipParameters, ClipSynthesizer, draw_clip_para
 
 
 def _parameters(darkening: Darkening | None = None, **nonzero: float) -> ClipParameters:
-    noise = {p.name: (nonzero.get(p.name, 0.0),) * p.size for p in NOISE_PARAMETERS}
+    noise = {p.name: (nonzero.get(p.name, p.neutral),) * p.size for p in NOISE_PARAMETERS}
     return ClipParameters(noise=noise, darkening=darkening)
 
 

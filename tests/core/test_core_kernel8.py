@@ -12,7 +12,7 @@ import torch
 
 import darksynth
 from darksynth.darkening import Darkening
-from darksynth.noise.components import NOISE_PARAMETERS
+from darksynth.noise.components import NOISE_PARAMETERS, model_parameters
 from darksynth.noise.kernel8 import compiled_pixel_kernel, pixel_kernel_8bit
 from darksynth.profile import Profile, default_profile_path, load_profile
 from darksynth.synthesize import ClipParameters, ClipSynthesizer, draw_clip_parameters
@@ -36,7 +36,7 @@ def test_uint8_and_float_paths_draw_from_the_same_distribution() -> None:
     # 3 * 64 * 16 = 3072 times, so per-level means have a standard error of std / 55 and variances of about
     # var * sqrt(2 / 3072) = 2.6% of var; the bands below are 5 standard errors.
     profile = load_profile(default_profile_path())
-    assert all(any(v != 0 for v in values) for values in profile.noise.values())
+    assert all(any(v != 0 for v in profile.noise[p.name]) for p in model_parameters("paper"))
     levels = torch.arange(256, dtype=torch.uint8).repeat_interleave(16)
     clean8 = levels.view(1, 1, 4096).expand(3, 64, 4096).contiguous()
     fused = darksynth.synthesize(clean8, profile, generator=torch.Generator().manual_seed(2))
@@ -62,7 +62,7 @@ def test_a_different_seed_gives_a_different_sample() -> None:
 
 def _parameters(darkening: Darkening | None = None, **nonzero: float) -> ClipParameters:
     return ClipParameters(
-        noise={p.name: (nonzero.get(p.name, 0.0),) * p.size for p in NOISE_PARAMETERS}, darkening=darkening
+        noise={p.name: (nonzero.get(p.name, p.neutral),) * p.size for p in NOISE_PARAMETERS}, darkening=darkening
     )
 
 

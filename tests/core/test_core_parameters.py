@@ -15,8 +15,10 @@ from darksynth.noise.components import (
     NOISE_PARAMETER_NAMES,
     NOISE_PARAMETERS,
     NOISE_VECTOR_SIZE,
+    model_parameters,
     noise_parameter,
     values_to_vector,
+    vector_size,
     vector_to_values,
 )
 from darksynth.noise.sampling import random_noise_values
@@ -27,14 +29,27 @@ ProfileFactory = Callable[..., Profile]
 
 
 def test_the_papers_model_has_eight_values_in_table_order() -> None:
-    assert NOISE_VECTOR_SIZE == 8
-    assert NOISE_PARAMETER_NAMES == ("shot", "read", "quantization", "banding", "temporal_banding", "periodic")
-    assert [p.size for p in NOISE_PARAMETERS] == [1, 1, 1, 1, 1, 3]
+    paper = model_parameters("paper")
+    assert vector_size("paper") == 8
+    assert tuple(p.name for p in paper) == ("shot", "read", "quantization", "banding", "temporal_banding", "periodic")
+    assert [p.size for p in paper] == [1, 1, 1, 1, 1, 3]
     assert [c.name for c in NOISE_COMPONENTS if c.per_clip] == ["temporal_banding"]
     for parameter in NOISE_PARAMETERS:
         low, high = parameter.training_range
-        assert 0.0 <= low <= high <= parameter.maximum
+        assert parameter.minimum <= low <= high <= parameter.maximum
+        assert parameter.minimum <= parameter.neutral <= parameter.maximum
     assert noise_parameter("periodic").size == 3
+    # The sRGB model extends the paper's v; the paper's parameters keep their order inside it.
+    srgb = model_parameters("srgb")
+    assert NOISE_VECTOR_SIZE == vector_size("srgb") == 15
+    assert [p.name for p in srgb if p.model == "paper"] == [p.name for p in paper]
+    assert {p.name for p in srgb if p.model == "srgb"} == {
+        "channel_gain",
+        "correlation_length",
+        "channel_correlation",
+        "compression",
+    }
+    assert noise_parameter("channel_gain").neutral == 1.0
     with pytest.raises(KeyError, match="shot"):
         noise_parameter("gain")
 
@@ -44,8 +59,13 @@ def test_vector_round_trip_with_batch_dimensions() -> None:
     values = vector_to_values(vector)
     assert values["shot"].shape == (4, 2, 1) and values["periodic"].shape == (4, 2, 3)
     assert torch.equal(values["shot"][..., 0], vector[..., 0])
-    assert torch.equal(values["periodic"], vector[..., 5:8])
+    assert torch.equal(values["periodic"], vector[..., 11:14])
     assert torch.equal(values_to_vector(values), vector)
+    paper_vector = vector[..., :8]
+    paper_values = vector_to_values(paper_vector, "paper")
+    assert list(paper_values) == [p.name for p in model_parameters("paper")]
+    assert torch.equal(paper_values["periodic"], paper_vector[..., 5:8])
+    assert torch.equal(values_to_vector(paper_values, "paper"), paper_vector)
 
 
 def test_values_round_trip_through_the_vector() -> None:
@@ -57,8 +77,10 @@ def test_values_round_trip_through_the_vector() -> None:
 
 
 def test_vector_of_wrong_length_is_rejected() -> None:
+    with pytest.raises(ValueError, match="15"):
+        vector_to_values(torch.zeros(2, 8))
     with pytest.raises(ValueError, match="8"):
-        vector_to_values(torch.zeros(2, 7))
+        vector_to_values(torch.zeros(2, 7), "paper")
 
 
 def test_random_noise_values_stay_in_training_ranges() -> None:

@@ -119,7 +119,23 @@ BAD_DOCUMENTS: list[tuple[str, dict[str, Any], tuple[str, ...]]] = [
     ("periodic too long", _edit(("noise", "periodic"), [0.1, 0.2, 0.3, 0.4]), ("noise.periodic", "0.4")),
     ("periodic scalar", _edit(("noise", "periodic"), 0.1), ("noise.periodic", "0.1")),
     ("periodic item negative", _edit(("noise", "periodic"), [0.1, -0.2, 0.3]), ("noise.periodic[1]", "-0.2")),
-    ("version 2", _edit(("version",), 2), ("version", "2")),
+    ("version 3", _edit(("version",), 3), ("version", "3")),
+    ("srgb field in version 1", _edit(("noise", "compression"), 0.3), ("noise.compression", "version 2")),
+    (
+        "gain below minimum",
+        _edit(("version",), 2) | {"noise": {**_document()["noise"], "channel_gain": [0.1, 1.0]}},
+        ("noise.channel_gain[0]", "0.1", "0.25"),
+    ),
+    (
+        "correlation out of range",
+        _edit(("version",), 2) | {"noise": {**_document()["noise"], "channel_correlation": [0.2, 0.99, 0.1]}},
+        ("noise.channel_correlation[1]", "0.99"),
+    ),
+    (
+        "three gains",
+        _edit(("version",), 2) | {"noise": {**_document()["noise"], "channel_gain": [1.0, 1.0, 1.0]}},
+        ("noise.channel_gain", "list of 2"),
+    ),
     ("version true", _edit(("version",), True), ("version", "True")),
     ("wrong format", _edit(("format",), "other-profile"), ("format", "other-profile")),
     ("unknown noise key", _edit(("noise", "dark_current"), 0.1), ("noise.dark_current",)),
@@ -221,3 +237,32 @@ def test_profile_values_are_finite_floats() -> None:
     profile: Profile = parse_profile(_document())
     for values in profile.noise.values():
         assert all(isinstance(v, float) and math.isfinite(v) for v in values)
+
+
+def test_version_1_profile_reads_as_white_uncompressed_noise(tmp_path: Path) -> None:
+    profile = load_profile(_write(tmp_path, _document()))
+    assert profile.noise["channel_gain"] == (1.0, 1.0)
+    assert profile.noise["correlation_length"] == (0.0,)
+    assert profile.noise["channel_correlation"] == (0.0, 0.0, 0.0)
+    assert profile.noise["compression"] == (0.0,)
+    # Saved again, it becomes a version-2 document with the same noise.
+    save_profile(tmp_path / "v2.json", profile)
+    document = json.loads((tmp_path / "v2.json").read_text(encoding="utf-8"))
+    assert document["version"] == 2
+    assert document["noise"]["channel_gain"] == [1.0, 1.0]
+    assert load_profile(tmp_path / "v2.json") == profile
+
+
+def test_version_2_profile_with_srgb_fields_and_ranges(tmp_path: Path) -> None:
+    document = _document()
+    document["version"] = 2
+    document["noise"].update(
+        channel_gain=[1.3, 1.5], correlation_length=0.8, channel_correlation=[0.4, 0.3, 0.6], compression=0.35
+    )
+    document["ranges"] = {"correlation_length": [0.5, 1.0], "channel_correlation": [-0.2, 0.7]}
+    profile = load_profile(_write(tmp_path, document))
+    assert profile.noise["channel_gain"] == (1.3, 1.5)
+    assert profile.noise["compression"] == (0.35,)
+    assert profile.ranges["channel_correlation"] == ((-0.2, 0.7),) * 3
+    save_profile(tmp_path / "copy.json", profile)
+    assert load_profile(tmp_path / "copy.json") == profile

@@ -32,7 +32,7 @@ ALL_ON = {
 
 def _tensors(noise: dict[str, float | list[float]]) -> dict[str, torch.Tensor]:
     return {
-        p.name: torch.tensor(noise.get(p.name, [0.0] * p.size if p.size > 1 else 0.0)).reshape(p.size)
+        p.name: torch.tensor(noise.get(p.name, [p.neutral] * p.size if p.size > 1 else p.neutral)).reshape(p.size)
         for p in NOISE_PARAMETERS
     }
 
@@ -128,7 +128,7 @@ def test_synthesize_zero_noise_clip_batch_float(make_profile: ProfileFactory) ->
 
 def test_clip_synthesizer_zero_noise_gives_the_darkened_frame() -> None:
     parameters = ClipParameters(
-        noise={p.name: (0.0,) * p.size for p in NOISE_PARAMETERS}, darkening=Darkening(ALPHA, GAMMA)
+        noise={p.name: (p.neutral,) * p.size for p in NOISE_PARAMETERS}, darkening=Darkening(ALPHA, GAMMA)
     )
     synthesizer = ClipSynthesizer(parameters, generator=torch.Generator().manual_seed(9))
     frame = _ramp_clip()[0]

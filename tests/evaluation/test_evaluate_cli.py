@@ -140,3 +140,27 @@ def test_reports_state_the_headline_plainly(make_pair_set: MakeSet, tmp_path: Pa
     verdict = "loud: yes" if holds else "loud: NO, the headline does not hold here"
     assert verdict in (out / "results.md").read_text()
     assert verdict in (out / "report.html").read_text()
+
+
+def test_reports_check_den_against_every_blind_method_the_oracle_and_the_paper_model(
+    make_pair_set: MakeSet, tmp_path: Path
+) -> None:
+    root = make_pair_set("loud", count=2, sigma=14.0)
+    out = tmp_path / "out"
+    code, _, stderr = run_cli(
+        "evaluate", "--pairs", root, "--methods", "den,den-paper,awgn,pg-blind,pg-oracle", "--out", out
+    )
+    assert code == 0, stderr
+    methods = json.loads((out / "results.json").read_text())["sets"]["loud"]["methods"]
+    den = methods["den"]
+    best = min(("awgn", "pg-blind"), key=lambda name: methods[name]["kld"])
+    below = "yes" if den["kld"] < methods[best]["kld"] else "NO"
+    within = "yes" if den["kld"] <= 2 * methods["pg-oracle"]["kld"] else "NO"
+    fid = "yes" if den["fid"] < methods["den-paper"]["fid"] else "NO"
+    markdown, html = (out / "results.md").read_text(), (out / "report.html").read_text()
+    for line in (
+        f"loud: kld below every blind method: {below} (den {den['kld']:.3f}, best blind {best}",
+        f"loud: kld at most 2x pg-oracle: {within}",
+        f"loud: fid below den-paper: {fid}",
+    ):
+        assert line in markdown and line in html

@@ -82,7 +82,7 @@ def test_the_default_comparison_is_the_papers_and_every_name_is_known() -> None:
     from darksynth.evaluation.methods import DEFAULT_METHODS
 
     assert DEFAULT_METHODS == (
-        "den", "den-v1", "den-v2", "awgn", "awgn-blind", "pg", "pg-blind", "pg-oracle", "starlight",
+        "den", "den-paper", "den-v1", "den-v2", "awgn", "awgn-blind", "pg", "pg-blind", "pg-oracle", "starlight",
     )  # fmt: skip
     assert set(DEFAULT_METHODS) < set(METHOD_NAMES)
 

@@ -8,7 +8,7 @@ import pytest
 import torch
 
 from darksynth.models.den import DEN, denormalise, normalise
-from darksynth.noise.components import NOISE_PARAMETERS, NOISE_VECTOR_SIZE
+from darksynth.noise.components import NOISE_PARAMETERS, NOISE_VECTOR_SIZE, model_parameters, vector_size
 
 LOW = torch.tensor([p.training_range[0] for p in NOISE_PARAMETERS for _ in range(p.size)])
 HIGH = torch.tensor([p.training_range[1] for p in NOISE_PARAMETERS for _ in range(p.size)])
@@ -82,6 +82,23 @@ def test_normalise_maps_each_training_range_onto_the_unit_interval() -> None:
     vector = torch.zeros(NOISE_VECTOR_SIZE)
     vector[0], vector[1] = 0.05, 0.05
     assert normalise(vector)[:2].tolist() == pytest.approx([0.25, 0.5])
+    # The paper's model normalises its own 8 values over the same ranges.
+    paper = model_parameters("paper")
+    low = torch.tensor([p.training_range[0] for p in paper for _ in range(p.size)])
+    high = torch.tensor([p.training_range[1] for p in paper for _ in range(p.size)])
+    torch.testing.assert_close(normalise(high, "paper"), torch.ones(vector_size("paper")))
+    torch.testing.assert_close(denormalise(normalise(low, "paper"), "paper"), low)
+
+
+def test_paper_model_predicts_the_papers_eight_values(tiny_model: Callable[..., DEN]) -> None:
+    model = tiny_model(noise_model="paper")
+    with torch.no_grad():
+        output = model(_clip((2, 2, 3, 32, 40)))
+    assert output.normalised.shape == (2, 8)
+    assert output.values.shape == (2, 8)
+    # It reads only the paper's statistics: fewer head inputs than the sRGB model.
+    srgb = tiny_model()
+    assert model.head[0].in_features < srgb.head[0].in_features
 
 
 def test_normalise_denormalise_round_trip() -> None:

@@ -134,9 +134,33 @@ def test_too_small_reference_is_one_error_line(tmp_path: Path, weights: Path) ->
 
 
 def test_variant_picks_the_shipped_v2_ablation(dark_image: Path) -> None:
-    code, stdout, stderr = run_cli("estimate", dark_image, "--variant", "v2")
+    code, stdout, stderr = run_cli("estimate", dark_image, "--model", "paper", "--variant", "v2")
     assert code == 0, stderr
     assert json.loads(stdout)["meta"]["estimator"].startswith("DEN v2")
+    assert json.loads(stdout)["meta"]["noise_model"] == "paper"
+
+
+def test_paper_model_gives_white_uncompressed_noise(dark_image: Path) -> None:
+    code, stdout, stderr = run_cli("estimate", dark_image, "--model", "paper")
+    assert code == 0, stderr
+    noise = json.loads(stdout)["noise"]
+    assert noise["correlation_length"] == 0.0 and noise["compression"] == 0.0
+    assert noise["channel_gain"] == [1.0, 1.0]
+
+
+@pytest.mark.parametrize(
+    ("arguments", "message"),
+    [
+        (("--model", "fancy"), "darksynth: error: --model must be paper or srgb, got 'fancy'"),
+        (("--model", "srgb", "--variant", "v2"), "darksynth: error: --variant v2 is shipped for --model paper only"),
+    ],
+)
+def test_unknown_model_or_unshipped_combination_is_one_error_line(
+    dark_image: Path, arguments: tuple[str, ...], message: str
+) -> None:
+    code, _, stderr = run_cli("estimate", dark_image, *arguments)
+    assert code == 1
+    assert stderr.strip() == message
 
 
 def test_unknown_variant_is_one_error_line(dark_image: Path) -> None:

@@ -11,7 +11,7 @@ import torch
 from darksynth.darkening import darken
 from darksynth.estimate import estimate
 from darksynth.models.den import DEN
-from darksynth.noise.components import NOISE_PARAMETERS, NOISE_VECTOR_SIZE
+from darksynth.noise.components import NOISE_PARAMETERS, NOISE_VECTOR_SIZE, noise_parameter
 from darksynth.profile import validate_profile
 
 
@@ -105,7 +105,7 @@ def _rigged(model: DEN, normalised: torch.Tensor) -> DEN:
 
 def test_each_network_output_lands_in_its_named_profile_entry(tiny_model: Callable[..., DEN]) -> None:
     fractions = torch.tensor([0.1, 0.2, 0.3, 0.4, 0.5, 0.6, 0.7, 0.8])
-    result = estimate(_reference(1, 64, 64), _rigged(tiny_model(), fractions))
+    result = estimate(_reference(1, 64, 64), _rigged(tiny_model(noise_model="paper"), fractions))
     expected = {
         "shot": (0.1 * 0.2,),
         "read": (0.2 * 0.1,),
@@ -118,12 +118,37 @@ def test_each_network_output_lands_in_its_named_profile_entry(tiny_model: Callab
         assert result.profile.noise[name] == pytest.approx(values, rel=1e-5)
         for (low, high), value in zip(result.profile.ranges[name], values, strict=True):
             assert (low, high) == pytest.approx((value, value), rel=1e-5)
+    # The paper's model says nothing of the sRGB structure: white, uncompressed noise, and no ranges for it.
+    assert result.profile.noise["channel_gain"] == (1.0, 1.0)
+    assert result.profile.noise["correlation_length"] == (0.0,)
+    assert result.profile.noise["compression"] == (0.0,)
+    assert "compression" not in result.profile.ranges
+    assert result.profile.meta["noise_model"] == "paper"
+
+
+def test_srgb_model_outputs_land_in_their_profile_entries(tiny_model: Callable[..., DEN]) -> None:
+    # v of the sRGB model: shot, read, gain (2), length, correlations (3), quantization, banding,
+    # temporal banding, periodic (3), compression.
+    fractions = torch.linspace(0.05, 0.95, 15)
+    result = estimate(_reference(1, 64, 64), _rigged(tiny_model(), fractions))
+    noise = result.profile.noise
+    assert noise["shot"] == pytest.approx((0.05 * 0.2,), rel=1e-5)
+    gain_low, gain_high = noise_parameter("channel_gain").training_range
+    assert noise["channel_gain"] == pytest.approx(
+        tuple(gain_low + f * (gain_high - gain_low) for f in fractions[2:4].tolist()), rel=1e-5
+    )
+    assert noise["correlation_length"] == pytest.approx((float(fractions[4]) * 2.0,), rel=1e-5)
+    assert noise["channel_correlation"] == pytest.approx(tuple(f * 0.7 for f in fractions[5:8].tolist()), rel=1e-5)
+    assert noise["periodic"] == pytest.approx(tuple(f * 0.02 for f in fractions[11:14].tolist()), rel=1e-5)
+    assert noise["compression"] == pytest.approx((float(fractions[14]) * 0.7,), rel=1e-5)
+    assert result.profile.meta["noise_model"] == "srgb"
+    validate_profile(result.profile)
 
 
 def test_nearly_noise_free_estimate_warns(tiny_model: Callable[..., DEN]) -> None:
-    quiet = estimate(_reference(1, 64, 64), _rigged(tiny_model(), torch.full((8,), 0.001)), source="quiet.png")
+    quiet = estimate(_reference(1, 64, 64), _rigged(tiny_model(), torch.full((15,), 0.001)), source="quiet.png")
     assert any(w.startswith("quiet.png: nearly noise-free") for w in quiet.warnings)
-    noisy = estimate(_reference(1, 64, 64), _rigged(tiny_model(), torch.full((8,), 0.5)), source="noisy.png")
+    noisy = estimate(_reference(1, 64, 64), _rigged(tiny_model(), torch.full((15,), 0.5)), source="noisy.png")
     assert not any("noise-free" in w for w in noisy.warnings)
 
 

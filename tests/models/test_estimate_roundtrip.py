@@ -42,7 +42,7 @@ def _reference(noise: dict[str, float], frames: int, seed: int) -> torch.Tensor:
 
 @pytest.fixture(scope="module")
 def model() -> torch.nn.Module:
-    return load_weights(default_weights_path())
+    return load_weights(default_weights_path("v3", "paper"))
 
 
 def test_read_noise_is_recovered_from_single_images(model: torch.nn.Module) -> None:

@@ -5,11 +5,17 @@ from __future__ import annotations
 import pytest
 import torch
 
-from darksynth.noise.components import NOISE_COMPONENTS, NOISE_PARAMETERS, NOISE_VECTOR_SIZE, vector_to_values
+from darksynth.noise.components import (
+    NOISE_COMPONENTS,
+    NOISE_PARAMETERS,
+    NOISE_VECTOR_SIZE,
+    vector_to_values,
+)
 from darksynth.training.batches import synthesize_batch
 
 LOW = torch.tensor([p.training_range[0] for p in NOISE_PARAMETERS for _ in range(p.size)])
 HIGH = torch.tensor([p.training_range[1] for p in NOISE_PARAMETERS for _ in range(p.size)])
+NEUTRAL = torch.tensor([p.neutral for p in NOISE_PARAMETERS for _ in range(p.size)])
 
 
 def _clean(batch: int = 6, seed: int = 0) -> torch.Tensor:
@@ -35,20 +41,38 @@ def test_vectors_lie_inside_the_training_ranges_over_many_draws() -> None:
     assert ((vectors >= LOW) & (vectors <= HIGH)).all()
     # The draws spread over each range instead of sitting at one end (absent components aside).
     present = vectors.clone()
-    present[present == 0] = float("nan")
+    present[present == NEUTRAL.expand_as(present)] = float("nan")
     assert (present.nanquantile(0.9, 0) - present.nanquantile(0.1, 0) > 0.5 * (HIGH - LOW)).all()
 
 
 def test_every_component_is_present_when_absence_is_impossible() -> None:
-    batch = synthesize_batch(_clean(), generator=torch.Generator().manual_seed(3), absent_probability=0.0)
+    batch = synthesize_batch(
+        _clean(), generator=torch.Generator().manual_seed(3), absent_probability=0.0, model="paper"
+    )
     assert (batch.vector > 0).all()
     assert not torch.equal(batch.noisy, (batch.dark * 255).round() / 255)
+    # In the sRGB model, the shape parameters are also switched off alone (white, uncompressed noise is
+    # kept in the training data): neutral in about their off-probability of clips, never for the paper's.
+    generator = torch.Generator().manual_seed(3)
+    vectors = torch.cat(
+        [synthesize_batch(_clean(), generator=generator, absent_probability=0.0).vector for _ in range(40)]
+    )
+    values = vector_to_values(vectors)
+    for parameter in NOISE_PARAMETERS:
+        off = (values[parameter.name] == parameter.neutral).all(-1).float().mean().item()
+        expected = parameter.training_off_probability or 0.0
+        # 240 clips: a binomial share's standard error is at most 0.032; 4 of them.
+        assert abs(off - expected) < 0.13, parameter.name
 
 
-def test_absent_components_give_the_quantised_dark_clip_and_a_zero_vector() -> None:
+def test_absent_components_give_the_quantised_dark_clip_and_a_neutral_vector() -> None:
     batch = synthesize_batch(_clean(), generator=torch.Generator().manual_seed(4), absent_probability=1.0)
-    assert torch.equal(batch.vector, torch.zeros(6, NOISE_VECTOR_SIZE))
+    assert torch.equal(batch.vector, NEUTRAL.expand(6, NOISE_VECTOR_SIZE))
     assert torch.equal(batch.noisy, (batch.dark * 255.0).round() / 255.0)
+    paper = synthesize_batch(
+        _clean(), generator=torch.Generator().manual_seed(4), absent_probability=1.0, model="paper"
+    )
+    assert torch.equal(paper.vector, torch.zeros(6, 8))
 
 
 def test_absence_switches_whole_components() -> None:
@@ -59,9 +83,17 @@ def test_absence_switches_whole_components() -> None:
     )
     values = vector_to_values(vectors)
     for component in NOISE_COMPONENTS:
-        zero = torch.cat([values[p.name] == 0 for p in component.parameters], dim=-1)
+        # Parameters that training also switches off alone may be neutral while the rest is on.
+        together = [p for p in component.parameters if p.training_off_probability is None]
+        if len(together) < 2:
+            continue
+        zero = torch.cat([values[p.name] == p.neutral for p in together], dim=-1)
         assert (zero.all(-1) | (~zero).all(-1)).all(), component.name
     assert 0.3 < (values["shot"] == 0).float().mean() < 0.7
+    # An absent heteroscedastic component takes its shape parameters with it.
+    absent = (values["shot"] == 0)[:, 0]
+    assert (values["channel_gain"][absent] == 1.0).all()
+    assert (values["correlation_length"][absent] == 0.0).all()
 
 
 def test_dark_clip_is_a_darkening_of_the_clean_one() -> None:

@@ -9,7 +9,7 @@ from typer.testing import CliRunner
 
 from darksynth.cli import app
 from darksynth.models.den import DENConfig
-from darksynth.training.loop import VECTOR_NAMES
+from darksynth.training.loop import vector_names
 from darksynth.training.weights import load_weights
 
 TINY_FLAGS = ["--steps", "2", "--batch", "2", "--frames", "2", "--crop", "32", "--width", "4", "--depth", "1"]
@@ -34,7 +34,7 @@ def test_train_on_a_folder_writes_weights_summary_and_checkpoint(image_folder: P
     assert load_weights(out).config == DENConfig(width=4, depth=1)
     summary = json.loads(out.with_suffix(".json").read_text())
     assert [entry["step"] for entry in summary["history"]] == [1, 2]
-    assert set(summary["final_validation"]["r2"]) == set(VECTOR_NAMES)
+    assert set(summary["final_validation"]["r2"]) == set(vector_names())
     assert summary["config"]["crop"] == 32 and summary["config"]["frames"] == 2
 
 

@@ -13,7 +13,7 @@ from safetensors.torch import load_file
 from darksynth.errors import DarksynthError
 from darksynth.models.den import DENConfig
 from darksynth.training.corpus import CleanCorpus, load_corpus
-from darksynth.training.loop import VECTOR_NAMES, TrainConfig, r_squared, train
+from darksynth.training.loop import TrainConfig, r_squared, train, vector_names
 from darksynth.training.weights import load_weights
 from tests.models.conftest import smooth_rgb, write_png
 
@@ -69,9 +69,9 @@ def test_train_writes_weights_summary_and_checkpoint(reference_run: tuple[Path, 
     history = written["history"]
     assert [entry["step"] for entry in history] == [2, 4]
     for entry in history:
-        assert set(entry["r2"]) == set(VECTOR_NAMES)
-        assert len(VECTOR_NAMES) == 8
-        assert set(entry["single_frame"]["r2"]) == set(VECTOR_NAMES)
+        assert set(entry["r2"]) == set(vector_names())
+        assert len(vector_names()) == 15 and len(vector_names("paper")) == 8
+        assert set(entry["single_frame"]["r2"]) == set(vector_names())
         assert entry["samples"] == CONFIG.validation_size
         assert all(value == value for value in entry["r2"].values())  # no NaN
     assert written["final_validation"] == history[-1]

@@ -12,7 +12,7 @@ from safetensors.torch import load_file, save_file
 
 from darksynth.errors import DarksynthError
 from darksynth.models.den import DEN, MODEL_NAME, MODEL_VERSION, DENConfig
-from darksynth.models.noise_statistics import STATISTICS_SIZE
+from darksynth.models.noise_statistics import statistics_size
 from darksynth.training.weights import load_weights, read_metadata, save_weights
 
 
@@ -20,20 +20,21 @@ def _clip() -> torch.Tensor:
     return torch.rand(2, 3, 3, 37, 45, generator=torch.Generator().manual_seed(0))
 
 
-@pytest.mark.parametrize("settings", [{}, {"variant": "v2", "depth": 2, "head_width": 16}])
+@pytest.mark.parametrize("settings", [{}, {"variant": "v2", "depth": 2, "head_width": 16}, {"noise_model": "paper"}])
 def test_saved_weights_load_into_a_model_with_identical_outputs(
     tmp_path: Path, tiny_model: Callable[..., DEN], settings: dict[str, object]
 ) -> None:
     model = tiny_model(seed=5, **settings)
     # The statistics' standardisation is state too (buffers, not parameters): it must travel with the weights.
-    model.set_statistics_scale(torch.randn(10, STATISTICS_SIZE, generator=torch.Generator().manual_seed(1)))
+    size = statistics_size(model.noise_model)
+    model.set_statistics_scale(torch.randn(10, size, generator=torch.Generator().manual_seed(1)))
     path = tmp_path / "den.safetensors"
     save_weights(path, model, training={"steps": 7})
     loaded = load_weights(path)
     assert loaded.config == model.config
     assert not loaded.training
     assert torch.equal(loaded.statistics_scale, model.statistics_scale)
-    assert not torch.equal(loaded.statistics_scale, torch.ones(STATISTICS_SIZE))
+    assert not torch.equal(loaded.statistics_scale, torch.ones(size))
     with torch.no_grad():
         expected, actual = model(_clip()), loaded(_clip())
     assert torch.equal(actual.normalised, expected.normalised)
@@ -76,6 +77,33 @@ def test_hand_written_file_with_correct_metadata_loads(tmp_path: Path, tiny_mode
     path = tmp_path / "hand.safetensors"
     save_file(_tensors(tiny_model()), str(path), metadata=_metadata())
     assert load_weights(path).config == DENConfig(width=4, depth=1)
+
+
+def test_version_1_weights_are_read_as_the_papers_model(tmp_path: Path, tiny_model: Callable[..., DEN]) -> None:
+    """Weights written before the sRGB model (version 1, no noise_model in the config) keep working."""
+    paper = tiny_model(noise_model="paper")
+    settings = paper.config.to_dict()
+    del settings["noise_model"]
+    path = tmp_path / "v1.safetensors"
+    save_file(_tensors(paper), str(path), metadata=_metadata(version="1", config=json.dumps(settings)))
+    loaded = load_weights(path)
+    assert loaded.noise_model == "paper"
+    with torch.no_grad():
+        assert torch.equal(loaded(_clip()).normalised, paper(_clip()).normalised)
+    # sRGB-model tensors under version-1 metadata do not fit the paper's model they claim to be.
+    srgb = tmp_path / "v1-srgb.safetensors"
+    save_file(_tensors(tiny_model()), str(srgb), metadata=_metadata(version="1", config=json.dumps(settings)))
+    with pytest.raises(DarksynthError, match="do not fit"):
+        load_weights(srgb)
+
+
+def test_shipped_paper_weights_load_as_the_papers_model() -> None:
+    from darksynth.training.weights import default_weights_path
+
+    for variant in ("v3", "v2"):
+        model = load_weights(default_weights_path(variant, "paper"))
+        assert model.noise_model == "paper"
+        assert model.config.variant == variant
 
 
 BAD_METADATA = {

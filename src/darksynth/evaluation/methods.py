@@ -100,7 +100,8 @@ def _den_method(name: str, weights: Path, device: str) -> NoiseMethod:
 
     return NoiseMethod(
         name=name,
-        summary=f"DEN {model.config.variant} ({weights.name}): v from the noisy image, f(v) added to the clean",
+        summary=f"DEN {model.config.variant}, {model.noise_model} noise model ({weights.name}): v from the noisy "
+        "image, f(v) added to the clean",
         fit=fit,
         synthesize=synthesize,
         details={"weights": str(weights)},
@@ -175,6 +176,7 @@ def _srgb_method(name: str) -> NoiseMethod:
 
 DEFAULT_METHODS: tuple[str, ...] = (
     "den",
+    "den-paper",
     "den-v1",
     "den-v2",
     "awgn",
@@ -184,7 +186,8 @@ DEFAULT_METHODS: tuple[str, ...] = (
     "pg-oracle",
     "starlight",
 )
-"""What `darksynth evaluate` compares unless told otherwise: the DEN, its ablations and the paper's peers."""
+"""What `darksynth evaluate` compares unless told otherwise: the DEN (sRGB noise model), the paper-faithful DEN
+(``den-paper``) and its ablations (``den-v1``, ``den-v2``, both of the paper's model), and the paper's peers."""
 
 METHOD_NAMES: tuple[str, ...] = (
     *DEFAULT_METHODS,
@@ -201,7 +204,8 @@ def build_method(name: str, *, weights: dict[str, Path] | None = None, device: s
     """The method called ``name``.
 
     Args:
-        weights: weights files by method name for the DEN variants (den: the shipped weights by default).
+        weights: weights files by method name for the DEN variants (the shipped weights by default: ``den`` the
+            sRGB model, ``den-paper`` the paper's model, ``den-v2`` the paper model's v2 ablation).
 
     Raises:
         MethodUnavailableError: an unknown name, or a method whose weights do not exist.
@@ -209,8 +213,10 @@ def build_method(name: str, *, weights: dict[str, Path] | None = None, device: s
     weights = weights or {}
     if name == "den":
         return _den_method(name, weights.get(name, default_weights_path()), device)
+    if name == "den-paper":
+        return _den_method(name, weights.get(name, default_weights_path("v3", "paper")), device)
     if name == "den-v2":
-        return _den_method(name, weights.get(name, default_weights_path("v2")), device)
+        return _den_method(name, weights.get(name, default_weights_path("v2", "paper")), device)
     if name == "den-v1":
         raise MethodUnavailableError("den-v1: the v1 variant (a U-Net that outputs the noisy image) is not built")
     if name == "awgn":

@@ -327,6 +327,53 @@ def headline_lines(results: Mapping[str, Any]) -> list[str]:
     return lines
 
 
+BEYOND_TITLE = "Beyond the paper: den against every blind method, the oracle and the paper's model"
+
+BLIND_METHODS = ("awgn", "awgn-blind", "pg", "pg-blind", "starlight")
+"""The methods that see neither the clean image nor any real noise beyond the reference (den's peers)."""
+
+
+def _number_or_none(value: Any) -> float | None:
+    return float(value) if isinstance(value, (int, float)) and not isinstance(value, bool) else None
+
+
+def beyond_paper_lines(results: Mapping[str, Any]) -> list[str]:
+    """One sentence per set and check: den's kld below every blind method present, at most twice pg-oracle's,
+    and den's FID and KID below the paper-faithful model's (den-paper)."""
+    lines = []
+    for set_name, entry in _sets(results).items():
+        methods = _set_methods(entry)
+        den = methods.get("den")
+        if den is None:
+            continue
+        kld = _number_or_none(den.get("kld"))
+        checks = []
+        blind = {
+            name: value
+            for name in BLIND_METHODS
+            if name in methods and (value := _number_or_none(methods[name].get("kld"))) is not None
+        }
+        if kld is not None and blind:
+            best = min(blind, key=lambda name: blind[name])
+            verdict = "yes" if kld < blind[best] else "NO"
+            checks.append(
+                f"kld below every blind method: {verdict} (den {kld:.3f}, best blind {best} {blind[best]:.3f})"
+            )
+        oracle = _number_or_none(methods.get("pg-oracle", {}).get("kld"))
+        if kld is not None and oracle is not None:
+            verdict = "yes" if kld <= 2 * oracle else "NO"
+            checks.append(f"kld at most 2x pg-oracle: {verdict} (den {kld:.3f}, 2x pg-oracle {2 * oracle:.3f})")
+        paper = methods.get("den-paper")
+        if paper is not None:
+            for metric in ("fid", "kid"):
+                ours, theirs = _number_or_none(den.get(metric)), _number_or_none(paper.get(metric))
+                if ours is not None and theirs is not None:
+                    verdict = "yes" if ours < theirs else "NO"
+                    checks.append(f"{metric} below den-paper: {verdict} (den {ours:.3f}, den-paper {theirs:.3f})")
+        lines += [f"{set_name}: {check}" for check in checks]
+    return lines
+
+
 def render_markdown(results: Mapping[str, Any]) -> str:
     """The Markdown summary of a results document (see :func:`write_markdown`)."""
     order = _method_order(results)
@@ -336,6 +383,9 @@ def render_markdown(results: Mapping[str, Any]) -> str:
     headline = headline_lines(results)
     if headline:
         lines += ["", f"## {HEADLINE_TITLE}", ""] + [f"- {_md(line)}" for line in headline]
+    beyond = beyond_paper_lines(results)
+    if beyond:
+        lines += ["", f"## {BEYOND_TITLE}", ""] + [f"- {_md(line)}" for line in beyond]
     headers = [f"{c.title} [95% CI]" if c.ci else f"{c.title} ± std" if c.std else c.title for c in SET_COLUMNS]
     for set_name, entry in _sets(results).items():
         methods = _set_methods(entry)
@@ -797,10 +847,15 @@ class _Html:
 
     def headline_section(self) -> list[str]:
         lines = headline_lines(self.results)
-        if not lines:
-            return []
-        items = "".join(f"<li>{_e(line)}</li>" for line in lines)
-        return [f'<section id="headline"><h2>{_e(HEADLINE_TITLE)}</h2><ul>{items}</ul></section>']
+        section = []
+        if lines:
+            items = "".join(f"<li>{_e(line)}</li>" for line in lines)
+            section.append(f'<section id="headline"><h2>{_e(HEADLINE_TITLE)}</h2><ul>{items}</ul></section>')
+        beyond = beyond_paper_lines(self.results)
+        if beyond:
+            items = "".join(f"<li>{_e(line)}</li>" for line in beyond)
+            section.append(f'<section id="beyond-paper"><h2>{_e(BEYOND_TITLE)}</h2><ul>{items}</ul></section>')
+        return section
 
     def page(self) -> str:
         sets = _sets(self.results)

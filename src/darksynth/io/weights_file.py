@@ -18,8 +18,8 @@ def _first_line(error: BaseException) -> str:
     return text.splitlines()[0] if text else type(error).__name__
 
 
-def read_checked_metadata(path: Path, *, model: str, version: int, label: str) -> dict[str, str]:
-    """The metadata of ``path``, checked to name ``model`` at ``version``.
+def read_checked_metadata(path: Path, *, model: str, version: int | tuple[int, ...], label: str) -> dict[str, str]:
+    """The metadata of ``path``, checked to name ``model`` at ``version`` (or one of several versions).
 
     Args:
         label: how messages name the model ("DEN", "Starlight").
@@ -36,8 +36,10 @@ def read_checked_metadata(path: Path, *, model: str, version: int, label: str) -
         raise DarksynthError(f"{path}: not a readable safetensors file ({_first_line(error)})") from None
     if metadata.get("model") != model:
         raise DarksynthError(f"{path}: not darksynth {label} weights (model {metadata.get('model')!r})")
-    if metadata.get("version") != str(version):
+    versions = (version,) if isinstance(version, int) else version
+    if metadata.get("version") not in {str(v) for v in versions}:
+        readable = " and ".join(str(v) for v in versions)
         raise DarksynthError(
-            f"{path}: weights of {label} version {metadata.get('version')}, this darksynth reads version {version}"
+            f"{path}: weights of {label} version {metadata.get('version')}, this darksynth reads version {readable}"
         )
     return metadata

@@ -10,6 +10,11 @@ the paper's auxiliary task. Nothing depends on the frame size: frames are padded
 2 ** (depth + 1) and cropped back.
 
 Variants (the paper's ablation): ``v3`` the full DEN; ``v2`` encoder and head only (no decoder).
+
+Noise models: ``paper`` predicts the paper's v (8 values) from the paper's statistics (model version 1);
+``srgb`` predicts the extended v (per-channel gains, correlation length, channel correlations, JPEG strength
+besides the paper's) and reads multi-scale, per-channel statistics as well (model version 2). Version-1
+weights are read as the ``paper`` model.
 """
 
 from __future__ import annotations
@@ -21,13 +26,15 @@ import torch
 import torch.nn.functional as F
 from torch import nn
 
-from darksynth.models.noise_statistics import STATISTICS_SIZE, noise_statistics
-from darksynth.noise.components import NOISE_PARAMETERS, NOISE_VECTOR_SIZE
+from darksynth.models.noise_statistics import model_noise_statistics, statistics_size
+from darksynth.noise.components import NoiseModel, model_parameters, vector_size
 
 Variant = Literal["v2", "v3"]
 MODEL_NAME = "darksynth-den"
-MODEL_VERSION = 1
-"""Weights carry this version; a model of another version is refused on load."""
+MODEL_VERSION = 2
+"""Weights are written with this version (2: the noise model is part of the config)."""
+READABLE_MODEL_VERSIONS = (1, 2)
+"""Versions read on load; version 1 weights are the ``paper`` noise model."""
 
 
 @dataclass(frozen=True)
@@ -40,6 +47,7 @@ class DENConfig:
         depth: number of down-sampling steps after the 2x2 stem; sides are padded to a multiple of 2 ** (depth + 1).
         head_width: hidden units of the MLP head.
         channels: colour channels of the input (grey references are repeated to 3).
+        noise_model: which v the head predicts (see the module docstring).
     """
 
     variant: Variant = "v3"
@@ -47,27 +55,31 @@ class DENConfig:
     depth: int = 3
     head_width: int = 128
     channels: int = 3
+    noise_model: NoiseModel = "srgb"
 
     def to_dict(self) -> dict[str, object]:
         return asdict(self)
 
 
-def parameter_bounds(device: torch.device | str | None = None) -> tuple[torch.Tensor, torch.Tensor]:
-    """Low and high ends of every entry of v, from the training ranges of the parameter table."""
-    low = [p.training_range[0] for p in NOISE_PARAMETERS for _ in range(p.size)]
-    high = [p.training_range[1] for p in NOISE_PARAMETERS for _ in range(p.size)]
+def parameter_bounds(
+    device: torch.device | str | None = None, model: NoiseModel = "srgb"
+) -> tuple[torch.Tensor, torch.Tensor]:
+    """Low and high ends of every entry of a noise model's v, from the training ranges of the parameter table."""
+    parameters = model_parameters(model)
+    low = [p.training_range[0] for p in parameters for _ in range(p.size)]
+    high = [p.training_range[1] for p in parameters for _ in range(p.size)]
     return torch.tensor(low, device=device), torch.tensor(high, device=device)
 
 
-def normalise(vector: torch.Tensor) -> torch.Tensor:
-    """v (..., NOISE_VECTOR_SIZE) -> [0, 1] per entry over its training range."""
-    low, high = parameter_bounds(vector.device)
+def normalise(vector: torch.Tensor, model: NoiseModel = "srgb") -> torch.Tensor:
+    """v (..., vector_size(model)) -> [0, 1] per entry over its training range."""
+    low, high = parameter_bounds(vector.device, model)
     return (vector - low) / (high - low)
 
 
-def denormalise(normalised: torch.Tensor) -> torch.Tensor:
+def denormalise(normalised: torch.Tensor, model: NoiseModel = "srgb") -> torch.Tensor:
     """Inverse of :func:`normalise`."""
-    low, high = parameter_bounds(normalised.device)
+    low, high = parameter_bounds(normalised.device, model)
     return low + normalised * (high - low)
 
 
@@ -93,11 +105,12 @@ class DENOutput:
 
     normalised: torch.Tensor
     dark: torch.Tensor | None
+    noise_model: NoiseModel = "srgb"
 
     @property
     def values(self) -> torch.Tensor:
-        """v on the [0, 1] intensity scale, (B, NOISE_VECTOR_SIZE)."""
-        return denormalise(self.normalised)
+        """v in the parameters' units, (B, vector_size(noise_model))."""
+        return denormalise(self.normalised, self.noise_model)
 
 
 class DEN(nn.Module):
@@ -129,22 +142,27 @@ class DEN(nn.Module):
             self.to_image = nn.Sequential(nn.Conv2d(widths[0], 4 * config.channels, 1), nn.PixelShuffle(2))
         # The statistics span many decades and are standardised with the mean and spread measured on training
         # data before training starts (set_statistics_scale); the buffers travel with the weights.
-        self.register_buffer("statistics_mean", torch.zeros(STATISTICS_SIZE))
-        self.register_buffer("statistics_scale", torch.ones(STATISTICS_SIZE))
+        statistics = statistics_size(config.noise_model)
+        self.register_buffer("statistics_mean", torch.zeros(statistics))
+        self.register_buffer("statistics_scale", torch.ones(statistics))
         self.pooled_norm = nn.LayerNorm(2 * widths[-1])
         self.head = nn.Sequential(
-            nn.Linear(2 * widths[-1] + STATISTICS_SIZE, config.head_width),
+            nn.Linear(2 * widths[-1] + statistics, config.head_width),
             nn.GELU(),
             nn.Linear(config.head_width, config.head_width),
             nn.GELU(),
-            nn.Linear(config.head_width, NOISE_VECTOR_SIZE),
+            nn.Linear(config.head_width, vector_size(config.noise_model)),
         )
 
     @torch.no_grad()
     def set_statistics_scale(self, statistics: torch.Tensor) -> None:
-        """Standardise the head's statistics input with those measured on training clips (N, STATISTICS_SIZE)."""
+        """Standardise the head's statistics input with those measured on training clips (N, statistics size)."""
         self.statistics_mean.copy_(statistics.mean(0))
         self.statistics_scale.copy_(statistics.std(0).clamp_min(1e-3))
+
+    @property
+    def noise_model(self) -> NoiseModel:
+        return self.config.noise_model
 
     @property
     def multiple(self) -> int:
@@ -158,12 +176,12 @@ class DEN(nn.Module):
             clip: (B, T, C, H, W), values in [0, 1], C = config.channels.
 
         Returns:
-            v in normalised space (B, NOISE_VECTOR_SIZE) and, for v3, the dark clean clip (B, T, C, H, W).
+            v in normalised space (B, vector_size(noise_model)) and, for v3, the dark clean clip (B, T, C, H, W).
         """
         if clip.dim() != 5 or clip.shape[2] != self.config.channels:
             raise ValueError(f"expected clips (B, T, {self.config.channels}, H, W), got shape {tuple(clip.shape)}")
         batch, frames, channels, height, width = clip.shape
-        statistics = (noise_statistics(clip) - self.statistics_mean) / self.statistics_scale
+        statistics = (self.statistics(clip) - self.statistics_mean) / self.statistics_scale
         moving = clip - clip.mean(dim=1, keepdim=True)
         x = torch.cat([clip, moving], dim=2).flatten(0, 1)
         pad_h, pad_w = (-height) % self.multiple, (-width) % self.multiple
@@ -184,4 +202,8 @@ class DEN(nn.Module):
             for up, decoder, skip in zip(self.ups, self.decoders, reversed(skips), strict=True):
                 x = decoder(torch.cat([up(x), skip], dim=1))
             dark = self.to_image(x)[..., :height, :width].reshape(batch, frames, channels, height, width)
-        return DENOutput(normalised=normalised, dark=dark)
+        return DENOutput(normalised=normalised, dark=dark, noise_model=self.config.noise_model)
+
+    def statistics(self, clip: torch.Tensor) -> torch.Tensor:
+        """The fixed noise statistics this model's head reads, before standardisation."""
+        return model_noise_statistics(clip, self.config.noise_model)

@@ -18,6 +18,7 @@ Everything is returned as log10 of a variance-like quantity, which keeps the sca
 from __future__ import annotations
 
 import torch
+import torch.nn.functional as F
 
 LEVEL_BINS = 12
 """Intensity bins of the pixel-noise statistics over [0, LEVEL_MAX]."""
@@ -108,3 +109,110 @@ def column_noise_statistics(clip: torch.Tensor) -> torch.Tensor:
 def noise_statistics(clip: torch.Tensor) -> torch.Tensor:
     """All statistics of a clip (B, T, C, H, W) in [0, 1]: (B, STATISTICS_SIZE)."""
     return torch.cat([pixel_noise_statistics(clip), column_noise_statistics(clip)], dim=-1)
+
+
+# --- Statistics of the sRGB noise model -------------------------------------------------------------------
+# Real sRGB noise is spatially correlated, differs per channel, is correlated across channels and is often
+# JPEG-compressed (docs/srgb-noise.md). The paper's statistics above read only neighbouring-pixel differences
+# pooled over channels, which see a fraction of correlated noise. These read the noise at three scales, per
+# channel, across channels, and JPEG's 8x8 grid and chroma subsampling.
+
+SCALES = (1, 2, 4)
+"""Block sizes the second differences are measured at: correlated noise loses less energy with the scale."""
+
+SRGB_STATISTICS_SIZE = len(SCALES) * 2 * 3 + len(SCALES) * 2 + 2 * 3 + 2 + 1
+"""Length of :func:`srgb_noise_statistics`' vector: per scale, direction and channel (18), per scale and
+direction (6), channel correlations at two scales (6), JPEG block grid along x and y (2), chroma subsampling (1)."""
+
+
+def _second_differences(frames: torch.Tensor) -> tuple[torch.Tensor, torch.Tensor]:
+    """Second differences along y and x of (N, C, H, W): cancel content that changes linearly."""
+    along_y = frames[..., 1:-1, :] - 0.5 * (frames[..., :-2, :] + frames[..., 2:, :])
+    along_x = frames[..., :, 1:-1] - 0.5 * (frames[..., :, :-2] + frames[..., :, 2:])
+    return along_y, along_x
+
+
+def _channel_correlations(along_y: torch.Tensor, along_x: torch.Tensor, batch: int) -> torch.Tensor:
+    """Red-green, green-blue, red-blue correlation of second differences, (B, 3)."""
+    channels = along_y.shape[1]
+    flat = torch.cat([along_y.flatten(2), along_x.flatten(2)], dim=-1)  # (N, C, P)
+    flat = flat.reshape(batch, -1, channels, flat.shape[-1]).transpose(1, 2).flatten(2)  # (B, C, T * P)
+    if channels != 3:
+        return torch.zeros(batch, 3, device=flat.device, dtype=flat.dtype)
+    energy = flat.square().sum(-1)
+    pairs = ((0, 1), (1, 2), (0, 2))
+    return torch.stack(
+        [(flat[:, i] * flat[:, j]).sum(-1) / (energy[:, i] * energy[:, j]).sqrt().clamp_min(_EPS) for i, j in pairs],
+        dim=-1,
+    )
+
+
+def _block_grid_strength(first_differences: torch.Tensor, batch: int) -> torch.Tensor:
+    """log(largest / mean energy) of first differences by position modulo 8 along the last axis, (B,): JPEG's
+    8x8 blocks put extra energy at one phase, wherever the crop starts."""
+    length = first_differences.shape[-1] // 8 * 8
+    if length == 0:
+        return torch.zeros(batch, device=first_differences.device, dtype=first_differences.dtype)
+    energy = first_differences[..., :length].square()
+    by_phase = energy.reshape(batch, -1, length // 8, 8).mean(dim=(1, 2))  # (B, 8)
+    return _log(by_phase.max(-1).values) - _log(by_phase.mean(-1))
+
+
+def srgb_noise_statistics(clip: torch.Tensor) -> torch.Tensor:
+    """Multi-scale, per-channel, cross-channel and compression statistics of a clip (B, T, C, H, W) in [0, 1].
+
+    Returns:
+        (B, SRGB_STATISTICS_SIZE): log median |second difference| per scale (1, 2, 4 px blocks), direction (y,
+        x) and channel; log mean square of the same per scale and direction; channel correlations of the
+        second differences at scales 1 and 2; JPEG block-grid strength along y and x; and the drop of chroma
+        against luma energy from scale 1 to 2 (4:2:0 subsampling removes fine chroma).
+    """
+    batch, frames, channels, height, width = clip.shape
+    frames_flat = clip.reshape(batch * frames, channels, height, width)
+    medians, squares, correlations = [], [], []
+    luma_chroma = []
+    for scale in SCALES:
+        pooled = F.avg_pool2d(frames_flat, scale) if scale > 1 else frames_flat
+        if min(pooled.shape[-2:]) < 3:
+            pooled = F.pad(pooled, (1, 1, 1, 1), mode="replicate")
+        along_y, along_x = _second_differences(pooled)
+        for part in (along_y, along_x):
+            per_frame = part.reshape(batch, frames, channels, -1).transpose(1, 2)  # (B, C, T, P)
+            per_clip = per_frame.flatten(2)
+            # A median of every 5th value of each frame: robust to edges like the full median, at a fraction of
+            # its cost, and the same set of values whatever the order of the frames.
+            medians.append(_log(per_frame[..., ::5].flatten(2).abs().median(dim=-1).values))
+            squares.append(_log(per_clip.square().mean(dim=(1, 2))))
+        if scale in (1, 2):
+            correlations.append(_channel_correlations(along_y, along_x, batch))
+            if channels == 3:
+                luma = pooled.mean(1, keepdim=True)
+                chroma = pooled - luma
+                ly, lx = _second_differences(luma)
+                cy, cx = _second_differences(chroma)
+                luma_energy = (ly.square().mean(dim=(1, 2, 3)) + lx.square().mean(dim=(1, 2, 3))).reshape(batch, -1)
+                chroma_energy = (cy.square().mean(dim=(1, 2, 3)) + cx.square().mean(dim=(1, 2, 3))).reshape(batch, -1)
+                luma_chroma.append(_log(chroma_energy.mean(-1)) - _log(luma_energy.mean(-1)))
+    subsampling = luma_chroma[0] - luma_chroma[1] if len(luma_chroma) == 2 else torch.zeros(batch, device=clip.device)
+    grid = torch.stack(
+        [
+            _block_grid_strength((frames_flat[..., 1:, :] - frames_flat[..., :-1, :]).transpose(-1, -2), batch),
+            _block_grid_strength(frames_flat[..., 1:] - frames_flat[..., :-1], batch),
+        ],
+        dim=-1,
+    )
+    return torch.cat(
+        [torch.cat(medians, dim=-1), torch.stack(squares, dim=-1), *correlations, grid, subsampling[:, None]], dim=-1
+    )
+
+
+def statistics_size(model: str) -> int:
+    """Length of the statistics vector the DEN of a noise model reads."""
+    return STATISTICS_SIZE + (SRGB_STATISTICS_SIZE if model == "srgb" else 0)
+
+
+def model_noise_statistics(clip: torch.Tensor, model: str) -> torch.Tensor:
+    """The statistics the DEN of a noise model reads: the paper's, plus the sRGB ones for ``srgb``."""
+    if model == "srgb":
+        return torch.cat([noise_statistics(clip), srgb_noise_statistics(clip)], dim=-1)
+    return noise_statistics(clip)

@@ -17,16 +17,28 @@ from typing import Literal
 import torch
 
 from darksynth.noise.banding import banding_noise, temporal_banding_noise
-from darksynth.noise.heteroscedastic import heteroscedastic_noise
+from darksynth.noise.correlated import jpeg_compress_clips, structured_normal
+from darksynth.noise.heteroscedastic import heteroscedastic_noise, heteroscedastic_std
 from darksynth.noise.periodic import periodic_noise
 from darksynth.noise.quantization import quantization_noise
 
-Structure = Literal["pixel", "column"]
+Structure = Literal["pixel", "column", "output"]
 """How a component varies in the frame.
 
 ``pixel``: a new value at every pixel of every frame. ``column``: one value per channel and column, the same
 down the whole column, so the component can be drawn as a (..., T or 1, C, 1, W) row and broadcast.
+``output``: not added but applied to the finished noisy image (after summing and clipping), like a camera's
+compression; its ``draw`` returns the transformed image instead of noise.
 """
+
+NoiseModel = Literal["paper", "srgb"]
+"""``paper``: the paper's five components (profile version 1, DEN model version 1). ``srgb``: those plus the
+structure of real sRGB noise (per-channel gains, spatial and cross-channel correlation, JPEG), measured in
+docs/srgb-noise.md (profile version 2, DEN model version 2)."""
+
+Role = Literal["amplitude", "shape"]
+"""``amplitude``: the component draws nothing when all its amplitude parameters are neutral. ``shape``: shapes
+what the amplitudes draw (a correlation length, a channel gain) and draws nothing by itself."""
 
 DrawFunction = Callable[[torch.Tensor, Mapping[str, torch.Tensor], torch.Generator | None], torch.Tensor]
 """``draw(signal, values, generator) -> noise``: ``signal`` is the darkened clean clip (..., T, C, H, W),
@@ -44,6 +56,13 @@ class Parameter:
         unit: what the value measures, for documentation and error messages.
         maximum: largest valid value; every value must lie in [0, maximum].
         training_range: the range drawn from when training the estimator or jittering without a profile range.
+        minimum: smallest valid value.
+        neutral: the value that changes nothing (0 for most, 1 for a gain): what a profile of an older version
+            or a model without the parameter means.
+        model: the first noise model that has the parameter (see :data:`NoiseModel`).
+        role: see :data:`Role`.
+        training_off_probability: when set, training sets this parameter alone to its neutral value with this
+            probability (shape parameters, so the estimator also sees white, uncompressed noise).
     """
 
     name: str
@@ -51,6 +70,11 @@ class Parameter:
     unit: str
     maximum: float
     training_range: tuple[float, float]
+    minimum: float = 0.0
+    neutral: float = 0.0
+    model: NoiseModel = "paper"
+    role: Role = "amplitude"
+    training_off_probability: float | None = None
 
 
 @dataclass(frozen=True)
@@ -66,10 +90,40 @@ class NoiseComponent:
     """True when one draw is held over all frames of a clip: a frame-by-frame stream draws it once."""
 
 
+def _is_white(values: Mapping[str, torch.Tensor]) -> bool:
+    """True when no sRGB shape parameter is set: the paper's white noise, drawn exactly as before them."""
+    return all(
+        name not in values or bool((values[name] == noise_parameter(name).neutral).all())
+        for name in ("channel_gain", "correlation_length", "channel_correlation")
+    )
+
+
 def _draw_heteroscedastic(
     signal: torch.Tensor, values: Mapping[str, torch.Tensor], generator: torch.Generator | None
 ) -> torch.Tensor:
-    return heteroscedastic_noise(signal, values["shot"][..., 0], values["read"][..., 0], generator=generator)
+    shot, read = values["shot"][..., 0], values["read"][..., 0]
+    if _is_white(values):
+        return heteroscedastic_noise(signal, shot, read, generator=generator)
+    # A single frame (C, H, W), as streaming passes it, is a clip of one frame.
+    shape = signal.shape if signal.dim() >= 4 else (1, *signal.shape)
+    batch = shape[: len(shape) - 4]
+    unit = structured_normal(
+        shape,
+        values["correlation_length"].expand(*batch, 1)[..., 0],
+        values["channel_correlation"].expand(*batch, 3),
+        values["channel_gain"].expand(*batch, 2),
+        generator=generator,
+        dtype=signal.dtype,
+    ).reshape(signal.shape)
+    return heteroscedastic_std(signal, shot, read) * unit
+
+
+def _draw_compression(
+    noisy: torch.Tensor, values: Mapping[str, torch.Tensor], generator: torch.Generator | None
+) -> torch.Tensor:
+    if noisy.dim() < 4:
+        return jpeg_compress_clips(noisy[None], values["compression"][..., 0])[0]
+    return jpeg_compress_clips(noisy, values["compression"][..., 0])
 
 
 def _draw_quantization(
@@ -106,10 +160,46 @@ NOISE_COMPONENTS: tuple[NoiseComponent, ...] = (
         parameters=(
             Parameter("shot", 1, "std per sqrt(intensity): variance shot^2 * x", 1.0, (0.0, 0.2)),
             Parameter("read", 1, "std, signal-independent", 1.0, (0.0, 0.1)),
+            # Measured on the real pairs (docs/srgb-noise.md): red and blue noise 1.1-1.5x green's std, Gaussian
+            # lengths 0.6-0.9 px, channel correlations 0.2-0.7, different per pair of channels.
+            Parameter(
+                "channel_gain",
+                2,
+                "std of red and of blue noise relative to green (shot and read are green's)",
+                4.0,
+                (0.7, 2.0),
+                minimum=0.25,
+                neutral=1.0,
+                model="srgb",
+                role="shape",
+                training_off_probability=0.2,
+            ),
+            Parameter(
+                "correlation_length",
+                1,
+                "std in pixels of the Gaussian kernel that correlates the noise spatially (variance kept)",
+                8.0,
+                (0.0, 2.0),
+                model="srgb",
+                role="shape",
+                training_off_probability=0.2,
+            ),
+            Parameter(
+                "channel_correlation",
+                3,
+                "correlation coefficient of the noise of red-green, green-blue and red-blue",
+                0.95,
+                (0.0, 0.7),
+                minimum=-0.45,
+                model="srgb",
+                role="shape",
+                training_off_probability=0.2,
+            ),
         ),
         structure="pixel",
         draw=_draw_heteroscedastic,
-        reference="Foi et al. 2008, Practical Poissonian-Gaussian noise modeling and fitting",
+        reference="Foi et al. 2008, Practical Poissonian-Gaussian noise modeling and fitting; "
+        "structure: docs/srgb-noise.md",
     ),
     NoiseComponent(
         name="quantization",
@@ -140,15 +230,54 @@ NOISE_COMPONENTS: tuple[NoiseComponent, ...] = (
         draw=_draw_periodic,
         reference="Monakhova et al. 2022, Dancing under the stars (periodic noise)",
     ),
+    NoiseComponent(
+        name="compression",
+        parameters=(
+            Parameter(
+                "compression",
+                1,
+                "JPEG compression strength c: quality round(100 (1 - c)), 0 for none",
+                0.95,
+                (0.0, 0.7),
+                model="srgb",
+                training_off_probability=0.4,
+            ),
+        ),
+        structure="output",
+        draw=_draw_compression,
+        reference="JPEG (ITU-T T.81) through Pillow, 4:2:0; docs/srgb-noise.md",
+    ),
 )
 
 NOISE_PARAMETERS: tuple[Parameter, ...] = tuple(p for c in NOISE_COMPONENTS for p in c.parameters)
-"""The parameter vector v, in order: shot, read, quantization, banding, temporal_banding, periodic (3)."""
+"""Every parameter, in table order: the full v of the ``srgb`` model."""
 
 NOISE_PARAMETER_NAMES: tuple[str, ...] = tuple(p.name for p in NOISE_PARAMETERS)
 
 NOISE_VECTOR_SIZE: int = sum(p.size for p in NOISE_PARAMETERS)
-"""Length of the flat parameter vector v (8 for the paper's model)."""
+"""Length of the flat parameter vector v of the full (``srgb``) model."""
+
+NOISE_MODELS: tuple[NoiseModel, ...] = ("paper", "srgb")
+
+
+def model_parameters(model: NoiseModel = "srgb") -> tuple[Parameter, ...]:
+    """The parameters of one noise model, in table order: ``paper`` is shot, read, quantization, banding,
+    temporal_banding, periodic (3), the paper's v of 8 values; ``srgb`` is every parameter."""
+    if model not in NOISE_MODELS:
+        raise ValueError(f"unknown noise model {model!r}; known: {', '.join(NOISE_MODELS)}")
+    last = NOISE_MODELS.index(model)
+    return tuple(p for p in NOISE_PARAMETERS if NOISE_MODELS.index(p.model) <= last)
+
+
+def vector_size(model: NoiseModel = "srgb") -> int:
+    """Length of the flat v of one noise model (8 for ``paper``)."""
+    return sum(p.size for p in model_parameters(model))
+
+
+def neutral_values(model: NoiseModel | None = None) -> dict[str, tuple[float, ...]]:
+    """Each parameter's neutral value (all of them, or those a model lacks when ``model`` is given)."""
+    present = set() if model is None else {p.name for p in model_parameters(model)}
+    return {p.name: (p.neutral,) * p.size for p in NOISE_PARAMETERS if p.name not in present}
 
 
 def noise_parameter(name: str) -> Parameter:
@@ -159,14 +288,16 @@ def noise_parameter(name: str) -> Parameter:
     raise KeyError(f"unknown noise parameter {name!r}; known: {', '.join(NOISE_PARAMETER_NAMES)}")
 
 
-def values_to_vector(values: Mapping[str, torch.Tensor]) -> torch.Tensor:
-    """Concatenate named parameter tensors (*batch, size) into v (*batch, NOISE_VECTOR_SIZE)."""
-    return torch.cat([values[p.name] for p in NOISE_PARAMETERS], dim=-1)
+def values_to_vector(values: Mapping[str, torch.Tensor], model: NoiseModel = "srgb") -> torch.Tensor:
+    """Concatenate a model's named parameter tensors (*batch, size) into its v (*batch, vector_size(model))."""
+    return torch.cat([values[p.name] for p in model_parameters(model)], dim=-1)
 
 
-def vector_to_values(vector: torch.Tensor) -> dict[str, torch.Tensor]:
-    """Split v (*batch, NOISE_VECTOR_SIZE) into named tensors (*batch, size), in the table's order."""
-    if vector.shape[-1] != NOISE_VECTOR_SIZE:
-        raise ValueError(f"noise vector must end in {NOISE_VECTOR_SIZE} values, got shape {tuple(vector.shape)}")
-    parts = torch.split(vector, [p.size for p in NOISE_PARAMETERS], dim=-1)
-    return {p.name: part for p, part in zip(NOISE_PARAMETERS, parts, strict=True)}
+def vector_to_values(vector: torch.Tensor, model: NoiseModel = "srgb") -> dict[str, torch.Tensor]:
+    """Split a model's v (*batch, vector_size(model)) into named tensors (*batch, size), in the table's order."""
+    parameters = model_parameters(model)
+    size = sum(p.size for p in parameters)
+    if vector.shape[-1] != size:
+        raise ValueError(f"noise vector must end in {size} values, got shape {tuple(vector.shape)}")
+    parts = torch.split(vector, [p.size for p in parameters], dim=-1)
+    return {p.name: part for p, part in zip(parameters, parts, strict=True)}

@@ -137,21 +137,26 @@ def apply_channel_gains(noise: torch.Tensor, gains: Sequence[float]) -> torch.Te
 
 
 def jpeg_compress(image: torch.Tensor, quality: int) -> torch.Tensor:
-    """Encode and decode (..., 3, H, W) [0, 1] images with Pillow's JPEG encoder at ``quality`` (1-95, in
-    memory; Pillow's default 4:2:0 chroma subsampling). The result lies on 8-bit levels, with the input's
-    dtype and device. Not differentiable: the image goes through numpy and uint8."""
+    """Encode and decode (..., C, H, W) [0, 1] images, C = 3 (colour) or 1 (grey), with Pillow's JPEG encoder
+    at ``quality`` (1-100, in memory; Pillow's default 4:2:0 chroma subsampling). The result lies on 8-bit
+    levels, with the input's dtype and device. Not differentiable: the image goes through numpy and uint8."""
     if not 1 <= quality <= 100:
         raise ValueError(f"JPEG quality must be in 1..100, got {quality}")
-    if image.shape[-3] != 3:
-        raise ValueError(f"JPEG compression needs 3 channels, got {image.shape[-3]}")
+    channels = image.shape[-3]
+    if channels not in (1, 3):
+        raise ValueError(f"JPEG compression needs 3 or 1 channels, got {channels}")
+    mode = "RGB" if channels == 3 else "L"
     pixels = (image.detach().clamp(0.0, 1.0) * 255.0).round().to(torch.uint8).cpu()
     flat = pixels.reshape(-1, *pixels.shape[-3:])
     decoded = []
     for single in flat:
         buffer = io.BytesIO()
-        Image.fromarray(single.permute(1, 2, 0).numpy()).save(buffer, format="JPEG", quality=quality)
+        array = single.permute(1, 2, 0).numpy()
+        Image.fromarray(array if channels == 3 else array[..., 0], mode=mode).save(
+            buffer, format="JPEG", quality=quality
+        )
         buffer.seek(0)
-        array = np.asarray(Image.open(buffer).convert("RGB"), dtype=np.uint8)
+        array = np.asarray(Image.open(buffer).convert(mode), dtype=np.uint8).reshape(array.shape)
         decoded.append(torch.from_numpy(array.copy()).permute(2, 0, 1))
     out = torch.stack(decoded).reshape(pixels.shape)
     return out.to(device=image.device, dtype=image.dtype) / 255.0
@@ -207,3 +212,74 @@ def add_correlated_noise(
     if jpeg_quality is not None:
         return jpeg_compress(noisy, jpeg_quality)
     return to_8bit_levels(noisy)
+
+
+def jpeg_quality(compression: float) -> int | None:
+    """The JPEG quality of a compression strength c in [0, 1): round(100 (1 - c)), None (no JPEG) for c = 0."""
+    if compression <= 0.0:
+        return None
+    return max(1, min(100, round(100.0 * (1.0 - compression))))
+
+
+def jpeg_compress_clips(clips: torch.Tensor, compression: torch.Tensor) -> torch.Tensor:
+    """JPEG-compress every frame of clips (*batch, T, C, H, W) in [0, 1], each clip at its own strength
+    (``compression`` shaped like the batch, see :func:`jpeg_quality`); clips of strength 0 pass unchanged."""
+    batch = clips.shape[: clips.dim() - 4]
+    flat = clips.reshape(-1, *clips.shape[-4:])
+    strengths = compression.expand(batch).reshape(-1).tolist() if batch else [float(compression)]
+    out = [
+        clip if jpeg_quality(c) is None else jpeg_compress(clip, jpeg_quality(c) or 100)
+        for clip, c in zip(flat, strengths, strict=True)
+    ]
+    return torch.stack(out).reshape(clips.shape)
+
+
+def valid_channel_correlation(pairs: Sequence[float]) -> torch.Tensor:
+    """The (3, 3) correlation matrix of the red-green, green-blue and red-blue coefficients ``pairs``, made
+    positive definite when the three are inconsistent (eigenvalues raised to 1e-3, diagonal rescaled to 1),
+    float64. Consistent coefficients come back unchanged."""
+    rg, gb, rb = (float(v) for v in pairs)
+    matrix = torch.tensor([[1.0, rg, rb], [rg, 1.0, gb], [rb, gb, 1.0]], dtype=torch.float64)
+    eigenvalues, eigenvectors = torch.linalg.eigh(matrix)
+    if bool((eigenvalues >= 1e-3).all()):
+        return matrix
+    repaired: torch.Tensor = eigenvectors @ torch.diag(eigenvalues.clamp_min(1e-3)) @ eigenvectors.T
+    scale = repaired.diagonal().rsqrt()
+    return repaired * scale[:, None] * scale[None, :]
+
+
+def structured_normal(
+    shape: Sequence[int],
+    lengths: torch.Tensor,
+    correlations: torch.Tensor,
+    gains: torch.Tensor,
+    *,
+    generator: torch.Generator | None,
+    dtype: torch.dtype = torch.float32,
+) -> torch.Tensor:
+    """Zero-mean Gaussian noise for clips ``shape`` (*batch, T, C, H, W) with the sRGB structure of each clip.
+
+    Per clip: spatially correlated by a Gaussian kernel of std ``lengths`` px (variance kept at 1, see
+    :func:`correlated_normal`), then, for colour clips (C = 3), mixed across channels so that red-green,
+    green-blue and red-blue have the ``correlations`` (*batch, 3) and scaled by ``gains`` (*batch, 2): the std
+    of red and of blue relative to green. Grey clips get the spatial correlation only. Drawn on the
+    generator's device (the global generator's when None).
+    """
+    if generator is None:
+        generator = torch.default_generator
+    device = generator.device
+    batch = tuple(shape[: len(shape) - 4])
+    frame_shape = tuple(shape[-4:])
+    channels = frame_shape[1]
+    flat_lengths = lengths.expand(batch).reshape(-1).tolist() if batch else [float(lengths)]
+    flat_correlations = correlations.expand(*batch, 3).reshape(-1, 3).tolist()
+    flat_gains = gains.expand(*batch, 2).reshape(-1, 2).tolist()
+    clips = []
+    for length, pairs, (red, blue) in zip(flat_lengths, flat_correlations, flat_gains, strict=True):
+        unit = correlated_normal(frame_shape, generator, float(length), dtype=dtype, device=device)
+        if channels == 3:
+            factor = torch.linalg.cholesky(valid_channel_correlation(pairs))
+            factor = factor * torch.tensor([red, 1.0, blue], dtype=torch.float64)[:, None]
+            unit = torch.einsum("ij,tjhw->tihw", factor.to(device=device, dtype=dtype), unit)
+        clips.append(unit)
+    return torch.stack(clips).reshape(*batch, *frame_shape)

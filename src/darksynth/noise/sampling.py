@@ -7,7 +7,7 @@ from collections.abc import Mapping, Sequence
 import torch
 
 from darksynth.darkening import ALPHA_RANGE, GAMMA_RANGE
-from darksynth.noise.components import NOISE_PARAMETERS
+from darksynth.noise.components import NOISE_PARAMETERS, NoiseModel, model_parameters
 
 Range = tuple[float, float]
 
@@ -39,13 +39,16 @@ def random_noise_values(
     generator: torch.Generator | None = None,
     device: torch.device | str | None = None,
     dtype: torch.dtype = torch.float32,
+    model: NoiseModel = "srgb",
 ) -> dict[str, torch.Tensor]:
-    """Draw every noise parameter uniformly within its range (the training range where none is given).
+    """Draw every parameter of a noise model uniformly within its range (the training range where none is
+    given); the parameters the model lacks get their neutral value, without a draw.
 
     Returns:
         Each parameter by name as a tensor (*batch_shape, size), in the order of the parameter table.
     """
     ranges = ranges or {}
+    drawn = {p.name for p in model_parameters(model)}
     return {
         p.name: random_uniform(
             ranges.get(p.name, (p.training_range,) * p.size),
@@ -54,6 +57,8 @@ def random_noise_values(
             device=device,
             dtype=dtype,
         )
+        if p.name in drawn
+        else torch.full((*batch_shape, p.size), p.neutral, device=device, dtype=dtype)
         for p in NOISE_PARAMETERS
     }
 

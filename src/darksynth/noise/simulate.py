@@ -10,17 +10,37 @@ from darksynth.noise.components import NOISE_COMPONENTS, NoiseComponent
 
 
 def is_active(component: NoiseComponent, values: Mapping[str, torch.Tensor]) -> bool:
-    """Whether any of the component's parameters is non-zero; an inactive one draws nothing."""
-    return any(bool((values[p.name] != 0).any()) for p in component.parameters)
+    """Whether any of the component's amplitude parameters differs from its neutral value; an inactive
+    component draws nothing. Parameters missing from ``values`` (an older profile) count as neutral."""
+    return any(
+        p.name in values and bool((values[p.name] != p.neutral).any())
+        for p in component.parameters
+        if p.role == "amplitude"
+    )
 
 
 def drawing_order() -> tuple[NoiseComponent, ...]:
-    """Column components first, then per-pixel ones, each group in table order.
+    """The additive components: column ones first, then per-pixel ones, each group in table order.
 
     Frame-by-frame streaming draws in the same order, so an image gives the same result either way.
     """
     columns = tuple(c for c in NOISE_COMPONENTS if c.structure == "column")
-    return columns + tuple(c for c in NOISE_COMPONENTS if c.structure != "column")
+    return columns + tuple(c for c in NOISE_COMPONENTS if c.structure == "pixel")
+
+
+def output_stages() -> tuple[NoiseComponent, ...]:
+    """The components applied to the finished noisy image (compression), in table order."""
+    return tuple(c for c in NOISE_COMPONENTS if c.structure == "output")
+
+
+def apply_output_stages(
+    noisy: torch.Tensor, values: Mapping[str, torch.Tensor], *, generator: torch.Generator | None = None
+) -> torch.Tensor:
+    """Run the active output stages on a clipped noisy clip (*batch, T, C, H, W) in [0, 1]."""
+    for stage in output_stages():
+        if is_active(stage, values):
+            noisy = stage.draw(noisy, values, generator)
+    return noisy
 
 
 def noise_sum(
@@ -46,5 +66,6 @@ def noise_sum(
 def add_noise(
     signal: torch.Tensor, values: Mapping[str, torch.Tensor], *, generator: torch.Generator | None = None
 ) -> torch.Tensor:
-    """The noisy low-light clip: signal + f(v), clipped to [0, 1]."""
-    return (signal + noise_sum(signal, values, generator=generator)).clamp(0.0, 1.0)
+    """The noisy low-light clip: signal + f(v), clipped to [0, 1], then the output stages (compression)."""
+    noisy = (signal + noise_sum(signal, values, generator=generator)).clamp(0.0, 1.0)
+    return apply_output_stages(noisy, values, generator=generator)

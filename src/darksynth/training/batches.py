@@ -8,9 +8,14 @@ import torch
 
 from darksynth.darkening import darken
 from darksynth.io.arrays import to_8bit_levels
-from darksynth.noise.components import NOISE_COMPONENTS, values_to_vector
+from darksynth.noise.components import NOISE_COMPONENTS, NoiseModel, model_parameters, values_to_vector
 from darksynth.noise.sampling import random_darkening_values, random_noise_values
 from darksynth.noise.simulate import add_noise
+
+BRIGHT_ALPHA_RANGE = (0.3, 1.0)
+BRIGHT_GAMMA_RANGE = (0.5, 1.0)
+"""Darkening of the bright share of training clips: the real pairs' noisy images have mean levels of 0.3-0.4
+(docs/results.md), above what the paper's alpha <= 0.3 produces."""
 
 
 @dataclass
@@ -19,38 +24,68 @@ class TrainingBatch:
 
     noisy: torch.Tensor  # (B, T, C, H, W), 8-bit levels / 255, as a real reference arrives
     dark: torch.Tensor  # (B, T, C, H, W), the darkened clean clips
-    vector: torch.Tensor  # (B, NOISE_VECTOR_SIZE), the true v
+    vector: torch.Tensor  # (B, vector_size(model)), the true v of the noise model
 
 
 def synthesize_batch(
-    clean: torch.Tensor, *, generator: torch.Generator | None = None, absent_probability: float = 0.15
+    clean: torch.Tensor,
+    *,
+    generator: torch.Generator | None = None,
+    absent_probability: float = 0.15,
+    model: NoiseModel = "srgb",
+    bright_fraction: float = 0.0,
 ) -> TrainingBatch:
     """Darken clean clips with alpha, gamma from the paper's ranges, add f(v) with v from the training ranges.
 
     Each component is switched off for a clip with probability ``absent_probability``, so the network also
-    learns what the absence of a component looks like (real references rarely show all five).
+    learns what the absence of a component looks like (real references rarely show all five). A
+    ``bright_fraction`` of the clips is darkened less, alpha and gamma from :data:`BRIGHT_ALPHA_RANGE` and
+    :data:`BRIGHT_GAMMA_RANGE`: real references are often brighter than the paper's ranges allow.
     """
     batch = clean.shape[0]
     alpha, gamma = random_darkening_values(batch_shape=(batch,), generator=generator, device=clean.device)
+    if bright_fraction > 0.0:
+        bright_alpha, bright_gamma = random_darkening_values(
+            BRIGHT_ALPHA_RANGE, BRIGHT_GAMMA_RANGE, (batch,), generator=generator, device=clean.device
+        )
+        bright = torch.rand(batch, generator=generator, device=clean.device) < bright_fraction
+        alpha, gamma = torch.where(bright, bright_alpha, alpha), torch.where(bright, bright_gamma, gamma)
     dark = darken(clean, alpha, gamma)
-    noisy, values = random_noisy_version(dark, generator=generator, absent_probability=absent_probability)
-    return TrainingBatch(noisy=noisy, dark=dark, vector=values_to_vector(values))
+    noisy, values = random_noisy_version(dark, generator=generator, absent_probability=absent_probability, model=model)
+    return TrainingBatch(noisy=noisy, dark=dark, vector=values_to_vector(values, model))
 
 
 def random_noisy_version(
-    dark: torch.Tensor, *, generator: torch.Generator | None = None, absent_probability: float = 0.15
+    dark: torch.Tensor,
+    *,
+    generator: torch.Generator | None = None,
+    absent_probability: float = 0.15,
+    model: NoiseModel = "srgb",
 ) -> tuple[torch.Tensor, dict[str, torch.Tensor]]:
-    """Dark clips (B, T, C, H, W) made noisy with v drawn from the training ranges, on 8-bit levels.
+    """Dark clips (B, T, C, H, W) made noisy with v of a noise model drawn from the training ranges, on
+    8-bit levels.
 
-    Each component is switched off for a clip with probability ``absent_probability``.
+    Each component is switched off (its parameters neutral) for a clip with probability
+    ``absent_probability``; a parameter with a ``training_off_probability`` is also switched off alone with
+    that probability (white, uncompressed noise stays in the training data).
 
     Returns:
-        The noisy clips and the values drawn, each (B, size) by parameter name.
+        The noisy clips and the values drawn, each (B, size) by parameter name (every parameter of the table;
+        those outside the model neutral).
     """
     batch = dark.shape[0]
-    values = random_noise_values(batch_shape=(batch,), generator=generator, device=dark.device)
+    values = random_noise_values(batch_shape=(batch,), generator=generator, device=dark.device, model=model)
+    in_model = {p.name for p in model_parameters(model)}
     for component in NOISE_COMPONENTS:
+        if not any(p.name in in_model for p in component.parameters):
+            continue
         present = torch.rand(batch, 1, generator=generator, device=dark.device) >= absent_probability
         for parameter in component.parameters:
-            values[parameter.name] = values[parameter.name] * present
+            if parameter.name not in in_model:
+                continue
+            keep = present
+            if parameter.training_off_probability is not None:
+                alone = torch.rand(batch, 1, generator=generator, device=dark.device)
+                keep = keep & (alone >= parameter.training_off_probability)
+            values[parameter.name] = torch.where(keep, values[parameter.name], parameter.neutral)
     return to_8bit_levels(add_noise(dark, values, generator=generator)), values

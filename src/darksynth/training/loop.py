@@ -16,14 +16,15 @@ from safetensors.torch import load_file, save_file
 from darksynth.errors import DarksynthError
 from darksynth.io.atomic import atomic_output, write_text_atomic
 from darksynth.models.den import DEN, DENConfig, normalise
-from darksynth.noise.components import NOISE_PARAMETERS
+from darksynth.noise.components import NoiseModel, model_parameters
 from darksynth.training.batches import TrainingBatch, synthesize_batch
 from darksynth.training.corpus import CleanCorpus, sample_clean_clips
 from darksynth.training.weights import save_weights
 
-VECTOR_NAMES: tuple[str, ...] = tuple(
-    p.name if p.size == 1 else f"{p.name}[{i}]" for p in NOISE_PARAMETERS for i in range(p.size)
-)
+
+def vector_names(model: NoiseModel = "srgb") -> tuple[str, ...]:
+    """A label for every entry of a noise model's v: ``shot``, ..., ``periodic[2]``."""
+    return tuple(p.name if p.size == 1 else f"{p.name}[{i}]" for p in model_parameters(model) for i in range(p.size))
 
 
 @dataclass(frozen=True)
@@ -46,6 +47,7 @@ class TrainConfig:
     clip_fraction: float = 0.5
     single_frame_every: int = 2
     absent_probability: float = 0.15
+    bright_fraction: float = 0.0
     seed: int = 0
     validate_every: int = 250
     validation_size: int = 64
@@ -77,7 +79,15 @@ def validation_set(corpus: CleanCorpus, config: TrainConfig, *, frames: int | No
             clip_fraction=config.clip_fraction,
             generator=generator,
         )
-        batches.append(synthesize_batch(clean, generator=generator, absent_probability=0.0))
+        batches.append(
+            synthesize_batch(
+                clean,
+                generator=generator,
+                absent_probability=0.0,
+                model=config.model.noise_model,
+                bright_fraction=config.bright_fraction,
+            )
+        )
     return batches
 
 
@@ -93,9 +103,10 @@ def evaluate(model: DEN, batches: list[TrainingBatch], device: torch.device) -> 
     p, t = torch.cat(predicted), torch.cat(truth)
     r2 = r_squared(p, t)
     mae = (p - t).abs().mean(0)
+    names = vector_names(model.noise_model)
     return {
-        "r2": {name: round(float(v), 4) for name, v in zip(VECTOR_NAMES, r2, strict=True)},
-        "mae": {name: float(v) for name, v in zip(VECTOR_NAMES, mae, strict=True)},
+        "r2": {name: round(float(v), 4) for name, v in zip(names, r2, strict=True)},
+        "mae": {name: float(v) for name, v in zip(names, mae, strict=True)},
         "samples": int(t.shape[0]),
     }
 
@@ -153,7 +164,6 @@ def _load_checkpoint(
 
 def _calibrate_statistics(model: DEN, corpus: CleanCorpus, config: TrainConfig, generator: torch.Generator) -> None:
     """Measure the head's statistics on training batches of both clip lengths and standardise with them."""
-    from darksynth.models.noise_statistics import noise_statistics
 
     measured = []
     for index in range(16):
@@ -161,8 +171,14 @@ def _calibrate_statistics(model: DEN, corpus: CleanCorpus, config: TrainConfig, 
         clean = sample_clean_clips(
             corpus, config.batch, frames, config.crop, clip_fraction=config.clip_fraction, generator=generator
         )
-        batch = synthesize_batch(clean, generator=generator, absent_probability=config.absent_probability)
-        measured.append(noise_statistics(batch.noisy))
+        batch = synthesize_batch(
+            clean,
+            generator=generator,
+            absent_probability=config.absent_probability,
+            model=model.noise_model,
+            bright_fraction=config.bright_fraction,
+        )
+        measured.append(model.statistics(batch.noisy))
     model.set_statistics_scale(torch.cat(measured).to(next(model.parameters()).device))
 
 
@@ -203,9 +219,17 @@ def train(
         clean = sample_clean_clips(
             corpus, config.batch, frames, config.crop, clip_fraction=config.clip_fraction, generator=generator
         )
-        batch = synthesize_batch(clean, generator=generator, absent_probability=config.absent_probability)
+        batch = synthesize_batch(
+            clean,
+            generator=generator,
+            absent_probability=config.absent_probability,
+            model=model.noise_model,
+            bright_fraction=config.bright_fraction,
+        )
         output = model(batch.noisy.to(device))
-        loss = config.lambda_parameters * F.mse_loss(output.normalised, normalise(batch.vector.to(device)))
+        loss = config.lambda_parameters * F.mse_loss(
+            output.normalised, normalise(batch.vector.to(device), model.noise_model)
+        )
         if output.dark is not None and config.lambda_reconstruction > 0:
             loss = loss + config.lambda_reconstruction * F.l1_loss(output.dark, batch.dark.to(device))
         optimizer.zero_grad(set_to_none=True)

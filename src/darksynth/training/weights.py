@@ -13,7 +13,7 @@ from safetensors.torch import load_file, save_file
 from darksynth.errors import DarksynthError
 from darksynth.io.atomic import atomic_output
 from darksynth.io.weights_file import read_checked_metadata
-from darksynth.models.den import DEN, MODEL_NAME, MODEL_VERSION, DENConfig
+from darksynth.models.den import DEN, MODEL_NAME, MODEL_VERSION, READABLE_MODEL_VERSIONS, DENConfig
 
 
 def save_weights(path: Path, model: DEN, *, training: dict[str, Any] | None = None) -> None:
@@ -30,8 +30,8 @@ def save_weights(path: Path, model: DEN, *, training: dict[str, Any] | None = No
 
 
 def read_metadata(path: Path) -> dict[str, str]:
-    """The metadata of a weights file, checked to be this model's and this version's."""
-    return read_checked_metadata(path, model=MODEL_NAME, version=MODEL_VERSION, label="DEN")
+    """The metadata of a weights file, checked to be this model's, of a version this darksynth reads."""
+    return read_checked_metadata(path, model=MODEL_NAME, version=READABLE_MODEL_VERSIONS, label="DEN")
 
 
 def load_weights(path: Path, *, device: torch.device | str = "cpu") -> DEN:
@@ -42,7 +42,11 @@ def load_weights(path: Path, *, device: torch.device | str = "cpu") -> DEN:
     """
     metadata = read_metadata(path)
     try:
-        config = DENConfig(**json.loads(metadata["config"]))
+        settings = json.loads(metadata["config"])
+        if metadata["version"] == "1":
+            # Version 1 predates the sRGB model: its weights are the paper's model.
+            settings["noise_model"] = "paper"
+        config = DENConfig(**settings)
         model = DEN(config)
         model.load_state_dict(load_file(str(path), device=str(device)))
     except (SafetensorError, KeyError, TypeError, ValueError, RuntimeError) as error:
@@ -52,6 +56,10 @@ def load_weights(path: Path, *, device: torch.device | str = "cpu") -> DEN:
     return model.to(device).eval()
 
 
-def default_weights_path(variant: str = "v3") -> Path:
-    """The DEN shipped with the package: the full v3 (default) or the v2 ablation (encoder and head only)."""
-    return Path(__file__).resolve().parent.parent / "data" / f"den_{variant}.safetensors"
+def default_weights_path(variant: str = "v3", noise_model: str = "paper") -> Path:
+    """The DEN shipped with the package: the ``srgb`` model (default) or the ``paper`` model, as the full v3
+    (default) or, for the paper model, the v2 ablation (encoder and head only)."""
+    data = Path(__file__).resolve().parent.parent / "data"
+    if noise_model == "srgb":
+        return data / f"den_srgb_{variant}.safetensors"
+    return data / f"den_{variant}.safetensors"
