@@ -30,6 +30,7 @@ from darksynth.darkening_estimate import (
 )
 from darksynth.errors import DarksynthError
 from darksynth.estimate import load_reference
+from darksynth.noise.components import noise_parameter
 from darksynth.noise.sampling import random_noise_values
 from darksynth.noise.simulate import add_noise
 
@@ -89,7 +90,11 @@ def evaluate(
         for _ in range(draws):
             alpha = float(torch.empty(()).uniform_(*ALPHA_RANGE, generator=generator))
             gamma = float(torch.empty(()).uniform_(*GAMMA_RANGE, generator=generator))
-            values = {k: v * noise_scale for k, v in random_noise_values(generator=generator).items()}
+            values = {
+                k: v * noise_scale
+                for k, v in random_noise_values(generator=generator, model="paper").items()
+                if noise_parameter(k).model == "paper"
+            }
             noisy = add_noise(darken(clean, alpha, gamma)[None], values, generator=generator)[0]
             noisy = (noisy * 255).round() / 255
             true = Darkening(alpha, gamma)

@@ -1,9 +1,11 @@
 """Round-trip acceptance of the DEN on held-out clean images: apply known parameters, estimate, compare.
 
-Run: ``.venv/bin/python scripts/evaluate_den.py [--weights W] [--trials N] [--data ../shared/data]``.
+Run: ``.venv/bin/python scripts/evaluate_den.py [--model srgb|paper] [--weights W] [--trials N]
+[--data ../shared/data]``.
 
 Held-out material: the 24 Kodak images (never used in training). Each trial picks an image, draws alpha and
-gamma from the paper's ranges and every noise parameter from its training range (all components on), makes
+gamma from the paper's ranges and every noise parameter of the model from its training range (all components
+on; the sRGB model's shape parameters too), makes
 the low-light reference exactly as ``darksynth apply`` does (the 8-bit path, through a PNG file), and runs
 ``estimate`` on it. Three settings: single images (T = 1), static clips of 8 frames (noise redrawn every
 frame, temporal banding held), and for shot and read the same single images. Prints R^2 per parameter and a
@@ -23,15 +25,16 @@ import torch
 from darksynth.apply import ApplyOptions, apply
 from darksynth.darkening import Darkening
 from darksynth.estimate import estimate, load_reference
-from darksynth.noise.components import NOISE_PARAMETERS
+from darksynth.noise.components import NoiseModel, model_parameters
 from darksynth.noise.sampling import random_darkening_values, random_noise_values
 from darksynth.profile import Profile
 from darksynth.training.loop import r_squared, vector_names
 from darksynth.training.weights import default_weights_path, load_weights
 
 
-def draw_profile(generator: torch.Generator) -> Profile:
-    noise = random_noise_values(generator=generator, dtype=torch.float64)
+def draw_profile(generator: torch.Generator, model: NoiseModel) -> Profile:
+    """Every parameter of the noise model from its training range (the others neutral), the paper's darkening."""
+    noise = random_noise_values(generator=generator, dtype=torch.float64, model=model)
     alpha, gamma = random_darkening_values(generator=generator)
     return Profile(
         noise={name: tuple(float(v) for v in values) for name, values in noise.items()},
@@ -39,13 +42,14 @@ def draw_profile(generator: torch.Generator) -> Profile:
     )
 
 
-def vector(profile: Profile) -> list[float]:
-    return [v for p in NOISE_PARAMETERS for v in profile.noise[p.name]]
+def vector(profile: Profile, model: NoiseModel) -> list[float]:
+    return [v for p in model_parameters(model) for v in profile.noise[p.name]]
 
 
 def main() -> int:
     parser = argparse.ArgumentParser(description=__doc__)
-    parser.add_argument("--weights", type=Path, default=default_weights_path())
+    parser.add_argument("--weights", type=Path, default=None, help="default: the shipped DEN of --model")
+    parser.add_argument("--model", choices=("srgb", "paper"), default="srgb")
     parser.add_argument("--trials", type=int, default=48)
     parser.add_argument("--frames", type=int, default=8)
     parser.add_argument("--data", type=Path, default=Path(__file__).resolve().parents[2] / "shared" / "data")
@@ -55,6 +59,7 @@ def main() -> int:
     if not images:
         print(f"{args.data}: held-out Kodak images not found", file=sys.stderr)
         return 1
+    args.weights = args.weights or default_weights_path("v3", args.model)
     model = load_weights(args.weights)
     generator = torch.Generator().manual_seed(args.seed)
     results: dict[str, dict[str, list[list[float]]]] = {
@@ -65,7 +70,7 @@ def main() -> int:
         work = Path(folder)
         for trial in range(args.trials):
             source = images[trial % len(images)]
-            profile = draw_profile(generator)
+            profile = draw_profile(generator, model.noise_model)
             seed = int(torch.randint(0, 2**31, (), generator=generator))
             options = ApplyOptions(profile=profile, seed=seed)
             single = work / f"single_{trial}.png"
@@ -80,8 +85,8 @@ def main() -> int:
                 ("clip", load_reference(clip_out, clip=True)),
             ):
                 estimated = estimate(reference, model).profile
-                results[setting]["true"].append(vector(profile))
-                results[setting]["estimated"].append(vector(estimated))
+                results[setting]["true"].append(vector(profile, model.noise_model))
+                results[setting]["estimated"].append(vector(estimated, model.noise_model))
             print(f"trial {trial + 1}/{args.trials}", file=sys.stderr, end="\r")
     summary = {}
     for setting, pairs in results.items():

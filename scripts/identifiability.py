@@ -68,7 +68,7 @@ def main() -> int:
     for trial in range(args.trials):
         pixels = read_image(paths[trial % len(paths)]).pixels
         clean = torch.from_numpy(pixels.astype(np.float64) / 255.0).permute(2, 0, 1)[None]
-        values = random_noise_values(generator=generator, dtype=torch.float64)
+        values = random_noise_values(generator=generator, dtype=torch.float64, model="paper")
         alpha, gamma = random_darkening_values(generator=generator)
         dark = darken(clean, float(alpha), float(gamma))
         pixel_only = {k: v if k in ("shot", "read") else torch.zeros_like(v) for k, v in values.items()}

@@ -176,7 +176,14 @@ def train_command(
         raise fail(f"--model must be {' or '.join(NOISE_MODELS)}, got {model!r}")
     try:
         config = TrainConfig(
-            model=DENConfig(variant=variant, width=width, depth=depth, noise_model=model),  # type: ignore[arg-type]
+            # The sRGB model learns levels on a log scale (docs/den.md); the paper's model as it was trained.
+            model=DENConfig(
+                variant=variant,  # type: ignore[arg-type]
+                width=width,
+                depth=depth,
+                noise_model=model,
+                log_levels=model == "srgb",
+            ),
             steps=steps,
             batch=batch,
             frames=frames,

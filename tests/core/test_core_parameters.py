@@ -185,3 +185,21 @@ def test_fixed_gamma_is_kept_exactly_when_only_alpha_has_a_range(make_profile: P
     parameters = draw_clip_parameters(profile, generator=torch.Generator().manual_seed(7))
     assert parameters.darkening is not None
     assert parameters.darkening.gamma == 0.7
+
+
+def test_log_level_prior_draws_levels_log_uniformly_and_leaves_the_rest_uniform() -> None:
+    values = random_noise_values(batch_shape=(20000,), generator=torch.Generator().manual_seed(9), log_levels=True)
+    for parameter in NOISE_PARAMETERS:
+        drawn = values[parameter.name].double()
+        low, high = parameter.training_range
+        if parameter.log_floor is None:
+            # Uniform: the median is the middle (standard error of a median of 20000 uniforms: 0.0035 of the width).
+            assert abs(float(drawn.median()) - (low + high) / 2) < 0.02 * (high - low), parameter.name
+            continue
+        floor = parameter.log_floor
+        assert (drawn >= floor).all() and (drawn <= high).all()
+        logs = drawn.log()
+        # log-uniform over [log floor, log high]: mean in the middle, variance (width^2 / 12).
+        width = math.log(high) - math.log(floor)
+        assert abs(float(logs.mean()) - (math.log(floor) + math.log(high)) / 2) < 0.02 * width, parameter.name
+        assert abs(float(logs.var()) / (width**2 / 12) - 1) < 0.05, parameter.name

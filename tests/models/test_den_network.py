@@ -68,10 +68,35 @@ def test_predictions_lie_inside_the_training_ranges(
     assert ((output.normalised >= 0) & (output.normalised <= 1)).all()
 
 
+FLOOR = torch.tensor([p.log_floor or 0.0 for p in NOISE_PARAMETERS for _ in range(p.size)])
+LOGARITHMIC = FLOOR > 0
+
+
 def test_values_are_the_normalised_output_on_the_parameter_scale(tiny_model: Callable[..., DEN]) -> None:
     with torch.no_grad():
-        output = tiny_model()(_clip((2, 1, 3, 32, 32)))
-    torch.testing.assert_close(output.values, LOW + output.normalised * (HIGH - LOW))
+        linear = tiny_model(log_levels=False)(_clip((2, 1, 3, 32, 32)))
+        logarithmic = tiny_model(log_levels=True)(_clip((2, 1, 3, 32, 32)))
+    torch.testing.assert_close(linear.values, LOW + linear.normalised * (HIGH - LOW))
+    # Levels with a log floor: floor * (high / floor) ** n; the other entries stay linear.
+    n = logarithmic.normalised
+    expected = torch.where(
+        LOGARITHMIC, FLOOR.clamp_min(1e-12) * (HIGH / FLOOR.clamp_min(1e-12)) ** n, LOW + n * (HIGH - LOW)
+    )
+    torch.testing.assert_close(logarithmic.values, expected)
+
+
+def test_log_levels_normalise_relative_precision_evenly() -> None:
+    assert LOGARITHMIC.sum() == 8  # shot, read, quantization, banding, temporal banding, periodic (3)
+    floor, high = FLOOR[LOGARITHMIC], HIGH[LOGARITHMIC]
+    vector = LOW.clone()
+    vector[LOGARITHMIC] = floor
+    torch.testing.assert_close(normalise(vector, log_levels=True)[LOGARITHMIC], torch.zeros(8))
+    vector[LOGARITHMIC] = (floor * high).sqrt()  # the geometric middle is half-way
+    torch.testing.assert_close(normalise(vector, log_levels=True)[LOGARITHMIC], torch.full((8,), 0.5))
+    vector[LOGARITHMIC] = 0.0  # absent: below the floor reads as the floor
+    torch.testing.assert_close(normalise(vector, log_levels=True)[LOGARITHMIC], torch.zeros(8))
+    unit = torch.rand(6, NOISE_VECTOR_SIZE, generator=torch.Generator().manual_seed(4))
+    torch.testing.assert_close(normalise(denormalise(unit, log_levels=True), log_levels=True), unit)
 
 
 def test_normalise_maps_each_training_range_onto_the_unit_interval() -> None:

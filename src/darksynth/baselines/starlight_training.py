@@ -42,7 +42,7 @@ from darksynth.baselines.starlight_model import (
 )
 from darksynth.io.atomic import write_text_atomic
 from darksynth.models.noise_statistics import LEVEL_BINS, noise_statistics
-from darksynth.noise.components import NOISE_PARAMETERS
+from darksynth.noise.components import model_parameters
 from darksynth.training.batches import TrainingBatch, synthesize_batch
 from darksynth.training.corpus import CleanCorpus, sample_clean_clips
 
@@ -186,7 +186,9 @@ def holdout_batches(holdout: CleanCorpus, config: StarlightTrainConfig) -> list[
             clip_fraction=config.clip_fraction,
             generator=generator,
         )
-        batches.append(synthesize_batch(clean, generator=generator, absent_probability=config.absent_probability))
+        batches.append(
+            synthesize_batch(clean, generator=generator, absent_probability=config.absent_probability, model="paper")
+        )
     return batches
 
 
@@ -254,14 +256,17 @@ def _redraw_target(batch: TrainingBatch, generator: torch.Generator, absent_prob
     """Another draw of the target's noise law on the same dark clips (new v, new noise), as 8-bit levels."""
     from darksynth.training.batches import random_noisy_version
 
-    return random_noisy_version(batch.dark, generator=generator, absent_probability=absent_probability)[0]
+    return random_noisy_version(batch.dark, generator=generator, absent_probability=absent_probability, model="paper")[
+        0
+    ]
 
 
 def prior_mean_values(absent_probability: float = 0.15) -> dict[str, float]:
-    """Mean of each noise parameter under the target's prior (uniform over its range, present or not)."""
+    """Mean of each of the paper's noise parameters under the target's prior (uniform over its range, present
+    or not): Starlight is trained on the paper's model."""
     return {
         p.name: round((1.0 - absent_probability) * 0.5 * (p.training_range[0] + p.training_range[1]), 6)
-        for p in NOISE_PARAMETERS
+        for p in model_parameters("paper")
     }
 
 
@@ -318,7 +323,9 @@ def train_starlight(
         clean = sample_clean_clips(
             corpus, config.batch, frames, config.crop, clip_fraction=config.clip_fraction, generator=generator
         )
-        batch = synthesize_batch(clean, generator=generator, absent_probability=config.absent_probability)
+        batch = synthesize_batch(
+            clean, generator=generator, absent_probability=config.absent_probability, model="paper"
+        )
         dark, real = batch.dark.to(device), batch.noisy.to(device)
         fake = model(dark, generator)
 

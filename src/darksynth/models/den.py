@@ -48,6 +48,8 @@ class DENConfig:
         head_width: hidden units of the MLP head.
         channels: colour channels of the input (grey references are repeated to 3).
         noise_model: which v the head predicts (see the module docstring).
+        log_levels: the noise levels with a ``log_floor`` are predicted on a log scale and trained with a
+            log-uniform prior (relative precision at every level; version-1 weights: False).
     """
 
     variant: Variant = "v3"
@@ -56,31 +58,45 @@ class DENConfig:
     head_width: int = 128
     channels: int = 3
     noise_model: NoiseModel = "srgb"
+    log_levels: bool = True
 
     def to_dict(self) -> dict[str, object]:
         return asdict(self)
 
 
 def parameter_bounds(
-    device: torch.device | str | None = None, model: NoiseModel = "srgb"
-) -> tuple[torch.Tensor, torch.Tensor]:
-    """Low and high ends of every entry of a noise model's v, from the training ranges of the parameter table."""
+    device: torch.device | str | None = None, model: NoiseModel = "srgb", log_levels: bool = False
+) -> tuple[torch.Tensor, torch.Tensor, torch.Tensor]:
+    """Low and high ends of every entry of a noise model's v, from the training ranges of the parameter table,
+    and which entries are on a log scale (their low end is then the log floor)."""
     parameters = model_parameters(model)
-    low = [p.training_range[0] for p in parameters for _ in range(p.size)]
+    logarithmic = [log_levels and p.log_floor is not None for p in parameters for _ in range(p.size)]
+    low = [
+        p.log_floor if log_levels and p.log_floor else p.training_range[0] for p in parameters for _ in range(p.size)
+    ]
     high = [p.training_range[1] for p in parameters for _ in range(p.size)]
-    return torch.tensor(low, device=device), torch.tensor(high, device=device)
+    return (
+        torch.tensor(low, device=device),
+        torch.tensor(high, device=device),
+        torch.tensor(logarithmic, device=device),
+    )
 
 
-def normalise(vector: torch.Tensor, model: NoiseModel = "srgb") -> torch.Tensor:
-    """v (..., vector_size(model)) -> [0, 1] per entry over its training range."""
-    low, high = parameter_bounds(vector.device, model)
-    return (vector - low) / (high - low)
+def normalise(vector: torch.Tensor, model: NoiseModel = "srgb", log_levels: bool = False) -> torch.Tensor:
+    """v (..., vector_size(model)) -> [0, 1] per entry over its training range; log-scale entries (with
+    ``log_levels``) through their logarithm, values below the floor at 0."""
+    low, high, logarithmic = parameter_bounds(vector.device, model, log_levels)
+    linear = (vector - low) / (high - low)
+    logs = (vector.clamp_min(low).log() - low.log()) / (high.log() - low.log())
+    return torch.where(logarithmic, logs, linear)
 
 
-def denormalise(normalised: torch.Tensor, model: NoiseModel = "srgb") -> torch.Tensor:
-    """Inverse of :func:`normalise`."""
-    low, high = parameter_bounds(normalised.device, model)
-    return low + normalised * (high - low)
+def denormalise(normalised: torch.Tensor, model: NoiseModel = "srgb", log_levels: bool = False) -> torch.Tensor:
+    """Inverse of :func:`normalise` (0 on a log scale gives the floor)."""
+    low, high, logarithmic = parameter_bounds(normalised.device, model, log_levels)
+    linear = low + normalised * (high - low)
+    logs = (low.log() + normalised * (high.log() - low.log())).exp()
+    return torch.where(logarithmic, logs, linear)
 
 
 class ConvBlock(nn.Module):
@@ -106,11 +122,12 @@ class DENOutput:
     normalised: torch.Tensor
     dark: torch.Tensor | None
     noise_model: NoiseModel = "srgb"
+    log_levels: bool = False
 
     @property
     def values(self) -> torch.Tensor:
         """v in the parameters' units, (B, vector_size(noise_model))."""
-        return denormalise(self.normalised, self.noise_model)
+        return denormalise(self.normalised, self.noise_model, self.log_levels)
 
 
 class DEN(nn.Module):
@@ -202,7 +219,13 @@ class DEN(nn.Module):
             for up, decoder, skip in zip(self.ups, self.decoders, reversed(skips), strict=True):
                 x = decoder(torch.cat([up(x), skip], dim=1))
             dark = self.to_image(x)[..., :height, :width].reshape(batch, frames, channels, height, width)
-        return DENOutput(normalised=normalised, dark=dark, noise_model=self.config.noise_model)
+        return DENOutput(
+            normalised=normalised, dark=dark, noise_model=self.config.noise_model, log_levels=self.config.log_levels
+        )
+
+    def normalise(self, vector: torch.Tensor) -> torch.Tensor:
+        """v in the parameters' units -> the [0, 1] space this model's head predicts in (training targets)."""
+        return normalise(vector, self.config.noise_model, self.config.log_levels)
 
     def statistics(self, clip: torch.Tensor) -> torch.Tensor:
         """The fixed noise statistics this model's head reads, before standardisation."""

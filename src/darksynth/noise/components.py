@@ -63,6 +63,9 @@ class Parameter:
         role: see :data:`Role`.
         training_off_probability: when set, training sets this parameter alone to its neutral value with this
             probability (shape parameters, so the estimator also sees white, uncompressed noise).
+        log_floor: for a noise level spanning decades: with a log level prior, training draws it log-uniformly
+            over [log_floor, training high] and the estimator predicts its logarithm (values below the floor
+            read as the floor), so a level of 0.005 is estimated as precisely, relatively, as one of 0.05.
     """
 
     name: str
@@ -75,6 +78,7 @@ class Parameter:
     model: NoiseModel = "paper"
     role: Role = "amplitude"
     training_off_probability: float | None = None
+    log_floor: float | None = None
 
 
 @dataclass(frozen=True)
@@ -158,8 +162,8 @@ NOISE_COMPONENTS: tuple[NoiseComponent, ...] = (
     NoiseComponent(
         name="heteroscedastic",
         parameters=(
-            Parameter("shot", 1, "std per sqrt(intensity): variance shot^2 * x", 1.0, (0.0, 0.2)),
-            Parameter("read", 1, "std, signal-independent", 1.0, (0.0, 0.1)),
+            Parameter("shot", 1, "std per sqrt(intensity): variance shot^2 * x", 1.0, (0.0, 0.2), log_floor=0.002),
+            Parameter("read", 1, "std, signal-independent", 1.0, (0.0, 0.1), log_floor=0.001),
             # Measured on the real pairs (docs/srgb-noise.md): red and blue noise 1.1-1.5x green's std, Gaussian
             # lengths 0.6-0.9 px, channel correlations 0.2-0.7, different per pair of channels.
             Parameter(
@@ -203,21 +207,25 @@ NOISE_COMPONENTS: tuple[NoiseComponent, ...] = (
     ),
     NoiseComponent(
         name="quantization",
-        parameters=(Parameter("quantization", 1, "width of the uniform interval U(0, q)", 1.0, (0.0, 0.02)),),
+        parameters=(
+            Parameter("quantization", 1, "width of the uniform interval U(0, q)", 1.0, (0.0, 0.02), log_floor=0.0002),
+        ),
         structure="pixel",
         draw=_draw_quantization,
         reference="Lin, Morris et al. 2025, eq. of f(v); Monakhova et al. 2022",
     ),
     NoiseComponent(
         name="banding",
-        parameters=(Parameter("banding", 1, "std of a per-frame column offset", 1.0, (0.0, 0.03)),),
+        parameters=(Parameter("banding", 1, "std of a per-frame column offset", 1.0, (0.0, 0.03), log_floor=0.0003),),
         structure="column",
         draw=_draw_banding,
         reference="Monakhova et al. 2022, Dancing under the stars (row/column noise)",
     ),
     NoiseComponent(
         name="temporal_banding",
-        parameters=(Parameter("temporal_banding", 1, "std of a per-clip column offset", 1.0, (0.0, 0.03)),),
+        parameters=(
+            Parameter("temporal_banding", 1, "std of a per-clip column offset", 1.0, (0.0, 0.03), log_floor=0.0003),
+        ),
         structure="column",
         draw=_draw_temporal_banding,
         reference="Monakhova et al. 2022, Dancing under the stars (fixed-pattern noise)",
@@ -225,7 +233,11 @@ NOISE_COMPONENTS: tuple[NoiseComponent, ...] = (
     ),
     NoiseComponent(
         name="periodic",
-        parameters=(Parameter("periodic", 3, "std of the DC, cosine and sine column patterns", 1.0, (0.0, 0.02)),),
+        parameters=(
+            Parameter(
+                "periodic", 3, "std of the DC, cosine and sine column patterns", 1.0, (0.0, 0.02), log_floor=0.0002
+            ),
+        ),
         structure="column",
         draw=_draw_periodic,
         reference="Monakhova et al. 2022, Dancing under the stars (periodic noise)",

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import math
 from collections.abc import Mapping, Sequence
 
 import torch
@@ -40,27 +41,39 @@ def random_noise_values(
     device: torch.device | str | None = None,
     dtype: torch.dtype = torch.float32,
     model: NoiseModel = "srgb",
+    log_levels: bool = False,
 ) -> dict[str, torch.Tensor]:
     """Draw every parameter of a noise model uniformly within its range (the training range where none is
-    given); the parameters the model lacks get their neutral value, without a draw.
+    given); the parameters the model lacks get their neutral value, without a draw. With ``log_levels``, the
+    levels that have a ``log_floor`` and no given range are drawn log-uniformly over [log_floor, high].
 
     Returns:
         Each parameter by name as a tensor (*batch_shape, size), in the order of the parameter table.
     """
     ranges = ranges or {}
     drawn = {p.name for p in model_parameters(model)}
-    return {
-        p.name: random_uniform(
-            ranges.get(p.name, (p.training_range,) * p.size),
-            batch_shape,
-            generator=generator,
-            device=device,
-            dtype=dtype,
-        )
-        if p.name in drawn
-        else torch.full((*batch_shape, p.size), p.neutral, device=device, dtype=dtype)
-        for p in NOISE_PARAMETERS
-    }
+    values = {}
+    for p in NOISE_PARAMETERS:
+        if p.name not in drawn:
+            values[p.name] = torch.full((*batch_shape, p.size), p.neutral, device=device, dtype=dtype)
+        elif log_levels and p.log_floor is not None and p.name not in ranges:
+            logs = random_uniform(
+                ((math.log(p.log_floor), math.log(p.training_range[1])),) * p.size,
+                batch_shape,
+                generator=generator,
+                device=device,
+                dtype=dtype,
+            )
+            values[p.name] = logs.exp().clamp(p.log_floor, p.training_range[1])
+        else:
+            values[p.name] = random_uniform(
+                ranges.get(p.name, (p.training_range,) * p.size),
+                batch_shape,
+                generator=generator,
+                device=device,
+                dtype=dtype,
+            )
+    return values
 
 
 def random_darkening_values(

@@ -34,6 +34,7 @@ def synthesize_batch(
     absent_probability: float = 0.15,
     model: NoiseModel = "srgb",
     bright_fraction: float = 0.0,
+    log_levels: bool = False,
 ) -> TrainingBatch:
     """Darken clean clips with alpha, gamma from the paper's ranges, add f(v) with v from the training ranges.
 
@@ -41,6 +42,7 @@ def synthesize_batch(
     learns what the absence of a component looks like (real references rarely show all five). A
     ``bright_fraction`` of the clips is darkened less, alpha and gamma from :data:`BRIGHT_ALPHA_RANGE` and
     :data:`BRIGHT_GAMMA_RANGE`: real references are often brighter than the paper's ranges allow.
+    ``log_levels`` draws the noise levels log-uniformly (see :func:`random_noise_values`).
     """
     batch = clean.shape[0]
     alpha, gamma = random_darkening_values(batch_shape=(batch,), generator=generator, device=clean.device)
@@ -51,7 +53,9 @@ def synthesize_batch(
         bright = torch.rand(batch, generator=generator, device=clean.device) < bright_fraction
         alpha, gamma = torch.where(bright, bright_alpha, alpha), torch.where(bright, bright_gamma, gamma)
     dark = darken(clean, alpha, gamma)
-    noisy, values = random_noisy_version(dark, generator=generator, absent_probability=absent_probability, model=model)
+    noisy, values = random_noisy_version(
+        dark, generator=generator, absent_probability=absent_probability, model=model, log_levels=log_levels
+    )
     return TrainingBatch(noisy=noisy, dark=dark, vector=values_to_vector(values, model))
 
 
@@ -61,6 +65,7 @@ def random_noisy_version(
     generator: torch.Generator | None = None,
     absent_probability: float = 0.15,
     model: NoiseModel = "srgb",
+    log_levels: bool = False,
 ) -> tuple[torch.Tensor, dict[str, torch.Tensor]]:
     """Dark clips (B, T, C, H, W) made noisy with v of a noise model drawn from the training ranges, on
     8-bit levels.
@@ -74,7 +79,9 @@ def random_noisy_version(
         those outside the model neutral).
     """
     batch = dark.shape[0]
-    values = random_noise_values(batch_shape=(batch,), generator=generator, device=dark.device, model=model)
+    values = random_noise_values(
+        batch_shape=(batch,), generator=generator, device=dark.device, model=model, log_levels=log_levels
+    )
     in_model = {p.name for p in model_parameters(model)}
     for component in NOISE_COMPONENTS:
         if not any(p.name in in_model for p in component.parameters):

@@ -15,7 +15,7 @@ from safetensors.torch import load_file, save_file
 
 from darksynth.errors import DarksynthError
 from darksynth.io.atomic import atomic_output, write_text_atomic
-from darksynth.models.den import DEN, DENConfig, normalise
+from darksynth.models.den import DEN, DENConfig
 from darksynth.noise.components import NoiseModel, model_parameters
 from darksynth.training.batches import TrainingBatch, synthesize_batch
 from darksynth.training.corpus import CleanCorpus, sample_clean_clips
@@ -86,6 +86,7 @@ def validation_set(corpus: CleanCorpus, config: TrainConfig, *, frames: int | No
                 absent_probability=0.0,
                 model=config.model.noise_model,
                 bright_fraction=config.bright_fraction,
+                log_levels=config.model.log_levels,
             )
         )
     return batches
@@ -177,6 +178,7 @@ def _calibrate_statistics(model: DEN, corpus: CleanCorpus, config: TrainConfig, 
             absent_probability=config.absent_probability,
             model=model.noise_model,
             bright_fraction=config.bright_fraction,
+            log_levels=config.model.log_levels,
         )
         measured.append(model.statistics(batch.noisy))
     model.set_statistics_scale(torch.cat(measured).to(next(model.parameters()).device))
@@ -225,11 +227,10 @@ def train(
             absent_probability=config.absent_probability,
             model=model.noise_model,
             bright_fraction=config.bright_fraction,
+            log_levels=config.model.log_levels,
         )
         output = model(batch.noisy.to(device))
-        loss = config.lambda_parameters * F.mse_loss(
-            output.normalised, normalise(batch.vector.to(device), model.noise_model)
-        )
+        loss = config.lambda_parameters * F.mse_loss(output.normalised, model.normalise(batch.vector.to(device)))
         if output.dark is not None and config.lambda_reconstruction > 0:
             loss = loss + config.lambda_reconstruction * F.l1_loss(output.dark, batch.dark.to(device))
         optimizer.zero_grad(set_to_none=True)

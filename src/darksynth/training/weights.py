@@ -46,6 +46,7 @@ def load_weights(path: Path, *, device: torch.device | str = "cpu") -> DEN:
         if metadata["version"] == "1":
             # Version 1 predates the sRGB model: its weights are the paper's model.
             settings["noise_model"] = "paper"
+            settings["log_levels"] = False
         config = DENConfig(**settings)
         model = DEN(config)
         model.load_state_dict(load_file(str(path), device=str(device)))
