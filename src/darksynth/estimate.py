@@ -25,7 +25,7 @@ from darksynth.io.discover import classify_input, scan_folder
 from darksynth.io.images import read_image
 from darksynth.io.video import iter_video_frames
 from darksynth.models.den import DEN
-from darksynth.noise.components import NOISE_PARAMETERS, model_parameters, neutral_values, vector_to_values
+from darksynth.noise.components import NOISE_PARAMETERS, model_parameters, vector_to_values
 from darksynth.profile import Profile
 
 CROP = 128
@@ -157,8 +157,10 @@ def estimate(
     named = vector_to_values(median, noise_model)
     named_low, named_high = vector_to_values(low, noise_model), vector_to_values(high, noise_model)
     # What the model does not estimate (the sRGB structure, for the paper's model) is neutral: white noise.
-    noise = {**neutral_values(noise_model), **{p.name: tuple(float(v) for v in named[p.name]) for p in estimated}}
-    noise = {p.name: noise[p.name] for p in NOISE_PARAMETERS}
+    noise = {
+        p.name: tuple(float(v) for v in named[p.name]) if p.name in named else (p.neutral,) * p.size
+        for p in NOISE_PARAMETERS
+    }
     ranges = {
         p.name: tuple((float(a), float(b)) for a, b in zip(named_low[p.name], named_high[p.name], strict=True))
         for p in estimated

@@ -22,7 +22,7 @@ import torch
 from darksynth.darkening import ALPHA_RANGE, GAMMA_RANGE, Darkening, darken
 from darksynth.io.arrays import numpy_to_tensor, tensor_to_numpy
 from darksynth.noise._broadcast import CLIP_DIMS
-from darksynth.noise.components import NOISE_PARAMETERS
+from darksynth.noise.components import NOISE_PARAMETERS, shapes_neutral
 from darksynth.noise.counter_rng import random_key
 from darksynth.noise.kernel8 import (
     FULL_SCALE,
@@ -132,12 +132,7 @@ class ClipSynthesizer:
         self._fusable = (
             not self._stages
             and all(c.name in _FUSED_COMPONENTS for c in self._active if c.structure == "pixel")
-            and all(
-                self.parameters.noise.get(p.name, (p.neutral,)) == (p.neutral,) * p.size
-                for c in self._active
-                for p in c.parameters
-                if p.role == "shape"
-            )
+            and all(shapes_neutral(c.parameters, self._values) for c in self._active)
         )
         self._scalars: tuple[torch.Tensor, ...] | None = None
 

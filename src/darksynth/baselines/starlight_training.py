@@ -256,9 +256,10 @@ def _redraw_target(batch: TrainingBatch, generator: torch.Generator, absent_prob
     """Another draw of the target's noise law on the same dark clips (new v, new noise), as 8-bit levels."""
     from darksynth.training.batches import random_noisy_version
 
-    return random_noisy_version(batch.dark, generator=generator, absent_probability=absent_probability, model="paper")[
-        0
-    ]
+    noisy, _ = random_noisy_version(
+        batch.dark, generator=generator, absent_probability=absent_probability, model="paper"
+    )
+    return noisy
 
 
 def prior_mean_values(absent_probability: float = 0.15) -> dict[str, float]:

@@ -94,19 +94,60 @@ class NoiseComponent:
     """True when one draw is held over all frames of a clip: a frame-by-frame stream draws it once."""
 
 
-def _is_white(values: Mapping[str, torch.Tensor]) -> bool:
-    """True when no sRGB shape parameter is set: the paper's white noise, drawn exactly as before them."""
+def shapes_neutral(parameters: tuple[Parameter, ...], values: Mapping[str, torch.Tensor]) -> bool:
+    """True when none of ``parameters``' shape parameters is set (missing ones count as neutral): the noise
+    they shape is the paper's white noise, drawn exactly as before them."""
     return all(
-        name not in values or bool((values[name] == noise_parameter(name).neutral).all())
-        for name in ("channel_gain", "correlation_length", "channel_correlation")
+        p.name not in values or bool((values[p.name] == p.neutral).all()) for p in parameters if p.role == "shape"
     )
+
+
+_HETEROSCEDASTIC_PARAMETERS: tuple[Parameter, ...] = (
+    Parameter("shot", 1, "std per sqrt(intensity): variance shot^2 * x", 1.0, (0.0, 0.2), log_floor=0.002),
+    Parameter("read", 1, "std, signal-independent", 1.0, (0.0, 0.1), log_floor=0.001),
+    # Measured on the real pairs (docs/srgb-noise.md): red and blue noise 1.1-1.5x green's std, Gaussian
+    # lengths 0.6-0.9 px, channel correlations 0.2-0.7, different per pair of channels.
+    Parameter(
+        "channel_gain",
+        2,
+        "std of red and of blue noise relative to green (shot and read are green's)",
+        4.0,
+        (0.7, 2.0),
+        minimum=0.25,
+        neutral=1.0,
+        model="srgb",
+        role="shape",
+        training_off_probability=0.2,
+    ),
+    Parameter(
+        "correlation_length",
+        1,
+        "std in pixels of the Gaussian kernel that correlates the noise spatially (variance kept)",
+        8.0,
+        (0.0, 2.0),
+        model="srgb",
+        role="shape",
+        training_off_probability=0.2,
+    ),
+    Parameter(
+        "channel_correlation",
+        3,
+        "correlation coefficient of the noise of red-green, green-blue and red-blue",
+        0.95,
+        (0.0, 0.7),
+        minimum=-0.45,
+        model="srgb",
+        role="shape",
+        training_off_probability=0.2,
+    ),
+)
 
 
 def _draw_heteroscedastic(
     signal: torch.Tensor, values: Mapping[str, torch.Tensor], generator: torch.Generator | None
 ) -> torch.Tensor:
     shot, read = values["shot"][..., 0], values["read"][..., 0]
-    if _is_white(values):
+    if shapes_neutral(_HETEROSCEDASTIC_PARAMETERS, values):
         return heteroscedastic_noise(signal, shot, read, generator=generator)
     # A single frame (C, H, W), as streaming passes it, is a clip of one frame.
     shape = signal.shape if signal.dim() >= 4 else (1, *signal.shape)
@@ -161,45 +202,7 @@ def _draw_periodic(
 NOISE_COMPONENTS: tuple[NoiseComponent, ...] = (
     NoiseComponent(
         name="heteroscedastic",
-        parameters=(
-            Parameter("shot", 1, "std per sqrt(intensity): variance shot^2 * x", 1.0, (0.0, 0.2), log_floor=0.002),
-            Parameter("read", 1, "std, signal-independent", 1.0, (0.0, 0.1), log_floor=0.001),
-            # Measured on the real pairs (docs/srgb-noise.md): red and blue noise 1.1-1.5x green's std, Gaussian
-            # lengths 0.6-0.9 px, channel correlations 0.2-0.7, different per pair of channels.
-            Parameter(
-                "channel_gain",
-                2,
-                "std of red and of blue noise relative to green (shot and read are green's)",
-                4.0,
-                (0.7, 2.0),
-                minimum=0.25,
-                neutral=1.0,
-                model="srgb",
-                role="shape",
-                training_off_probability=0.2,
-            ),
-            Parameter(
-                "correlation_length",
-                1,
-                "std in pixels of the Gaussian kernel that correlates the noise spatially (variance kept)",
-                8.0,
-                (0.0, 2.0),
-                model="srgb",
-                role="shape",
-                training_off_probability=0.2,
-            ),
-            Parameter(
-                "channel_correlation",
-                3,
-                "correlation coefficient of the noise of red-green, green-blue and red-blue",
-                0.95,
-                (0.0, 0.7),
-                minimum=-0.45,
-                model="srgb",
-                role="shape",
-                training_off_probability=0.2,
-            ),
-        ),
+        parameters=_HETEROSCEDASTIC_PARAMETERS,
         structure="pixel",
         draw=_draw_heteroscedastic,
         reference="Foi et al. 2008, Practical Poissonian-Gaussian noise modeling and fitting; "
@@ -284,12 +287,6 @@ def model_parameters(model: NoiseModel = "srgb") -> tuple[Parameter, ...]:
 def vector_size(model: NoiseModel = "srgb") -> int:
     """Length of the flat v of one noise model (8 for ``paper``)."""
     return sum(p.size for p in model_parameters(model))
-
-
-def neutral_values(model: NoiseModel | None = None) -> dict[str, tuple[float, ...]]:
-    """Each parameter's neutral value (all of them, or those a model lacks when ``model`` is given)."""
-    present = set() if model is None else {p.name for p in model_parameters(model)}
-    return {p.name: (p.neutral,) * p.size for p in NOISE_PARAMETERS if p.name not in present}
 
 
 def noise_parameter(name: str) -> Parameter:

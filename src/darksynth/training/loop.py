@@ -59,6 +59,21 @@ class TrainConfig:
         return document
 
 
+def training_batch(
+    clean: torch.Tensor, config: TrainConfig, generator: torch.Generator, *, absent_probability: float | None = None
+) -> TrainingBatch:
+    """A synthetic batch drawn as ``config`` says (noise model, level prior, bright share); the configured
+    absence probability unless one is given (validation uses 0)."""
+    return synthesize_batch(
+        clean,
+        generator=generator,
+        absent_probability=config.absent_probability if absent_probability is None else absent_probability,
+        model=config.model.noise_model,
+        bright_fraction=config.bright_fraction,
+        log_levels=config.model.log_levels,
+    )
+
+
 def r_squared(predicted: torch.Tensor, truth: torch.Tensor) -> torch.Tensor:
     """Coefficient of determination per column of (N, K) tensors."""
     residual = (predicted - truth).square().sum(0)
@@ -79,16 +94,7 @@ def validation_set(corpus: CleanCorpus, config: TrainConfig, *, frames: int | No
             clip_fraction=config.clip_fraction,
             generator=generator,
         )
-        batches.append(
-            synthesize_batch(
-                clean,
-                generator=generator,
-                absent_probability=0.0,
-                model=config.model.noise_model,
-                bright_fraction=config.bright_fraction,
-                log_levels=config.model.log_levels,
-            )
-        )
+        batches.append(training_batch(clean, config, generator, absent_probability=0.0))
     return batches
 
 
@@ -172,14 +178,7 @@ def _calibrate_statistics(model: DEN, corpus: CleanCorpus, config: TrainConfig, 
         clean = sample_clean_clips(
             corpus, config.batch, frames, config.crop, clip_fraction=config.clip_fraction, generator=generator
         )
-        batch = synthesize_batch(
-            clean,
-            generator=generator,
-            absent_probability=config.absent_probability,
-            model=model.noise_model,
-            bright_fraction=config.bright_fraction,
-            log_levels=config.model.log_levels,
-        )
+        batch = training_batch(clean, config, generator)
         measured.append(model.statistics(batch.noisy))
     model.set_statistics_scale(torch.cat(measured).to(next(model.parameters()).device))
 
@@ -221,14 +220,7 @@ def train(
         clean = sample_clean_clips(
             corpus, config.batch, frames, config.crop, clip_fraction=config.clip_fraction, generator=generator
         )
-        batch = synthesize_batch(
-            clean,
-            generator=generator,
-            absent_probability=config.absent_probability,
-            model=model.noise_model,
-            bright_fraction=config.bright_fraction,
-            log_levels=config.model.log_levels,
-        )
+        batch = training_batch(clean, config, generator)
         output = model(batch.noisy.to(device))
         loss = config.lambda_parameters * F.mse_loss(output.normalised, model.normalise(batch.vector.to(device)))
         if output.dark is not None and config.lambda_reconstruction > 0:
