@@ -161,6 +161,14 @@ def train_command(
             help="Share of clips darkened less than the paper's ranges (real references are often brighter).",
         ),
     ] = 0.0,
+    lambda_level: Annotated[
+        float,
+        typer.Option(
+            "--lambda-level",
+            min=0.0,
+            help="Weight of the noise-level target (log-ratio of the clip's mean noise variance); 0: paper loss.",
+        ),
+    ] = 0.0,
     seed: Annotated[int, typer.Option()] = 0,
     resume: Annotated[bool, typer.Option("--resume", help="Continue from OUT's checkpoint.")] = False,
     device: Annotated[str, typer.Option(help="torch device.")] = "cpu",
@@ -193,6 +201,7 @@ def train_command(
             lambda_reconstruction=lambda_reconstruction,
             validate_every=validate_every,
             bright_fraction=bright_fraction,
+            lambda_level=lambda_level,
             seed=seed,
             device=device,
         )

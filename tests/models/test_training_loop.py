@@ -13,7 +13,7 @@ from safetensors.torch import load_file
 from darksynth.errors import DarksynthError
 from darksynth.models.den import DENConfig
 from darksynth.training.corpus import CleanCorpus, load_corpus
-from darksynth.training.loop import TrainConfig, r_squared, train, vector_names
+from darksynth.training.loop import TrainConfig, level_loss, r_squared, train, training_batch, vector_names
 from darksynth.training.weights import load_weights
 from tests.models.conftest import smooth_rgb, write_png
 
@@ -144,3 +144,26 @@ def test_r_squared_by_hand() -> None:
     r2 = r_squared(predicted, truth)
     assert r2[0].item() == pytest.approx(0.5)
     assert r2[1].item() < -1e10
+
+
+def test_level_target_changes_the_training_and_keeps_it_finite(
+    corpus: CleanCorpus, reference_run: tuple[Path, dict[str, object]], tmp_path: Path
+) -> None:
+    out = tmp_path / "den.safetensors"
+    summary = train(corpus, corpus, dataclasses.replace(CONFIG, lambda_level=0.5), out)
+    weights = _weights(out)
+    assert all(torch.isfinite(tensor).all() for tensor in weights.values())
+    different = [name for name in weights if not torch.equal(weights[name], _weights(reference_run[0])[name])]
+    assert different
+    assert summary["config"]["lambda_level"] == 0.5  # type: ignore[index]
+
+
+def test_level_loss_is_zero_for_the_true_vector_and_grows_with_a_wrong_level() -> None:
+    generator = torch.Generator().manual_seed(5)
+    clean = torch.rand(3, 2, 3, 32, 32, generator=generator)
+    batch = training_batch(clean, CONFIG, generator, absent_probability=0.0)
+    device = torch.device("cpu")
+    assert level_loss(batch.vector, batch, CONFIG.model.noise_model, device).item() == pytest.approx(0.0, abs=1e-12)
+    louder = batch.vector.clone()
+    louder[:, vector_names(CONFIG.model.noise_model).index("read")] *= 4.0
+    assert level_loss(louder, batch, CONFIG.model.noise_model, device).item() > 0.01

@@ -95,7 +95,11 @@ def denormalise(normalised: torch.Tensor, model: NoiseModel = "srgb", log_levels
     """Inverse of :func:`normalise` (0 on a log scale gives the floor)."""
     low, high, logarithmic = parameter_bounds(normalised.device, model, log_levels)
     linear = low + normalised * (high - low)
-    logs = (low.log() + normalised * (high.log() - low.log())).exp()
+    # Bounds of the linear entries replaced by 1 inside the log branch: log(0) there would make the unused
+    # branch infinite and its gradient NaN (the level loss differentiates through this function).
+    log_low = torch.where(logarithmic, low, torch.ones_like(low)).log()
+    log_high = torch.where(logarithmic, high, torch.ones_like(high)).log()
+    logs = (log_low + normalised * (log_high - log_low)).exp()
     return torch.where(logarithmic, logs, linear)
 
 

@@ -16,7 +16,8 @@ from safetensors.torch import load_file, save_file
 from darksynth.errors import DarksynthError
 from darksynth.io.atomic import atomic_output, write_text_atomic
 from darksynth.models.den import DEN, DENConfig
-from darksynth.noise.components import NoiseModel, model_parameters
+from darksynth.noise.components import NoiseModel, model_parameters, vector_to_values
+from darksynth.noise.level import mean_noise_variance
 from darksynth.training.batches import TrainingBatch, synthesize_batch
 from darksynth.training.corpus import CleanCorpus, sample_clean_clips
 from darksynth.training.weights import save_weights
@@ -30,6 +31,10 @@ def vector_names(model: NoiseModel = "srgb") -> tuple[str, ...]:
 @dataclass(frozen=True)
 class TrainConfig:
     """Training settings (the paper's optimiser by default). Written beside the weights.
+
+    ``lambda_level`` weighs a second target beyond the paper: the squared log-ratio of the mean noise variance
+    the predicted v would give the clip to the true one (:func:`darksynth.noise.level.mean_noise_variance`), so
+    that the network gets the overall level right even where shot and read cannot be told apart.
 
     Every ``single_frame_every``-th batch holds single frames (T = 1) instead of ``frames``-frame clips, so that
     one network serves image references (where temporal banding cannot be told from banding) and clips.
@@ -48,6 +53,7 @@ class TrainConfig:
     single_frame_every: int = 2
     absent_probability: float = 0.15
     bright_fraction: float = 0.0
+    lambda_level: float = 0.0
     seed: int = 0
     validate_every: int = 250
     validation_size: int = 64
@@ -72,6 +78,18 @@ def training_batch(
         bright_fraction=config.bright_fraction,
         log_levels=config.model.log_levels,
     )
+
+
+LEVEL_FLOOR = (0.5 / 255) ** 2
+"""Variance added to both sides of the level loss: below half an 8-bit step, levels need not be told apart."""
+
+
+def level_loss(predicted: torch.Tensor, batch: TrainingBatch, model: NoiseModel, device: torch.device) -> torch.Tensor:
+    """Mean squared log-ratio of the clips' mean noise variance under the predicted and the true v."""
+    dark = batch.dark.to(device)
+    estimate = mean_noise_variance(vector_to_values(predicted, model), dark)
+    truth = mean_noise_variance(vector_to_values(batch.vector.to(device), model), dark)
+    return ((estimate + LEVEL_FLOOR).log() - (truth + LEVEL_FLOOR).log()).square().mean()
 
 
 def r_squared(predicted: torch.Tensor, truth: torch.Tensor) -> torch.Tensor:
@@ -223,6 +241,8 @@ def train(
         batch = training_batch(clean, config, generator)
         output = model(batch.noisy.to(device))
         loss = config.lambda_parameters * F.mse_loss(output.normalised, model.normalise(batch.vector.to(device)))
+        if config.lambda_level > 0:
+            loss = loss + config.lambda_level * level_loss(output.values, batch, model.noise_model, device)
         if output.dark is not None and config.lambda_reconstruction > 0:
             loss = loss + config.lambda_reconstruction * F.l1_loss(output.dark, batch.dark.to(device))
         optimizer.zero_grad(set_to_none=True)
