@@ -27,8 +27,9 @@ def main() -> int:
     parser = argparse.ArgumentParser(description=__doc__)
     parser.add_argument("--data", type=Path, default=Path(__file__).resolve().parents[2] / "shared" / "data")
     parser.add_argument("--method", default="den", help="whose synthetic noise std to compare (default: den)")
+    parser.add_argument("--weights", type=Path, help="weights file for a DEN method (default: the shipped one)")
     args = parser.parse_args()
-    den = build_method(args.method)
+    den = build_method(args.method, weights={args.method: args.weights} if args.weights else None)
     for root in sorted(p for p in (args.data / "real-pairs").iterdir() if (p / "noisy").is_dir()):
         pair_set = list_pair_set(root)
         ratios, levels, correlations, stds, den_ratios = [], [], [], [], []
