@@ -5,7 +5,7 @@ from __future__ import annotations
 import secrets
 import sys
 from pathlib import Path
-from typing import Annotated
+from typing import TYPE_CHECKING, Annotated
 
 import typer
 from rich.console import Console
@@ -18,6 +18,9 @@ from darksynth.errors import DarksynthError
 from darksynth.noise.components import NOISE_MODELS
 from darksynth.profile import load_profile
 from darksynth.synthesize import DarkeningChoice
+
+if TYPE_CHECKING:
+    from darksynth.datasets import ConversionReport
 
 app = typer.Typer(
     name="darksynth",
@@ -127,6 +130,118 @@ def apply_command(
         say(f"skipped {len(report.skipped)} file(s) that are not images or videos: {', '.join(report.skipped)}")
     if report.failures:
         raise fail(f"{len(report.failures)} file(s) failed; see the messages above and the manifest")
+
+
+@app.command("convert")
+def convert_command(
+    dataset: Annotated[Path, typer.Argument(metavar="DATASET", help="Root folder of the annotated dataset.")],
+    output: Annotated[Path, typer.Argument(metavar="OUTPUT", help="Output folder (never inside DATASET).")],
+    profile: Annotated[Path, typer.Option("--profile", "-p", help="Noise profile JSON.")],
+    dataset_format: Annotated[
+        str, typer.Option("--format", "-f", help="coco, yolo, folder (class per folder) or video-folder.")
+    ],
+    seed: Annotated[int, typer.Option(help="Run seed (the same seed gives the same bytes).")] = 0,
+    workers: Annotated[int, typer.Option(min=1, help="Processes on this machine.")] = 1,
+    jitter: Annotated[
+        bool, typer.Option("--jitter", help="Draw parameters per image or clip within the profile's ranges.")
+    ] = False,
+    shard: Annotated[str | None, typer.Option(help="Convert only part K of N (1-based), e.g. 3/8.")] = None,
+    images_root: Annotated[
+        Path | None, typer.Option("--images-root", help="COCO: folder that file_name entries are relative to.")
+    ] = None,
+    overwrite: Annotated[
+        bool, typer.Option("--overwrite", help="Start over in an output written with other options.")
+    ] = False,
+    codec: Annotated[str | None, typer.Option(help="Video codec, e.g. libx264 (default), ffv1.")] = None,
+    crf: Annotated[int | None, typer.Option(min=0, max=63, help="Video quality (lower is better).")] = None,
+    device: Annotated[str, typer.Option(help="torch device: cpu, cuda, cuda:1 ...")] = "cpu",
+    use_ray: Annotated[
+        bool,
+        typer.Option(
+            "--ray",
+            help="Run as a Ray Data map on the Ray cluster RAY_ADDRESS names (a local one if unset); "
+            "needs darksynth[ray].",
+        ),
+    ] = False,
+) -> None:
+    """Convert a whole annotated dataset to low light; annotations carried over, resumable, shardable."""
+    from typing import cast
+
+    from darksynth.datasets import FORMATS, DatasetFormat, convert_dataset
+
+    if dataset_format not in FORMATS:
+        raise fail(f"--format must be one of {', '.join(FORMATS)}, got {dataset_format!r}")
+    if use_ray:
+        if shard is not None or workers != 1 or device != "cpu":
+            raise fail("--ray schedules the work itself: it takes no --shard, --workers or --device")
+        from darksynth.datasets.ray_convert import convert_dataset_with_ray
+
+        try:
+            report = convert_dataset_with_ray(
+                dataset,
+                output,
+                profile,
+                format=cast(DatasetFormat, dataset_format),
+                seed=seed,
+                jitter=jitter,
+                images_root=images_root,
+                overwrite=overwrite,
+                codec=codec,
+                crf=crf,
+                on_failure=lambda message: say(f"darksynth: error: {message}"),
+            )
+        except DarksynthError as error:
+            raise fail(str(error)) from None
+        _convert_summary(report)
+        return
+    columns = (TextColumn("{task.description}"), BarColumn(), MofNCompleteColumn(), TimeRemainingColumn())
+    try:
+        with Progress(*columns, console=console, transient=True) as progress:
+            bar = progress.add_task("converting", total=None)
+
+            def on_progress(finished: int, total: int) -> None:
+                progress.update(bar, completed=finished, total=total)
+
+            def on_failure(message: str) -> None:
+                say(f"darksynth: error: {message}", progress.console)
+
+            report = convert_dataset(
+                dataset,
+                output,
+                profile,
+                format=cast(DatasetFormat, dataset_format),
+                seed=seed,
+                workers=workers,
+                jitter=jitter,
+                shard=shard,
+                images_root=images_root,
+                overwrite=overwrite,
+                codec=codec,
+                crf=crf,
+                device=device,
+                on_progress=on_progress,
+                on_failure=on_failure,
+            )
+    except DarksynthError as error:
+        raise fail(str(error)) from None
+    _convert_summary(report)
+
+
+def _convert_summary(report: ConversionReport) -> None:
+    """The closing lines of a conversion; exit 1 after them if anything failed."""
+    done = report.converted + report.already_done
+    say(
+        f"converted {done} file(s) ({report.converted} new, {report.already_done} already done), carried over "
+        f"{report.carried} file(s), {len(report.failures)} failure(s), in {report.seconds:.1f} s"
+    )
+    if report.other_shards:
+        say(f"left {report.other_shards} file(s) to other shards")
+    if report.manifest is not None:
+        say(f"manifest {report.manifest}")
+    else:
+        say(f"manifest not written yet: {report.pending} file(s) of other shards have no record yet")
+    if report.failures:
+        raise fail(f"{len(report.failures)} failure(s); see the messages above and the manifest")
 
 
 @app.command("train")

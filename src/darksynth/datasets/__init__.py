@@ -1,0 +1,60 @@
+"""Whole annotated datasets (COCO, YOLO, class folders, video folders) -> their low-light versions.
+
+``convert_dataset`` runs a conversion end to end; ``plan_dataset`` and ``convert_item`` are its two halves for
+other schedulers (a Ray Data ``map`` over ``[item.to_row() for item in plan.items]``). Importing this package
+needs neither rich nor typer.
+"""
+
+from __future__ import annotations
+
+from darksynth.datasets.convert import (
+    MANIFEST_NAME,
+    ConversionReport,
+    ConvertOptions,
+    Shard,
+    carry_file,
+    convert_dataset,
+    convert_item,
+    fixed_darkening,
+    is_done,
+    prepare_output,
+    record_path,
+    remove_stale_temps,
+    shard_of,
+    write_manifest_if_complete,
+)
+from darksynth.datasets.formats import (
+    FORMATS,
+    CarriedFile,
+    DatasetFormat,
+    DatasetPlan,
+    MediaItem,
+    Problem,
+    plan_dataset,
+    rewrite_yolo_yaml,
+)
+
+__all__ = [
+    "FORMATS",
+    "MANIFEST_NAME",
+    "CarriedFile",
+    "ConversionReport",
+    "ConvertOptions",
+    "DatasetFormat",
+    "DatasetPlan",
+    "MediaItem",
+    "Problem",
+    "Shard",
+    "carry_file",
+    "convert_dataset",
+    "convert_item",
+    "fixed_darkening",
+    "is_done",
+    "plan_dataset",
+    "prepare_output",
+    "record_path",
+    "remove_stale_temps",
+    "rewrite_yolo_yaml",
+    "shard_of",
+    "write_manifest_if_complete",
+]

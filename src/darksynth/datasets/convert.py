@@ -1,0 +1,535 @@
+"""``darksynth convert``: a whole annotated dataset -> its low-light version, resumable and shardable.
+
+The output mirrors the dataset: each image, video or clip (see :mod:`darksynth.datasets.formats`) is converted to
+the same relative path with the same size and format, every other file is carried over, so every annotation
+stays valid. Conversion reuses ``apply``'s machinery: :func:`darksynth.apply.run_task` for one item,
+:func:`darksynth.apply.execute` for the process pool, and seeds derived from the run seed and the relative path.
+
+State kept in ``OUTPUT/.darksynth/``, so that a run killed at any moment can be started again with the same
+command and ends byte-identical to an uninterrupted run:
+
+- ``convert-state.json``: the options that decide the output bytes; a run with other options is refused
+  (unless ``overwrite``), so outputs of two different runs are never mixed.
+- ``records/<hash of the key>.json``: one record per item, written atomically once all its outputs exist;
+  an item with a ``done`` record whose outputs exist is skipped. Failed items are recorded too (and retried).
+
+``OUTPUT/darksynth-manifest.json`` is assembled from the records as soon as every item of every shard has one.
+It holds no times and no absolute output paths, so it does not depend on interruptions or on the output location.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import hashlib
+import json
+import os
+import re
+import shutil
+import time
+from collections.abc import Callable, Mapping
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any, Final
+
+import torch
+
+from darksynth import __version__
+from darksynth.apply import ApplyOptions, execute, run_task
+from darksynth.darkening import ALPHA_RANGE, GAMMA_RANGE, Darkening
+from darksynth.datasets.formats import FORMATS, CarriedFile, DatasetFormat, DatasetPlan, MediaItem, plan_dataset
+from darksynth.datasets.formats import rewrite_yolo_yaml as _rewrite_yolo_yaml
+from darksynth.errors import DarksynthError
+from darksynth.io.atomic import TEMP_MARKER, atomic_output, write_text_atomic
+from darksynth.io.discover import check_output_location
+from darksynth.profile import Profile, load_profile, profile_to_dict
+
+__all__ = [
+    "MANIFEST_NAME",
+    "STATE_FOLDER",
+    "ConversionReport",
+    "ConvertOptions",
+    "Shard",
+    "carry_file",
+    "convert_dataset",
+    "convert_item",
+    "fixed_darkening",
+    "is_done",
+    "prepare_output",
+    "record_path",
+    "remove_stale_temps",
+    "shard_of",
+    "write_manifest_if_complete",
+]
+
+STATE_FOLDER: Final = ".darksynth"
+MANIFEST_NAME: Final = "darksynth-manifest.json"
+_STATE_NAME: Final = "convert-state.json"
+_RECORDS: Final = "records"
+_TEMP_NAME = re.compile(r"^\.(?P<stem>.*)" + re.escape(TEMP_MARKER) + r"[0-9a-f]{12}(?P<suffix>.*)$")
+
+ProgressCallback = Callable[[int, int], None]
+"""Called with (items finished, items of this run) as each item ends (already done items count at the start)."""
+
+
+def shard_of(key: str, count: int) -> int:
+    """The 1-based shard that owns a key: a hash of the relative path, so adding files reshuffles no other file."""
+    digest = hashlib.sha256(f"darksynth-shard:{key}".encode()).digest()
+    return int.from_bytes(digest[:8], "little") % count + 1
+
+
+@dataclass(frozen=True)
+class Shard:
+    """Shard ``index`` (1-based) of ``count``: the items, carried files and problems whose key it owns."""
+
+    index: int
+    count: int
+
+    def __post_init__(self) -> None:
+        if self.count < 1 or not 1 <= self.index <= self.count:
+            raise DarksynthError(f"--shard must be K/N with 1 <= K <= N, got {self.index}/{self.count}")
+
+    @classmethod
+    def parse(cls, text: str) -> Shard:
+        """Read ``"K/N"``."""
+        index, sep, count = text.partition("/")
+        if not sep or not index.strip().isdigit() or not count.strip().isdigit():
+            raise DarksynthError(f"--shard must be K/N, for example 2/8, got {text!r}")
+        return cls(int(index), int(count))
+
+    def owns(self, key: str) -> bool:
+        """Whether this shard handles ``key``."""
+        return shard_of(key, self.count) == self.index
+
+
+@dataclass(frozen=True)
+class ConvertOptions:
+    """Everything a conversion needs; picklable, so a Ray or process-pool worker can receive it.
+
+    Attributes:
+        dataset: the dataset root (absolute).
+        output: the output root (absolute; never the dataset or inside it).
+        profile: the noise profile.
+        format: the dataset format, one of :data:`darksynth.datasets.formats.FORMATS`.
+        seed: run seed; each item's seed derives from it and the item's relative path.
+        jitter: draw parameters per item within the profile's ranges; otherwise every item gets the profile's
+            values (see :func:`fixed_darkening` for the darkening).
+        workers: processes on this machine.
+        shard: the part of the dataset this run handles, or None for all of it.
+        images_root: COCO: the folder ``file_name`` entries are relative to (tried first).
+        overwrite: start over in an output written with other options.
+        codec, crf, device: as for ``apply``.
+    """
+
+    dataset: Path
+    output: Path
+    profile: Profile
+    format: DatasetFormat
+    seed: int = 0
+    jitter: bool = False
+    workers: int = 1
+    shard: Shard | None = None
+    images_root: Path | None = None
+    overwrite: bool = False
+    codec: str | None = None
+    crf: int | None = None
+    device: str = "cpu"
+
+    def apply_options(self) -> ApplyOptions:
+        """The ``apply`` options of each item: with ``jitter`` the profile as it is, else fixed values."""
+        if self.jitter:
+            return ApplyOptions(
+                profile=self.profile,
+                seed=self.seed,
+                workers=self.workers,
+                codec=self.codec,
+                crf=self.crf,
+                device=self.device,
+            )
+        # Without ranges and with a fixed darkening, draw_clip_parameters draws nothing: every item gets the
+        # same values and its seed only drives the noise itself.
+        return ApplyOptions(
+            profile=dataclasses.replace(self.profile, ranges={}),
+            seed=self.seed,
+            darkening=fixed_darkening(self.profile),
+            workers=self.workers,
+            codec=self.codec,
+            crf=self.crf,
+            device=self.device,
+        )
+
+    def fingerprint(self) -> dict[str, Any]:
+        """The options that decide the output bytes (not workers, shard or overwrite)."""
+        return {
+            "dataset": str(self.dataset),
+            "format": self.format,
+            "profile": profile_to_dict(self.profile),
+            "seed": self.seed,
+            "jitter": self.jitter,
+            "images_root": None if self.images_root is None else str(self.images_root),
+            "codec": self.codec,
+            "crf": self.crf,
+            "device": self.device,
+        }
+
+
+def fixed_darkening(profile: Profile) -> Darkening:
+    """The darkening without jitter: the profile's, else the centre of its alpha/gamma ranges or the paper's."""
+    if profile.darkening is not None:
+        return profile.darkening
+    centres = {}
+    for name, paper in (("alpha", ALPHA_RANGE), ("gamma", GAMMA_RANGE)):
+        low, high = profile.ranges[name][0] if name in profile.ranges else paper
+        centres[name] = (low + high) / 2
+    return Darkening(alpha=centres["alpha"], gamma=centres["gamma"])
+
+
+@dataclass
+class ConversionReport:
+    """What one run did (this shard only).
+
+    Attributes:
+        converted: items converted by this run.
+        already_done: items found complete from an earlier run and skipped.
+        carried: files copied or rewritten by this run (those already in place are not counted).
+        failures: one line per failed item, bad input found while planning, or file that could not be carried.
+        other_shards: items left to other shards.
+        pending: items of any shard without a record yet (the manifest waits for them).
+        manifest: the manifest path once every item has a record, else None.
+        seconds: wall time of the run.
+    """
+
+    converted: int = 0
+    already_done: int = 0
+    carried: int = 0
+    failures: list[str] = field(default_factory=list)
+    other_shards: int = 0
+    pending: int = 0
+    manifest: Path | None = None
+    seconds: float = 0.0
+
+
+def record_path(output: Path, key: str) -> Path:
+    """Where the record of the item ``key`` lives."""
+    name = hashlib.sha256(key.encode()).hexdigest()[:32]
+    return output / STATE_FOLDER / _RECORDS / f"{name}.json"
+
+
+def convert_item(item: MediaItem | Mapping[str, Any], options: ConvertOptions) -> dict[str, Any]:
+    """Convert one item and write its record; the per-row function for a Ray Data ``map`` or any other scheduler.
+
+    Pure apart from its files: the outputs depend only on the item and the options (the item's seed derives from
+    ``options.seed`` and ``item.key``), so it may run anywhere, in any order, any number of times.
+
+    Args:
+        item: a :class:`MediaItem` or its row form ``{"kind": str, "key": str, "inputs": [relative paths]}``
+            (see :meth:`MediaItem.to_row`; rows come from ``plan_dataset(...).items``).
+        options: the run's options (``options.dataset`` and ``options.output`` absolute).
+
+    Returns:
+        The record also written to :func:`record_path`: ``{"input", "kind", "status": "done", "outputs" (relative),
+        "frames", "seed", "parameters"}``, or ``{"input", "kind", "status": "failed", "error"}``. A bad input is a
+        failed record, never an exception.
+
+    Raises:
+        DarksynthError: only if the record itself cannot be written.
+    """
+    media = item if isinstance(item, MediaItem) else MediaItem.from_row(dict(item))
+    record = _convert(media, options.dataset, options.output, options.apply_options())
+    _write_record(options.output, record)
+    return record
+
+
+def _convert(item: MediaItem, dataset: Path, output: Path, apply_options: ApplyOptions) -> dict[str, Any]:
+    try:
+        return _record(item, run_task(item.task(dataset, output), apply_options), None)
+    except DarksynthError as error:
+        return _record(item, None, str(error))
+
+
+def _record(item: MediaItem, result: dict[str, Any] | None, error: str | None) -> dict[str, Any]:
+    if result is None:
+        return {"input": item.key, "kind": item.kind, "status": "failed", "error": error}
+    return {
+        "input": item.key,
+        "kind": item.kind,
+        "status": "done",
+        "outputs": list(item.inputs),
+        "frames": result["frames"],
+        "seed": result["seed"],
+        "parameters": result["parameters"],
+    }
+
+
+def _write_record(output: Path, record: dict[str, Any]) -> None:
+    path = record_path(output, record["input"])
+    try:
+        write_text_atomic(path, json.dumps(record, indent=1, sort_keys=True) + "\n")
+    except OSError as error:
+        raise DarksynthError(f"{error.filename or path}: cannot write the record ({error.strerror or error})") from None
+
+
+def _read_record(output: Path, key: str) -> dict[str, Any] | None:
+    try:
+        record = json.loads(record_path(output, key).read_text(encoding="utf-8"))
+    except (OSError, ValueError):
+        return None  # missing (or unreadable, which atomic writes rule out): the item is done again
+    return record if isinstance(record, dict) and record.get("input") == key else None
+
+
+def is_done(output: Path, item: MediaItem) -> bool:
+    """Whether an earlier run finished ``item``: its record says done and all its outputs exist."""
+    record = _read_record(output, item.key)
+    return record is not None and record.get("status") == "done" and all((output / p).is_file() for p in item.inputs)
+
+
+def convert_dataset(
+    dataset: Path,
+    output: Path,
+    profile: Profile | Path | str,
+    *,
+    format: DatasetFormat,
+    seed: int = 0,
+    workers: int = 1,
+    jitter: bool = False,
+    shard: Shard | str | None = None,
+    images_root: Path | None = None,
+    overwrite: bool = False,
+    codec: str | None = None,
+    crf: int | None = None,
+    device: str = "cpu",
+    on_progress: ProgressCallback | None = None,
+    on_failure: Callable[[str], None] | None = None,
+) -> ConversionReport:
+    """Convert a dataset (this shard of it), resuming where an earlier run with the same options stopped.
+
+    Bad inputs (see :mod:`darksynth.datasets.formats`) and items that fail are reported in
+    ``ConversionReport.failures`` and the rest goes on.
+
+    Args:
+        dataset: the dataset root folder.
+        output: the output folder (created; never the dataset or inside it).
+        profile: a noise profile or the path of its JSON file.
+        format: ``"coco"``, ``"yolo"``, ``"folder"`` or ``"video-folder"``.
+        shard: a :class:`Shard` or ``"K/N"``; None converts everything.
+        on_progress: see :data:`ProgressCallback`.
+        on_failure: called with each failure message as it happens.
+        Others: see :class:`ConvertOptions`.
+
+    Returns:
+        What this run did.
+
+    Raises:
+        DarksynthError: the run cannot start: bad dataset, format, profile or options; an output inside the
+            dataset, not writable, or written by a run with other options (without ``overwrite``).
+    """
+    started = time.perf_counter()
+    if format not in FORMATS:
+        raise DarksynthError(f"unknown dataset format {format!r}; use one of {', '.join(FORMATS)}")
+    if workers < 1:
+        raise DarksynthError(f"--workers must be at least 1, got {workers}")
+    check_output_location(dataset, output)
+    options = ConvertOptions(
+        dataset=dataset.resolve(),
+        output=output.resolve(),
+        profile=profile if isinstance(profile, Profile) else load_profile(profile),
+        format=format,
+        seed=seed,
+        jitter=jitter,
+        workers=workers,
+        shard=Shard.parse(shard) if isinstance(shard, str) else shard,
+        images_root=images_root,
+        overwrite=overwrite,
+        codec=codec,
+        crf=crf,
+        device=device,
+    )
+    plan = plan_dataset(options.dataset, format, images_root=images_root)
+    prepare_output(options)
+    owns = options.shard.owns if options.shard is not None else (lambda key: True)
+    items = [i for i in plan.items if owns(i.key)]
+    remove_stale_temps(options, plan, owns)
+
+    report = ConversionReport(other_shards=len(plan.items) - len(items))
+
+    def failed(message: str) -> None:
+        report.failures.append(message)
+        if on_failure:
+            on_failure(message)
+
+    for problem in plan.problems:
+        if owns(problem.key):
+            failed(problem.message)
+    for carried in plan.carried:
+        if owns(carried.key):
+            try:
+                report.carried += carry_file(options, carried)
+            except DarksynthError as carry_error:
+                failed(str(carry_error))
+
+    todo = [i for i in items if not is_done(options.output, i)]
+    report.already_done = len(items) - len(todo)
+    finished = report.already_done
+    if on_progress:
+        on_progress(finished, len(items))
+    by_key = {i.key: i for i in todo}
+    apply_options = options.apply_options()
+    tasks = [i.task(options.dataset, options.output) for i in todo]
+    for task, result, error in execute(tasks, apply_options):
+        record = _record(by_key[task.key], result, error)
+        try:
+            _write_record(options.output, record)
+        except DarksynthError as write_error:
+            failed(str(write_error))
+        if error is not None:
+            failed(error)
+        else:
+            report.converted += 1
+        finished += 1
+        if on_progress:
+            on_progress(finished, len(items))
+
+    report.manifest, report.pending = write_manifest_if_complete(options, plan)
+    report.seconds = time.perf_counter() - started
+    return report
+
+
+def prepare_output(options: ConvertOptions) -> None:
+    """Check that the output can be written and belongs to this run; record the run's options.
+
+    Call once per run before converting (every shard may call it; it writes the same state).
+
+    Raises:
+        DarksynthError: the output cannot be written, holds a conversion with other options, or is a non-empty
+            folder that is not a conversion (the last two unless ``options.overwrite``).
+    """
+    output = options.output
+    state_path = output / STATE_FOLDER / _STATE_NAME
+    fingerprint = options.fingerprint()
+    digest = hashlib.sha256(json.dumps(fingerprint, sort_keys=True).encode()).hexdigest()
+    document = {"format": "darksynth-convert-state", "version": 1, "hash": digest, "options": fingerprint}
+    try:
+        if state_path.is_file():
+            previous = _read_json(state_path)
+            if previous.get("hash") == digest:
+                return
+            if not options.overwrite:
+                recorded = previous.get("options")
+                old: dict[str, Any] = recorded if isinstance(recorded, dict) else {}
+                changed = sorted(k for k in fingerprint if old.get(k) != fingerprint[k]) or ["state"]
+                raise DarksynthError(
+                    f"{output}: holds a conversion made with other options ({', '.join(changed)}); rerun the same "
+                    "command to resume it, add --overwrite to start over, or choose another output folder"
+                )
+            shutil.rmtree(output / STATE_FOLDER / _RECORDS, ignore_errors=True)
+            (output / MANIFEST_NAME).unlink(missing_ok=True)
+        elif output.is_dir() and any(output.iterdir()) and not options.overwrite:
+            raise DarksynthError(
+                f"{output}: not empty and not the output of a conversion; choose an empty or new folder, or add "
+                "--overwrite to write into it anyway"
+            )
+        write_text_atomic(state_path, json.dumps(document, indent=2, sort_keys=True) + "\n")
+    except OSError as error:
+        where = error.filename or output
+        raise DarksynthError(f"{where}: cannot write the output folder ({error.strerror or error})") from None
+
+
+def _read_json(path: Path) -> dict[str, Any]:
+    try:
+        document = json.loads(path.read_text(encoding="utf-8"))
+    except ValueError:
+        return {}
+    return document if isinstance(document, dict) else {}
+
+
+def remove_stale_temps(options: ConvertOptions, plan: DatasetPlan, owns: Callable[[str], bool]) -> None:
+    """Remove temporary files that a killed run left behind for outputs this run owns.
+
+    Another shard's temporary files may belong to a conversion still running, so they are left alone.
+    """
+    output = options.output
+    owned: set[str] = set()
+    for item in plan.items:
+        if owns(item.key):
+            owned.update(item.inputs)
+            owned.add(record_path(output, item.key).relative_to(output).as_posix())
+    owned.update(c.key for c in plan.carried if owns(c.key))
+    if options.shard is None:
+        owned.update({MANIFEST_NAME, f"{STATE_FOLDER}/{_STATE_NAME}"})
+    for folder, _, names in os.walk(output):
+        base = Path(folder)
+        for name in names:
+            match = _TEMP_NAME.match(name)
+            if match is None:
+                continue
+            original = (base / (match["stem"] + match["suffix"])).relative_to(output).as_posix()
+            if original in owned:
+                (base / name).unlink(missing_ok=True)
+
+
+def carry_file(options: ConvertOptions, carried: CarriedFile) -> bool:
+    """Copy or rewrite one file into the output; False if it was already there.
+
+    Raises:
+        DarksynthError: the file cannot be read, rewritten or written (one line naming it).
+    """
+    source, target = options.dataset / carried.key, options.output / carried.key
+    try:
+        if carried.action == "yolo-yaml":
+            try:
+                text = _rewrite_yolo_yaml(source.read_text(encoding="utf-8"), options.dataset, options.output)
+            except (DarksynthError, UnicodeDecodeError) as error:
+                raise DarksynthError(f"{source}: cannot rewrite the dataset YAML ({error}); not written") from None
+            if target.is_file() and target.read_text(encoding="utf-8") == text:
+                return False
+            write_text_atomic(target, text)
+            return True
+        # Atomic writes make a file that exists complete; the size guards against an input replaced since.
+        if target.is_file() and target.stat().st_size == source.stat().st_size:
+            return False
+        with atomic_output(target) as tmp:
+            shutil.copyfile(source, tmp)
+        return True
+    except OSError as error:
+        where = error.filename or target
+        raise DarksynthError(f"{where}: cannot carry over {carried.key} ({error.strerror or error})") from None
+
+
+def write_manifest_if_complete(options: ConvertOptions, plan: DatasetPlan) -> tuple[Path | None, int]:
+    """Write the manifest if every item has a record; return its path (or None) and the items still missing.
+
+    Raises:
+        DarksynthError: the manifest cannot be written.
+    """
+    records = [_read_record(options.output, item.key) for item in plan.items]
+    pending = sum(r is None for r in records)
+    if pending:
+        return None, pending
+    done = [r for r in records if r is not None and r["status"] == "done"]
+    failed = [{"input": r["input"], "error": r["error"]} for r in records if r is not None and r["status"] != "done"]
+    document = {
+        "format": "darksynth-convert-manifest",
+        "version": 1,
+        "darksynth": __version__,
+        "torch": torch.__version__,
+        "dataset": str(options.dataset),
+        "dataset_format": plan.format,
+        "seed": options.seed,
+        "jitter": options.jitter,
+        "device": options.device,
+        "codec": options.codec,
+        "crf": options.crf,
+        "images_root": None if options.images_root is None else str(options.images_root),
+        "profile": profile_to_dict(options.profile),
+        "files": done,
+        "failures": failed,
+        "problems": [{"file": p.key, "problem": p.message} for p in plan.problems],
+        "carried": [{"file": c.key, "action": c.action} for c in plan.carried],
+    }
+    path = options.output / MANIFEST_NAME
+    text = json.dumps(document, indent=2) + "\n"
+    try:
+        # Shards finishing together may both write it: the same bytes, each atomically.
+        write_text_atomic(path, text)
+    except OSError as error:
+        raise DarksynthError(f"{path}: cannot write the manifest ({error.strerror or error})") from None
+    return path, 0

@@ -1,0 +1,155 @@
+"""``AlbumentationsLowLight``: darksynth's darkening and noise as an albumentations 2.x image-only transform.
+
+Imported only when ``darksynth.transforms.AlbumentationsLowLight`` is first asked for; needs albumentations.
+
+Randomness follows albumentations: ``get_params`` draws one integer from the transform's ``random_generator``
+(which ``A.Compose(..., seed=N)`` seeds), and ``apply`` seeds a torch generator with it, so a seeded Compose is
+reproducible and ``ReplayCompose`` replays the same noise. albumentations 2.0.8 itself copies one random state
+into every DataLoader worker; inside a worker the drawn integer is therefore mixed with the worker's seed, so
+workers add different noise (the ``p`` decisions and other transforms' draws remain albumentations' own).
+"""
+
+from __future__ import annotations
+
+import os
+from collections.abc import Mapping
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+import torch
+
+from darksynth.darkening import Darkening
+from darksynth.io.arrays import numpy_to_tensor, tensor_to_numpy
+from darksynth.profile import Profile, profile_to_dict
+from darksynth.synthesize import DarkeningChoice
+from darksynth.transforms.low_light import (
+    as_profile,
+    check_darkening,
+    check_image,
+    dataloader_worker_seed,
+    low_light,
+    mix_seed,
+)
+
+# Importing albumentations otherwise asks the network for a newer version (and warns when offline).
+os.environ.setdefault("NO_ALBUMENTATIONS_UPDATE", "1")
+try:
+    from albumentations.core.transforms_interface import ImageOnlyTransform
+except ImportError as error:  # pragma: no cover - depends on the environment
+    raise ImportError(
+        "darksynth.transforms.AlbumentationsLowLight needs albumentations 2.x: pip install 'albumentations>=2.0'"
+    ) from error
+
+_SEED_LIMIT = 2**63 - 1
+
+SerializedDarkening = str | Mapping[str, float] | None
+"""The darkening as it is stored for albumentations' serialisation: "profile", None or {"alpha", "gamma"}."""
+
+
+def _serializable_darkening(darkening: DarkeningChoice | Mapping[str, float]) -> SerializedDarkening:
+    if isinstance(darkening, Mapping):
+        if set(darkening) != {"alpha", "gamma"}:
+            raise ValueError(f"darkening as a mapping must have alpha and gamma, got {dict(darkening)!r}")
+        return {"alpha": float(darkening["alpha"]), "gamma": float(darkening["gamma"])}
+    choice = check_darkening(darkening)
+    if isinstance(choice, Darkening):
+        return {"alpha": choice.alpha, "gamma": choice.gamma}
+    return choice
+
+
+def _darkening_choice(stored: SerializedDarkening) -> DarkeningChoice:
+    if isinstance(stored, Mapping):
+        return Darkening(alpha=stored["alpha"], gamma=stored["gamma"])
+    return check_darkening(stored)
+
+
+def _hwc_to_tensor(image: np.ndarray, where: str) -> torch.Tensor:
+    """(H, W) or (H, W, C) array -> (C, H, W) tensor; with a leading axis, (N, ...) -> (N, C, H, W)."""
+    if not isinstance(image, np.ndarray):
+        raise ValueError(f"{where}: expected a numpy array, got {type(image).__name__}")
+    if image.dtype != np.uint8 and image.dtype not in (np.float32, np.float64):
+        raise ValueError(f"{where}: unsupported dtype {image.dtype}; use uint8, or float32 in [0, 1]")
+    grey = image.ndim == 2 or (where == "images" and image.ndim == 3)
+    if not grey and image.shape[-1] not in (1, 3):
+        raise ValueError(f"{where}: expected 1 (grey) or 3 (RGB) channels in the last axis, got shape {image.shape}")
+    tensor = numpy_to_tensor(image)
+    return tensor.unsqueeze(-1).movedim(-1, -3) if grey else tensor.movedim(-1, -3)
+
+
+class AlbumentationsLowLight(ImageOnlyTransform):  # type: ignore[misc]  # albumentations ships no type hints
+    """Darkening and sensor noise from a noise profile, for ``albumentations.Compose``.
+
+    Targets: ``image`` (H, W) or (H, W, C) with C = 1 or 3, uint8 or float32 in [0, 1]; the result keeps shape
+    and dtype (float output on 8-bit levels unless ``round_to_8bit`` is False). ``images`` and ``volume``
+    (N, H, W[, C]) are one clip: its frames share one parameter draw and the temporal banding pattern, with
+    new noise in every frame.
+
+    Args:
+        profile: the noise profile, a path to one, or a decoded profile document (stored as the document, so
+            ``A.to_dict`` / ``A.from_dict`` round-trip the transform).
+        darkening: ``"profile"``, None (noise only), a :class:`Darkening` or {"alpha": a, "gamma": g}.
+        round_to_8bit: round float output to 8-bit levels, as a camera file stores it.
+        p: probability of applying the transform (albumentations' convention, 0.5 by default).
+    """
+
+    def __init__(
+        self,
+        profile: Profile | str | Path | dict[str, Any],
+        darkening: DarkeningChoice | Mapping[str, float] = "profile",
+        round_to_8bit: bool = True,
+        p: float = 0.5,
+    ) -> None:
+        if isinstance(p, bool) or not isinstance(p, int | float) or not 0.0 <= p <= 1.0:
+            raise ValueError(f"p must be a probability in [0, 1], got {p!r}")
+        super().__init__(p=p)
+        self.profile = profile_to_dict(as_profile(profile))
+        self.darkening = _serializable_darkening(darkening)
+        self.round_to_8bit = bool(round_to_8bit)
+        self._profile = as_profile(self.profile)
+        self._darkening_choice = _darkening_choice(self.darkening)
+
+    def get_transform_init_args_names(self) -> tuple[str, ...]:
+        return ("profile", "darkening", "round_to_8bit")
+
+    def get_params(self) -> dict[str, Any]:
+        """The seed of this call's noise, from albumentations' generator (and the DataLoader worker's seed)."""
+        seed = int(self.random_generator.integers(0, _SEED_LIMIT))
+        worker_seed = dataloader_worker_seed()
+        if worker_seed is not None:
+            seed = mix_seed("albumentations", seed, "worker", worker_seed)
+        return {"seed": seed}
+
+    def _low_light(self, clean: torch.Tensor, seed: int) -> torch.Tensor:
+        result = low_light(
+            check_image(clean),
+            self._profile,
+            generator=torch.Generator().manual_seed(seed),
+            darkening=self._darkening_choice,
+            round_to_8bit=self.round_to_8bit,
+        )
+        assert isinstance(result.image, torch.Tensor)
+        return result.image
+
+    def apply(self, img: np.ndarray, seed: int, **params: Any) -> np.ndarray:
+        """The low-light version of one (H, W) or (H, W, C) image."""
+        if not isinstance(img, np.ndarray) or img.ndim not in (2, 3):
+            raise ValueError(f"image: expected an (H, W) or (H, W, C) array, got {_describe(img)}")
+        noisy = self._low_light(_hwc_to_tensor(img, "image"), seed)
+        return tensor_to_numpy(noisy.movedim(-3, -1)).reshape(img.shape)
+
+    def apply_to_images(self, images: np.ndarray, seed: int, **params: Any) -> np.ndarray:
+        """The low-light version of a clip (N, H, W) or (N, H, W, C): one parameter draw for all frames."""
+        if not isinstance(images, np.ndarray) or images.ndim not in (3, 4):
+            raise ValueError(f"images: expected an (N, H, W) or (N, H, W, C) array, got {_describe(images)}")
+        noisy = self._low_light(_hwc_to_tensor(images, "images"), seed)
+        return tensor_to_numpy(noisy.movedim(-3, -1)).reshape(images.shape)
+
+    def apply_to_volume(self, volume: np.ndarray, seed: int, **params: Any) -> np.ndarray:
+        return self.apply_to_images(volume, seed, **params)
+
+
+def _describe(value: object) -> str:
+    if isinstance(value, np.ndarray):
+        return f"shape {value.shape}"
+    return type(value).__name__
