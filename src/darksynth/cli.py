@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import os
 import secrets
 import sys
 from pathlib import Path
@@ -291,6 +292,7 @@ def train_command(
     """Train the DEN self-supervised on clean material: random crops, darkening, random v, f(v)."""
     from darksynth.models.den import DENConfig
     from darksynth.training.corpus import load_corpus
+    from darksynth.training.distributed import ranks_from_environment
     from darksynth.training.loop import TrainConfig, train
 
     if variant not in ("v2", "v3"):
@@ -298,6 +300,7 @@ def train_command(
     if model not in NOISE_MODELS:
         raise fail(f"--model must be {' or '.join(NOISE_MODELS)}, got {model!r}")
     try:
+        ranks = ranks_from_environment(os.environ)  # torchrun's WORLD_SIZE, RANK, LOCAL_RANK; none: one process
         config = TrainConfig(
             # The sRGB model learns levels on a log scale (docs/den.md); the paper's model as it was trained.
             model=DENConfig(
@@ -322,7 +325,8 @@ def train_command(
         )
         corpus = load_corpus(data, clips or [], minimum_side=crop)
         held = load_corpus(holdout, minimum_side=crop) if holdout else corpus
-        say(f"training on {len(corpus.images)} images and {len(corpus.clips)} clips; validating on {len(held)}")
+        if ranks.is_main:
+            say(f"training on {len(corpus.images)} images and {len(corpus.clips)} clips; validating on {len(held)}")
         with Progress(
             TextColumn("step"),
             BarColumn(),
@@ -330,6 +334,7 @@ def train_command(
             TextColumn("{task.description}"),
             TimeRemainingColumn(),
             console=console,
+            disable=not ranks.is_main,
         ) as progress:
             bar = progress.add_task("", total=steps)
 
@@ -338,10 +343,11 @@ def train_command(
                 if report is not None:
                     say(f"step {step}: validation R2 {report['r2']}", progress.console)
 
-            summary = train(corpus, held, config, out, resume=resume, progress=on_step)
+            summary = train(corpus, held, config, out, resume=resume, progress=on_step, ranks=ranks)
     except DarksynthError as error:
         raise fail(str(error)) from None
-    say(f"wrote {out} and {out.with_suffix('.json')} after {summary['steps']} steps")
+    if ranks.is_main:
+        say(f"wrote {out} and {out.with_suffix('.json')} after {summary['steps']} steps")
 
 
 @app.command("estimate")
@@ -360,7 +366,7 @@ def estimate_command(
             help="Shipped noise model without --weights: srgb (the paper's components plus sRGB structure, "
             "default) or paper (the paper's five components, white noise).",
         ),
-    ] = "paper",
+    ] = "srgb",
     device: Annotated[str, typer.Option(help="torch device.")] = "cpu",
 ) -> None:
     """Estimate a noise profile from one real low-light reference, zero-shot."""

@@ -20,6 +20,19 @@ from darksynth.noise.components import NoiseModel, model_parameters, vector_to_v
 from darksynth.noise.level import mean_noise_variance
 from darksynth.training.batches import TrainingBatch, synthesize_batch
 from darksynth.training.corpus import CleanCorpus, sample_clean_clips
+from darksynth.training.distributed import (
+    SINGLE_PROCESS,
+    Ranks,
+    all_agree,
+    all_gather_tensor,
+    all_state_digests,
+    generator_key,
+    per_process_batch,
+    process_group,
+    process_seed,
+    rank_device,
+    wrap_model,
+)
 from darksynth.training.weights import save_weights
 
 
@@ -144,24 +157,34 @@ def _save_checkpoint(
     path: Path,
     model: DEN,
     optimizer: torch.optim.Optimizer,
-    generator: torch.Generator,
+    generator_states: list[torch.Tensor],
     step: int,
     history: list[dict[str, Any]],
     config: TrainConfig,
 ) -> None:
+    """Write weights, Adam state and every process's data-generator state (in rank order); a checkpoint of a
+    multi-process run also records how many processes made it."""
     tensors = {f"model.{k}": v.detach().cpu().contiguous() for k, v in model.state_dict().items()}
     state = optimizer.state_dict()
     for index, values in state["state"].items():
         for key, value in values.items():
             tensors[f"optimizer.{index}.{key}"] = torch.as_tensor(value).detach().cpu().contiguous()
-    tensors["generator"] = generator.get_state()
+    for rank, generator_state in enumerate(generator_states):
+        tensors[generator_key(rank)] = generator_state
     metadata = {"step": str(step), "history": json.dumps(history), "config": json.dumps(config.to_dict())}
+    if len(generator_states) > 1:
+        metadata["processes"] = str(len(generator_states))
     with atomic_output(path) as temporary:
         save_file(tensors, str(temporary), metadata=metadata)
 
 
 def _load_checkpoint(
-    path: Path, model: DEN, optimizer: torch.optim.Optimizer, generator: torch.Generator, config: TrainConfig
+    path: Path,
+    model: DEN,
+    optimizer: torch.optim.Optimizer,
+    generator: torch.Generator,
+    config: TrainConfig,
+    ranks: Ranks = SINGLE_PROCESS,
 ) -> tuple[int, list[dict[str, Any]]]:
     from safetensors import safe_open
 
@@ -176,6 +199,12 @@ def _load_checkpoint(
     saved = json.loads(metadata.get("config", "{}"))
     if saved.get("model") != config.model.to_dict():
         raise DarksynthError(f"{path}: checkpoint of another model shape {saved.get('model')}")
+    processes = int(metadata.get("processes", "1"))
+    if processes != ranks.world_size:
+        # Each process resumes its own data stream: another count of processes cannot continue the same run.
+        raise DarksynthError(
+            f"{path}: checkpoint of a run on {processes} process(es); resume it on {processes}, not {ranks.world_size}"
+        )
     model.load_state_dict({k[6:]: v for k, v in tensors.items() if k.startswith("model.")})
     state = optimizer.state_dict()
     for index in range(len(state["param_groups"][0]["params"])):
@@ -183,7 +212,7 @@ def _load_checkpoint(
         if entries:
             state["state"][index] = entries
     optimizer.load_state_dict(state)
-    generator.set_state(tensors["generator"])
+    generator.set_state(tensors[generator_key(ranks.rank)])
     return int(metadata["step"]), json.loads(metadata.get("history", "[]"))
 
 
@@ -212,34 +241,71 @@ def train(
     *,
     resume: bool = False,
     progress: ProgressCallback | None = None,
+    ranks: Ranks = SINGLE_PROCESS,
 ) -> dict[str, Any]:
     """Train a DEN, validating and checkpointing every ``validate_every`` steps; write weights and config.
 
+    Under torchrun every process calls this with its ``ranks``
+    (:func:`darksynth.training.distributed.ranks_from_environment`): it joins the process group for the run and
+    leaves it at the end. The processes train one DistributedDataParallel network, each on ``batch / world_size``
+    clips per step drawn from its own generator; rank 0 calibrates the statistics (sent to the others), validates,
+    calls ``progress`` (with its own share's loss) and writes every file. See docs/den.md.
+
     Returns:
-        The final summary (validation figures, steps, seconds), also written to ``OUT.json``.
+        The final summary (validation figures, steps, seconds), also written to ``OUT.json``; the other processes
+        return theirs, without validation figures.
     """
+    device = rank_device(config.device, ranks)
+    batch_size = per_process_batch(config.batch, ranks)  # checked before joining: no process waits for another
+    with process_group(ranks, device):
+        return _train(corpus, holdout, config, out, device, batch_size, resume=resume, progress=progress, ranks=ranks)
+
+
+def _stop_unless_all_agree(failure: Exception | None) -> None:
+    """Raise on every process when any failed (a collective), so that none waits for a process that stopped."""
+    if all_agree(failure is None):
+        return
+    if failure is not None:
+        raise failure
+    raise DarksynthError("training stopped: another process failed (see its message)")
+
+
+def _train(
+    corpus: CleanCorpus,
+    holdout: CleanCorpus,
+    config: TrainConfig,
+    out: Path,
+    device: torch.device,
+    batch_size: int,
+    *,
+    resume: bool,
+    progress: ProgressCallback | None,
+    ranks: Ranks,
+) -> dict[str, Any]:
     torch.manual_seed(config.seed)  # weight initialisation only; all data draws use the explicit generator
-    device = torch.device(config.device)
     model = DEN(config.model).to(device)
     optimizer = torch.optim.Adam(model.parameters(), lr=config.learning_rate, betas=config.betas)
-    generator = torch.Generator().manual_seed(config.seed)
+    generator = torch.Generator().manual_seed(process_seed(config.seed, ranks))
     checkpoint = _checkpoint_path(out)
     step, history = 0, list[dict[str, Any]]()
     if resume:
-        step, history = _load_checkpoint(checkpoint, model, optimizer, generator, config)
-    else:
-        _calibrate_statistics(model, corpus, config, generator)
-    validation = validation_set(holdout, config)
-    single_frames = validation_set(holdout, config, frames=1)
+        step, history = _load_checkpoint(checkpoint, model, optimizer, generator, config, ranks)
+    elif ranks.is_main:
+        _calibrate_statistics(model, corpus, config, generator)  # the other processes receive rank 0's values
+    # A v3 decoder whose loss weight is 0 gets no gradient, which DistributedDataParallel must be told about.
+    unused = config.model.variant == "v3" and config.lambda_reconstruction <= 0
+    network = wrap_model(model, device, find_unused_parameters=unused)
+    validation = validation_set(holdout, config) if ranks.is_main else []
+    single_frames = validation_set(holdout, config, frames=1) if ranks.is_main else []
     started = time.perf_counter()
     model.train()
     while step < config.steps:
         frames = 1 if config.single_frame_every and step % config.single_frame_every == 1 else config.frames
         clean = sample_clean_clips(
-            corpus, config.batch, frames, config.crop, clip_fraction=config.clip_fraction, generator=generator
+            corpus, batch_size, frames, config.crop, clip_fraction=config.clip_fraction, generator=generator
         )
         batch = training_batch(clean, config, generator)
-        output = model(batch.noisy.to(device))
+        output = network(batch.noisy.to(device))
         loss = config.lambda_parameters * F.mse_loss(output.normalised, model.normalise(batch.vector.to(device)))
         if config.lambda_level > 0:
             loss = loss + config.lambda_level * level_loss(output.values, batch, model.noise_model, device)
@@ -251,11 +317,20 @@ def train(
         step += 1
         report = None
         if step % config.validate_every == 0 or step == config.steps:
-            report = {"step": step, "loss": loss.item(), **evaluate(model, validation, device)}
-            report["single_frame"] = evaluate(model, single_frames, device)
-            history.append(report)
-            _save_checkpoint(checkpoint, model, optimizer, generator, step, history, config)
-        if progress:
+            generator_states = all_gather_tensor(generator.get_state())
+            losses = all_gather_tensor(loss.detach().reshape(1))  # the whole batch's loss: the mean of the shares
+            failure = None
+            if ranks.is_main:
+                try:
+                    mean_loss = sum(float(x) for x in losses) / len(losses)
+                    report = {"step": step, "loss": mean_loss, **evaluate(model, validation, device)}
+                    report["single_frame"] = evaluate(model, single_frames, device)
+                    history.append(report)
+                    _save_checkpoint(checkpoint, model, optimizer, generator_states, step, history, config)
+                except Exception as error:
+                    failure = error
+            _stop_unless_all_agree(failure)
+        if progress and ranks.is_main:
             progress(step, loss.item(), report)
     seconds = time.perf_counter() - started
     summary = {
@@ -267,6 +342,18 @@ def train(
         "training_sources": len(corpus),
         "holdout_sources": holdout.sources,
     }
-    save_weights(out, model, training={"steps": step, "final_validation": summary["final_validation"]})
-    write_text_atomic(out.with_suffix(".json"), json.dumps(summary, indent=2) + "\n")
+    if ranks.distributed:
+        summary["processes"] = {
+            "count": ranks.world_size,
+            "batch_per_process": batch_size,
+            "state_digests": all_state_digests(model),
+        }
+    failure = None
+    if ranks.is_main:
+        try:
+            save_weights(out, model, training={"steps": step, "final_validation": summary["final_validation"]})
+            write_text_atomic(out.with_suffix(".json"), json.dumps(summary, indent=2) + "\n")
+        except Exception as error:
+            failure = error
+    _stop_unless_all_agree(failure)
     return summary

@@ -57,7 +57,7 @@ def load_weights(path: Path, *, device: torch.device | str = "cpu") -> DEN:
     return model.to(device).eval()
 
 
-def default_weights_path(variant: str = "v3", noise_model: str = "paper") -> Path:
+def default_weights_path(variant: str = "v3", noise_model: str = "srgb") -> Path:
     """The DEN shipped with the package: the ``srgb`` model (default) or the ``paper`` model, as the full v3
     (default) or, for the paper model, the v2 ablation (encoder and head only)."""
     data = Path(__file__).resolve().parent.parent / "data"

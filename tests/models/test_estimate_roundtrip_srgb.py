@@ -1,0 +1,75 @@
+"""Round trip through the shipped sRGB DEN: known structured noise on a drawn clean scene, estimated back.
+
+The sRGB model's own figures (docs/den.md) set what is asked: the overall level is its training target and is
+checked against the truth; each structure parameter is checked for direction and separation (off against on
+moves the estimate by a clear share of its training range), which is what its held-out R^2 supports.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+import torch
+
+from darksynth.darkening import Darkening
+from darksynth.estimate import estimate
+from darksynth.models.den import DEN
+from darksynth.noise.components import NOISE_PARAMETERS, noise_parameter
+from darksynth.synthesize import ClipParameters, ClipSynthesizer
+from darksynth.training.weights import default_weights_path, load_weights
+from tests.models.test_estimate_roundtrip import _clean_scene
+
+
+def _reference(noise: dict[str, tuple[float, ...]], frames: int, seed: int) -> torch.Tensor:
+    values = {p.name: noise.get(p.name, (p.neutral,) * p.size) for p in NOISE_PARAMETERS}
+    synthesizer = ClipSynthesizer(
+        ClipParameters(noise=values, darkening=Darkening(0.6, 0.8)), generator=torch.Generator().manual_seed(seed)
+    )
+    clean = _clean_scene(seed)
+    return torch.stack([synthesizer(clean) for _ in range(frames)]).float() / 255.0
+
+
+@pytest.fixture(scope="module")
+def model() -> DEN:
+    return load_weights(default_weights_path("v3", "srgb"))
+
+
+def _estimated(model: DEN, noise: dict[str, tuple[float, ...]], seed: int, frames: int = 1) -> dict[str, tuple]:
+    return dict(estimate(_reference(noise, frames, seed), model).profile.noise)
+
+
+def test_the_shipped_srgb_model_estimates_every_parameter(model: DEN) -> None:
+    assert model.noise_model == "srgb"
+    noise = _estimated(model, {"read": (0.02,)}, 0)
+    assert set(noise) == {p.name for p in NOISE_PARAMETERS}
+
+
+def test_read_level_is_recovered_under_structure(model: DEN) -> None:
+    structure = {"correlation_length": (0.9,), "channel_correlation": (0.4, 0.4, 0.5), "channel_gain": (1.2, 1.2)}
+    truths = [0.01, 0.02, 0.04, 0.08]
+    estimates = [_estimated(model, {"read": (read,), **structure}, seed)["read"][0] for seed, read in enumerate(truths)]
+    assert np.all(np.diff(estimates) > 0), estimates
+    assert np.allclose(estimates, truths, rtol=0.4), estimates
+
+
+@pytest.mark.parametrize(
+    ("name", "on"),
+    [
+        ("compression", (0.5,)),
+        ("correlation_length", (1.6,)),
+        ("channel_correlation", (0.6, 0.6, 0.6)),
+        pytest.param(
+            "channel_gain",
+            (1.8, 1.8),
+            # Known shortfall of the shipped model (held-out R^2 about 0 for the gains, docs/den.md): strict, so
+            # this turns red as soon as a retrained model recovers them, and the mark must then go.
+            marks=pytest.mark.xfail(strict=True, reason="the shipped sRGB DEN does not recover channel gains"),
+        ),
+    ],
+)
+def test_each_structure_parameter_moves_its_estimate(model: DEN, name: str, on: tuple[float, ...]) -> None:
+    base = {"read": (0.03,)}
+    off = np.mean(_estimated(model, base, 21)[name])
+    with_it = np.mean(_estimated(model, base | {name: on}, 21)[name])
+    low, high = noise_parameter(name).training_range
+    assert with_it - off > 0.3 * (high - low), (off, with_it)
