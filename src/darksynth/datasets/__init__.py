@@ -12,7 +12,9 @@ from darksynth.datasets.convert import (
     ConversionReport,
     ConvertOptions,
     Shard,
+    StartedConversion,
     carry_file,
+    conversion_options,
     convert_dataset,
     convert_item,
     fixed_darkening,
@@ -21,6 +23,7 @@ from darksynth.datasets.convert import (
     record_path,
     remove_stale_temps,
     shard_of,
+    start_conversion,
     write_manifest_if_complete,
 )
 from darksynth.datasets.formats import (
@@ -45,7 +48,9 @@ __all__ = [
     "MediaItem",
     "Problem",
     "Shard",
+    "StartedConversion",
     "carry_file",
+    "conversion_options",
     "convert_dataset",
     "convert_item",
     "fixed_darkening",
@@ -56,5 +61,6 @@ __all__ = [
     "remove_stale_temps",
     "rewrite_yolo_yaml",
     "shard_of",
+    "start_conversion",
     "write_manifest_if_complete",
 ]

@@ -49,7 +49,9 @@ __all__ = [
     "ConversionReport",
     "ConvertOptions",
     "Shard",
+    "StartedConversion",
     "carry_file",
+    "conversion_options",
     "convert_dataset",
     "convert_item",
     "fixed_darkening",
@@ -58,6 +60,7 @@ __all__ = [
     "record_path",
     "remove_stale_temps",
     "shard_of",
+    "start_conversion",
     "write_manifest_if_complete",
 ]
 
@@ -323,15 +326,10 @@ def convert_dataset(
             dataset, not writable, or written by a run with other options (without ``overwrite``).
     """
     started = time.perf_counter()
-    if format not in FORMATS:
-        raise DarksynthError(f"unknown dataset format {format!r}; use one of {', '.join(FORMATS)}")
-    if workers < 1:
-        raise DarksynthError(f"--workers must be at least 1, got {workers}")
-    check_output_location(dataset, output)
-    options = ConvertOptions(
-        dataset=dataset.resolve(),
-        output=output.resolve(),
-        profile=profile if isinstance(profile, Profile) else load_profile(profile),
+    options = conversion_options(
+        dataset,
+        output,
+        profile,
         format=format,
         seed=seed,
         jitter=jitter,
@@ -343,12 +341,100 @@ def convert_dataset(
         crf=crf,
         device=device,
     )
-    plan = plan_dataset(options.dataset, format, images_root=images_root)
+    run = start_conversion(options, on_failure)
+    plan, report, items, todo = run.plan, run.report, run.items, run.todo
+    finished = report.already_done
+    if on_progress:
+        on_progress(finished, len(items))
+    by_key = {i.key: i for i in todo}
+    apply_options = options.apply_options()
+    tasks = [i.task(options.dataset, options.output) for i in todo]
+    for task, result, error in execute(tasks, apply_options):
+        record = _record(by_key[task.key], result, error)
+        try:
+            _write_record(options.output, record)
+        except DarksynthError as write_error:
+            run.failed(str(write_error))
+        if error is not None:
+            run.failed(error)
+        else:
+            report.converted += 1
+        finished += 1
+        if on_progress:
+            on_progress(finished, len(items))
+
+    report.manifest, report.pending = write_manifest_if_complete(options, plan)
+    report.seconds = time.perf_counter() - started
+    return report
+
+
+def conversion_options(
+    dataset: Path,
+    output: Path,
+    profile: Profile | Path | str,
+    *,
+    format: DatasetFormat,
+    seed: int = 0,
+    jitter: bool = False,
+    workers: int = 1,
+    shard: Shard | None = None,
+    images_root: Path | None = None,
+    overwrite: bool = False,
+    codec: str | None = None,
+    crf: int | None = None,
+    device: str = "cpu",
+) -> ConvertOptions:
+    """Checked options of a run, with absolute paths and the profile loaded.
+
+    Raises:
+        DarksynthError: an unknown format, fewer than one worker, a bad profile, an output inside the dataset.
+    """
+    if format not in FORMATS:
+        raise DarksynthError(f"unknown dataset format {format!r}; use one of {', '.join(FORMATS)}")
+    if workers < 1:
+        raise DarksynthError(f"--workers must be at least 1, got {workers}")
+    check_output_location(dataset, output)
+    return ConvertOptions(
+        dataset=dataset.resolve(),
+        output=output.resolve(),
+        profile=profile if isinstance(profile, Profile) else load_profile(profile),
+        format=format,
+        seed=seed,
+        jitter=jitter,
+        workers=workers,
+        shard=shard,
+        images_root=images_root,
+        overwrite=overwrite,
+        codec=codec,
+        crf=crf,
+        device=device,
+    )
+
+
+@dataclass
+class StartedConversion:
+    """A run after :func:`start_conversion`: its plan, its report so far, its items and those still to do."""
+
+    plan: DatasetPlan
+    report: ConversionReport
+    items: list[MediaItem]
+    todo: list[MediaItem]
+    failed: Callable[[str], None]
+
+
+def start_conversion(options: ConvertOptions, on_failure: Callable[[str], None] | None = None) -> StartedConversion:
+    """Everything before the items are converted, the same whatever schedules them (processes here, Ray):
+    plan the dataset, claim the output, remove a killed run's temporary files, report bad inputs, carry the
+    annotation files over, and list this run's items that no earlier run finished.
+
+    Raises:
+        DarksynthError: the dataset cannot be planned or the output cannot be claimed (see :func:`prepare_output`).
+    """
+    plan = plan_dataset(options.dataset, options.format, images_root=options.images_root)
     prepare_output(options)
     owns = options.shard.owns if options.shard is not None else (lambda key: True)
     items = [i for i in plan.items if owns(i.key)]
     remove_stale_temps(options, plan, owns)
-
     report = ConversionReport(other_shards=len(plan.items) - len(items))
 
     def failed(message: str) -> None:
@@ -365,32 +451,9 @@ def convert_dataset(
                 report.carried += carry_file(options, carried)
             except DarksynthError as carry_error:
                 failed(str(carry_error))
-
     todo = [i for i in items if not is_done(options.output, i)]
     report.already_done = len(items) - len(todo)
-    finished = report.already_done
-    if on_progress:
-        on_progress(finished, len(items))
-    by_key = {i.key: i for i in todo}
-    apply_options = options.apply_options()
-    tasks = [i.task(options.dataset, options.output) for i in todo]
-    for task, result, error in execute(tasks, apply_options):
-        record = _record(by_key[task.key], result, error)
-        try:
-            _write_record(options.output, record)
-        except DarksynthError as write_error:
-            failed(str(write_error))
-        if error is not None:
-            failed(error)
-        else:
-            report.converted += 1
-        finished += 1
-        if on_progress:
-            on_progress(finished, len(items))
-
-    report.manifest, report.pending = write_manifest_if_complete(options, plan)
-    report.seconds = time.perf_counter() - started
-    return report
+    return StartedConversion(plan, report, items, todo, failed)
 
 
 def prepare_output(options: ConvertOptions) -> None:

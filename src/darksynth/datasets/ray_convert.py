@@ -13,6 +13,7 @@ sees (NFS, Lustre, a mounted bucket); nothing is sent back to the driver but a o
 from __future__ import annotations
 
 import functools
+import time
 from collections.abc import Callable
 from pathlib import Path
 from typing import Any
@@ -20,17 +21,14 @@ from typing import Any
 from darksynth.datasets.convert import (
     ConversionReport,
     ConvertOptions,
-    carry_file,
+    conversion_options,
     convert_item,
-    is_done,
-    prepare_output,
-    remove_stale_temps,
+    start_conversion,
     write_manifest_if_complete,
 )
-from darksynth.datasets.formats import FORMATS, DatasetFormat, plan_dataset
+from darksynth.datasets.formats import DatasetFormat
 from darksynth.errors import DarksynthError
-from darksynth.io.discover import check_output_location
-from darksynth.profile import Profile, load_profile
+from darksynth.profile import Profile
 
 
 def _convert_row(row: dict[str, Any], options: ConvertOptions) -> dict[str, Any]:
@@ -71,21 +69,16 @@ def convert_dataset_with_ray(
     Raises:
         DarksynthError: the run cannot start (as for ``convert_dataset``), or ray is not installed.
     """
-    import time
-
     try:
         import ray
         import ray.data
     except ImportError:
         raise DarksynthError("the Ray path needs ray: pip install 'darksynth[ray]'") from None
     started = time.perf_counter()
-    if format not in FORMATS:
-        raise DarksynthError(f"unknown dataset format {format!r}; use one of {', '.join(FORMATS)}")
-    check_output_location(dataset, output)
-    options = ConvertOptions(
-        dataset=dataset.resolve(),
-        output=output.resolve(),
-        profile=profile if isinstance(profile, Profile) else load_profile(profile),
+    options = conversion_options(
+        dataset,
+        output,
+        profile,
         format=format,
         seed=seed,
         jitter=jitter,
@@ -94,25 +87,8 @@ def convert_dataset_with_ray(
         codec=codec,
         crf=crf,
     )
-    plan = plan_dataset(options.dataset, format, images_root=images_root)
-    prepare_output(options)
-    remove_stale_temps(options, plan, lambda key: True)
-    report = ConversionReport()
-
-    def failed(message: str) -> None:
-        report.failures.append(message)
-        if on_failure:
-            on_failure(message)
-
-    for problem in plan.problems:
-        failed(problem.message)
-    for carried in plan.carried:
-        try:
-            report.carried += carry_file(options, carried)
-        except DarksynthError as error:
-            failed(str(error))
-    todo = [item for item in plan.items if not is_done(options.output, item)]
-    report.already_done = len(plan.items) - len(todo)
+    run = start_conversion(options, on_failure)
+    report, todo = run.report, run.todo
     if todo:
         if not ray.is_initialized():
             ray.init()
@@ -123,7 +99,7 @@ def convert_dataset_with_ray(
             if result["status"] == "done":
                 report.converted += 1
             else:
-                failed(str(result["error"]))
-    report.manifest, report.pending = write_manifest_if_complete(options, plan)
+                run.failed(str(result["error"]))
+    report.manifest, report.pending = write_manifest_if_complete(options, run.plan)
     report.seconds = time.perf_counter() - started
     return report
