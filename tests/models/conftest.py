@@ -41,6 +41,15 @@ def write_png(path: Path, pixels: np.ndarray) -> Path:
     return path
 
 
+def write_tiny_corpus(root: Path) -> Path:
+    """The training tests' corpus: two 96x96 stills in ``stills/`` and a 3-frame clip in ``clips/pan/``."""
+    for index in range(2):
+        write_png(root / "stills" / f"still_{index}.png", smooth_rgb(96, 96, phase=7 * index))
+    for index in range(3):
+        write_png(root / "clips" / "pan" / f"{index:02d}.png", smooth_rgb(96, 96, phase=2 * index))
+    return root
+
+
 @pytest.fixture
 def image_folder(tmp_path: Path) -> Path:
     """Three 96x96 stills."""

@@ -89,14 +89,9 @@ def _load(root: Path) -> CleanCorpus:
 
 @pytest.fixture(scope="module")
 def corpus_root(tmp_path_factory: pytest.TempPathFactory) -> Path:
-    from tests.models.conftest import smooth_rgb, write_png
+    from tests.models.conftest import write_tiny_corpus
 
-    root = tmp_path_factory.mktemp("corpus")
-    for index in range(2):
-        write_png(root / "stills" / f"still_{index}.png", smooth_rgb(96, 96, phase=7 * index))
-    for index in range(3):
-        write_png(root / "clips" / "pan" / f"{index:02d}.png", smooth_rgb(96, 96, phase=2 * index))
-    return root
+    return write_tiny_corpus(tmp_path_factory.mktemp("corpus"))
 
 
 @pytest.fixture(scope="module")

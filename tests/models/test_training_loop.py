@@ -15,7 +15,7 @@ from darksynth.models.den import DENConfig
 from darksynth.training.corpus import CleanCorpus, load_corpus
 from darksynth.training.loop import TrainConfig, level_loss, r_squared, train, training_batch, vector_names
 from darksynth.training.weights import load_weights
-from tests.models.conftest import smooth_rgb, write_png
+from tests.models.conftest import write_tiny_corpus
 
 CONFIG = TrainConfig(
     model=DENConfig(width=4, depth=1),
@@ -30,11 +30,7 @@ CONFIG = TrainConfig(
 
 @pytest.fixture(scope="module")
 def corpus(tmp_path_factory: pytest.TempPathFactory) -> CleanCorpus:
-    root = tmp_path_factory.mktemp("corpus")
-    for index in range(2):
-        write_png(root / "stills" / f"still_{index}.png", smooth_rgb(96, 96, phase=7 * index))
-    for index in range(3):
-        write_png(root / "clips" / "pan" / f"{index:02d}.png", smooth_rgb(96, 96, phase=2 * index))
+    root = write_tiny_corpus(tmp_path_factory.mktemp("corpus"))
     return load_corpus([root / "stills"], [root / "clips"])
 
 
