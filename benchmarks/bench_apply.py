@@ -17,18 +17,21 @@ import numpy as np
 import torch
 
 from darksynth.darkening import Darkening
+from darksynth.noise.values import NoiseValues
 from darksynth.synthesize import ClipParameters, ClipSynthesizer
 
 HEIGHT, WIDTH = 1080, 1920
 ALL_COMPONENTS = ClipParameters(
-    noise={
-        "shot": (0.06,),
-        "read": (0.012,),
-        "quantization": (0.004,),
-        "banding": (0.004,),
-        "temporal_banding": (0.003,),
-        "periodic": (0.002, 0.002, 0.002),
-    },
+    noise=NoiseValues.from_values(
+        {
+            "shot": 0.06,
+            "read": 0.012,
+            "quantization": 0.004,
+            "banding": 0.004,
+            "temporal_banding": 0.003,
+            "periodic": 0.002,
+        }
+    ),
     darkening=Darkening(alpha=0.2, gamma=0.7),
 )
 

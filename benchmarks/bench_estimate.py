@@ -24,6 +24,7 @@ import torch
 from darksynth.darkening import Darkening
 from darksynth.io.arrays import hwc_to_chw
 from darksynth.io.video import VideoWriter
+from darksynth.noise.values import NoiseValues
 from darksynth.synthesize import ClipParameters, ClipSynthesizer
 
 HEIGHT, WIDTH, FRAMES = 1080, 1920, 16
@@ -33,14 +34,16 @@ def make_reference(path: Path) -> None:
     rng = np.random.default_rng(0)
     ramp = np.linspace(0, 255, WIDTH, dtype=np.float32)[None, :, None]
     parameters = ClipParameters(
-        noise={
-            "shot": (0.08,),
-            "read": (0.02,),
-            "quantization": (0.005,),
-            "banding": (0.01,),
-            "temporal_banding": (0.01,),
-            "periodic": (0.005, 0.005, 0.005),
-        },
+        noise=NoiseValues.from_values(
+            {
+                "shot": 0.08,
+                "read": 0.02,
+                "quantization": 0.005,
+                "banding": 0.01,
+                "temporal_banding": 0.01,
+                "periodic": 0.005,
+            }
+        ),
         darkening=Darkening(alpha=0.2, gamma=0.6),
     )
     synthesizer = ClipSynthesizer(parameters, generator=torch.Generator().manual_seed(0))

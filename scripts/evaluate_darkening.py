@@ -30,7 +30,7 @@ from darksynth.darkening_estimate import (
 )
 from darksynth.errors import DarksynthError
 from darksynth.estimate import load_reference
-from darksynth.noise.components import noise_parameter
+from darksynth.noise.components import model_parameters
 from darksynth.noise.sampling import random_noise_values
 from darksynth.noise.simulate import add_noise
 
@@ -90,11 +90,8 @@ def evaluate(
         for _ in range(draws):
             alpha = float(torch.empty(()).uniform_(*ALPHA_RANGE, generator=generator))
             gamma = float(torch.empty(()).uniform_(*GAMMA_RANGE, generator=generator))
-            values = {
-                k: v * noise_scale
-                for k, v in random_noise_values(generator=generator, model="paper").items()
-                if noise_parameter(k).model == "paper"
-            }
+            drawn = random_noise_values(generator=generator, model="paper")
+            values = drawn.replace(**{p.name: drawn[p.name] * noise_scale for p in model_parameters("paper")})
             noisy = add_noise(darken(clean, alpha, gamma)[None], values, generator=generator)[0]
             noisy = (noisy * 255).round() / 255
             true = Darkening(alpha, gamma)

@@ -25,8 +25,9 @@ import torch
 from darksynth.apply import ApplyOptions, apply
 from darksynth.darkening import Darkening
 from darksynth.estimate import estimate, load_reference
-from darksynth.noise.components import NoiseModel, model_parameters
+from darksynth.noise.components import NoiseModel
 from darksynth.noise.sampling import random_darkening_values, random_noise_values
+from darksynth.noise.values import NoiseValues
 from darksynth.profile import Profile
 from darksynth.training.loop import r_squared, vector_names
 from darksynth.training.weights import default_weights_path, load_weights
@@ -37,13 +38,13 @@ def draw_profile(generator: torch.Generator, model: NoiseModel) -> Profile:
     noise = random_noise_values(generator=generator, dtype=torch.float64, model=model)
     alpha, gamma = random_darkening_values(generator=generator)
     return Profile(
-        noise={name: tuple(float(v) for v in values) for name, values in noise.items()},
+        noise=NoiseValues.from_values(noise),
         darkening=Darkening(float(alpha), float(gamma)),
     )
 
 
 def vector(profile: Profile, model: NoiseModel) -> list[float]:
-    return [v for p in model_parameters(model) for v in profile.noise[p.name]]
+    return [float(v) for v in profile.noise.vector(model)]
 
 
 def main() -> int:

@@ -26,6 +26,7 @@ from darksynth.darkening import darken
 from darksynth.io.images import read_image
 from darksynth.noise.sampling import random_darkening_values, random_noise_values
 from darksynth.noise.simulate import add_noise
+from darksynth.noise.values import NoiseValues
 from darksynth.training.loop import r_squared
 
 HALF_LEVEL = 0.5 / 255.0
@@ -71,7 +72,7 @@ def main() -> int:
         values = random_noise_values(generator=generator, dtype=torch.float64, model="paper")
         alpha, gamma = random_darkening_values(generator=generator)
         dark = darken(clean, float(alpha), float(gamma))
-        pixel_only = {k: v if k in ("shot", "read") else torch.zeros_like(v) for k, v in values.items()}
+        pixel_only = NoiseValues.from_values({"shot": values["shot"], "read": values["read"]}, dtype=torch.float64)
         noisy = (add_noise(dark, pixel_only, generator=generator) * 255.0).round() / 255.0
         sample = torch.randperm(dark.numel(), generator=generator)[: args.pixels]
         fitted.append(censored_fit(dark.flatten()[sample], noisy.flatten()[sample]))

@@ -20,9 +20,9 @@ import torch
 from darksynth.estimate import estimate
 from darksynth.io.arrays import hwc_to_chw, to_8bit_levels
 from darksynth.io.images import read_image
-from darksynth.noise.components import NOISE_PARAMETERS
 from darksynth.noise.level import mean_noise_variance
 from darksynth.noise.simulate import add_noise
+from darksynth.noise.values import NoiseValues
 from darksynth.training.weights import default_weights_path, load_weights
 
 SETTINGS: tuple[dict[str, float | tuple[float, ...]], ...] = (
@@ -35,12 +35,8 @@ SETTINGS: tuple[dict[str, float | tuple[float, ...]], ...] = (
 )  # fmt: skip
 
 
-def _values(setting: dict[str, float | tuple[float, ...]]) -> dict[str, torch.Tensor]:
-    values = {}
-    for p in NOISE_PARAMETERS:
-        value = setting.get(p.name, (p.neutral,) * p.size)
-        values[p.name] = torch.tensor(value if isinstance(value, tuple) else (value,)).float().reshape(1, p.size)
-    return values
+def _values(setting: dict[str, float | tuple[float, ...]]) -> NoiseValues:
+    return NoiseValues.from_values(setting, batch_shape=(1,), dtype=torch.float32)
 
 
 def main() -> int:
@@ -61,7 +57,7 @@ def main() -> int:
             noisy = to_8bit_levels(add_noise(clean, _values(setting), generator=generator))
             true_std = float((noisy - clean).std())
             estimated = estimate(noisy[0], model).profile.noise
-            values = {name: torch.tensor(v).float().reshape(1, -1) for name, v in estimated.items()}
+            values = estimated.map(lambda t: t[None]).to(dtype=torch.float32)
             ratios.append(float(mean_noise_variance(values, clean).sqrt()) / true_std)
         listed = " ".join(f"{r:.2f}" for r in ratios)
         print(f"{setting}: estimated / true std {listed} (median {np.median(ratios):.2f})")

@@ -28,8 +28,8 @@ import torch
 
 from darksynth.estimate import estimate, load_reference
 from darksynth.io.images import read_image
-from darksynth.noise.components import NOISE_PARAMETERS
 from darksynth.noise.simulate import add_noise
+from darksynth.noise.values import NoiseValues
 from darksynth.profile import Profile
 from darksynth.synthesize import synthesize
 from darksynth.training.weights import default_weights_path, load_weights
@@ -50,10 +50,10 @@ STEPS: tuple[tuple[str, dict[str, list[float]]], ...] = (
 
 
 def component_panels() -> list[tuple[str, np.ndarray]]:
-    values = {p.name: torch.full((p.size,), p.neutral) for p in NOISE_PARAMETERS}
+    values = NoiseValues.neutral(dtype=torch.float32)
     panels = []
     for title, change in STEPS:
-        values.update({name: torch.tensor(v) for name, v in change.items()})
+        values = values.replace(**change)
         signal = torch.full((1, 3, CROP, CROP), 0.3)
         noisy = add_noise(signal, values, generator=torch.Generator().manual_seed(0))[0]
         shown = (0.5 + GAIN * (noisy - 0.3)).clamp(0, 1)

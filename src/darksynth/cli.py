@@ -397,7 +397,7 @@ def estimate_command(
         save_profile(out, result.profile)
     except OSError as error:
         raise fail(f"{out}: {error.strerror or error}") from None
-    say(f"wrote {out} from {len(result.per_crop)} crops")
+    say(f"wrote {out} from {result.per_crop.batch_shape[0]} crops")
 
 
 def parse_weights(entries: list[str]) -> dict[str, Path]:

@@ -25,7 +25,8 @@ from darksynth.io.discover import classify_input, scan_folder
 from darksynth.io.images import read_image
 from darksynth.io.video import iter_video_frames
 from darksynth.models.den import DEN
-from darksynth.noise.components import NOISE_PARAMETERS, model_parameters, vector_to_values
+from darksynth.noise.components import model_parameters
+from darksynth.noise.values import NoiseValues
 from darksynth.profile import Profile
 
 CROP = 128
@@ -49,7 +50,8 @@ class Estimate:
     """A profile and what was learned on the way: per-crop values and warnings."""
 
     profile: Profile
-    per_crop: np.ndarray  # (N, vector_size(model)): the estimating model's v per crop
+    per_crop: NoiseValues
+    """The network's estimate for each crop, batched (N,)."""
     warnings: list[str] = field(default_factory=list)
 
 
@@ -147,23 +149,18 @@ def estimate(
     """Estimate a noise profile from reference frames (T, 3, H, W) in [0, 1]."""
     crops = crop_grid(reference)
     model = model.to(device).eval()
-    values = torch.cat([model(crops[i : i + batch].to(device)).values.cpu() for i in range(0, len(crops), batch)])
+    per_crop = NoiseValues.stack(
+        [model(crops[i : i + batch].to(device)).values.to("cpu") for i in range(0, len(crops), batch)]
+    ).to(dtype=torch.float64)
     # quantile(0.5) averages the two middle crops of an even count, where Tensor.median takes the lower one.
-    median = torch.quantile(values, 0.5, dim=0)
-    low = torch.quantile(values, 0.1, dim=0)
-    high = torch.quantile(values, 0.9, dim=0)
+    noise = per_crop.map(lambda t: torch.quantile(t, 0.5, dim=0))
+    low = per_crop.map(lambda t: torch.quantile(t, 0.1, dim=0))
+    high = per_crop.map(lambda t: torch.quantile(t, 0.9, dim=0))
     noise_model = model.noise_model
-    estimated = model_parameters(noise_model)
-    named = vector_to_values(median, noise_model)
-    named_low, named_high = vector_to_values(low, noise_model), vector_to_values(high, noise_model)
-    # What the model does not estimate (the sRGB structure, for the paper's model) is neutral: white noise.
-    noise = {
-        p.name: tuple(float(v) for v in named[p.name]) if p.name in named else (p.neutral,) * p.size
-        for p in NOISE_PARAMETERS
-    }
+    # What the network does not estimate (the sRGB structure, for the paper's model) stays neutral, without a range.
     ranges = {
-        p.name: tuple((float(a), float(b)) for a, b in zip(named_low[p.name], named_high[p.name], strict=True))
-        for p in estimated
+        p.name: tuple(zip(low[p.name].tolist(), high[p.name].tolist(), strict=True))
+        for p in model_parameters(noise_model)
     }
     warnings = []
     level = float(reference.mean())
@@ -172,7 +169,7 @@ def estimate(
             f"{source or 'reference'}: mean level {level:.2f} is bright for a low-light reference; "
             "the estimate may be unreliable"
         )
-    if noise["shot"][0] < 0.005 and noise["read"][0] < 0.003:
+    if noise.scalar("shot") < 0.005 and noise.scalar("read") < 0.003:
         warnings.append(f"{source or 'reference'}: nearly noise-free; the profile will add almost no noise")
     meta: dict[str, Any] = {
         "source": source,
@@ -186,7 +183,7 @@ def estimate(
         meta["note"] = "single image: temporal banding cannot be told from banding and is a prior, not a measurement"
     darkening = _estimate_darkening(reference, source or "reference", ranges, meta, warnings)
     profile = Profile(noise=noise, darkening=darkening, ranges=ranges, meta=meta)
-    return Estimate(profile=profile, per_crop=values.numpy(), warnings=warnings)
+    return Estimate(profile=profile, per_crop=per_crop, warnings=warnings)
 
 
 DARKENING_FRAMES = 3

@@ -10,31 +10,37 @@
  "meta": {...}}                                optional: free-form provenance, carried but not read
 ```
 
-The fields of ``noise`` come from :data:`darksynth.noise.components.NOISE_PARAMETERS`; nothing here names a
-component, so a new one needs no change in this module. Values are on the [0, 1] intensity scale.
+The fields of ``noise`` come from the parameter table (:func:`darksynth.noise.components.noise_parameters`):
+the schema (:func:`profile_schema`, a pydantic model) is built from it, each field declaring its bounds, unit
+and the profile version it arrived in; nothing here names a component, so a new one needs no change in this
+module. Values are on the [0, 1] intensity scale.
 
-Versions: 1 has the paper's parameters only (all required). 2 adds the sRGB model's (``model="srgb"`` in the
-table), each optional and neutral when absent, so a version-1 document is read as the same noise. Profiles
-are always written as version 2.
+Versions: a parameter that arrived in version 1 (the paper's) is required; one that arrived later (the sRGB
+model's, version 2) is optional and neutral when absent, and refused in a document of an older version, so a
+version-1 document is read as the same noise. Profiles are written with the newest version of the table.
 """
 
 from __future__ import annotations
 
+import functools
 import json
 import math
-from collections.abc import Mapping
+from collections.abc import Callable, Mapping
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Any
+from typing import Annotated, Any
+
+import pydantic
+from pydantic import BaseModel, BeforeValidator, ConfigDict, WithJsonSchema
+from pydantic_core import PydanticCustomError
 
 from darksynth.darkening import Darkening
 from darksynth.errors import ProfileError
 from darksynth.io.atomic import write_text_atomic
-from darksynth.noise.components import NOISE_PARAMETER_NAMES, NOISE_PARAMETERS, Parameter
+from darksynth.noise.components import NoiseComponent, Parameter, noise_components, noise_parameters, profile_version
+from darksynth.noise.values import NoiseValues
 
 PROFILE_FORMAT = "darksynth-profile"
-PROFILE_VERSION = 2
-READABLE_VERSIONS = (1, 2)
 
 DARKENING_LIMITS: dict[str, tuple[float, float]] = {"alpha": (0.0, 1.0), "gamma": (0.0, 10.0)}
 """Valid (exclusive low, inclusive high) bounds of the darkening parameters."""
@@ -47,32 +53,44 @@ class Profile:
     """A validated noise profile.
 
     Attributes:
-        noise: every noise parameter by name, each a tuple of its values (one for a scalar).
+        noise: every noise parameter's values (unbatched; neutral where the document has none).
         darkening: the darkening to apply, or None to let the caller choose.
         ranges: for some parameters (noise names, ``alpha``, ``gamma``), one (low, high) interval per value;
             those parameters are drawn uniformly within it for each image or clip instead of being fixed.
         meta: free-form provenance (reference file, estimator version), carried through unchanged.
     """
 
-    noise: Mapping[str, tuple[float, ...]]
+    noise: NoiseValues
     darkening: Darkening | None = None
     ranges: Mapping[str, tuple[Range, ...]] = field(default_factory=dict)
     meta: Mapping[str, Any] = field(default_factory=dict)
 
 
+def readable_versions() -> tuple[int, ...]:
+    """The profile versions this darksynth reads: 1 up to the one it writes."""
+    return tuple(range(1, profile_version() + 1))
+
+
+# --- checks that name the field, the bound and the value -----------------------------------------------------
+
+
+def _fail(message: str) -> PydanticCustomError:
+    return PydanticCustomError("darksynth", "{message}", {"message": message})
+
+
 def _number(value: Any, where: str) -> float:
     if isinstance(value, bool) or not isinstance(value, int | float):
-        raise ProfileError(f"{where} must be a number, got {value!r}")
+        raise _fail(f"{where} must be a number, got {value!r}")
     number = float(value)
     if not math.isfinite(number):
-        raise ProfileError(f"{where} must be finite, got {value!r}")
+        raise _fail(f"{where} must be finite, got {value!r}")
     return number
 
 
 def _noise_value(value: Any, where: str, parameter: Parameter) -> float:
     number = _number(value, where)
     if not parameter.minimum <= number <= parameter.maximum:
-        raise ProfileError(
+        raise _fail(
             f"{where} must lie in [{parameter.minimum:g}, {parameter.maximum:g}] ({parameter.unit}), got {value!r}"
         )
     return number
@@ -82,36 +100,40 @@ def _darkening_value(value: Any, where: str, name: str) -> float:
     number = _number(value, where)
     low, high = DARKENING_LIMITS[name]
     if not low < number <= high:
-        raise ProfileError(f"{where} must lie in ({low:g}, {high:g}], got {value!r}")
+        raise _fail(f"{where} must lie in ({low:g}, {high:g}], got {value!r}")
     return number
+
+
+def _darkening_ranged(value: Any, where: str, *, name: str) -> float:
+    return _darkening_value(value, where, name)
 
 
 def _values(raw: Any, where: str, parameter: Parameter) -> tuple[float, ...]:
     if parameter.size == 1:
         return (_noise_value(raw, where, parameter),)
     if not isinstance(raw, list) or len(raw) != parameter.size:
-        raise ProfileError(f"{where} must be a list of {parameter.size} numbers, got {raw!r}")
+        raise _fail(f"{where} must be a list of {parameter.size} numbers, got {raw!r}")
     return tuple(_noise_value(item, f"{where}[{i}]", parameter) for i, item in enumerate(raw))
 
 
-def _interval(raw: Any, where: str, check: Any) -> Range:
+def _interval(raw: Any, where: str, check: Callable[[Any, str], float]) -> Range:
     if not isinstance(raw, list) or len(raw) != 2:
-        raise ProfileError(f"{where} must be a [low, high] pair, got {raw!r}")
+        raise _fail(f"{where} must be a [low, high] pair, got {raw!r}")
     low, high = check(raw[0], f"{where}[0]"), check(raw[1], f"{where}[1]")
     if low > high:
-        raise ProfileError(f"{where} has low > high: {raw!r}")
+        raise _fail(f"{where} has low > high: {raw!r}")
     return (low, high)
 
 
-def _ranges(raw: Any, where: str) -> dict[str, tuple[Range, ...]]:
+def _ranges(raw: Any) -> dict[str, tuple[Range, ...]]:
     if not isinstance(raw, dict):
-        raise ProfileError(f"{where} must be an object, got {raw!r}")
-    parameters = {p.name: p for p in NOISE_PARAMETERS}
+        raise _fail(f"ranges must be an object, got {raw!r}")
+    parameters = {p.name: p for p in noise_parameters()}
     ranges: dict[str, tuple[Range, ...]] = {}
     for name, entry in raw.items():
-        key = f"{where}.{name}"
+        key = f"ranges.{name}"
         if name in DARKENING_LIMITS:
-            ranges[name] = (_interval(entry, key, lambda v, w, n=name: _darkening_value(v, w, n)),)
+            ranges[name] = (_interval(entry, key, functools.partial(_darkening_ranged, name=name)),)
         elif name in parameters:
             parameter = parameters[name]
 
@@ -121,14 +143,133 @@ def _ranges(raw: Any, where: str) -> dict[str, tuple[Range, ...]]:
             # A vector parameter takes one pair per value, or one pair shared by all of them.
             if parameter.size > 1 and isinstance(entry, list) and entry and isinstance(entry[0], list):
                 if len(entry) != parameter.size:
-                    raise ProfileError(f"{key} must hold {parameter.size} [low, high] pairs, got {entry!r}")
+                    raise _fail(f"{key} must hold {parameter.size} [low, high] pairs, got {entry!r}")
                 ranges[name] = tuple(_interval(item, f"{key}[{i}]", check) for i, item in enumerate(entry))
             else:
                 ranges[name] = (_interval(entry, key, check),) * parameter.size
         else:
-            known = ", ".join((*NOISE_PARAMETER_NAMES, *DARKENING_LIMITS))
-            raise ProfileError(f"{key} is not a parameter; known: {known}")
+            known = ", ".join((*parameters, *DARKENING_LIMITS))
+            raise _fail(f"{key} is not a parameter; known: {known}")
     return ranges
+
+
+def _darkening(raw: Any) -> Darkening | None:
+    if raw is None:
+        return None
+    if not isinstance(raw, dict) or set(raw) != set(DARKENING_LIMITS):
+        raise _fail(f"darkening must be an object with alpha and gamma, got {raw!r}")
+    return Darkening(
+        alpha=_darkening_value(raw["alpha"], "darkening.alpha", "alpha"),
+        gamma=_darkening_value(raw["gamma"], "darkening.gamma", "gamma"),
+    )
+
+
+def _version(raw: Any) -> int:
+    if isinstance(raw, bool) or raw not in readable_versions():
+        readable = " and ".join(str(v) for v in readable_versions())
+        raise _fail(f"unsupported version {raw!r}; this darksynth reads versions {readable}")
+    return int(raw)
+
+
+def _format(raw: Any) -> str:
+    if raw != PROFILE_FORMAT:
+        raise _fail(f"format must be {PROFILE_FORMAT!r}, got {raw!r}")
+    return PROFILE_FORMAT
+
+
+def _meta(raw: Any) -> dict[str, Any]:
+    if not isinstance(raw, dict):
+        raise _fail(f"meta must be an object, got {raw!r}")
+    return raw
+
+
+# --- the schema, built from the parameter table --------------------------------------------------------------
+
+
+def _number_schema(parameter: Parameter) -> dict[str, Any]:
+    number = {"type": "number", "minimum": parameter.minimum, "maximum": parameter.maximum}
+    schema: dict[str, Any] = (
+        number
+        if parameter.size == 1
+        else {"type": "array", "items": number, "minItems": parameter.size, "maxItems": parameter.size}
+    )
+    return schema | {"description": parameter.unit, "since_version": parameter.since_version}
+
+
+def _noise_field(parameter: Parameter) -> tuple[Any, Any]:
+    def check(raw: Any) -> tuple[float, ...]:
+        return _values(raw, f"noise.{parameter.name}", parameter)
+
+    annotated = Annotated[tuple[float, ...], BeforeValidator(check), WithJsonSchema(_number_schema(parameter))]
+    if parameter.since_version == 1:
+        return (annotated, pydantic.Field(json_schema_extra={"since_version": 1}))
+    return (
+        annotated | None,
+        pydantic.Field(default=None, json_schema_extra={"since_version": parameter.since_version}),
+    )
+
+
+_DARKENING_SCHEMA = {
+    "type": "object",
+    "properties": {
+        name: {"type": "number", "exclusiveMinimum": low, "maximum": high}
+        for name, (low, high) in DARKENING_LIMITS.items()
+    },
+}
+
+
+class _ProfileDocument(BaseModel):
+    """The fields of a profile document that do not depend on the table; ``noise`` is added per table."""
+
+    model_config = ConfigDict(extra="forbid", frozen=True)
+
+    format: Annotated[str, BeforeValidator(_format), WithJsonSchema({"const": PROFILE_FORMAT})]
+    version: Annotated[int, BeforeValidator(_version), WithJsonSchema({"type": "integer", "minimum": 1})]
+    darkening: Annotated[Darkening | None, BeforeValidator(_darkening), WithJsonSchema(_DARKENING_SCHEMA)] = None
+    ranges: Annotated[dict[str, tuple[Range, ...]], BeforeValidator(_ranges), WithJsonSchema({"type": "object"})] = (
+        pydantic.Field(default_factory=dict)
+    )
+    meta: Annotated[dict[str, Any], BeforeValidator(_meta), WithJsonSchema({"type": "object"})] = pydantic.Field(
+        default_factory=dict
+    )
+
+
+@functools.cache
+def _schema_for(components: tuple[NoiseComponent, ...]) -> type[_ProfileDocument]:
+    parameters = tuple(p for c in components for p in c.parameters)
+    fields: dict[str, Any] = {p.name: _noise_field(p) for p in parameters}
+    noise: type[BaseModel] = pydantic.create_model(
+        "NoiseSection", __config__=ConfigDict(extra="forbid", frozen=True), **fields
+    )
+    document: type[_ProfileDocument] = pydantic.create_model(
+        "ProfileDocument", __base__=_ProfileDocument, noise=(noise, ...)
+    )
+    return document
+
+
+def profile_schema() -> type[_ProfileDocument]:
+    """The pydantic model of a profile document, built from the parameter table as it is now;
+    ``profile_schema().model_json_schema()`` is its JSON Schema (each noise field with its ``since_version``)."""
+    return _schema_for(noise_components())
+
+
+def _error_message(error: Mapping[str, Any]) -> str:
+    where = ".".join(str(part) for part in error["loc"])
+    kind = error["type"]
+    if kind == "darksynth":
+        return str(error["ctx"]["message"])
+    if kind == "missing":
+        return f"{where} is missing"
+    if kind == "extra_forbidden":
+        if len(error["loc"]) == 1:
+            known = ", ".join(profile_schema().model_fields)
+            return f"unknown field {error['loc'][0]!r}; a profile has {known}"
+        known = ", ".join(p.name for p in noise_parameters())
+        return f"{where} is not a noise parameter; known: {known}"
+    if where == "noise":
+        known = ", ".join(p.name for p in noise_parameters())
+        return f"noise must be an object with {known}, got {error['input']!r}"
+    return f"{where}: {error['msg']}, got {error['input']!r}"
 
 
 def parse_profile(document: Any, *, source: str = "profile") -> Profile:
@@ -139,61 +280,31 @@ def parse_profile(document: Any, *, source: str = "profile") -> Profile:
         source: the file name or label that error messages start with.
 
     Raises:
-        ProfileError: naming the field and the offending value.
+        ProfileError: naming the field, the bound and the offending value.
     """
     if not isinstance(document, dict):
         raise ProfileError(f"{source}: a profile must be a JSON object, got {type(document).__name__}")
     try:
-        return _parse(document)
-    except ProfileError as error:
-        raise ProfileError(f"{source}: {error}") from None
-
-
-def _parse(document: dict[str, Any]) -> Profile:
-    known_keys = {"format", "version", "noise", "darkening", "ranges", "meta"}
-    unknown = sorted(set(document) - known_keys)
-    if unknown:
-        raise ProfileError(f"unknown field {unknown[0]!r}; a profile has {', '.join(sorted(known_keys))}")
-    if document.get("format") != PROFILE_FORMAT:
-        raise ProfileError(f"format must be {PROFILE_FORMAT!r}, got {document.get('format')!r}")
-    version = document.get("version")
-    if version not in READABLE_VERSIONS or isinstance(version, bool):
-        readable = " and ".join(str(v) for v in READABLE_VERSIONS)
-        raise ProfileError(f"unsupported version {version!r}; this darksynth reads versions {readable}")
-    raw_noise = document.get("noise")
-    if not isinstance(raw_noise, dict):
-        raise ProfileError(f"noise must be an object with {', '.join(NOISE_PARAMETER_NAMES)}, got {raw_noise!r}")
-    extra = sorted(set(raw_noise) - set(NOISE_PARAMETER_NAMES))
-    if extra:
-        raise ProfileError(f"noise.{extra[0]} is not a noise parameter; known: {', '.join(NOISE_PARAMETER_NAMES)}")
-    noise: dict[str, tuple[float, ...]] = {}
-    for parameter in NOISE_PARAMETERS:
-        key = f"noise.{parameter.name}"
-        if parameter.model != "paper":
-            # sRGB-model parameters arrived with version 2 and are optional there: neutral when absent.
-            if parameter.name in raw_noise and version == 1:
-                raise ProfileError(f"{key} needs profile version 2, this document is version 1")
-            if parameter.name not in raw_noise:
-                noise[parameter.name] = (parameter.neutral,) * parameter.size
-                continue
-        elif parameter.name not in raw_noise:
-            raise ProfileError(f"{key} is missing")
-        noise[parameter.name] = _values(raw_noise[parameter.name], key, parameter)
-
-    darkening = None
-    if document.get("darkening") is not None:
-        raw = document["darkening"]
-        if not isinstance(raw, dict) or set(raw) != set(DARKENING_LIMITS):
-            raise ProfileError(f"darkening must be an object with alpha and gamma, got {raw!r}")
-        darkening = Darkening(
-            alpha=_darkening_value(raw["alpha"], "darkening.alpha", "alpha"),
-            gamma=_darkening_value(raw["gamma"], "darkening.gamma", "gamma"),
-        )
-    ranges = _ranges(document.get("ranges", {}), "ranges")
-    meta = document.get("meta", {})
-    if not isinstance(meta, dict):
-        raise ProfileError(f"meta must be an object, got {meta!r}")
-    return Profile(noise=noise, darkening=darkening, ranges=ranges, meta=meta)
+        parsed = profile_schema().model_validate(document)
+    except pydantic.ValidationError as error:
+        raise ProfileError(f"{source}: {_error_message(error.errors()[0])}") from None
+    given: dict[str, tuple[float, ...]] = {}
+    for parameter in noise_parameters():
+        values = getattr(parsed.noise, parameter.name)  # type: ignore[attr-defined]
+        if values is None:
+            continue
+        if parameter.since_version > parsed.version:
+            raise ProfileError(
+                f"{source}: noise.{parameter.name} needs profile version {parameter.since_version}, "
+                f"this document is version {parsed.version}"
+            )
+        given[parameter.name] = values
+    return Profile(
+        noise=NoiseValues.from_values(given),
+        darkening=parsed.darkening,
+        ranges=parsed.ranges,
+        meta=parsed.meta,
+    )
 
 
 def validate_profile(profile: Profile) -> Profile:
@@ -203,14 +314,11 @@ def validate_profile(profile: Profile) -> Profile:
 
 def profile_to_dict(profile: Profile) -> dict[str, Any]:
     """The JSON document of a profile (scalars as numbers, vectors as lists)."""
-    sizes = {p.name: p.size for p in NOISE_PARAMETERS}
+    sizes = {p.name: p.size for p in noise_parameters()}
     document: dict[str, Any] = {
         "format": PROFILE_FORMAT,
-        "version": PROFILE_VERSION,
-        "noise": {
-            name: (list(values) if sizes.get(name, 1) > 1 else values[0]) if values else None
-            for name, values in profile.noise.items()
-        },
+        "version": profile_version(),
+        "noise": profile.noise.to_json(),
     }
     if profile.darkening is not None:
         document["darkening"] = {"alpha": profile.darkening.alpha, "gamma": profile.darkening.gamma}

@@ -12,7 +12,7 @@ The command line streams frames through :class:`ClipSynthesizer`, the same code 
 
 from __future__ import annotations
 
-from collections.abc import Mapping
+import logging
 from dataclasses import dataclass
 from typing import Any, Literal
 
@@ -22,9 +22,10 @@ import torch
 from darksynth.darkening import ALPHA_RANGE, GAMMA_RANGE, Darkening, darken
 from darksynth.io.arrays import numpy_to_tensor, tensor_to_numpy
 from darksynth.noise._broadcast import CLIP_DIMS
-from darksynth.noise.components import NOISE_PARAMETERS, shapes_neutral
+from darksynth.noise.components import noise_parameters
 from darksynth.noise.counter_rng import random_key
 from darksynth.noise.kernel8 import (
+    FAST_PATH,
     FULL_SCALE,
     PixelKernel,
     compiled_pixel_kernel,
@@ -33,33 +34,28 @@ from darksynth.noise.kernel8 import (
     pixel_kernel_in_pieces,
 )
 from darksynth.noise.sampling import random_uniform
-from darksynth.noise.simulate import add_noise, drawing_order, is_active, output_stages
+from darksynth.noise.simulate import add_noise, column_noise
+from darksynth.noise.values import NoiseValues
 from darksynth.profile import Profile
+
+logger = logging.getLogger(__name__)
 
 DarkeningChoice = Darkening | Literal["profile"] | None
 """``"profile"``: the profile's darkening, else alpha/gamma drawn from its ranges, else from the paper's
 ranges. A :class:`Darkening`: exactly that. None: no darkening (the input already has the target brightness)."""
-
-_FUSED_COMPONENTS = frozenset({"heteroscedastic", "quantization"})
 
 
 @dataclass(frozen=True)
 class ClipParameters:
     """The parameters drawn for one clip (or one image): noise values and, if any, the darkening."""
 
-    noise: Mapping[str, tuple[float, ...]]
+    noise: NoiseValues
     darkening: Darkening | None
 
-    def noise_tensors(self, device: torch.device | str | None = None) -> dict[str, torch.Tensor]:
-        """Noise values as tensors (size,), the form the noise components read."""
-        return {name: torch.tensor(values, dtype=torch.float32, device=device) for name, values in self.noise.items()}
-
     def to_json(self) -> dict[str, Any]:
-        """JSON-ready record for manifests: scalars as numbers, vectors as lists."""
-        sizes = {p.name: p.size for p in NOISE_PARAMETERS}
-        noise = {name: (list(v) if sizes[name] > 1 else v[0]) for name, v in self.noise.items()}
+        """JSON-ready record for manifests: the noise values as a profile writes them, and the darkening."""
         darkening = None if self.darkening is None else {"alpha": self.darkening.alpha, "gamma": self.darkening.gamma}
-        return {"noise": noise, "darkening": darkening}
+        return {"noise": self.noise.to_json(), "darkening": darkening}
 
 
 def draw_clip_parameters(
@@ -71,15 +67,13 @@ def draw_clip_parameters(
     """
     # Draws happen on the generator's device (a CUDA generator cannot fill a CPU tensor).
     device = generator.device if generator is not None else None
-    noise: dict[str, tuple[float, ...]] = {}
-    for parameter in NOISE_PARAMETERS:
+    drawn: dict[str, torch.Tensor] = {}
+    for parameter in noise_parameters():
         if parameter.name in profile.ranges:
-            drawn = random_uniform(
+            drawn[parameter.name] = random_uniform(
                 profile.ranges[parameter.name], generator=generator, device=device, dtype=torch.float64
-            )
-            noise[parameter.name] = tuple(float(v) for v in drawn)
-        else:
-            noise[parameter.name] = tuple(float(v) for v in profile.noise[parameter.name])
+            ).cpu()
+    noise = profile.noise.replace(**drawn) if drawn else profile.noise
     chosen: Darkening | None
     if darkening is None or isinstance(darkening, Darkening):
         chosen = darkening
@@ -90,8 +84,8 @@ def draw_clip_parameters(
         for name, paper_range in (("alpha", ALPHA_RANGE), ("gamma", GAMMA_RANGE)):
             if name in profile.ranges or fixed is None:
                 interval = profile.ranges[name][0] if name in profile.ranges else paper_range
-                drawn = random_uniform((interval,), generator=generator, device=device, dtype=torch.float64)
-                values[name] = float(drawn[0])
+                drawn_value = random_uniform((interval,), generator=generator, device=device, dtype=torch.float64)
+                values[name] = float(drawn_value[0])
             else:
                 values[name] = getattr(fixed, name)
         chosen = Darkening(alpha=values["alpha"], gamma=values["gamma"])
@@ -101,8 +95,9 @@ def draw_clip_parameters(
 class ClipSynthesizer:
     """Darkening + f(v) for the frames of one clip, one frame at a time (memory does not grow with length).
 
-    Components that a clip holds fixed (temporal banding) are drawn at the first frame and reused. 8-bit frames
-    go through the fused kernel (:mod:`darksynth.noise.kernel8`); other dtypes through the general composer.
+    Every frame goes through the composer (:func:`darksynth.noise.simulate.add_noise`), which holds the
+    components a clip keeps fixed (temporal banding) from the first frame on. 8-bit frames whose values the
+    fused kernel covers (:data:`darksynth.noise.kernel8.FAST_PATH` in the table) take it for the per-pixel part.
 
     Args:
         parameters: the clip's parameters (see :func:`draw_clip_parameters`).
@@ -122,77 +117,38 @@ class ClipSynthesizer:
         self.parameters = parameters
         self.generator = generator
         self.device = torch.device(device)
-        self._values = parameters.noise_tensors(self.device)
-        self._active = tuple(c for c in drawing_order() if is_active(c, self._values))
+        self._values = parameters.noise.to(self.device, torch.float32)
         self._held: dict[str, torch.Tensor] = {}
         self._kernel: PixelKernel = compiled_pixel_kernel() if compile else pixel_kernel_8bit
-        self._stages = tuple(c for c in output_stages() if is_active(c, self._values))
-        # The fused kernel draws white noise and writes 8-bit levels: sRGB structure or compression need the
-        # general path.
-        self._fusable = (
-            not self._stages
-            and all(c.name in _FUSED_COMPONENTS for c in self._active if c.structure == "pixel")
-            and all(shapes_neutral(c.parameters, self._values) for c in self._active)
-        )
+        self._fusable = self._values.covered_by(FAST_PATH)
         self._scalars: tuple[torch.Tensor, ...] | None = None
-
-    def _column_pattern(self, signal_shape: torch.Size) -> torch.Tensor:
-        """Sum of the active column components for one frame, (1, C, 1, W), on the [0, 1] scale."""
-        channels, width = signal_shape[-3], signal_shape[-1]
-        total = torch.zeros((1, channels, 1, width), device=self.device)
-        # Column components read only the shape and device of the signal: a zero-stride view has both and
-        # costs no frame-sized allocation per frame.
-        probe = torch.empty((), device=self.device).expand(signal_shape)
-        for component in self._active:
-            if component.structure != "column":
-                continue
-            if component.per_clip:
-                if component.name not in self._held:
-                    self._held[component.name] = component.draw(probe, self._values, self.generator)
-                pattern = self._held[component.name]
-            else:
-                pattern = component.draw(probe, self._values, self.generator)
-            if pattern.shape[-3] != channels or pattern.shape[-1] != width:
-                raise ValueError(f"frame size changed within a clip: {tuple(signal_shape)}")
-            total = total + pattern
-        return total
 
     def __call__(self, frame: torch.Tensor) -> torch.Tensor:
         """Low-light version of one frame (C, H, W): uint8 in, uint8 out; uint16 and float likewise."""
         if frame.dim() != 3:
             raise ValueError(f"expected a frame shaped (C, H, W), got shape {tuple(frame.shape)}")
         frame = frame.to(self.device)
-        columns = self._column_pattern(torch.Size((1, *frame.shape)))[0]
         if frame.dtype == torch.uint8 and self._fusable:
-            return self._fused(frame, columns)
+            return self._fused(frame)
         scale = _full_scale(frame.dtype)
         clean = frame.to(torch.float32) / scale if scale else frame.to(torch.float32)
-        signal = (
-            clean
-            if self.parameters.darkening is None
-            else darken(clean, self.parameters.darkening.alpha, self.parameters.darkening.gamma)
-        )
-        noisy = signal + columns
-        for component in self._active:
-            if component.structure != "column":
-                noisy = noisy + component.draw(signal, self._values, self.generator)
-        noisy = noisy.clamp(0.0, 1.0)
-        for stage in self._stages:
-            noisy = stage.draw(noisy, self._values, self.generator)
+        darkening = self.parameters.darkening
+        signal = clean if darkening is None else darken(clean, darkening.alpha, darkening.gamma)
+        # A frame is a clip of one frame for the composer.
+        noisy = add_noise(signal[None], self._values, generator=self.generator, held=self._held)[0]
         return _to_dtype(noisy, frame.dtype)
 
-    def _fused(self, frame: torch.Tensor, columns: torch.Tensor) -> torch.Tensor:
+    def _fused(self, frame: torch.Tensor) -> torch.Tensor:
+        columns = column_noise(
+            (1, *frame.shape), self._values, generator=self.generator, held=self._held, device=self.device
+        )[0]
         if self._scalars is None:
             darkening = self.parameters.darkening
-            active = {c.name for c in self._active}
-            noise = self.parameters.noise
-            heteroscedastic = "heteroscedastic" in active
             self._scalars = kernel_scalars(
                 darkening.alpha if darkening else None,
                 darkening.gamma if darkening else None,
-                noise["shot"][0] if heteroscedastic else 0.0,
-                noise["read"][0] if heteroscedastic else 0.0,
-                noise["quantization"][0] if "quantization" in active else 0.0,
+                # The float64 values, as given: squaring before the cast to float32 keeps the kernel's bits.
+                self.parameters.noise,
                 device=self.device,
             )
         key = random_key(self.generator).to(self.device)
@@ -200,8 +156,10 @@ class ClipSynthesizer:
         if self._kernel is not pixel_kernel_8bit:
             try:
                 return self._kernel(frame, key, *self._scalars, columns_8bit)
-            except Exception:
-                # A platform without a working compiler: the eager kernel gives the same bits, only slower.
+            except Exception as error:
+                # torch.compile fails in many ways on a platform without a working compiler; the eager kernel
+                # gives the same bits, only slower.
+                logger.warning("compiled 8-bit kernel failed (%s); using the eager kernel", error)
                 self._kernel = pixel_kernel_8bit
         return pixel_kernel_in_pieces(self._kernel, frame, key, self._scalars, columns_8bit)
 
@@ -294,7 +252,7 @@ def _synthesize_clip(clip: torch.Tensor, parameters: ClipParameters, generator: 
     clean = clip.to(torch.float32) / scale if scale else clip.to(torch.float32)
     darkening = parameters.darkening
     signal = clean if darkening is None else darken(clean, darkening.alpha, darkening.gamma)
-    noisy = add_noise(signal, parameters.noise_tensors(clip.device), generator=generator)
+    noisy = add_noise(signal, parameters.noise, generator=generator)
     return _to_dtype(noisy, clip.dtype)
 
 

@@ -3,12 +3,11 @@
 from __future__ import annotations
 
 from collections.abc import Callable, Mapping, Sequence
-from typing import Any
 
 import pytest
 
 from darksynth.darkening import Darkening
-from darksynth.noise.components import NOISE_PARAMETERS
+from darksynth.noise.values import NoiseValues
 from darksynth.profile import Profile, validate_profile
 
 ProfileFactory = Callable[..., Profile]
@@ -20,15 +19,8 @@ def build_profile(
     **noise: float | Sequence[float],
 ) -> Profile:
     """A validated profile whose unnamed noise parameters are neutral (zero, or one for a gain)."""
-    values: dict[str, tuple[float, ...]] = {}
-    for parameter in NOISE_PARAMETERS:
-        neutral = parameter.neutral
-        raw: Any = noise.pop(parameter.name, [neutral] * parameter.size if parameter.size > 1 else neutral)
-        values[parameter.name] = tuple(float(v) for v in raw) if parameter.size > 1 else (float(raw),)
-    if noise:
-        raise TypeError(f"unknown noise parameters {sorted(noise)}")
     profile = Profile(
-        noise=values,
+        noise=NoiseValues.from_values(noise),
         darkening=darkening,
         ranges={name: tuple(pairs) for name, pairs in (ranges or {}).items()},
     )

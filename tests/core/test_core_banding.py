@@ -8,15 +8,13 @@ import torch
 
 from darksynth.noise.banding import banding_noise, temporal_banding_noise
 from darksynth.noise.simulate import noise_sum
+from darksynth.noise.values import NoiseValues
 
 SIGMA = 0.03
 
 
-def _values(**nonzero: float) -> dict[str, torch.Tensor]:
-    names = ("shot", "read", "quantization", "banding", "temporal_banding")
-    values = {name: torch.tensor([nonzero.get(name, 0.0)]) for name in names}
-    values["periodic"] = torch.zeros(3)
-    return values
+def _values(**nonzero: float) -> NoiseValues:
+    return NoiseValues.from_values(nonzero, dtype=torch.float32)
 
 
 def _correlation(a: torch.Tensor, b: torch.Tensor) -> float:

@@ -10,14 +10,13 @@ import torch
 
 import darksynth
 from darksynth.darkening import Darkening
-from darksynth.noise.components import NOISE_PARAMETERS
+from darksynth.noise.values import NoiseValues
 from darksynth.profile import default_profile_path, load_profile
 from darksynth.synthesize import ClipParameters, ClipSynthesizer, draw_clip_parameters
 
 
 def _parameters(darkening: Darkening | None = None, **nonzero: float) -> ClipParameters:
-    noise = {p.name: (nonzero.get(p.name, p.neutral),) * p.size for p in NOISE_PARAMETERS}
-    return ClipParameters(noise=noise, darkening=darkening)
+    return ClipParameters(noise=NoiseValues.from_values(nonzero), darkening=darkening)
 
 
 def _grey_frames() -> dict[str, torch.Tensor]:

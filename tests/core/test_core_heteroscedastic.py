@@ -10,6 +10,7 @@ import torch
 
 from darksynth.noise.heteroscedastic import heteroscedastic_noise, heteroscedastic_std
 from darksynth.noise.simulate import noise_sum
+from darksynth.noise.values import NoiseValues
 
 SHOT = 0.1
 READ = 0.02
@@ -88,14 +89,7 @@ def test_per_clip_parameters_with_a_batch_dimension() -> None:
 
 def test_per_clip_read_noise_in_the_composer() -> None:
     signal = torch.zeros(2, 2, 3, 64, 64)
-    values = {
-        "shot": torch.zeros(2, 1),
-        "read": torch.tensor([[0.01], [0.05]]),
-        "quantization": torch.zeros(1),
-        "banding": torch.zeros(1),
-        "temporal_banding": torch.zeros(1),
-        "periodic": torch.zeros(3),
-    }
+    values = NoiseValues.from_values({"read": torch.tensor([[0.01], [0.05]])}, batch_shape=(2,), dtype=torch.float32)
     noise = noise_sum(signal, values, generator=torch.Generator().manual_seed(8))
     n = noise[0].numel()
     for clip, read in enumerate((0.01, 0.05)):

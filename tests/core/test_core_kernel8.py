@@ -12,8 +12,9 @@ import torch
 
 import darksynth
 from darksynth.darkening import Darkening
-from darksynth.noise.components import NOISE_PARAMETERS, model_parameters
+from darksynth.noise.components import model_parameters
 from darksynth.noise.kernel8 import compiled_pixel_kernel, pixel_kernel_8bit
+from darksynth.noise.values import NoiseValues
 from darksynth.profile import Profile, default_profile_path, load_profile
 from darksynth.synthesize import ClipParameters, ClipSynthesizer, draw_clip_parameters
 
@@ -61,9 +62,7 @@ def test_a_different_seed_gives_a_different_sample() -> None:
 
 
 def _parameters(darkening: Darkening | None = None, **nonzero: float) -> ClipParameters:
-    return ClipParameters(
-        noise={p.name: (nonzero.get(p.name, p.neutral),) * p.size for p in NOISE_PARAMETERS}, darkening=darkening
-    )
+    return ClipParameters(noise=NoiseValues.from_values(nonzero), darkening=darkening)
 
 
 def test_fused_heteroscedastic_noise_has_the_model_variance_and_gaussian_shape() -> None:
@@ -169,7 +168,8 @@ def test_kernel_in_pieces_is_bit_identical_to_one_call() -> None:
     frame = torch.randint(0, 256, (3, 301, 517), dtype=torch.uint8, generator=generator)
     columns = torch.randn(3, 1, 517, generator=generator) * 3
     key = torch.tensor(123_456_789, dtype=torch.int64)
-    scalars = kernel_scalars(0.3, 0.6, 0.1, 0.02, 0.01, device=torch.device("cpu"))
+    values = NoiseValues.from_values({"shot": 0.1, "read": 0.02, "quantization": 0.01})
+    scalars = kernel_scalars(0.3, 0.6, values, device=torch.device("cpu"))
     whole = pixel_kernel_8bit(frame, key, *scalars, columns)
     # Pieces of 7 rows (3619 values) cut every channel into many blocks, the last one partial.
     pieces = pixel_kernel_in_pieces(pixel_kernel_8bit, frame, key, scalars, columns, piece_values=3619)

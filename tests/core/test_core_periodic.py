@@ -9,14 +9,13 @@ import torch
 
 from darksynth.noise.periodic import periodic_basis, periodic_noise
 from darksynth.noise.simulate import noise_sum
+from darksynth.noise.values import NoiseValues
 
 S = 0.02
 
 
-def _values(periodic: tuple[float, float, float]) -> dict[str, torch.Tensor]:
-    values = {name: torch.zeros(1) for name in ("shot", "read", "quantization", "banding", "temporal_banding")}
-    values["periodic"] = torch.tensor(periodic)
-    return values
+def _values(periodic: tuple[float, float, float]) -> NoiseValues:
+    return NoiseValues.from_values({"periodic": periodic}, dtype=torch.float32)
 
 
 @pytest.mark.parametrize("width", [16, 64, 1000])

@@ -4,15 +4,15 @@ from __future__ import annotations
 
 import copy
 import json
-import math
 from pathlib import Path
 from typing import Any
 
 import pytest
+import torch
 
 from darksynth.darkening import Darkening
 from darksynth.errors import DarksynthError, ProfileError
-from darksynth.noise.components import NOISE_PARAMETER_NAMES
+from darksynth.noise.components import noise_parameter_names
 from darksynth.profile import (
     Profile,
     default_profile_path,
@@ -46,9 +46,9 @@ def _write(tmp_path: Path, document: Any) -> Path:
 
 def test_default_profile_loads_with_all_parameters() -> None:
     profile = load_profile(default_profile_path())
-    assert tuple(profile.noise) == NOISE_PARAMETER_NAMES
-    assert profile.noise["shot"] == (0.06,)
-    assert profile.noise["periodic"] == (0.002, 0.002, 0.002)
+    assert tuple(profile.noise) == noise_parameter_names()
+    assert profile.noise.to_json()["shot"] == 0.06
+    assert profile.noise.to_json()["periodic"] == [0.002, 0.002, 0.002]
     assert profile.darkening == Darkening(alpha=0.2, gamma=0.7)
     assert profile.ranges == {}
     assert "source" in profile.meta
@@ -223,9 +223,9 @@ def test_valid_edges_are_accepted() -> None:
     document["darkening"] = {"alpha": 1.0, "gamma": 10.0}
     document["ranges"] = {"quantization": [0.01, 0.01]}
     profile = parse_profile(document)
-    assert profile.noise["shot"] == (1.0,) and profile.noise["read"] == (0.0,)
+    assert profile.noise.to_json()["shot"] == 1.0 and profile.noise.to_json()["read"] == 0.0
     assert profile.darkening == Darkening(1.0, 10.0)
-    assert isinstance(profile.noise["read"][0], float)
+    assert isinstance(profile.noise.to_json()["read"], float)
 
 
 def test_parse_profile_names_its_source_label() -> None:
@@ -236,15 +236,15 @@ def test_parse_profile_names_its_source_label() -> None:
 def test_profile_values_are_finite_floats() -> None:
     profile: Profile = parse_profile(_document())
     for values in profile.noise.values():
-        assert all(isinstance(v, float) and math.isfinite(v) for v in values)
+        assert values.dtype == torch.float64 and bool(values.isfinite().all())
 
 
 def test_version_1_profile_reads_as_white_uncompressed_noise(tmp_path: Path) -> None:
     profile = load_profile(_write(tmp_path, _document()))
-    assert profile.noise["channel_gain"] == (1.0, 1.0)
-    assert profile.noise["correlation_length"] == (0.0,)
-    assert profile.noise["channel_correlation"] == (0.0, 0.0, 0.0)
-    assert profile.noise["compression"] == (0.0,)
+    assert profile.noise.to_json()["channel_gain"] == [1.0, 1.0]
+    assert profile.noise.to_json()["correlation_length"] == 0.0
+    assert profile.noise.to_json()["channel_correlation"] == [0.0, 0.0, 0.0]
+    assert profile.noise.to_json()["compression"] == 0.0
     # Saved again, it becomes a version-2 document with the same noise.
     save_profile(tmp_path / "v2.json", profile)
     document = json.loads((tmp_path / "v2.json").read_text(encoding="utf-8"))
@@ -261,8 +261,8 @@ def test_version_2_profile_with_srgb_fields_and_ranges(tmp_path: Path) -> None:
     )
     document["ranges"] = {"correlation_length": [0.5, 1.0], "channel_correlation": [-0.2, 0.7]}
     profile = load_profile(_write(tmp_path, document))
-    assert profile.noise["channel_gain"] == (1.3, 1.5)
-    assert profile.noise["compression"] == (0.35,)
+    assert profile.noise.to_json()["channel_gain"] == [1.3, 1.5]
+    assert profile.noise.to_json()["compression"] == 0.35
     assert profile.ranges["channel_correlation"] == ((-0.2, 0.7),) * 3
     save_profile(tmp_path / "copy.json", profile)
     assert load_profile(tmp_path / "copy.json") == profile

@@ -9,6 +9,7 @@ import torch
 
 from darksynth.noise.quantization import QUANTIZATION_LEVELS, quantization_noise
 from darksynth.noise.simulate import noise_sum
+from darksynth.noise.values import NoiseValues
 
 STEP = 0.02
 
@@ -67,14 +68,7 @@ def test_per_clip_steps() -> None:
 def test_composer_adds_the_one_sided_offset() -> None:
     # The paper's model is one-sided: a flat signal gains q / 2 on average, it is not re-centred.
     signal = torch.full((1, 3, 128, 128), 0.25)
-    values = {
-        "shot": torch.zeros(1),
-        "read": torch.zeros(1),
-        "quantization": torch.tensor([STEP]),
-        "banding": torch.zeros(1),
-        "temporal_banding": torch.zeros(1),
-        "periodic": torch.zeros(3),
-    }
+    values = NoiseValues.from_values({"quantization": STEP}, dtype=torch.float32)
     noise = noise_sum(signal, values, generator=torch.Generator().manual_seed(6)).double()
     assert (noise >= 0.0).all() and (noise < STEP).all()
     assert abs(noise.mean().item() - STEP / 2) < 5.0 * STEP / math.sqrt(12.0 * noise.numel())

@@ -19,6 +19,7 @@ from darksynth.darkening_estimate import (
 )
 from darksynth.errors import DarksynthError
 from darksynth.noise.simulate import add_noise
+from darksynth.noise.values import NoiseValues
 
 
 def _scene(seed: int, size: int = 192, shift: float = 0.0) -> torch.Tensor:
@@ -35,14 +36,7 @@ def _scene(seed: int, size: int = 192, shift: float = 0.0) -> torch.Tensor:
 
 
 def _noisy(clean: torch.Tensor, darkening: Darkening, read: float, seed: int) -> torch.Tensor:
-    values = {
-        "shot": torch.tensor([0.02]),
-        "read": torch.tensor([read]),
-        "quantization": torch.tensor([0.0]),
-        "banding": torch.tensor([0.0]),
-        "temporal_banding": torch.tensor([0.0]),
-        "periodic": torch.zeros(3),
-    }
+    values = NoiseValues.from_values({"shot": 0.02, "read": read}, dtype=torch.float32)
     signal = darken(clean, darkening.alpha, darkening.gamma)[None]
     noisy = add_noise(signal, values, generator=torch.Generator().manual_seed(seed))[0]
     return (noisy * 255).round() / 255

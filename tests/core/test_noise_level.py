@@ -7,19 +7,14 @@ import math
 import torch
 
 from darksynth.models.den import denormalise
-from darksynth.noise.components import NOISE_PARAMETERS, model_parameters, vector_size
+from darksynth.noise.components import model_parameters, vector_size
 from darksynth.noise.level import mean_noise_variance
 from darksynth.noise.simulate import noise_sum
+from darksynth.noise.values import NoiseValues
 
 
-def _batch_values(batch: int, **set_values: list[float]) -> dict[str, torch.Tensor]:
-    """Every parameter neutral except those given, as (batch, size) tensors."""
-    return {
-        p.name: torch.tensor(set_values.get(p.name, [p.neutral] * p.size), dtype=torch.float64)
-        .reshape(1, p.size)
-        .repeat(batch, 1)
-        for p in NOISE_PARAMETERS
-    }
+def _batch_values(batch: int, **set_values: list[float]) -> NoiseValues:
+    return NoiseValues.from_values(set_values, batch_shape=(batch,))
 
 
 def test_mean_variance_matches_drawn_noise_on_a_textured_clip() -> None:

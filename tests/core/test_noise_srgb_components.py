@@ -14,7 +14,6 @@ import pytest
 import torch
 
 from darksynth.darkening import Darkening
-from darksynth.noise.components import NOISE_PARAMETERS
 from darksynth.noise.correlated import (
     jpeg_compress,
     jpeg_compress_clips,
@@ -23,16 +22,14 @@ from darksynth.noise.correlated import (
     structured_normal,
     valid_channel_correlation,
 )
+from darksynth.noise.heteroscedastic import heteroscedastic_noise
 from darksynth.noise.simulate import add_noise, noise_sum
+from darksynth.noise.values import NoiseValues
 from darksynth.synthesize import ClipParameters, ClipSynthesizer
 
 
-def _values(**set_values: float | list[float]) -> dict[str, torch.Tensor]:
-    """Every parameter neutral except those given, as tensors (size,)."""
-    return {
-        p.name: torch.tensor(set_values.get(p.name, [p.neutral] * p.size), dtype=torch.float32).reshape(p.size)
-        for p in NOISE_PARAMETERS
-    }
+def _values(**set_values: float | list[float]) -> NoiseValues:
+    return NoiseValues.from_values(set_values, dtype=torch.float32)
 
 
 def _lag_correlation(noise: torch.Tensor, lag: int) -> float:
@@ -128,8 +125,7 @@ def test_heteroscedastic_variance_law_holds_per_channel_with_structure() -> None
 
 def test_neutral_structure_draws_exactly_the_papers_white_noise() -> None:
     signal = torch.rand(2, 3, 40, 56, generator=torch.Generator().manual_seed(4)) * 0.3
-    plain = {"shot": torch.tensor([0.06]), "read": torch.tensor([0.012])}
-    white = noise_sum(signal, plain, generator=torch.Generator().manual_seed(5))
+    white = heteroscedastic_noise(signal[None], 0.06, 0.012, generator=torch.Generator().manual_seed(5))[0]
     neutral = noise_sum(signal, _values(shot=0.06, read=0.012), generator=torch.Generator().manual_seed(5))
     assert torch.equal(white, neutral)
 
@@ -166,8 +162,9 @@ def test_add_noise_with_compression_gives_8_bit_levels() -> None:
 @pytest.mark.parametrize("dtype", [torch.uint8, torch.float32])
 def test_streaming_synthesizer_draws_the_structure(dtype: torch.dtype) -> None:
     """apply's frame-by-frame path (8-bit and float) gives correlated, per-channel, compressed noise."""
-    noise = {p.name: (p.neutral,) * p.size for p in NOISE_PARAMETERS}
-    noise.update(read=(0.04,), correlation_length=(1.2,), channel_gain=(1.5, 1.5), channel_correlation=(0.6,) * 3)
+    noise = NoiseValues.from_values(
+        {"read": 0.04, "correlation_length": 1.2, "channel_gain": 1.5, "channel_correlation": 0.6}
+    )
     synthesizer = ClipSynthesizer(
         ClipParameters(noise=noise, darkening=None), generator=torch.Generator().manual_seed(8)
     )
@@ -176,14 +173,14 @@ def test_streaming_synthesizer_draws_the_structure(dtype: torch.dtype) -> None:
     frame = (frame * 255).round().to(torch.uint8) if dtype == torch.uint8 else frame
     scale = 255.0 if dtype == torch.uint8 else 1.0
     outputs = torch.stack([synthesizer(frame) for _ in range(2)]).double() / scale
-    assert synthesizer.parameters.noise["correlation_length"] == (1.2,)
+    assert synthesizer.parameters.noise.to_json()["correlation_length"] == 1.2
     residual = outputs - outputs.mean(dim=(-2, -1), keepdim=True)
     assert abs(_lag_correlation(residual, 1) - kernel_autocorrelation(1.2, 1)) < 0.05
     assert min(_channel_correlations(residual)) > 0.5
     red_over_green = float(residual[:, 0].std() / residual[:, 1].std())
     assert abs(red_over_green - 1.5) < 0.1
     # Compression on top: 8-bit levels, and a different image from the uncompressed one.
-    noise["compression"] = (0.5,)
+    noise = noise.replace(compression=0.5)
     compressed = ClipSynthesizer(
         ClipParameters(noise=noise, darkening=Darkening(0.5, 1.0)), generator=torch.Generator().manual_seed(8)
     )(frame)

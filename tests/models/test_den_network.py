@@ -8,10 +8,10 @@ import pytest
 import torch
 
 from darksynth.models.den import DEN, denormalise, normalise
-from darksynth.noise.components import NOISE_PARAMETERS, NOISE_VECTOR_SIZE, model_parameters, vector_size
+from darksynth.noise.components import model_parameters, noise_parameters, vector_size
 
-LOW = torch.tensor([p.training_range[0] for p in NOISE_PARAMETERS for _ in range(p.size)])
-HIGH = torch.tensor([p.training_range[1] for p in NOISE_PARAMETERS for _ in range(p.size)])
+LOW = torch.tensor([p.training_range[0] for p in noise_parameters() for _ in range(p.size)])
+HIGH = torch.tensor([p.training_range[1] for p in noise_parameters() for _ in range(p.size)])
 
 
 def _clip(shape: tuple[int, ...], seed: int = 0) -> torch.Tensor:
@@ -27,7 +27,7 @@ def test_odd_frame_sizes_give_estimates_and_a_same_size_reconstruction(
     clip = _clip((2, frames, 3, 37, 53))
     with torch.no_grad():
         output = model(clip)
-    assert output.normalised.shape == (2, NOISE_VECTOR_SIZE)
+    assert output.normalised.shape == (2, vector_size())
     assert torch.isfinite(output.normalised).all()
     assert output.dark is not None
     assert output.dark.shape == clip.shape
@@ -39,7 +39,7 @@ def test_v2_has_no_reconstruction_and_no_decoder(tiny_model: Callable[..., DEN])
     with torch.no_grad():
         output = model(_clip((1, 2, 3, 37, 53)))
     assert output.dark is None
-    assert output.normalised.shape == (1, NOISE_VECTOR_SIZE)
+    assert output.normalised.shape == (1, vector_size())
     assert len(model.decoders) == 0
     # The decoder's parameters are not built at all, so v2 is strictly smaller than v3.
     v3 = tiny_model(variant="v3")
@@ -60,15 +60,15 @@ def test_predictions_lie_inside_the_training_ranges(
     clip = {"random": _clip(shape), "zeros": torch.zeros(shape), "ones": torch.ones(shape)}[content]
     with torch.no_grad():
         output = model(clip)
-    values = output.values
-    assert values.shape == (3, NOISE_VECTOR_SIZE)
+    values = output.values.vector()
+    assert values.shape == (3, vector_size())
     assert torch.isfinite(values).all()
     assert (values >= LOW - 1e-7).all()
     assert (values <= HIGH + 1e-7).all()
     assert ((output.normalised >= 0) & (output.normalised <= 1)).all()
 
 
-FLOOR = torch.tensor([p.log_floor or 0.0 for p in NOISE_PARAMETERS for _ in range(p.size)])
+FLOOR = torch.tensor([p.log_floor or 0.0 for p in noise_parameters() for _ in range(p.size)])
 LOGARITHMIC = FLOOR > 0
 
 
@@ -76,13 +76,13 @@ def test_values_are_the_normalised_output_on_the_parameter_scale(tiny_model: Cal
     with torch.no_grad():
         linear = tiny_model(log_levels=False)(_clip((2, 1, 3, 32, 32)))
         logarithmic = tiny_model(log_levels=True)(_clip((2, 1, 3, 32, 32)))
-    torch.testing.assert_close(linear.values, LOW + linear.normalised * (HIGH - LOW))
+    torch.testing.assert_close(linear.values.vector(), LOW + linear.normalised * (HIGH - LOW))
     # Levels with a log floor: floor * (high / floor) ** n; the other entries stay linear.
     n = logarithmic.normalised
     expected = torch.where(
         LOGARITHMIC, FLOOR.clamp_min(1e-12) * (HIGH / FLOOR.clamp_min(1e-12)) ** n, LOW + n * (HIGH - LOW)
     )
-    torch.testing.assert_close(logarithmic.values, expected)
+    torch.testing.assert_close(logarithmic.values.vector(), expected)
 
 
 def test_log_levels_normalise_relative_precision_evenly() -> None:
@@ -95,16 +95,16 @@ def test_log_levels_normalise_relative_precision_evenly() -> None:
     torch.testing.assert_close(normalise(vector, log_levels=True)[LOGARITHMIC], torch.full((8,), 0.5))
     vector[LOGARITHMIC] = 0.0  # absent: below the floor reads as the floor
     torch.testing.assert_close(normalise(vector, log_levels=True)[LOGARITHMIC], torch.zeros(8))
-    unit = torch.rand(6, NOISE_VECTOR_SIZE, generator=torch.Generator().manual_seed(4))
+    unit = torch.rand(6, vector_size(), generator=torch.Generator().manual_seed(4))
     torch.testing.assert_close(normalise(denormalise(unit, log_levels=True), log_levels=True), unit)
 
 
 def test_normalise_maps_each_training_range_onto_the_unit_interval() -> None:
-    torch.testing.assert_close(normalise(LOW), torch.zeros(NOISE_VECTOR_SIZE))
-    torch.testing.assert_close(normalise(HIGH), torch.ones(NOISE_VECTOR_SIZE))
-    torch.testing.assert_close(normalise((LOW + HIGH) / 2), torch.full((NOISE_VECTOR_SIZE,), 0.5))
+    torch.testing.assert_close(normalise(LOW), torch.zeros(vector_size()))
+    torch.testing.assert_close(normalise(HIGH), torch.ones(vector_size()))
+    torch.testing.assert_close(normalise((LOW + HIGH) / 2), torch.full((vector_size(),), 0.5))
     # shot's training range is (0, 0.2): 0.05 is a quarter of the way; read's is (0, 0.1): 0.05 is half.
-    vector = torch.zeros(NOISE_VECTOR_SIZE)
+    vector = torch.zeros(vector_size())
     vector[0], vector[1] = 0.05, 0.05
     assert normalise(vector)[:2].tolist() == pytest.approx([0.25, 0.5])
     # The paper's model normalises its own 8 values over the same ranges.
@@ -120,7 +120,7 @@ def test_paper_model_predicts_the_papers_eight_values(tiny_model: Callable[..., 
     with torch.no_grad():
         output = model(_clip((2, 2, 3, 32, 40)))
     assert output.normalised.shape == (2, 8)
-    assert output.values.shape == (2, 8)
+    assert output.values.vector("paper").shape == (2, 8)
     # It reads only the paper's statistics: fewer head inputs than the sRGB model.
     srgb = tiny_model()
     assert model.head[0].in_features < srgb.head[0].in_features
@@ -128,9 +128,9 @@ def test_paper_model_predicts_the_papers_eight_values(tiny_model: Callable[..., 
 
 def test_normalise_denormalise_round_trip() -> None:
     generator = torch.Generator().manual_seed(3)
-    vector = LOW + torch.rand(5, 4, NOISE_VECTOR_SIZE, generator=generator) * (HIGH - LOW)
+    vector = LOW + torch.rand(5, 4, vector_size(), generator=generator) * (HIGH - LOW)
     torch.testing.assert_close(denormalise(normalise(vector)), vector)
-    unit = torch.rand(7, NOISE_VECTOR_SIZE, generator=generator)
+    unit = torch.rand(7, vector_size(), generator=generator)
     torch.testing.assert_close(normalise(denormalise(unit)), unit)
 
 

@@ -11,7 +11,8 @@ import torch
 from darksynth.darkening import darken
 from darksynth.estimate import estimate
 from darksynth.models.den import DEN
-from darksynth.noise.components import NOISE_PARAMETERS, NOISE_VECTOR_SIZE, noise_parameter
+from darksynth.noise.components import noise_parameter, noise_parameters, vector_size
+from darksynth.noise.values import NoiseValues
 from darksynth.profile import validate_profile
 
 
@@ -23,8 +24,8 @@ def _reference(frames: int, height: int, width: int, *, mean: float = 0.1, seed:
     return (mean + noise).clamp(0, 1)
 
 
-def _profile_vector(result_noise: dict[str, tuple[float, ...]]) -> np.ndarray:
-    return np.array([v for p in NOISE_PARAMETERS for v in result_noise[p.name]])
+def _profile_vector(result_noise: NoiseValues) -> np.ndarray:
+    return result_noise.vector().numpy()
 
 
 def test_profile_is_the_median_over_crops_and_ranges_the_10th_to_90th_percentile(
@@ -32,13 +33,13 @@ def test_profile_is_the_median_over_crops_and_ranges_the_10th_to_90th_percentile
 ) -> None:
     # 1 frame of 48 x 240: side 48, a 1 x 5 grid, so an odd number of crops and an unambiguous median.
     result = estimate(_reference(1, 48, 240), tiny_model(head_width=16))
-    per_crop = result.per_crop
-    assert per_crop.shape == (5, NOISE_VECTOR_SIZE)
+    per_crop = result.per_crop.vector().numpy()
+    assert per_crop.shape == (5, vector_size())
     assert result.profile.meta["crops"] == 5
     assert np.ptp(per_crop, axis=0).min() > 0  # the crops really disagree
     np.testing.assert_allclose(_profile_vector(result.profile.noise), np.median(per_crop, axis=0), rtol=1e-6)
     low, high = np.percentile(per_crop, [10, 90], axis=0)
-    ranges = np.array([pair for p in NOISE_PARAMETERS for pair in result.profile.ranges[p.name]])
+    ranges = np.array([pair for p in noise_parameters() for pair in result.profile.ranges[p.name]])
     np.testing.assert_allclose(ranges[:, 0], low, rtol=1e-5)
     np.testing.assert_allclose(ranges[:, 1], high, rtol=1e-5)
     profile = _profile_vector(result.profile.noise)
@@ -49,7 +50,7 @@ def test_profile_is_the_median_over_crops_and_ranges_the_10th_to_90th_percentile
 def test_even_number_of_crops_gives_a_value_between_the_middle_two(tiny_model: Callable[..., DEN]) -> None:
     # 8 frames of 48 x 144: two windows of four frames times a 1 x 3 grid.
     result = estimate(_reference(8, 48, 144), tiny_model())
-    per_crop = np.sort(result.per_crop, axis=0)
+    per_crop = np.sort(result.per_crop.vector().numpy(), axis=0)
     assert len(per_crop) == 6
     profile = _profile_vector(result.profile.noise)
     assert (profile >= per_crop[2] - 1e-7).all() and (profile <= per_crop[3] + 1e-7).all()
@@ -115,13 +116,13 @@ def test_each_network_output_lands_in_its_named_profile_entry(tiny_model: Callab
         "periodic": (0.6 * 0.02, 0.7 * 0.02, 0.8 * 0.02),
     }
     for name, values in expected.items():
-        assert result.profile.noise[name] == pytest.approx(values, rel=1e-5)
+        assert tuple(result.profile.noise[name].tolist()) == pytest.approx(values, rel=1e-5)
         for (low, high), value in zip(result.profile.ranges[name], values, strict=True):
             assert (low, high) == pytest.approx((value, value), rel=1e-5)
     # The paper's model says nothing of the sRGB structure: white, uncompressed noise, and no ranges for it.
-    assert result.profile.noise["channel_gain"] == (1.0, 1.0)
-    assert result.profile.noise["correlation_length"] == (0.0,)
-    assert result.profile.noise["compression"] == (0.0,)
+    assert result.profile.noise.to_json()["channel_gain"] == [1.0, 1.0]
+    assert result.profile.noise.to_json()["correlation_length"] == 0.0
+    assert result.profile.noise.to_json()["compression"] == 0.0
     assert "compression" not in result.profile.ranges
     assert result.profile.meta["noise_model"] == "paper"
 
@@ -176,4 +177,4 @@ def test_batch_size_does_not_change_the_estimate(tiny_model: Callable[..., DEN])
     reference = _reference(1, 48, 240)
     whole = estimate(reference, model, batch=16)
     one_by_one = estimate(reference, model, batch=1)
-    np.testing.assert_allclose(one_by_one.per_crop, whole.per_crop, rtol=1e-5, atol=1e-7)
+    np.testing.assert_allclose(one_by_one.per_crop.vector(), whole.per_crop.vector(), rtol=1e-5, atol=1e-7)

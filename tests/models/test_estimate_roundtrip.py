@@ -13,6 +13,7 @@ import torch
 
 from darksynth.darkening import Darkening
 from darksynth.estimate import estimate
+from darksynth.noise.values import NoiseValues
 from darksynth.synthesize import ClipParameters, ClipSynthesizer
 from darksynth.training.weights import default_weights_path, load_weights
 
@@ -32,7 +33,7 @@ def _clean_scene(seed: int, height: int = 256, width: int = 384) -> torch.Tensor
 
 
 def _reference(noise: dict[str, float], frames: int, seed: int) -> torch.Tensor:
-    values = {name: (noise.get(name, 0.0),) for name in NAMES} | {"periodic": (0.0, 0.0, 0.0)}
+    values = NoiseValues.from_values(noise)
     synthesizer = ClipSynthesizer(
         ClipParameters(noise=values, darkening=Darkening(0.25, 0.8)), generator=torch.Generator().manual_seed(seed)
     )
@@ -48,7 +49,7 @@ def model() -> torch.nn.Module:
 def test_read_noise_is_recovered_from_single_images(model: torch.nn.Module) -> None:
     truths = [0.01, 0.03, 0.05, 0.07, 0.09]
     estimates = [
-        estimate(_reference({"read": read, "shot": 0.05}, 1, seed), model).profile.noise["read"][0]
+        estimate(_reference({"read": read, "shot": 0.05}, 1, seed), model).profile.noise.scalar("read")
         for seed, read in enumerate(truths)
     ]
     assert np.all(np.diff(estimates) > 0), estimates

@@ -7,15 +7,15 @@ import torch
 
 from darksynth.noise.components import (
     NOISE_COMPONENTS,
-    NOISE_PARAMETERS,
-    NOISE_VECTOR_SIZE,
-    vector_to_values,
+    noise_parameters,
+    vector_size,
 )
+from darksynth.noise.values import NoiseValues
 from darksynth.training.batches import synthesize_batch
 
-LOW = torch.tensor([p.training_range[0] for p in NOISE_PARAMETERS for _ in range(p.size)])
-HIGH = torch.tensor([p.training_range[1] for p in NOISE_PARAMETERS for _ in range(p.size)])
-NEUTRAL = torch.tensor([p.neutral for p in NOISE_PARAMETERS for _ in range(p.size)])
+LOW = torch.tensor([p.training_range[0] for p in noise_parameters() for _ in range(p.size)])
+HIGH = torch.tensor([p.training_range[1] for p in noise_parameters() for _ in range(p.size)])
+NEUTRAL = torch.tensor([p.neutral for p in noise_parameters() for _ in range(p.size)])
 
 
 def _clean(batch: int = 6, seed: int = 0) -> torch.Tensor:
@@ -37,7 +37,7 @@ def test_noisy_clips_are_on_the_8_bit_grid() -> None:
 def test_vectors_lie_inside_the_training_ranges_over_many_draws() -> None:
     generator = torch.Generator().manual_seed(2)
     vectors = torch.cat([synthesize_batch(_clean(), generator=generator).vector for _ in range(20)])
-    assert vectors.shape == (120, NOISE_VECTOR_SIZE)
+    assert vectors.shape == (120, vector_size())
     assert ((vectors >= LOW) & (vectors <= HIGH)).all()
     # The draws spread over each range instead of sitting at one end (absent components aside).
     present = vectors.clone()
@@ -57,8 +57,8 @@ def test_every_component_is_present_when_absence_is_impossible() -> None:
     vectors = torch.cat(
         [synthesize_batch(_clean(), generator=generator, absent_probability=0.0).vector for _ in range(40)]
     )
-    values = vector_to_values(vectors)
-    for parameter in NOISE_PARAMETERS:
+    values = NoiseValues.from_vector(vectors)
+    for parameter in noise_parameters():
         off = (values[parameter.name] == parameter.neutral).all(-1).float().mean().item()
         expected = parameter.training_off_probability or 0.0
         # 240 clips: a binomial share's standard error is at most 0.032; 4 of them.
@@ -67,7 +67,7 @@ def test_every_component_is_present_when_absence_is_impossible() -> None:
 
 def test_absent_components_give_the_quantised_dark_clip_and_a_neutral_vector() -> None:
     batch = synthesize_batch(_clean(), generator=torch.Generator().manual_seed(4), absent_probability=1.0)
-    assert torch.equal(batch.vector, NEUTRAL.expand(6, NOISE_VECTOR_SIZE))
+    assert torch.equal(batch.vector, NEUTRAL.expand(6, vector_size()))
     assert torch.equal(batch.noisy, (batch.dark * 255.0).round() / 255.0)
     paper = synthesize_batch(
         _clean(), generator=torch.Generator().manual_seed(4), absent_probability=1.0, model="paper"
@@ -81,7 +81,7 @@ def test_absence_switches_whole_components() -> None:
     vectors = torch.cat(
         [synthesize_batch(_clean(), generator=generator, absent_probability=0.5).vector for _ in range(10)]
     )
-    values = vector_to_values(vectors)
+    values = NoiseValues.from_vector(vectors)
     for component in NOISE_COMPONENTS:
         # Parameters that training also switches off alone may be neutral while the rest is on.
         together = [p for p in component.parameters if p.training_off_probability is None]

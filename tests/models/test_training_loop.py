@@ -12,6 +12,7 @@ from safetensors.torch import load_file
 
 from darksynth.errors import DarksynthError
 from darksynth.models.den import DENConfig
+from darksynth.noise.values import NoiseValues
 from darksynth.training.corpus import CleanCorpus, load_corpus
 from darksynth.training.loop import TrainConfig, level_loss, r_squared, train, training_batch, vector_names
 from darksynth.training.weights import load_weights
@@ -159,7 +160,9 @@ def test_level_loss_is_zero_for_the_true_vector_and_grows_with_a_wrong_level() -
     clean = torch.rand(3, 2, 3, 32, 32, generator=generator)
     batch = training_batch(clean, CONFIG, generator, absent_probability=0.0)
     device = torch.device("cpu")
-    assert level_loss(batch.vector, batch, CONFIG.model.noise_model, device).item() == pytest.approx(0.0, abs=1e-12)
+    truth = NoiseValues.from_vector(batch.vector, CONFIG.model.noise_model)
+    assert level_loss(truth, batch, CONFIG.model.noise_model, device).item() == pytest.approx(0.0, abs=1e-12)
     louder = batch.vector.clone()
     louder[:, vector_names(CONFIG.model.noise_model).index("read")] *= 4.0
-    assert level_loss(louder, batch, CONFIG.model.noise_model, device).item() > 0.01
+    louder_values = NoiseValues.from_vector(louder, CONFIG.model.noise_model)
+    assert level_loss(louder_values, batch, CONFIG.model.noise_model, device).item() > 0.01

@@ -12,7 +12,7 @@ from safetensors.torch import load_file, save_file
 
 from darksynth.errors import DarksynthError
 from darksynth.models.den import DEN, MODEL_NAME, MODEL_VERSION, DENConfig
-from darksynth.models.noise_statistics import statistics_size
+from darksynth.noise.components import model_statistics
 from darksynth.training.weights import load_weights, read_metadata, save_weights
 
 
@@ -26,7 +26,7 @@ def test_saved_weights_load_into_a_model_with_identical_outputs(
 ) -> None:
     model = tiny_model(seed=5, **settings)
     # The statistics' standardisation is state too (buffers, not parameters): it must travel with the weights.
-    size = statistics_size(model.noise_model)
+    size = sum(s.size for s in model_statistics(model.noise_model))
     model.set_statistics_scale(torch.randn(10, size, generator=torch.Generator().manual_seed(1)))
     path = tmp_path / "den.safetensors"
     save_weights(path, model, training={"steps": 7})

@@ -11,7 +11,7 @@ residual (noisy - dark) of each frame beside the dark frame it belongs to, the r
 clip (what is held over frames) and its column means (column patterns span the whole frame height, beyond
 a small patch's reach); least-squares GAN losses. Added to the generator's loss, with weight
 ``lambda_statistics``, a statistics-matching term: the squared difference between the batch means of the
-DEN's fixed noise statistics (:mod:`darksynth.models.noise_statistics`, log variances of pixel noise binned
+DEN's fixed noise statistics (:mod:`darksynth.noise.statistics`, log variances of pixel noise binned
 by level, of column patterns split into per-frame and held parts, and of period-4 projections) of generated
 and target clips. The adversarial term alone is slow to find the column components within a 15-minute CPU
 budget; the statistics make every component's strength observable from the first step.
@@ -41,8 +41,8 @@ from darksynth.baselines.starlight_model import (
     save_starlight,
 )
 from darksynth.io.atomic import write_text_atomic
-from darksynth.models.noise_statistics import LEVEL_BINS, noise_statistics
 from darksynth.noise.components import model_parameters
+from darksynth.noise.statistics import LEVEL_BINS, noise_statistics
 from darksynth.training.batches import TrainingBatch, synthesize_batch
 from darksynth.training.corpus import CleanCorpus, sample_clean_clips
 

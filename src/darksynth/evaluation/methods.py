@@ -26,6 +26,7 @@ from darksynth.evaluation.classical import (
 from darksynth.evaluation.srgb_fit import JPEG_CANDIDATES
 from darksynth.io.arrays import to_8bit_levels
 from darksynth.noise.simulate import add_noise
+from darksynth.noise.values import NoiseValues
 from darksynth.training.weights import default_weights_path
 
 AWGN_SIGMA = 5.0 / 255.0
@@ -90,11 +91,10 @@ def _den_method(name: str, weights: Path, device: str) -> NoiseMethod:
     except DarksynthError as error:
         raise MethodUnavailableError(f"{name}: {error}") from None
 
-    def fit(noisy: torch.Tensor, clean: torch.Tensor) -> dict[str, torch.Tensor]:
-        profile = estimate(noisy.to(torch.float32)[None], model, device=device).profile
-        return {k: torch.tensor(v, dtype=torch.float64) for k, v in profile.noise.items()}
+    def fit(noisy: torch.Tensor, clean: torch.Tensor) -> NoiseValues:
+        return estimate(noisy.to(torch.float32)[None], model, device=device).profile.noise
 
-    def synthesize(clean: torch.Tensor, values: dict[str, torch.Tensor], generator: torch.Generator) -> torch.Tensor:
+    def synthesize(clean: torch.Tensor, values: NoiseValues, generator: torch.Generator) -> torch.Tensor:
         # The paper's model f(v) on the clean image as it is: it already has the reference's brightness.
         return to_8bit_levels(add_noise(clean[None], values, generator=generator)[0])
 

@@ -3,7 +3,7 @@
 The encoder reads each frame of a clip beside the frame minus the clip's mean frame (what changes over the
 clip), so that patterns held over the clip (temporal banding) can be told from per-frame ones. Its
 bottleneck is pooled over frames and positions (mean and standard deviation of every channel) and goes,
-with fixed noise statistics of the clip (:mod:`darksynth.models.noise_statistics`), into an MLP that
+with fixed noise statistics of the clip (:mod:`darksynth.noise.statistics`), into an MLP that
 predicts v in a normalised space: a sigmoid over each parameter's training range, so every prediction is a
 valid value. The decoder (variant v3) reconstructs the dark clean clip from the encoder's features, which is
 the paper's auxiliary task. Nothing depends on the frame size: frames are padded to a multiple of
@@ -26,8 +26,8 @@ import torch
 import torch.nn.functional as F
 from torch import nn
 
-from darksynth.models.noise_statistics import model_noise_statistics, statistics_size
-from darksynth.noise.components import NoiseModel, model_parameters, vector_size
+from darksynth.noise.components import NoiseModel, model_parameters, model_statistics, vector_size
+from darksynth.noise.values import NoiseValues
 
 Variant = Literal["v2", "v3"]
 MODEL_NAME = "darksynth-den"
@@ -129,9 +129,11 @@ class DENOutput:
     log_levels: bool = False
 
     @property
-    def values(self) -> torch.Tensor:
-        """v in the parameters' units, (B, vector_size(noise_model))."""
-        return denormalise(self.normalised, self.noise_model, self.log_levels)
+    def values(self) -> NoiseValues:
+        """The estimated noise values in the parameters' units, batched (B,); those the noise model lacks neutral."""
+        return NoiseValues.from_vector(
+            denormalise(self.normalised, self.noise_model, self.log_levels), self.noise_model
+        )
 
 
 class DEN(nn.Module):
@@ -163,7 +165,7 @@ class DEN(nn.Module):
             self.to_image = nn.Sequential(nn.Conv2d(widths[0], 4 * config.channels, 1), nn.PixelShuffle(2))
         # The statistics span many decades and are standardised with the mean and spread measured on training
         # data before training starts (set_statistics_scale); the buffers travel with the weights.
-        statistics = statistics_size(config.noise_model)
+        statistics = sum(s.size for s in model_statistics(config.noise_model))
         self.register_buffer("statistics_mean", torch.zeros(statistics))
         self.register_buffer("statistics_scale", torch.ones(statistics))
         self.pooled_norm = nn.LayerNorm(2 * widths[-1])
@@ -233,4 +235,4 @@ class DEN(nn.Module):
 
     def statistics(self, clip: torch.Tensor) -> torch.Tensor:
         """The fixed noise statistics this model's head reads, before standardisation."""
-        return model_noise_statistics(clip, self.config.noise_model)
+        return torch.cat([s.compute(clip) for s in model_statistics(self.config.noise_model)], dim=-1)

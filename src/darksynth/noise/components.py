@@ -1,9 +1,12 @@
 """The noise components of f(v), declared as data.
 
 Every quantity of the noise model lives in :data:`NOISE_COMPONENTS`: a component's parameters (name, number
-of values, unit, valid bound, training range) and the pure function that draws it. The profile schema, the
-parameter vector of the estimation network, the samplers and the command line all iterate over this table,
-so a new component is added here, next to its function, and nowhere else.
+of values, unit, valid bound, training range, the profile version it arrived in, the estimator statistics that
+reveal it, the fast paths that can draw it) and the pure functions that draw it and give its term of the mean
+noise variance. The profile schema, the carrier of values (:mod:`darksynth.noise.values`), the estimation
+network's vector and statistics, the samplers, the composer and the fused kernel's choice all read this table
+through the functions below (never a copy of it), so a new component is added here, next to its function, and
+nowhere else; ``tests/noise/test_new_component.py`` declares one inside a test and runs it end to end.
 
 All values are on the [0, 1] intensity scale of the image.
 """
@@ -21,6 +24,7 @@ from darksynth.noise.correlated import jpeg_compress_clips, structured_normal
 from darksynth.noise.heteroscedastic import heteroscedastic_noise, heteroscedastic_std
 from darksynth.noise.periodic import periodic_noise
 from darksynth.noise.quantization import quantization_noise
+from darksynth.noise.statistics import PAPER_STATISTICS, SRGB_STATISTICS, EstimatorStatistics
 
 Structure = Literal["pixel", "column", "output"]
 """How a component varies in the frame.
@@ -40,10 +44,18 @@ Role = Literal["amplitude", "shape"]
 """``amplitude``: the component draws nothing when all its amplitude parameters are neutral. ``shape``: shapes
 what the amplitudes draw (a correlation length, a channel gain) and draws nothing by itself."""
 
+FastPath = Literal["fused_8bit"]
+"""A specialised implementation of part of f(v). ``fused_8bit``: :mod:`darksynth.noise.kernel8`, one pass over
+an 8-bit frame that draws white heteroscedastic and quantization noise and adds the column components."""
+
 DrawFunction = Callable[[torch.Tensor, Mapping[str, torch.Tensor], torch.Generator | None], torch.Tensor]
 """``draw(signal, values, generator) -> noise``: ``signal`` is the darkened clean clip (..., T, C, H, W),
 ``values`` maps each of the component's parameter names to a tensor shaped (*batch, size), where *batch are
 the clip's leading dimensions. The noise broadcasts against ``signal``."""
+
+VarianceFunction = Callable[[Mapping[str, torch.Tensor], torch.Tensor], torch.Tensor]
+"""``variance(values, channel_means) -> (B, C)``: the component's contribution to the mean noise variance of
+clips whose channels have the mean levels ``channel_means`` (B, C), with ``values`` shaped (B, size)."""
 
 
 @dataclass(frozen=True)
@@ -59,13 +71,20 @@ class Parameter:
         minimum: smallest valid value.
         neutral: the value that changes nothing (0 for most, 1 for a gain): what a profile of an older version
             or a model without the parameter means.
-        model: the first noise model that has the parameter (see :data:`NoiseModel`).
+        noise_model: the first noise model that has the parameter (see :data:`NoiseModel`).
+        since_version: the profile version the parameter arrived in. Parameters of version 1 are required in
+            every profile; later ones are optional (neutral when absent) and refused in older documents.
         role: see :data:`Role`.
         training_off_probability: when set, training sets this parameter alone to its neutral value with this
             probability (shape parameters, so the estimator also sees white, uncompressed noise).
         log_floor: for a noise level spanning decades: with a log level prior, training draws it log-uniformly
             over [log_floor, training high] and the estimator predicts its logarithm (values below the floor
             read as the floor), so a level of 0.005 is estimated as precisely, relatively, as one of 0.05.
+            This is also the scale of the estimator's output head for the parameter.
+        statistics: the fixed statistics that reveal the parameter to the estimator; the head of a noise model
+            reads those of all its parameters (:func:`model_statistics`).
+        fast_paths: the fast paths that draw this parameter at any value; every other fast path is taken only
+            while the parameter is neutral (:meth:`darksynth.noise.values.NoiseValues.covered_by`).
     """
 
     name: str
@@ -75,36 +94,48 @@ class Parameter:
     training_range: tuple[float, float]
     minimum: float = 0.0
     neutral: float = 0.0
-    model: NoiseModel = "paper"
+    noise_model: NoiseModel = "paper"
+    since_version: int = 1
     role: Role = "amplitude"
     training_off_probability: float | None = None
     log_floor: float | None = None
+    statistics: EstimatorStatistics = PAPER_STATISTICS
+    fast_paths: frozenset[FastPath] = frozenset()
 
 
 @dataclass(frozen=True)
 class NoiseComponent:
-    """One additive term of f(v) with the parameters it reads and the function that draws it."""
+    """One term of f(v) with the parameters it reads, the function that draws it and its variance."""
 
     name: str
     parameters: tuple[Parameter, ...]
     structure: Structure
     draw: DrawFunction
     reference: str
+    variance: VarianceFunction | None
+    """Its term of the mean noise variance (:func:`darksynth.noise.level.mean_noise_variance`); None for an
+    output stage, which transforms the image instead of adding to it."""
     per_clip: bool = False
     """True when one draw is held over all frames of a clip: a frame-by-frame stream draws it once."""
 
 
-def shapes_neutral(parameters: tuple[Parameter, ...], values: Mapping[str, torch.Tensor]) -> bool:
-    """True when none of ``parameters``' shape parameters is set (missing ones count as neutral): the noise
-    they shape is the paper's white noise, drawn exactly as before them."""
-    return all(
-        p.name not in values or bool((values[p.name] == p.neutral).all()) for p in parameters if p.role == "shape"
-    )
+def _shapes_neutral(parameters: tuple[Parameter, ...], values: Mapping[str, torch.Tensor]) -> bool:
+    return all(bool((values[p.name] == p.neutral).all()) for p in parameters if p.role == "shape")
 
 
 _HETEROSCEDASTIC_PARAMETERS: tuple[Parameter, ...] = (
-    Parameter("shot", 1, "std per sqrt(intensity): variance shot^2 * x", 1.0, (0.0, 0.2), log_floor=0.002),
-    Parameter("read", 1, "std, signal-independent", 1.0, (0.0, 0.1), log_floor=0.001),
+    Parameter(
+        "shot",
+        1,
+        "std per sqrt(intensity): variance shot^2 * x",
+        1.0,
+        (0.0, 0.2),
+        log_floor=0.002,
+        fast_paths=frozenset({"fused_8bit"}),
+    ),
+    Parameter(
+        "read", 1, "std, signal-independent", 1.0, (0.0, 0.1), log_floor=0.001, fast_paths=frozenset({"fused_8bit"})
+    ),
     # Measured on the real pairs (docs/srgb-noise.md): red and blue noise 1.1-1.5x green's std, Gaussian
     # lengths 0.6-0.9 px, channel correlations 0.2-0.7, different per pair of channels.
     Parameter(
@@ -115,7 +146,9 @@ _HETEROSCEDASTIC_PARAMETERS: tuple[Parameter, ...] = (
         (0.7, 2.0),
         minimum=0.25,
         neutral=1.0,
-        model="srgb",
+        noise_model="srgb",
+        since_version=2,
+        statistics=SRGB_STATISTICS,
         role="shape",
         training_off_probability=0.2,
     ),
@@ -125,7 +158,9 @@ _HETEROSCEDASTIC_PARAMETERS: tuple[Parameter, ...] = (
         "std in pixels of the Gaussian kernel that correlates the noise spatially (variance kept)",
         8.0,
         (0.0, 2.0),
-        model="srgb",
+        noise_model="srgb",
+        since_version=2,
+        statistics=SRGB_STATISTICS,
         role="shape",
         training_off_probability=0.2,
     ),
@@ -136,7 +171,9 @@ _HETEROSCEDASTIC_PARAMETERS: tuple[Parameter, ...] = (
         0.95,
         (0.0, 0.7),
         minimum=-0.45,
-        model="srgb",
+        noise_model="srgb",
+        since_version=2,
+        statistics=SRGB_STATISTICS,
         role="shape",
         training_off_probability=0.2,
     ),
@@ -147,7 +184,7 @@ def _draw_heteroscedastic(
     signal: torch.Tensor, values: Mapping[str, torch.Tensor], generator: torch.Generator | None
 ) -> torch.Tensor:
     shot, read = values["shot"][..., 0], values["read"][..., 0]
-    if shapes_neutral(_HETEROSCEDASTIC_PARAMETERS, values):
+    if _shapes_neutral(_HETEROSCEDASTIC_PARAMETERS, values):
         return heteroscedastic_noise(signal, shot, read, generator=generator)
     # A single frame (C, H, W), as streaming passes it, is a clip of one frame.
     shape = signal.shape if signal.dim() >= 4 else (1, *signal.shape)
@@ -197,6 +234,31 @@ def _draw_periodic(
     return periodic_noise(signal.shape, values["periodic"], generator=generator, device=signal.device)
 
 
+def _heteroscedastic_variance(values: Mapping[str, torch.Tensor], channel_means: torch.Tensor) -> torch.Tensor:
+    # Spatial and channel correlation keep each pixel's variance; only the channel gains change it.
+    per_channel = values["shot"][:, :1].square() * channel_means + values["read"][:, :1].square()
+    if channel_means.shape[-1] != 3:
+        return per_channel
+    gains = values["channel_gain"]
+    return per_channel * torch.stack([gains[:, 0], torch.ones_like(gains[:, 0]), gains[:, 1]], dim=1).square()
+
+
+def _quantization_variance(values: Mapping[str, torch.Tensor], channel_means: torch.Tensor) -> torch.Tensor:
+    # U(0, q) has variance q^2 / 12 (its mean q / 2 is a shift of the level, not noise).
+    return (values["quantization"][:, :1].square() / 12.0).expand_as(channel_means)
+
+
+def _column_variance(name: str) -> VarianceFunction:
+    def variance(values: Mapping[str, torch.Tensor], channel_means: torch.Tensor) -> torch.Tensor:
+        # Each periodic mode has unit mean square over the columns, so its variance is its sigma^2 too.
+        return values[name].square().sum(dim=-1, keepdim=True).expand_as(channel_means)
+
+    return variance
+
+
+_FUSED: frozenset[FastPath] = frozenset({"fused_8bit"})
+"""The 8-bit kernel draws quantization itself and adds the column components, which the composer draws."""
+
 # The training ranges cover real sRGB low-light noise: at mid-grey (x = 0.5) shot 0.2 alone gives a std of
 # 0.14 of full scale, and read noise adds up to 0.1 at black.
 NOISE_COMPONENTS: tuple[NoiseComponent, ...] = (
@@ -205,32 +267,62 @@ NOISE_COMPONENTS: tuple[NoiseComponent, ...] = (
         parameters=_HETEROSCEDASTIC_PARAMETERS,
         structure="pixel",
         draw=_draw_heteroscedastic,
+        variance=_heteroscedastic_variance,
         reference="Foi et al. 2008, Practical Poissonian-Gaussian noise modeling and fitting; "
         "structure: docs/srgb-noise.md",
     ),
     NoiseComponent(
         name="quantization",
         parameters=(
-            Parameter("quantization", 1, "width of the uniform interval U(0, q)", 1.0, (0.0, 0.02), log_floor=0.0002),
+            Parameter(
+                "quantization",
+                1,
+                "width of the uniform interval U(0, q)",
+                1.0,
+                (0.0, 0.02),
+                log_floor=0.0002,
+                fast_paths=_FUSED,
+            ),
         ),
         structure="pixel",
         draw=_draw_quantization,
+        variance=_quantization_variance,
         reference="Lin, Morris et al. 2025, eq. of f(v); Monakhova et al. 2022",
     ),
     NoiseComponent(
         name="banding",
-        parameters=(Parameter("banding", 1, "std of a per-frame column offset", 1.0, (0.0, 0.03), log_floor=0.0003),),
+        parameters=(
+            Parameter(
+                "banding",
+                1,
+                "std of a per-frame column offset",
+                1.0,
+                (0.0, 0.03),
+                log_floor=0.0003,
+                fast_paths=_FUSED,
+            ),
+        ),
         structure="column",
         draw=_draw_banding,
+        variance=_column_variance("banding"),
         reference="Monakhova et al. 2022, Dancing under the stars (row/column noise)",
     ),
     NoiseComponent(
         name="temporal_banding",
         parameters=(
-            Parameter("temporal_banding", 1, "std of a per-clip column offset", 1.0, (0.0, 0.03), log_floor=0.0003),
+            Parameter(
+                "temporal_banding",
+                1,
+                "std of a per-clip column offset",
+                1.0,
+                (0.0, 0.03),
+                log_floor=0.0003,
+                fast_paths=_FUSED,
+            ),
         ),
         structure="column",
         draw=_draw_temporal_banding,
+        variance=_column_variance("temporal_banding"),
         reference="Monakhova et al. 2022, Dancing under the stars (fixed-pattern noise)",
         per_clip=True,
     ),
@@ -238,11 +330,18 @@ NOISE_COMPONENTS: tuple[NoiseComponent, ...] = (
         name="periodic",
         parameters=(
             Parameter(
-                "periodic", 3, "std of the DC, cosine and sine column patterns", 1.0, (0.0, 0.02), log_floor=0.0002
+                "periodic",
+                3,
+                "std of the DC, cosine and sine column patterns",
+                1.0,
+                (0.0, 0.02),
+                log_floor=0.0002,
+                fast_paths=_FUSED,
             ),
         ),
         structure="column",
         draw=_draw_periodic,
+        variance=_column_variance("periodic"),
         reference="Monakhova et al. 2022, Dancing under the stars (periodic noise)",
     ),
     NoiseComponent(
@@ -254,59 +353,69 @@ NOISE_COMPONENTS: tuple[NoiseComponent, ...] = (
                 "JPEG compression strength c: quality round(100 (1 - c)), 0 for none",
                 0.95,
                 (0.0, 0.7),
-                model="srgb",
+                noise_model="srgb",
+                since_version=2,
+                statistics=SRGB_STATISTICS,
                 training_off_probability=0.4,
             ),
         ),
         structure="output",
         draw=_draw_compression,
+        variance=None,
         reference="JPEG (ITU-T T.81) through Pillow, 4:2:0; docs/srgb-noise.md",
     ),
 )
-
-NOISE_PARAMETERS: tuple[Parameter, ...] = tuple(p for c in NOISE_COMPONENTS for p in c.parameters)
-"""Every parameter, in table order: the full v of the ``srgb`` model."""
-
-NOISE_PARAMETER_NAMES: tuple[str, ...] = tuple(p.name for p in NOISE_PARAMETERS)
-
-NOISE_VECTOR_SIZE: int = sum(p.size for p in NOISE_PARAMETERS)
-"""Length of the flat parameter vector v of the full (``srgb``) model."""
+"""The table. Read it through the functions below, which look it up at each call, so that a component
+declared here (or, in a test, added to it) is seen everywhere."""
 
 NOISE_MODELS: tuple[NoiseModel, ...] = ("paper", "srgb")
 
 
-def model_parameters(model: NoiseModel = "srgb") -> tuple[Parameter, ...]:
+def noise_components() -> tuple[NoiseComponent, ...]:
+    """Every component, in table order."""
+    return NOISE_COMPONENTS
+
+
+def noise_parameters() -> tuple[Parameter, ...]:
+    """Every parameter, in table order: the full v of the ``srgb`` model."""
+    return tuple(p for c in NOISE_COMPONENTS for p in c.parameters)
+
+
+def noise_parameter_names() -> tuple[str, ...]:
+    return tuple(p.name for p in noise_parameters())
+
+
+def model_parameters(noise_model: NoiseModel = "srgb") -> tuple[Parameter, ...]:
     """The parameters of one noise model, in table order: ``paper`` is shot, read, quantization, banding,
     temporal_banding, periodic (3), the paper's v of 8 values; ``srgb`` is every parameter."""
-    if model not in NOISE_MODELS:
-        raise ValueError(f"unknown noise model {model!r}; known: {', '.join(NOISE_MODELS)}")
-    last = NOISE_MODELS.index(model)
-    return tuple(p for p in NOISE_PARAMETERS if NOISE_MODELS.index(p.model) <= last)
+    if noise_model not in NOISE_MODELS:
+        raise ValueError(f"unknown noise model {noise_model!r}; known: {', '.join(NOISE_MODELS)}")
+    last = NOISE_MODELS.index(noise_model)
+    return tuple(p for p in noise_parameters() if NOISE_MODELS.index(p.noise_model) <= last)
 
 
-def vector_size(model: NoiseModel = "srgb") -> int:
+def vector_size(noise_model: NoiseModel = "srgb") -> int:
     """Length of the flat v of one noise model (8 for ``paper``)."""
-    return sum(p.size for p in model_parameters(model))
+    return sum(p.size for p in model_parameters(noise_model))
+
+
+def model_statistics(noise_model: NoiseModel = "srgb") -> tuple[EstimatorStatistics, ...]:
+    """The statistics the estimator of a noise model reads: those its parameters name, in table order."""
+    found: list[EstimatorStatistics] = []
+    for parameter in model_parameters(noise_model):
+        if parameter.statistics not in found:
+            found.append(parameter.statistics)
+    return tuple(found)
 
 
 def noise_parameter(name: str) -> Parameter:
     """The parameter called ``name``; raises KeyError naming the known ones."""
-    for parameter in NOISE_PARAMETERS:
+    for parameter in noise_parameters():
         if parameter.name == name:
             return parameter
-    raise KeyError(f"unknown noise parameter {name!r}; known: {', '.join(NOISE_PARAMETER_NAMES)}")
+    raise KeyError(f"unknown noise parameter {name!r}; known: {', '.join(noise_parameter_names())}")
 
 
-def values_to_vector(values: Mapping[str, torch.Tensor], model: NoiseModel = "srgb") -> torch.Tensor:
-    """Concatenate a model's named parameter tensors (*batch, size) into its v (*batch, vector_size(model))."""
-    return torch.cat([values[p.name] for p in model_parameters(model)], dim=-1)
-
-
-def vector_to_values(vector: torch.Tensor, model: NoiseModel = "srgb") -> dict[str, torch.Tensor]:
-    """Split a model's v (*batch, vector_size(model)) into named tensors (*batch, size), in the table's order."""
-    parameters = model_parameters(model)
-    size = sum(p.size for p in parameters)
-    if vector.shape[-1] != size:
-        raise ValueError(f"noise vector must end in {size} values, got shape {tuple(vector.shape)}")
-    parts = torch.split(vector, [p.size for p in parameters], dim=-1)
-    return {p.name: part for p, part in zip(parameters, parts, strict=True)}
+def profile_version() -> int:
+    """The version profiles are written with: the newest a parameter of the table arrived in."""
+    return max(p.since_version for p in noise_parameters())

@@ -20,12 +20,18 @@ from collections.abc import Callable
 
 import torch
 
+from darksynth.noise.components import FastPath
 from darksynth.noise.counter_rng import normal_and_byte
 from darksynth.noise.quantization import QUANTIZATION_LEVELS
+from darksynth.noise.values import NoiseValues
 
 logger = logging.getLogger(__name__)
 
 FULL_SCALE = 255.0
+
+FAST_PATH: FastPath = "fused_8bit"
+"""The name under which the table declares what this kernel covers (:attr:`Parameter.fast_paths`): white
+heteroscedastic and quantization noise per pixel; the column components come in as a precomputed pattern."""
 
 PixelKernel = Callable[..., torch.Tensor]
 
@@ -70,24 +76,24 @@ def pixel_kernel_8bit(
 
 
 def kernel_scalars(
-    alpha: float | None, gamma: float | None, shot: float, read: float, quantization: float, *, device: torch.device
+    alpha: float | None, gamma: float | None, values: NoiseValues, *, device: torch.device
 ) -> tuple[torch.Tensor, ...]:
     """The 0-dim arguments (alpha, inverse_gamma, shot_squared, read_squared, quantization_step) of the kernel.
 
     Args:
         alpha, gamma: darkening x_d = alpha * x ** (1 / gamma); both None leaves the input level unchanged.
-        shot, read: heteroscedastic parameters on the [0, 1] scale (0 for an inactive component).
-        quantization: width q of the quantization noise on the [0, 1] scale (0 for inactive).
+        values: unbatched noise values that the kernel covers (``values.covered_by(FAST_PATH)``).
         device: device of the tensors.
     """
-    values = (
+    shot, read, quantization = values.scalar("shot"), values.scalar("read"), values.scalar("quantization")
+    scalars = (
         1.0 if alpha is None else alpha,
         1.0 if gamma is None else 1.0 / gamma,
         shot * shot,
         read * read,
         quantization / QUANTIZATION_LEVELS,
     )
-    return tuple(torch.tensor(v, dtype=torch.float32, device=device) for v in values)
+    return tuple(torch.tensor(v, dtype=torch.float32, device=device) for v in scalars)
 
 
 EAGER_CHUNK_VALUES = 1 << 19
@@ -140,6 +146,6 @@ def compiled_pixel_kernel() -> PixelKernel:
         try:
             _compiled = torch.compile(pixel_kernel_8bit, dynamic=False, fullgraph=True)
         except Exception as error:  # pragma: no cover - depends on the platform's compiler
-            logger.info("torch.compile unavailable (%s); using the eager 8-bit kernel", error)
+            logger.warning("torch.compile unavailable (%s); using the eager 8-bit kernel", error)
             _compiled = pixel_kernel_8bit
     return _compiled

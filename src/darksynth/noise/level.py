@@ -11,17 +11,20 @@ from collections.abc import Mapping
 
 import torch
 
+from darksynth.noise.components import noise_components
+
 
 def mean_noise_variance(values: Mapping[str, torch.Tensor], dark: torch.Tensor) -> torch.Tensor:
     """Mean over pixels of the noise variance of each clip, before clipping and 8-bit rounding.
 
-    Sums the heteroscedastic term ``g_c^2 (shot^2 x + read^2)`` (channel gains ``g`` = red, 1, blue when the
-    values hold ``channel_gain``; spatial and channel correlation keep the variance), ``banding^2`` and
-    ``temporal_banding^2``. Quantization and periodic noise are left out: small next to these on real noise.
-    Differentiable in ``values``.
+    The sum of the terms the components of the table declare (:attr:`NoiseComponent.variance`): for the
+    heteroscedastic one ``g_c^2 (shot^2 x + read^2)`` with channel gains ``g`` = (red, 1, blue) (spatial and
+    channel correlation keep the variance), ``q^2 / 12`` for quantization, the squared std of each column
+    component. Output stages (compression) have no additive term. Differentiable in ``values``.
 
     Args:
-        values: parameters by name, each (B, size).
+        values: parameters by name, each (B, size): a batched :class:`~darksynth.noise.values.NoiseValues`,
+            or the same as plain tensors where gradients flow through them.
         dark: the clips the noise is added to, (B, T, C, H, W) or (B, C, H, W).
 
     Returns:
@@ -30,14 +33,8 @@ def mean_noise_variance(values: Mapping[str, torch.Tensor], dark: torch.Tensor) 
     batch = dark.shape[0]
     channels = dark.shape[-3]
     channel_means = dark.reshape(batch, -1, channels, dark.shape[-2] * dark.shape[-1]).mean(dim=(1, 3))
-    shot, read = values["shot"][:, :1], values["read"][:, :1]
-    per_channel = shot.square() * channel_means + read.square()
-    if "channel_gain" in values and channels == 3:
-        gains = values["channel_gain"]
-        squares = torch.stack([gains[:, 0], torch.ones_like(gains[:, 0]), gains[:, 1]], dim=1).square()
-        per_channel = per_channel * squares
-    variance = per_channel.mean(dim=1)
-    for name in ("banding", "temporal_banding"):
-        if name in values:
-            variance = variance + values[name][:, 0].square()
-    return variance
+    variance = torch.zeros_like(channel_means)
+    for component in noise_components():
+        if component.variance is not None:
+            variance = variance + component.variance(values, channel_means)
+    return variance.mean(dim=1)

@@ -8,7 +8,8 @@ from collections.abc import Mapping, Sequence
 import torch
 
 from darksynth.darkening import ALPHA_RANGE, GAMMA_RANGE
-from darksynth.noise.components import NOISE_PARAMETERS, NoiseModel, model_parameters
+from darksynth.noise.components import NoiseModel, model_parameters, noise_parameters
+from darksynth.noise.values import NoiseValues
 
 Range = tuple[float, float]
 
@@ -42,18 +43,18 @@ def random_noise_values(
     dtype: torch.dtype = torch.float32,
     model: NoiseModel = "srgb",
     log_levels: bool = False,
-) -> dict[str, torch.Tensor]:
+) -> NoiseValues:
     """Draw every parameter of a noise model uniformly within its range (the training range where none is
     given); the parameters the model lacks get their neutral value, without a draw. With ``log_levels``, the
     levels that have a ``log_floor`` and no given range are drawn log-uniformly over [log_floor, high].
 
     Returns:
-        Each parameter by name as a tensor (*batch_shape, size), in the order of the parameter table.
+        Every parameter's values (*batch_shape, size), drawn in the order of the parameter table.
     """
     ranges = ranges or {}
     drawn = {p.name for p in model_parameters(model)}
-    values = {}
-    for p in NOISE_PARAMETERS:
+    values: dict[str, torch.Tensor] = {}
+    for p in noise_parameters():
         if p.name not in drawn:
             values[p.name] = torch.full((*batch_shape, p.size), p.neutral, device=device, dtype=dtype)
         elif log_levels and p.log_floor is not None and p.name not in ranges:
@@ -73,7 +74,7 @@ def random_noise_values(
                 device=device,
                 dtype=dtype,
             )
-    return values
+    return NoiseValues(values)
 
 
 def random_darkening_values(

@@ -1,71 +1,108 @@
-"""The one composer of the noise model: f(v) as the sum of its components, added to the darkened signal."""
+"""The one composer of the noise model: f(v) as the sum of its components, added to the darkened signal.
+
+Everything that makes noise goes through :func:`add_noise`: the batch API on whole clips, the streaming
+synthesizer frame by frame (it passes ``held`` so that per-clip components are drawn once), training and the
+evaluation methods. The fused 8-bit kernel is a declared fast path for a subset of the table
+(:attr:`~darksynth.noise.components.Parameter.fast_paths`): it takes the column components from
+:func:`column_noise` here and replaces only the per-pixel sum, the clipping and the rounding.
+
+Drawing order, the same for a clip and for a stream: the column components in table order, then the per-pixel
+ones in table order, then the output stages on the clipped image.
+"""
 
 from __future__ import annotations
 
-from collections.abc import Mapping
-
 import torch
 
-from darksynth.noise.components import NOISE_COMPONENTS, NoiseComponent
+from darksynth.noise.components import NoiseComponent, noise_components
+from darksynth.noise.values import NoiseValues
 
 
-def is_active(component: NoiseComponent, values: Mapping[str, torch.Tensor]) -> bool:
-    """Whether any of the component's amplitude parameters differs from its neutral value; an inactive
-    component draws nothing. Parameters missing from ``values`` (an older profile) count as neutral."""
-    return any(
-        p.name in values and bool((values[p.name] != p.neutral).any())
-        for p in component.parameters
-        if p.role == "amplitude"
-    )
+def _active(values: NoiseValues, structure: str) -> tuple[NoiseComponent, ...]:
+    return tuple(c for c in noise_components() if c.structure == structure and values.is_active(c))
 
 
-def drawing_order() -> tuple[NoiseComponent, ...]:
-    """The additive components: column ones first, then per-pixel ones, each group in table order.
-
-    Frame-by-frame streaming draws in the same order, so an image gives the same result either way.
-    """
-    columns = tuple(c for c in NOISE_COMPONENTS if c.structure == "column")
-    return columns + tuple(c for c in NOISE_COMPONENTS if c.structure == "pixel")
-
-
-def output_stages() -> tuple[NoiseComponent, ...]:
-    """The components applied to the finished noisy image (compression), in table order."""
-    return tuple(c for c in NOISE_COMPONENTS if c.structure == "output")
-
-
-def apply_output_stages(
-    noisy: torch.Tensor, values: Mapping[str, torch.Tensor], *, generator: torch.Generator | None = None
+def column_noise(
+    shape: torch.Size | tuple[int, ...],
+    values: NoiseValues,
+    *,
+    generator: torch.Generator | None,
+    held: dict[str, torch.Tensor] | None = None,
+    device: torch.device | str | None = None,
 ) -> torch.Tensor:
-    """Run the active output stages on a clipped noisy clip (*batch, T, C, H, W) in [0, 1]."""
-    for stage in output_stages():
-        if is_active(stage, values):
-            noisy = stage.draw(noisy, values, generator)
-    return noisy
-
-
-def noise_sum(
-    signal: torch.Tensor, values: Mapping[str, torch.Tensor], *, generator: torch.Generator | None = None
-) -> torch.Tensor:
-    """f(v): the sum of all active noise components for a darkened clip.
+    """The sum of the active column components for clips of ``shape`` (*batch, T, C, H, W).
 
     Args:
-        signal: darkened clean clip (*batch, T, C, H, W), values in [0, 1].
-        values: every noise parameter by name, tensors (size,) or (*batch, size).
-        generator: source of randomness; the global generator when None.
+        shape: the clips' shape; only the shape is needed, the column components do not read the signal.
+        values: the noise values, on ``device``.
+        generator: source of randomness.
+        held: per-clip patterns (temporal banding) by component name, filled at the first call and reused:
+            a stream passes the same dict for every frame of a clip.
+        device: where to draw.
 
     Returns:
-        The noise, shaped like ``signal`` (zeros when every parameter is zero).
+        A row pattern (*batch, T or 1, C, 1, W) on the [0, 1] scale, zeros when no column component is active.
     """
-    total = torch.zeros_like(signal)
-    for component in drawing_order():
-        if is_active(component, values):
-            total = total + component.draw(signal, values, generator)
+    # The components read only the shape and device of the signal: a zero-stride view has both and costs no
+    # frame-sized allocation.
+    probe = torch.empty((), device=device).expand(shape)
+    total = torch.zeros((*shape[:-2], 1, shape[-1]), device=device)
+    for component in _active(values, "column"):
+        if component.per_clip and held is not None:
+            if component.name not in held:
+                held[component.name] = component.draw(probe, values, generator)
+            pattern = held[component.name]
+            if pattern.shape[-3] != shape[-3] or pattern.shape[-1] != shape[-1]:
+                raise ValueError(f"frame size changed within a clip: {tuple(shape)}")
+        else:
+            pattern = component.draw(probe, values, generator)
+        total = total + pattern
     return total
 
 
-def add_noise(
-    signal: torch.Tensor, values: Mapping[str, torch.Tensor], *, generator: torch.Generator | None = None
+def pixel_noise(signal: torch.Tensor, values: NoiseValues, *, generator: torch.Generator | None) -> torch.Tensor:
+    """The sum of the active per-pixel components for a darkened clip (*batch, T, C, H, W)."""
+    total = torch.zeros_like(signal)
+    for component in _active(values, "pixel"):
+        total = total + component.draw(signal, values, generator)
+    return total
+
+
+def apply_output_stages(
+    noisy: torch.Tensor, values: NoiseValues, *, generator: torch.Generator | None = None
 ) -> torch.Tensor:
-    """The noisy low-light clip: signal + f(v), clipped to [0, 1], then the output stages (compression)."""
-    noisy = (signal + noise_sum(signal, values, generator=generator)).clamp(0.0, 1.0)
+    """Run the active output stages (compression) on a clipped noisy clip (*batch, T, C, H, W) in [0, 1]."""
+    for stage in _active(values, "output"):
+        noisy = stage.draw(noisy, values, generator)
+    return noisy
+
+
+def noise_sum(signal: torch.Tensor, values: NoiseValues, *, generator: torch.Generator | None) -> torch.Tensor:
+    """f(v) before clipping: the column and per-pixel components for a darkened clip (*batch, T, C, H, W)."""
+    values = values.to(signal.device, signal.dtype)
+    columns = column_noise(signal.shape, values, generator=generator, device=signal.device)
+    return columns + pixel_noise(signal, values, generator=generator)
+
+
+def add_noise(
+    signal: torch.Tensor,
+    values: NoiseValues,
+    *,
+    generator: torch.Generator | None,
+    held: dict[str, torch.Tensor] | None = None,
+) -> torch.Tensor:
+    """The noisy low-light clip: signal + f(v), clipped to [0, 1], then the output stages (compression).
+
+    Args:
+        signal: darkened clean clips (*batch, T, C, H, W), values in [0, 1].
+        values: the noise values, unbatched or with the clips' batch shape.
+        generator: source of randomness; pass a seeded one for reproducible output.
+        held: see :func:`column_noise` (streams only).
+
+    Returns:
+        The noisy clips, shaped like ``signal``.
+    """
+    values = values.to(signal.device, signal.dtype)
+    columns = column_noise(signal.shape, values, generator=generator, held=held, device=signal.device)
+    noisy = (signal + columns + pixel_noise(signal, values, generator=generator)).clamp(0.0, 1.0)
     return apply_output_stages(noisy, values, generator=generator)

@@ -8,9 +8,10 @@ import torch
 
 from darksynth.darkening import darken
 from darksynth.io.arrays import to_8bit_levels
-from darksynth.noise.components import NOISE_COMPONENTS, NoiseModel, model_parameters, values_to_vector
+from darksynth.noise.components import NoiseModel, model_parameters, noise_components
 from darksynth.noise.sampling import random_darkening_values, random_noise_values
 from darksynth.noise.simulate import add_noise
+from darksynth.noise.values import NoiseValues
 
 BRIGHT_ALPHA_RANGE = (0.3, 1.0)
 BRIGHT_GAMMA_RANGE = (0.5, 1.0)
@@ -56,7 +57,7 @@ def synthesize_batch(
     noisy, values = random_noisy_version(
         dark, generator=generator, absent_probability=absent_probability, model=model, log_levels=log_levels
     )
-    return TrainingBatch(noisy=noisy, dark=dark, vector=values_to_vector(values, model))
+    return TrainingBatch(noisy=noisy, dark=dark, vector=values.vector(model))
 
 
 def random_noisy_version(
@@ -66,7 +67,7 @@ def random_noisy_version(
     absent_probability: float = 0.15,
     model: NoiseModel = "srgb",
     log_levels: bool = False,
-) -> tuple[torch.Tensor, dict[str, torch.Tensor]]:
+) -> tuple[torch.Tensor, NoiseValues]:
     """Dark clips (B, T, C, H, W) made noisy with v of a noise model drawn from the training ranges, on
     8-bit levels.
 
@@ -79,11 +80,12 @@ def random_noisy_version(
         those outside the model neutral).
     """
     batch = dark.shape[0]
-    values = random_noise_values(
+    drawn = random_noise_values(
         batch_shape=(batch,), generator=generator, device=dark.device, model=model, log_levels=log_levels
     )
+    switched: dict[str, torch.Tensor | float] = {}
     in_model = {p.name for p in model_parameters(model)}
-    for component in NOISE_COMPONENTS:
+    for component in noise_components():
         if not any(p.name in in_model for p in component.parameters):
             continue
         present = torch.rand(batch, 1, generator=generator, device=dark.device) >= absent_probability
@@ -94,5 +96,6 @@ def random_noisy_version(
             if parameter.training_off_probability is not None:
                 alone = torch.rand(batch, 1, generator=generator, device=dark.device)
                 keep = keep & (alone >= parameter.training_off_probability)
-            values[parameter.name] = torch.where(keep, values[parameter.name], parameter.neutral)
+            switched[parameter.name] = torch.where(keep, drawn[parameter.name], parameter.neutral)
+    values = drawn.replace(**switched)
     return to_8bit_levels(add_noise(dark, values, generator=generator)), values

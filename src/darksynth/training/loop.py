@@ -16,8 +16,9 @@ from safetensors.torch import load_file, save_file
 from darksynth.errors import DarksynthError
 from darksynth.io.atomic import atomic_output, write_text_atomic
 from darksynth.models.den import DEN, DENConfig
-from darksynth.noise.components import NoiseModel, model_parameters, vector_to_values
+from darksynth.noise.components import NoiseModel, model_parameters
 from darksynth.noise.level import mean_noise_variance
+from darksynth.noise.values import NoiseValues
 from darksynth.training.batches import TrainingBatch, synthesize_batch
 from darksynth.training.corpus import CleanCorpus, sample_clean_clips
 from darksynth.training.distributed import (
@@ -97,11 +98,11 @@ LEVEL_FLOOR = (0.5 / 255) ** 2
 """Variance added to both sides of the level loss: below half an 8-bit step, levels need not be told apart."""
 
 
-def level_loss(predicted: torch.Tensor, batch: TrainingBatch, model: NoiseModel, device: torch.device) -> torch.Tensor:
+def level_loss(predicted: NoiseValues, batch: TrainingBatch, model: NoiseModel, device: torch.device) -> torch.Tensor:
     """Mean squared log-ratio of the clips' mean noise variance under the predicted and the true v."""
     dark = batch.dark.to(device)
-    estimate = mean_noise_variance(vector_to_values(predicted, model), dark)
-    truth = mean_noise_variance(vector_to_values(batch.vector.to(device), model), dark)
+    estimate = mean_noise_variance(predicted, dark)
+    truth = mean_noise_variance(NoiseValues.from_vector(batch.vector.to(device), model), dark)
     return ((estimate + LEVEL_FLOOR).log() - (truth + LEVEL_FLOOR).log()).square().mean()
 
 
@@ -135,7 +136,7 @@ def evaluate(model: DEN, batches: list[TrainingBatch], device: torch.device) -> 
     model.eval()
     predicted, truth = [], []
     for batch in batches:
-        predicted.append(model(batch.noisy.to(device)).values.cpu())
+        predicted.append(model(batch.noisy.to(device)).values.vector(model.noise_model).cpu())
         truth.append(batch.vector)
     model.train()
     p, t = torch.cat(predicted), torch.cat(truth)

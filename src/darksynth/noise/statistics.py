@@ -17,6 +17,9 @@ Everything is returned as log10 of a variance-like quantity, which keeps the sca
 
 from __future__ import annotations
 
+from collections.abc import Callable
+from dataclasses import dataclass
+
 import torch
 import torch.nn.functional as F
 
@@ -206,13 +209,19 @@ def srgb_noise_statistics(clip: torch.Tensor) -> torch.Tensor:
     )
 
 
-def statistics_size(model: str) -> int:
-    """Length of the statistics vector the DEN of a noise model reads."""
-    return STATISTICS_SIZE + (SRGB_STATISTICS_SIZE if model == "srgb" else 0)
+@dataclass(frozen=True)
+class EstimatorStatistics:
+    """A fixed statistics vector of noisy clips that the estimator's head reads; parameters of the table name
+    the statistics that reveal them (:attr:`darksynth.noise.components.Parameter.statistics`)."""
+
+    name: str
+    size: int
+    compute: Callable[[torch.Tensor], torch.Tensor]
+    """clips (B, T, C, H, W) in [0, 1] -> (B, size)."""
 
 
-def model_noise_statistics(clip: torch.Tensor, model: str) -> torch.Tensor:
-    """The statistics the DEN of a noise model reads: the paper's, plus the sRGB ones for ``srgb``."""
-    if model == "srgb":
-        return torch.cat([noise_statistics(clip), srgb_noise_statistics(clip)], dim=-1)
-    return noise_statistics(clip)
+PAPER_STATISTICS = EstimatorStatistics("paper", STATISTICS_SIZE, noise_statistics)
+"""What reveals the paper's components: level-binned pixel noise and column patterns."""
+
+SRGB_STATISTICS = EstimatorStatistics("srgb", SRGB_STATISTICS_SIZE, srgb_noise_statistics)
+"""What reveals the sRGB structure: multi-scale, per-channel and cross-channel noise, JPEG grid, chroma."""

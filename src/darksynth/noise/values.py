@@ -1,0 +1,226 @@
+"""One carrier of noise values, from the estimator's output through the profile to the pixel and the manifest.
+
+:class:`NoiseValues` holds every parameter of the table (:mod:`darksynth.noise.components`) by name, each a
+tensor shaped ``(*batch, size)``; a parameter that is not given is filled with its neutral value here, and
+nowhere else. It is read like a mapping (``values["shot"]``) by the components that draw the noise, and has
+the other forms a value takes on its way as views: :meth:`NoiseValues.vector` for the network,
+:meth:`NoiseValues.to_json` for profiles and manifests, :meth:`NoiseValues.scalar` for fused kernels.
+
+Values from a profile are kept in float64 so that a profile read and written again keeps its numbers exactly;
+the composer casts them to the signal's dtype where the noise is drawn.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable, Iterator, Mapping, Sequence
+from typing import Any
+
+import torch
+
+from darksynth.noise import components as table
+from darksynth.noise.components import NoiseComponent, NoiseModel, Parameter
+
+JsonValue = float | list[float]
+"""A parameter in JSON: a number for a parameter of size 1, a list of its values otherwise."""
+
+
+class NoiseValues(Mapping[str, torch.Tensor]):
+    """Every noise parameter's values, by name, as tensors shaped ``(*batch, size)``.
+
+    Build one with :meth:`from_values` (numbers, lists or tensors by name; the rest neutral), :meth:`neutral`
+    or :meth:`from_vector`; every entry has the same batch shape, dtype and device.
+    """
+
+    __slots__ = ("_tensors",)
+
+    def __init__(self, tensors: Mapping[str, torch.Tensor]) -> None:
+        parameters = table.noise_parameters()
+        names = [p.name for p in parameters]
+        if set(tensors) != set(names):
+            missing = sorted(set(names) - set(tensors))
+            extra = sorted(set(tensors) - set(names))
+            raise ValueError(f"noise values need exactly the table's parameters; missing {missing}, unknown {extra}")
+        first = tensors[names[0]]
+        batch = tuple(first.shape[:-1])
+        for parameter in parameters:
+            tensor = tensors[parameter.name]
+            if tuple(tensor.shape) != (*batch, parameter.size):
+                raise ValueError(
+                    f"noise value {parameter.name} must be shaped {(*batch, parameter.size)}, got {tuple(tensor.shape)}"
+                )
+        self._tensors = {name: tensors[name] for name in names}
+
+    # --- construction ---------------------------------------------------------------------------------------
+
+    @classmethod
+    def neutral(
+        cls,
+        batch_shape: tuple[int, ...] = (),
+        *,
+        device: torch.device | str | None = None,
+        dtype: torch.dtype = torch.float64,
+    ) -> NoiseValues:
+        """Every parameter at its neutral value: no noise at all."""
+        return cls.from_values({}, batch_shape=batch_shape, device=device, dtype=dtype)
+
+    @classmethod
+    def from_values(
+        cls,
+        values: Mapping[str, float | Sequence[float] | torch.Tensor],
+        *,
+        batch_shape: tuple[int, ...] = (),
+        device: torch.device | str | None = None,
+        dtype: torch.dtype = torch.float64,
+    ) -> NoiseValues:
+        """Values by name (a number, a list of ``size`` numbers, or a tensor broadcastable to ``(*batch, size)``;
+        one number stands for all values of a vector parameter); parameters not given take their neutral value.
+
+        Raises:
+            KeyError: a name that is not a noise parameter.
+            ValueError: a value with the wrong number of entries.
+        """
+        parameters = {p.name: p for p in table.noise_parameters()}
+        unknown = sorted(set(values) - set(parameters))
+        if unknown:
+            raise KeyError(f"unknown noise parameter {unknown[0]!r}; known: {', '.join(parameters)}")
+        tensors = {}
+        for name, parameter in parameters.items():
+            shape = (*batch_shape, parameter.size)
+            if name not in values:
+                tensors[name] = torch.full(shape, parameter.neutral, dtype=dtype, device=device)
+                continue
+            raw = values[name]
+            if isinstance(raw, torch.Tensor):
+                tensor = raw.to(dtype=dtype, device=device)
+            else:
+                tensor = torch.tensor([raw] if isinstance(raw, int | float) else list(raw), dtype=dtype, device=device)
+            if tensor.dim() == 0:
+                tensor = tensor.reshape(1)
+            if tensor.shape[-1] not in (1, parameter.size):
+                raise ValueError(f"noise value {name} needs {parameter.size} value(s), got {tuple(tensor.shape)}")
+            tensors[name] = tensor.expand(shape).clone()
+        return cls(tensors)
+
+    @classmethod
+    def from_vector(cls, vector: torch.Tensor, noise_model: NoiseModel = "srgb") -> NoiseValues:
+        """Split a noise model's flat v ``(*batch, vector_size(noise_model))`` into named values; the parameters
+        the noise model lacks are neutral (white, uncompressed noise for the ``paper`` model)."""
+        parameters = table.model_parameters(noise_model)
+        size = sum(p.size for p in parameters)
+        if vector.shape[-1] != size:
+            raise ValueError(f"a {noise_model} noise vector must end in {size} values, got shape {tuple(vector.shape)}")
+        parts = torch.split(vector, [p.size for p in parameters], dim=-1)
+        given = {p.name: part for p, part in zip(parameters, parts, strict=True)}
+        return cls.from_values(given, batch_shape=tuple(vector.shape[:-1]), device=vector.device, dtype=vector.dtype)
+
+    @classmethod
+    def from_json(cls, noise: Mapping[str, Any]) -> NoiseValues:
+        """The values of a JSON object like :meth:`to_json` writes (unchecked: profiles validate first)."""
+        return cls.from_values({name: value for name, value in noise.items()})
+
+    @classmethod
+    def stack(cls, items: Sequence[NoiseValues]) -> NoiseValues:
+        """One batch from unbatched values (or concatenated batches when the items are batched)."""
+        names = table.noise_parameter_names()
+        if items[0].batch_shape:
+            return cls({name: torch.cat([item[name] for item in items]) for name in names})
+        return cls({name: torch.stack([item[name] for item in items]) for name in names})
+
+    # --- mapping --------------------------------------------------------------------------------------------
+
+    def __getitem__(self, name: str) -> torch.Tensor:
+        return self._tensors[name]
+
+    def __iter__(self) -> Iterator[str]:
+        return iter(self._tensors)
+
+    def __len__(self) -> int:
+        return len(self._tensors)
+
+    def __eq__(self, other: object) -> bool:
+        if not isinstance(other, NoiseValues):
+            return NotImplemented
+        return all(torch.equal(self._tensors[name], other._tensors[name]) for name in self._tensors)
+
+    __hash__ = None  # type: ignore[assignment]
+
+    def __repr__(self) -> str:
+        if not self.batch_shape:
+            return f"NoiseValues({self.to_json()})"
+        return f"NoiseValues(batch {self.batch_shape}, {', '.join(self._tensors)})"
+
+    # --- properties and views -------------------------------------------------------------------------------
+
+    @property
+    def batch_shape(self) -> tuple[int, ...]:
+        return tuple(next(iter(self._tensors.values())).shape[:-1])
+
+    @property
+    def device(self) -> torch.device:
+        return next(iter(self._tensors.values())).device
+
+    @property
+    def dtype(self) -> torch.dtype:
+        return next(iter(self._tensors.values())).dtype
+
+    def to(self, device: torch.device | str | None = None, dtype: torch.dtype | None = None) -> NoiseValues:
+        """The same values on another device or in another dtype."""
+        return NoiseValues({name: t.to(device=device, dtype=dtype) for name, t in self._tensors.items()})
+
+    def replace(self, **values: torch.Tensor | float | Sequence[float]) -> NoiseValues:
+        """A copy with some parameters set to other values (broadcast to the batch)."""
+        tensors = dict(self._tensors)
+        for name, value in values.items():
+            if name not in tensors:
+                raise KeyError(f"unknown noise parameter {name!r}; known: {', '.join(tensors)}")
+            old = tensors[name]
+            tensors[name] = torch.as_tensor(value, dtype=old.dtype, device=old.device).expand(old.shape).clone()
+        return NoiseValues(tensors)
+
+    def map(self, function: Callable[[torch.Tensor], torch.Tensor]) -> NoiseValues:
+        """Apply a function to every tensor, e.g. a quantile over the batch: ``values.map(lambda t: t.median(0))``."""
+        return NoiseValues({name: function(t) for name, t in self._tensors.items()})
+
+    def clip(self, index: int) -> NoiseValues:
+        """The unbatched values of one clip of a batch with one batch dimension."""
+        return self.map(lambda t: t[index])
+
+    def vector(self, noise_model: NoiseModel = "srgb") -> torch.Tensor:
+        """The flat v of a noise model, ``(*batch, vector_size(noise_model))``: the network's view."""
+        return torch.cat([self._tensors[p.name] for p in table.model_parameters(noise_model)], dim=-1)
+
+    def scalar(self, name: str) -> float:
+        """The single value of a parameter of size 1 in unbatched values: a fused kernel's view."""
+        tensor = self._tensors[name]
+        if tensor.numel() != 1:
+            raise ValueError(f"{name} has {tensor.numel()} values; a scalar view needs exactly one")
+        return float(tensor.reshape(()))
+
+    def to_json(self) -> dict[str, JsonValue]:
+        """Unbatched values as JSON: a number for a parameter of size 1, a list otherwise (profiles, manifests)."""
+        if self.batch_shape:
+            raise ValueError(f"only unbatched noise values have a JSON form, these have batch {self.batch_shape}")
+        document: dict[str, JsonValue] = {}
+        for parameter in table.noise_parameters():
+            numbers = [float(v) for v in self._tensors[parameter.name].tolist()]
+            document[parameter.name] = numbers if parameter.size > 1 else numbers[0]
+        return document
+
+    # --- what is set ----------------------------------------------------------------------------------------
+
+    def is_neutral(self, parameter: Parameter) -> bool:
+        """Whether the parameter is at its neutral value in every clip."""
+        return bool((self._tensors[parameter.name] == parameter.neutral).all())
+
+    def is_active(self, component: NoiseComponent) -> bool:
+        """Whether the component draws anything: one of its amplitude parameters is not neutral in some clip."""
+        return any(not self.is_neutral(p) for p in component.parameters if p.role == "amplitude")
+
+    def shapes_neutral(self, component: NoiseComponent) -> bool:
+        """Whether none of the component's shape parameters is set: what it draws is the paper's white noise."""
+        return all(self.is_neutral(p) for p in component.parameters if p.role == "shape")
+
+    def covered_by(self, fast_path: str) -> bool:
+        """Whether a fast path declared in the table (:attr:`Parameter.fast_paths`) draws these values exactly
+        as the general composer's law: every parameter it does not cover is neutral."""
+        return all(fast_path in p.fast_paths or self.is_neutral(p) for p in table.noise_parameters())
