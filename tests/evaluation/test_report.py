@@ -14,7 +14,14 @@ import numpy as np
 import pytest
 from PIL import Image as PILImage
 
-from darksynth.evaluation.report import ReportExample, render_html, write_html_report, write_markdown
+from darksynth.evaluation.report import (
+    ReportExample,
+    render_html,
+    render_markdown,
+    write_html_report,
+    write_markdown,
+)
+from darksynth.evaluation.results_model import parse_results
 
 needs_matplotlib = pytest.mark.skipif(
     importlib.util.find_spec("matplotlib") is None,
@@ -387,6 +394,26 @@ def test_html_without_examples_downstream_or_inception_metrics() -> None:
     dom = parse(render_html(results, []))
     assert not dom.find_all("img") and not dom.find_all("section", id="downstream")
     assert "needs three metrics" in dom.find("section", id="set-polyu").find("p", class_="radar-missing").text()
+
+
+@needs_matplotlib
+def test_html_escapes_names_and_texts_from_the_results() -> None:
+    results = make_results()
+    results["sets"]["<b>set</b> & co"] = results["sets"].pop("sidd")
+    results["sets"]["polyu"]["methods"]['den"><script>x()</script>'] = results["sets"]["polyu"]["methods"].pop("den")
+    results["problems"].append("<img src=x onerror=alert(1)>")
+    markup = render_html(results, [])
+    assert "<script>x()" not in markup and "<img src=x" not in markup and "<b>set</b>" not in markup
+    dom = parse(markup)
+    assert dom.find("section", data_set="<b>set</b> & co").find("h2").text().startswith("<b>set</b> & co")
+    assert dom.find("tr", data_method='den"><script>x()</script>').find(class_="name").text().startswith('den">')
+    assert "<img src=x onerror=alert(1)>" in dom.find("section", id="problems").text()
+    assert len(dom.find_all("script")) == 1  # only the page's own
+
+
+def test_markdown_of_the_typed_results_is_the_markdown_of_the_document() -> None:
+    results = make_results()
+    assert render_markdown(parse_results(results)) == render_markdown(results)
 
 
 @needs_matplotlib

@@ -1,6 +1,8 @@
 """Reports of ``darksynth evaluate``: a Markdown summary and one self-contained HTML page.
 
-Both read the runner's JSON document (see :func:`write_markdown`). The HTML page opens offline: its figures
+Both are Jinja2 templates (``templates/report.md.j2``, ``templates/report.html.j2``) filled from the typed results
+(:mod:`darksynth.evaluation.results_model`) and their verdicts (:mod:`darksynth.evaluation.verdicts`); this module
+only formats numbers, lays out the tables and draws the images. The HTML page opens offline: its figures
 (matplotlib, Agg) and image crops are inline ``data:`` PNGs, its style sheet and its one tiny script are inline, and
 a Content-Security-Policy forbids loading anything else.
 """
@@ -8,23 +10,48 @@ a Content-Security-Policy forbids loading anything else.
 from __future__ import annotations
 
 import base64
-import html
+import functools
 import io
-import json
 import math
 import re
-from collections.abc import Callable, Mapping, Sequence
+from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Any, TypeGuard
+from typing import Any
 
+import jinja2
 import numpy as np
 from PIL import Image as PILImage
 
 from darksynth.errors import DarksynthError
+from darksynth.evaluation.results_model import (
+    CAMERA_METRICS,
+    SET_METRICS,
+    EvaluationResults,
+    Interval,
+    parse_results,
+)
+from darksynth.evaluation.verdicts import (
+    BeyondPaperCheck,
+    best_per_camera,
+    best_per_downstream_metric,
+    best_per_metric,
+    beyond_paper_checks,
+    headlines,
+)
 from darksynth.io.atomic import write_text_atomic
 
-__all__ = ["ReportExample", "render_html", "render_markdown", "write_html_report", "write_markdown"]
+__all__ = [
+    "BEYOND_TITLE",
+    "HEADLINE_TITLE",
+    "ReportExample",
+    "beyond_paper_lines",
+    "headline_lines",
+    "render_html",
+    "render_markdown",
+    "write_html_report",
+    "write_markdown",
+]
 
 NOISE_GAIN = 5
 """Noise crops are shown as ``128 + 5 × (noisy − clean)`` in 8-bit levels: ±25 levels span the full grey range,
@@ -32,6 +59,27 @@ the same range as the histograms."""
 
 MIN_CROP_DISPLAY = 160
 """Crops narrower than this many CSS pixels are enlarged by a whole factor, pixelated, so the noise grain shows."""
+
+MISSING = "—"
+
+SET_TITLES = {"kld": "KLD", "kld_srgb": "KLD sRGB", "fid": "FID", "kid": "KID"}
+SET_HEADERS = {"kld": "KLD [95% CI]", "kld_srgb": "KLD sRGB [95% CI]", "fid": "FID", "kid": "KID ± std"}
+DOWNSTREAM_HEADERS = {"psnr": "PSNR (dB)", "ssim": "SSIM", "pairs": "pairs"}
+RADAR_METRICS = ("kld", "kld_srgb", "fid", "kid")
+
+LEGEND = (
+    "Lower is better for every metric. Bold: the best blind method in each column; oracle methods, which are "
+    "given the clean image, are labelled (oracle) and never bold. Brackets: 95% confidence interval; KID ± its "
+    f"standard deviation; {MISSING}: not computed."
+)
+DOWNSTREAM_LEGEND = (
+    "PSNR and SSIM of a denoiser trained on each method's synthetic noise, on the real pairs; the noisy input row "
+    "is the unprocessed noisy image. Higher is better. Bold: the best blind method in each column."
+)
+HEADLINE_TITLE = "Headline: does den have a lower kld than awgn and pg?"
+BEYOND_TITLE = "Beyond the paper: den against every blind method, the oracle and the paper's model"
+
+CSP = "default-src 'none'; img-src data:; style-src 'unsafe-inline'; script-src 'unsafe-inline'"
 
 
 @dataclass(frozen=True)
@@ -54,397 +102,283 @@ class ReportExample:
     noise: dict[str, np.ndarray]
 
 
+def _typed(results: EvaluationResults | Mapping[str, Any]) -> EvaluationResults:
+    return results if isinstance(results, EvaluationResults) else parse_results(results)
+
+
+# ----------------------------------------------------------------------------------------------------------------
+# Verdicts in words
+
+
+def headline_lines(results: EvaluationResults | Mapping[str, Any]) -> list[str]:
+    """One plain sentence per set on the paper's headline claim (den's kld below awgn's and pg's)."""
+    lines = []
+    for verdict in headlines(_typed(results)):
+        answer = "yes" if verdict.holds else "NO, the headline does not hold here"
+        values = f"den {verdict.den:.3f}, awgn {verdict.awgn:.3f}, pg {verdict.pg:.3f}"
+        lines.append(f"{verdict.set_name}: {answer} ({values})")
+    return lines
+
+
+def _check_sentence(check: BeyondPaperCheck) -> str:
+    answer = "yes" if check.holds else "NO"
+    if check.claim == "blind":
+        claim, rival = "kld below every blind method", f"best blind {check.rival}"
+    elif check.claim == "oracle":
+        claim, rival = f"kld at most 2x {check.rival}", f"2x {check.rival}"
+    else:
+        claim, rival = f"{check.metric} below {check.rival}", check.rival
+    return f"{check.set_name}: {claim}: {answer} (den {check.den:.3f}, {rival} {check.bound:.3f})"
+
+
+def beyond_paper_lines(results: EvaluationResults | Mapping[str, Any]) -> list[str]:
+    """One sentence per set and check: den's kld below every blind method present, at most twice pg-oracle's,
+    and den's FID and KID below the paper-faithful model's (den-paper)."""
+    return [_check_sentence(check) for check in beyond_paper_checks(_typed(results))]
+
+
+# ----------------------------------------------------------------------------------------------------------------
+# Tables, shared by both reports
+
+
+def _num(value: float | int | None, digits: int = 4) -> str:
+    if value is None:
+        return MISSING
+    if isinstance(value, int):
+        return str(value)
+    return f"{value:.{digits}g}" if math.isfinite(value) else str(value)
+
+
+def _is_finite(value: float | None) -> bool:
+    return value is not None and math.isfinite(value)
+
+
+def _interval(interval: Interval | None) -> str:
+    return "" if interval is None else f"[{_num(interval[0])}, {_num(interval[1])}]"
+
+
 @dataclass(frozen=True)
-class _Column:
+class _Method:
+    """How one row name is shown: oracle methods are labelled, reference rows (the noisy input) are no method."""
+
+    name: str
+    oracle: bool
+    reference: bool
+    colour: str
+
+    @property
+    def label(self) -> str:
+        return f"{self.name} (oracle)" if self.oracle else self.name
+
+
+@dataclass(frozen=True)
+class _Header:
     key: str
     title: str
-    ci: str | None = None
-    std: str | None = None
-    higher_is_better: bool = False
-    ranked: bool = True
+    literal: bool = True
+    """The title is this module's own text, not a name from the results: Markdown shows it unescaped."""
 
 
 @dataclass(frozen=True)
 class _Cell:
+    key: str
     value: str
     extra: str
     best: bool
 
 
-SET_COLUMNS = (
-    _Column("kld", "KLD", ci="kld_ci95"),
-    _Column("kld_srgb", "KLD sRGB", ci="kld_srgb_ci95"),
-    _Column("fid", "FID"),
-    _Column("kid", "KID", std="kid_std"),
-)
-CAMERA_METRICS = (("kld", "KLD", "kld_ci95"), ("kld_srgb", "KLD sRGB", "kld_srgb_ci95"))
-DOWNSTREAM_COLUMNS = (
-    _Column("psnr", "PSNR (dB)", higher_is_better=True),
-    _Column("ssim", "SSIM", higher_is_better=True),
-    _Column("pairs", "pairs", ranked=False),
-)
-NOISY_INPUT = "noisy input"  # the downstream reference row: the unprocessed real noisy images
-RADAR_METRICS = ("kld", "kld_srgb", "fid", "kid")
-MISSING = "—"
-DOWNSTREAM_LEGEND = (
-    "PSNR and SSIM of a denoiser trained on each method's synthetic noise, on the real pairs; the noisy input row "
-    "is the unprocessed noisy image. Higher is better. Bold: the best blind method in each column."
-)
-
-LEGEND = (
-    "Lower is better for every metric. Bold: the best blind method in each column; oracle methods, which are "
-    "given the clean image, are labelled (oracle) and never bold. Brackets: 95% confidence interval; KID ± its "
-    f"standard deviation; {MISSING}: not computed."
-)
-
-
-# ----------------------------------------------------------------------------------------------------------------
-# Reading the results document
-
-
-def _finite(value: object) -> TypeGuard[float]:
-    return isinstance(value, int | float) and not isinstance(value, bool) and math.isfinite(value)
-
-
-def _num(value: object, digits: int = 4) -> str:
-    if value is None:
-        return MISSING
-    if isinstance(value, int) and not isinstance(value, bool):
-        return str(value)
-    if isinstance(value, float):
-        return f"{value:.{digits}g}" if math.isfinite(value) else str(value)
-    return str(value)
-
-
-def _interval(value: object) -> str:
-    if isinstance(value, list | tuple) and len(value) == 2 and all(_finite(v) for v in value):
-        return f"[{_num(value[0])}, {_num(value[1])}]"
-    return ""
-
-
-def _text(value: object) -> str:
-    return value if isinstance(value, str) else json.dumps(value, indent=1, sort_keys=True, default=str)
-
-
-def _dict(value: object) -> dict[str, Any]:
-    return {str(k): v for k, v in value.items()} if isinstance(value, Mapping) else {}
-
-
-def _sets(results: Mapping[str, Any]) -> dict[str, dict[str, Any]]:
-    return {name: _dict(entry) for name, entry in _dict(results.get("sets")).items()}
-
-
-def _set_methods(entry: Mapping[str, Any]) -> dict[str, dict[str, Any]]:
-    return {name: _dict(row) for name, row in _dict(entry.get("methods")).items()}
-
-
-def _method_order(results: Mapping[str, Any], examples: Sequence[ReportExample] = ()) -> list[str]:
-    """Methods in the runner's order, then any only found in a set or an example."""
-    order = list(_dict(results.get("methods")))
-    extra: list[str] = []
-    for entry in _sets(results).values():
-        extra.extend(_set_methods(entry))
-    for example in examples:
-        extra.extend(example.noisy)
-        extra.extend(example.noise)
-    for name in extra:
-        if name not in order and name != "real":
-            order.append(name)
-    return order
-
-
-def _oracles(results: Mapping[str, Any]) -> set[str]:
-    """Methods that use the clean image: flagged so by the runner, or, when it says nothing, named ``*-oracle``."""
-    flags: dict[str, bool] = {}
-    for name, info in _dict(results.get("methods")).items():
-        if isinstance(info, Mapping) and "oracle" in info:
-            flags[name] = bool(info["oracle"])
-    for entry in _sets(results).values():
-        for name, row in _set_methods(entry).items():
-            if "oracle" in row:
-                flags[name] = flags.get(name, False) or bool(row["oracle"])
-    return {n for n in set(_method_order(results)) | set(flags) if flags.get(n, n.endswith("-oracle"))}
-
-
-def _labeller(oracles: set[str]) -> Callable[[str], str]:
-    return lambda name: f"{name} (oracle)" if name in oracles else name
-
-
-def _cells(
-    rows: Mapping[str, Mapping[str, Any]], columns: Sequence[_Column], unranked: set[str]
-) -> dict[str, list[_Cell]]:
-    """Formatted cells per method; ``best`` marks the best finite value of each ranked column among the rows not in
-    ``unranked`` (the oracle methods, and reference rows such as the noisy input)."""
-    best: list[float | None] = []
-    for column in columns:
-        blind = [
-            float(row[column.key]) for n, row in rows.items() if n not in unranked and _finite(row.get(column.key))
-        ]
-        blind = blind if column.ranked else []
-        best.append((max(blind) if column.higher_is_better else min(blind)) if blind else None)
-    cells: dict[str, list[_Cell]] = {}
-    for name, row in rows.items():
-        cells[name] = []
-        for column, top in zip(columns, best, strict=True):
-            value = row.get(column.key)
-            extra = _interval(row.get(column.ci)) if column.ci else ""
-            if column.std and _finite(row.get(column.std)) and _finite(value):
-                extra = f"± {_num(row[column.std], 2)}"
-            is_best = name not in unranked and top is not None and _finite(value) and float(value) == top
-            cells[name].append(_Cell(_num(value), extra, is_best))
-    return cells
-
-
-def _camera_table(
-    methods: Mapping[str, Mapping[str, Any]], metric: str, ci: str, title: str
-) -> tuple[list[_Column], dict[str, dict[str, Any]], dict[str, str]]:
-    """Columns (one per camera), rows (method -> camera values) and header texts of one per-camera table."""
-    cameras: dict[str, list[int]] = {}
-    rows: dict[str, dict[str, Any]] = {}
-    for name, entry in methods.items():
-        per_camera = {camera: _dict(values) for camera, values in _dict(entry.get("per_camera")).items()}
-        if not per_camera:
-            continue
-        rows[name] = {}
-        for camera, values in per_camera.items():
-            if _finite(values.get("pairs")):
-                cameras.setdefault(camera, []).append(int(values["pairs"]))
-            else:
-                cameras.setdefault(camera, [])
-            rows[name][camera] = values.get(metric)
-            rows[name][f"{camera}\0ci"] = values.get(ci)
-    headers: dict[str, str] = {}
-    for camera, counts in cameras.items():
-        if not counts:
-            headers[camera] = camera
-        elif min(counts) == max(counts):
-            headers[camera] = f"{camera} ({counts[0]} pairs)"
-        else:
-            headers[camera] = f"{camera} ({min(counts)}–{max(counts)} pairs)"
-    columns = [_Column(camera, f"{title}: {camera}", ci=f"{camera}\0ci") for camera in cameras]
-    return columns, rows, headers
-
-
-def _ordered(rows: Mapping[str, Any], order: Sequence[str]) -> list[str]:
-    return [n for n in order if n in rows] + [n for n in rows if n not in order]
+@dataclass(frozen=True)
+class _Row:
+    method: _Method
+    cells: list[_Cell]
 
 
 @dataclass(frozen=True)
-class _DownstreamReport:
-    sets: dict[str, dict[str, dict[str, Any]]]
-    settings: dict[str, Any]
-    notes: dict[str, Any]
-    problems: list[str]
-    references: set[str]
+class _Table:
+    css_class: str
+    caption: str
+    headers: list[_Header]
+    rows: list[_Row]
+    data: dict[str, str]
+    """Extra ``data-*`` attributes of the HTML table."""
+    title: str = ""
 
 
-def _downstream(results: Mapping[str, Any]) -> _DownstreamReport | None:
-    """The downstream denoising results: per-set tables (set -> method -> psnr, ssim, pairs), the settings, other
-    notes (LPIPS status, clean images...), its own problems, and the reference rows (the noisy input, and any row
-    that is not a method) that are shown but never bold."""
-    downstream = results.get("downstream")
-    if not isinstance(downstream, Mapping):
-        return None
-    data = _dict(downstream)
-    settings = _dict(data.pop("settings", None))
-    problems = [_text(p) for p in data.pop("problems", None) or []]
-    known = set(_dict(data.pop("methods", None))) | set(_method_order(results))
-    sets: dict[str, dict[str, dict[str, Any]]] = {}
-    notes: dict[str, Any] = {}
-    for key, value in data.items():
-        rows = {name: _dict(row) for name, row in _dict(value).items()}
-        if rows and all(rows.values()) and any("psnr" in row or "ssim" in row for row in rows.values()):
-            sets[key] = rows
-        else:
-            notes[key] = value
-    references = {
-        name for rows in sets.values() for name in rows if name == NOISY_INPUT or (known and name not in known)
-    }
-    return _DownstreamReport(sets, settings, notes, problems, references)
+def _ordered(names: Sequence[str] | Mapping[str, Any], order: Sequence[str]) -> list[str]:
+    return [n for n in order if n in names] + [n for n in names if n not in order]
 
 
-def _downstream_order(rows: Mapping[str, Any], order: Sequence[str], references: set[str]) -> list[str]:
-    """Methods first, in the usual order, then the reference rows."""
-    names = _ordered(rows, order)
-    return [n for n in names if n not in references] + [n for n in names if n in references]
+class _Layout:
+    """The tables of both reports: which rows, in which order, with which values formatted how."""
+
+    def __init__(
+        self, results: EvaluationResults, order: Sequence[str], colours: Mapping[str, str] | None = None
+    ) -> None:
+        self.results = results
+        self.order = order
+        self.colours = colours or {}
+        downstream = results.downstream
+        self.references = downstream.references if downstream is not None else frozenset()
+
+    def method(self, name: str) -> _Method:
+        oracle = name in self.results.oracles
+        return _Method(name, oracle, name in self.references, self.colours.get(name, "#888888"))
+
+    def set_table(self, set_name: str) -> _Table | None:
+        methods = self.results.sets[set_name].methods
+        if not methods:
+            return None
+        best = best_per_metric(self.results, set_name)
+        rows = []
+        for name in _ordered(methods, self.order):
+            row = methods[name]
+            cells = []
+            for metric in SET_METRICS:
+                value = row.value(metric)
+                extra = _interval(row.interval(metric))
+                if metric == "kid" and _is_finite(row.kid_std) and _is_finite(value):
+                    extra = f"± {_num(row.kid_std, 2)}"
+                cells.append(_Cell(metric, _num(value), extra, name in best[metric]))
+            rows.append(_Row(self.method(name), cells))
+        headers = [_Header(metric, SET_HEADERS[metric]) for metric in SET_METRICS]
+        caption = f"{set_name}: real vs synthetic noise. {LEGEND}"
+        return _Table("metrics", caption, headers, rows, {})
+
+    def camera_tables(self, set_name: str) -> list[_Table]:
+        """One table per KL divergence: a column per camera (its pair count in the header), a row per method."""
+        methods = {name: row for name, row in self.results.sets[set_name].methods.items() if row.per_camera}
+        counts: dict[str, list[int]] = {}
+        for row in methods.values():
+            for camera, scores in row.per_camera.items():
+                counts.setdefault(camera, [])
+                if scores.pairs is not None:
+                    counts[camera].append(scores.pairs)
+        if not counts:
+            return []
+        headers = []
+        for camera, pairs in counts.items():
+            if not pairs:
+                title = camera
+            elif min(pairs) == max(pairs):
+                title = f"{camera} ({pairs[0]} pairs)"
+            else:
+                title = f"{camera} ({min(pairs)}–{max(pairs)} pairs)"
+            headers.append(_Header(camera, title, literal=False))
+        tables = []
+        for metric in CAMERA_METRICS:
+            best = best_per_camera(self.results, set_name, metric)
+            rows = []
+            for name in _ordered(methods, self.order):
+                cells = []
+                for camera in counts:
+                    camera_scores = methods[name].per_camera.get(camera)
+                    if camera_scores is None:
+                        cells.append(_Cell(camera, MISSING, "", False))
+                        continue
+                    value, extra = _num(camera_scores.value(metric)), _interval(camera_scores.interval(metric))
+                    cells.append(_Cell(camera, value, extra, name in best[camera]))
+                rows.append(_Row(self.method(name), cells))
+            title = SET_TITLES[metric]
+            caption = f"{set_name}, per camera: {title} [95% CI]. Lower is better; bold: best blind method."
+            tables.append(_Table("per-camera", caption, headers, rows, {"metric": metric}, title))
+        return tables
+
+    def downstream_tables(self) -> list[_Table]:
+        downstream = self.results.downstream
+        if downstream is None:
+            return []
+        tables = []
+        for set_name, scores in downstream.sets.items():
+            best = best_per_downstream_metric(self.results, set_name)
+            names = _ordered(scores, self.order)
+            # Methods first, in the usual order, then the reference rows.
+            names = [n for n in names if n not in self.references] + [n for n in names if n in self.references]
+            rows = []
+            for name in names:
+                row = scores[name]
+                values = {"psnr": _num(row.psnr), "ssim": _num(row.ssim), "pairs": _num(row.pairs)}
+                cells = [_Cell(key, values[key], "", name in best[key]) for key in DOWNSTREAM_HEADERS]
+                rows.append(_Row(self.method(name), cells))
+            headers = [_Header(key, title) for key, title in DOWNSTREAM_HEADERS.items()]
+            caption = f"{set_name}: denoising the real pairs."
+            tables.append(_Table("downstream", caption, headers, rows, {"set": set_name}, set_name))
+        return tables
 
 
-def _not_evaluated(results: Mapping[str, Any], entry: Mapping[str, Any]) -> list[str]:
-    present = _set_methods(entry)
-    return [name for name in _dict(results.get("methods")) if name not in present]
-
-
-def _run_facts(results: Mapping[str, Any]) -> str:
+def _run_facts(results: EvaluationResults) -> str:
     facts = []
-    if "seed" in results:
-        facts.append(f"seed {_text(results['seed'])}")
-    if _finite(results.get("seconds")):
-        facts.append(f"{_num(results['seconds'])} s")
+    if results.seed is not None:
+        facts.append(f"seed {results.seed}")
+    if results.seconds is not None:
+        facts.append(f"{_num(results.seconds)} s")
     return ", ".join(facts)
+
+
+# ----------------------------------------------------------------------------------------------------------------
+# Templates
+
+
+def _md(text: str) -> str:
+    """Escape Markdown's inline syntax (and table pipes) in free text; newlines become spaces."""
+    return re.sub(r"([\\`*_\[\]<>|#])", r"\\\1", " ".join(text.split()))
+
+
+@functools.cache
+def _environment(*, autoescape: bool) -> jinja2.Environment:
+    """The Jinja2 environment of the HTML report (``autoescape``) or of the Markdown one (escaped by hand: ``| md``)."""
+    environment = jinja2.Environment(
+        loader=jinja2.PackageLoader("darksynth.evaluation", "templates"),
+        autoescape=autoescape,
+        undefined=jinja2.StrictUndefined,
+        trim_blocks=True,
+        lstrip_blocks=True,
+        keep_trailing_newline=True,
+    )
+    environment.filters["md"] = _md
+    environment.filters["num"] = _num
+    return environment
+
+
+def _common(results: EvaluationResults) -> dict[str, Any]:
+    return {
+        "results": results,
+        "legend": LEGEND,
+        "downstream_legend": DOWNSTREAM_LEGEND,
+        "headline_title": HEADLINE_TITLE,
+        "beyond_title": BEYOND_TITLE,
+        "headlines": headline_lines(results),
+        "beyond": beyond_paper_lines(results),
+        "facts": _run_facts(results),
+    }
 
 
 # ----------------------------------------------------------------------------------------------------------------
 # Markdown
 
 
-def _md(text: object) -> str:
-    """Escape Markdown's inline syntax (and table pipes) in free text; newlines become spaces."""
-    flat = " ".join(_text(text).split())
-    return re.sub(r"([\\`*_\[\]<>|#])", r"\\\1", flat)
-
-
-def _md_cell(cell: _Cell) -> str:
-    value = f"**{cell.value}**" if cell.best else cell.value
-    return f"{value} {cell.extra}" if cell.extra else value
-
-
-def _md_table(
-    headers: Sequence[str], order: Sequence[str], cells: Mapping[str, Sequence[_Cell]], label: Callable[[str], str]
-) -> list[str]:
-    lines = ["| " + " | ".join(["method", *headers]) + " |", "| :-- |" + " --: |" * len(headers)]
-    for name in order:
-        lines.append("| " + " | ".join([_md(label(name)), *(_md_cell(c) for c in cells[name])]) + " |")
-    return lines
-
-
-HEADLINE_TITLE = "Headline: does den have a lower kld than awgn and pg?"
-
-
-def headline_lines(results: Mapping[str, Any]) -> list[str]:
-    """One plain sentence per set on the paper's headline claim (den's kld below awgn's and pg's)."""
-    lines = []
-    for set_name, entry in _sets(results).items():
-        methods = _set_methods(entry)
-        if not all(name in methods for name in ("den", "awgn", "pg")):
-            continue
-        values = {name: methods[name].get("kld") for name in ("den", "awgn", "pg")}
-        kld = {name: float(v) for name, v in values.items() if isinstance(v, (int, float))}
-        if len(kld) < len(values):
-            continue
-        holds = kld["den"] < min(kld["awgn"], kld["pg"])
-        verdict = "yes" if holds else "NO, the headline does not hold here"
-        lines.append(f"{set_name}: {verdict} (den {kld['den']:.3f}, awgn {kld['awgn']:.3f}, pg {kld['pg']:.3f})")
-    return lines
-
-
-BEYOND_TITLE = "Beyond the paper: den against every blind method, the oracle and the paper's model"
-
-BLIND_METHODS = ("awgn", "awgn-blind", "pg", "pg-blind", "starlight")
-"""The methods that see neither the clean image nor any real noise beyond the reference (den's peers)."""
-
-
-def _number_or_none(value: Any) -> float | None:
-    return float(value) if isinstance(value, (int, float)) and not isinstance(value, bool) else None
-
-
-def beyond_paper_lines(results: Mapping[str, Any]) -> list[str]:
-    """One sentence per set and check: den's kld below every blind method present, at most twice pg-oracle's,
-    and den's FID and KID below the paper-faithful model's (den-paper)."""
-    lines = []
-    for set_name, entry in _sets(results).items():
-        methods = _set_methods(entry)
-        den = methods.get("den")
-        if den is None:
-            continue
-        kld = _number_or_none(den.get("kld"))
-        checks = []
-        blind = {
-            name: value
-            for name in BLIND_METHODS
-            if name in methods and (value := _number_or_none(methods[name].get("kld"))) is not None
-        }
-        if kld is not None and blind:
-            best = min(blind, key=lambda name: blind[name])
-            verdict = "yes" if kld < blind[best] else "NO"
-            checks.append(
-                f"kld below every blind method: {verdict} (den {kld:.3f}, best blind {best} {blind[best]:.3f})"
-            )
-        oracle = _number_or_none(methods.get("pg-oracle", {}).get("kld"))
-        if kld is not None and oracle is not None:
-            verdict = "yes" if kld <= 2 * oracle else "NO"
-            checks.append(f"kld at most 2x pg-oracle: {verdict} (den {kld:.3f}, 2x pg-oracle {2 * oracle:.3f})")
-        paper = methods.get("den-paper")
-        if paper is not None:
-            for metric in ("fid", "kid"):
-                ours, theirs = _number_or_none(den.get(metric)), _number_or_none(paper.get(metric))
-                if ours is not None and theirs is not None:
-                    verdict = "yes" if ours < theirs else "NO"
-                    checks.append(f"{metric} below den-paper: {verdict} (den {ours:.3f}, den-paper {theirs:.3f})")
-        lines += [f"{set_name}: {check}" for check in checks]
-    return lines
-
-
-def render_markdown(results: Mapping[str, Any]) -> str:
+def render_markdown(results: EvaluationResults | Mapping[str, Any]) -> str:
     """The Markdown summary of a results document (see :func:`write_markdown`)."""
-    order = _method_order(results)
-    oracles = _oracles(results)
-    label = _labeller(oracles)
-    lines = ["# darksynth evaluate: real vs synthetic noise", "", LEGEND]
-    headline = headline_lines(results)
-    if headline:
-        lines += ["", f"## {HEADLINE_TITLE}", ""] + [f"- {_md(line)}" for line in headline]
-    beyond = beyond_paper_lines(results)
-    if beyond:
-        lines += ["", f"## {BEYOND_TITLE}", ""] + [f"- {_md(line)}" for line in beyond]
-    headers = [f"{c.title} [95% CI]" if c.ci else f"{c.title} ± std" if c.std else c.title for c in SET_COLUMNS]
-    for set_name, entry in _sets(results).items():
-        methods = _set_methods(entry)
-        lines += ["", f"## {_md(set_name)} ({_num(entry.get('pairs'))} pairs)", ""]
-        if methods:
-            rows = _ordered(methods, order)
-            lines += _md_table(headers, rows, _cells(methods, SET_COLUMNS, oracles), label)
-        else:
-            lines.append("No method was evaluated on this set.")
-        missing = _not_evaluated(results, entry)
-        if missing:
-            lines += ["", f"Not evaluated on this set: {_md(', '.join(missing))} (see Problems)."]
-        for metric, title, ci in CAMERA_METRICS:
-            columns, camera_rows, camera_headers = _camera_table(methods, metric, ci, title)
-            if not columns:
-                continue
-            lines += ["", f"### {_md(set_name)} per camera: {title} [95% CI]", ""]
-            cells = _cells(camera_rows, columns, oracles)
-            lines += _md_table(
-                [_md(camera_headers[c.key]) for c in columns], _ordered(camera_rows, order), cells, label
-            )
-    downstream = _downstream(results)
-    if downstream is not None:
-        lines += ["", "## Downstream denoising", "", DOWNSTREAM_LEGEND]
-        for title, info in (("Settings", downstream.settings), ("Notes", downstream.notes)):
-            if info:
-                lines += ["", f"{title}: " + "; ".join(f"{_md(k)} = {_md(v)}" for k, v in info.items()) + "."]
-        headers = [c.title for c in DOWNSTREAM_COLUMNS]
-        for set_name, downstream_rows in downstream.sets.items():
-            lines += ["", f"### {_md(set_name)}: denoising", ""]
-            cells = _cells(downstream_rows, DOWNSTREAM_COLUMNS, oracles | downstream.references)
-            names = _downstream_order(downstream_rows, order, downstream.references)
-            lines += _md_table(headers, names, cells, label)
-        if downstream.problems:
-            lines += ["", "Problems of the downstream run:", ""] + [f"- {_md(p)}" for p in downstream.problems]
-    problems = results.get("problems") or []
-    lines += ["", "## Problems", ""]
-    lines += [f"- {_md(problem)}" for problem in problems] if problems else ["None."]
-    method_info = _dict(results.get("methods"))
-    if method_info:
-        lines += ["", "## Methods", ""]
-        for name in order:
-            if name in method_info:
-                summary = _dict(method_info[name]).get("summary", "")
-                lines.append(f"- **{_md(label(name))}**: {_md(summary)}")
-    for title, key in (("Metrics", "metrics"), ("Provenance", "provenance")):
-        info = _dict(results.get(key))
-        if info:
-            lines += ["", f"## {title}", ""] + [f"- **{_md(k)}**: {_md(v)}" for k, v in info.items()]
-    command = _text(results.get("command", ""))
-    fence = "`" * max(3, max((len(run) for run in re.findall(r"`+", command)), default=0) + 1)
-    lines += ["", "## Command", "", fence, command, fence]
-    facts = _run_facts(results)
-    if facts:
-        lines += ["", facts[0].upper() + facts[1:] + "."]
-    return "\n".join(lines) + "\n"
+    typed = _typed(results)
+    layout = _Layout(typed, typed.method_order)
+    sets = [
+        {
+            "name": name,
+            "entry": entry,
+            "table": layout.set_table(name),
+            "missing": typed.not_evaluated(name),
+            "cameras": layout.camera_tables(name),
+        }
+        for name, entry in typed.sets.items()
+    ]
+    runs = re.findall(r"`+", typed.command)
+    fence = "`" * max(3, max((len(run) for run in runs), default=0) + 1)
+    methods = [layout.method(name) for name in typed.method_order if name in typed.methods]
+    template = _environment(autoescape=False).get_template("report.md.j2")
+    downstream = layout.downstream_tables()
+    return template.render(**_common(typed), sets=sets, downstream_tables=downstream, methods=methods, fence=fence)
 
 
-def write_markdown(results: dict[str, Any], path: Path) -> None:
+def write_markdown(results: Mapping[str, Any], path: Path) -> None:
     """Write the Markdown summary of ``darksynth evaluate``, atomically.
 
     Per set: a table of the methods (oracle ones labelled) with KLD and sRGB KLD and their 95% intervals, FID and
@@ -453,7 +387,8 @@ def write_markdown(results: dict[str, Any], path: Path) -> None:
 
     Args:
         results: The runner's document: ``command``, ``provenance``, ``metrics``, ``methods``, ``problems``,
-            ``sets`` and ``downstream`` (missing parts are left out of the report).
+            ``sets`` and ``downstream`` (missing parts are left out of the report; see
+            :func:`darksynth.evaluation.results_model.parse_results`).
         path: The ``.md`` file to write; parent folders are created.
     """
     write_text_atomic(path, render_markdown(results))
@@ -461,66 +396,6 @@ def write_markdown(results: dict[str, Any], path: Path) -> None:
 
 # ----------------------------------------------------------------------------------------------------------------
 # HTML
-
-CSS = """
-:root { color-scheme: light; --ink: #1d1d1f; --muted: #5f6368; --rule: #e2e2e6; --band: #f4f4f7; }
-* { box-sizing: border-box; }
-body { margin: 0 auto; max-width: 1180px; padding: 1.2rem 1.5rem 3rem; color: var(--ink); background: #fff;
-  font: 15px/1.5 system-ui, -apple-system, "Segoe UI", Roboto, "DejaVu Sans", "Liberation Sans", sans-serif; }
-h1 { font-size: 1.7rem; margin: .4rem 0 .6rem; }
-h2 { font-size: 1.35rem; margin: 2.4rem 0 .8rem; padding-bottom: .25rem; border-bottom: 2px solid var(--rule); }
-h3 { font-size: 1.1rem; margin: 1.6rem 0 .5rem; }
-h2 .count { font-size: .9rem; font-weight: normal; color: var(--muted); margin-left: .5rem; }
-p.legend, p.note, figcaption, caption { color: var(--muted); font-size: .88rem; }
-pre { background: var(--band); padding: .6rem .8rem; border-radius: 6px; white-space: pre-wrap;
-  overflow-wrap: anywhere; font-size: .85rem; margin: .3rem 0; }
-nav.toc { margin: .8rem 0; font-size: .92rem; }
-nav.toc a { margin-right: 1rem; }
-a { color: #1a5fb4; }
-dl { display: grid; grid-template-columns: max-content 1fr; gap: .25rem 1rem; margin: .5rem 0; }
-dt { font-weight: 600; }
-dd { margin: 0; }
-dd pre { margin: 0; }
-table { border-collapse: collapse; margin: .4rem 0 1rem; font-variant-numeric: tabular-nums; font-size: .92rem; }
-caption { caption-side: top; text-align: left; padding-bottom: .3rem; }
-th, td { padding: .32rem .75rem; border-bottom: 1px solid var(--rule); text-align: right; white-space: nowrap; }
-th:first-child, td:first-child { text-align: left; }
-th.text, td.text, td.summary { text-align: left; }
-td.summary { white-space: normal; }
-thead th { background: var(--band); border-bottom: 2px solid #cfcfd6; }
-td.best { background: #e8f5e9; }
-td .ci { color: var(--muted); font-size: .85em; margin-left: .3em; }
-tr.oracle td { background: #fff7e0; font-style: italic; }
-tr.reference th, tr.reference td { color: var(--muted); font-style: italic; }
-.oracle-label { font-style: normal; font-size: .75rem; color: #8a5a00; background: #ffe8b0; border-radius: 4px;
-  padding: 0 .35rem; margin-left: .35rem; }
-.swatch { display: inline-block; width: .8rem; height: .8rem; border-radius: 2px; margin-right: .4rem;
-  vertical-align: -1px; }
-figure { margin: .6rem 0 1.2rem; }
-figure.chart img { max-width: 100%; height: auto; display: block; }
-.crops { display: flex; flex-wrap: wrap; gap: .8rem .6rem; margin: .6rem 0 1rem; }
-.crops figure { margin: 0; }
-.crops img { display: block; image-rendering: pixelated; max-width: 100%; }
-.crops img + img { margin-top: 3px; }
-.crops figcaption { font-size: .85rem; color: var(--ink); margin-top: .2rem; }
-article.example { border-top: 1px dashed var(--rule); margin-top: 1.5rem; }
-ul.problems li { font-family: ui-monospace, "DejaVu Sans Mono", monospace; font-size: .85rem; }
-"""
-
-SCRIPT = """
-window.addEventListener("load", function () {
-  var images = Array.prototype.slice.call(document.images);
-  var loaded = images.filter(function (image) { return image.complete && image.naturalWidth > 0; });
-  document.body.dataset.imagesLoaded = String(loaded.length);
-  document.body.dataset.imagesTotal = String(images.length);
-});
-"""
-
-CSP = "default-src 'none'; img-src data:; style-src 'unsafe-inline'; script-src 'unsafe-inline'"
-
-
-def _e(text: object) -> str:
-    return html.escape(_text(text), quote=True)
 
 
 def _data_uri(png: bytes) -> str:
@@ -558,8 +433,45 @@ class _Ids:
         return candidate
 
 
-class _Html:
-    def __init__(self, results: Mapping[str, Any], examples: Sequence[ReportExample]) -> None:
+@dataclass(frozen=True)
+class _Image:
+    uri: str
+    alt: str
+
+
+@dataclass(frozen=True)
+class _Crop:
+    """One column of an example: ``name`` is ``"clean"``, ``"real"`` or a method (then ``method`` is set)."""
+
+    name: str
+    method: _Method | None
+    images: list[_Image]
+
+
+@dataclass(frozen=True)
+class _Example:
+    id: str
+    set_name: str
+    pair_name: str
+    where: str
+    size: tuple[int, int] | None
+    """Displayed ``(width, height)`` of the crops in CSS pixels."""
+    crops: list[_Crop]
+    histogram: _Image | None
+    spectrum: _Image | None
+
+
+@dataclass(frozen=True)
+class _Radar:
+    image: _Image | None
+    axes: str
+    """The axes drawn, or (without a chart) the metrics this set has."""
+
+
+class _HtmlPage:
+    """Draws every image of the page and gathers what the HTML template shows."""
+
+    def __init__(self, results: EvaluationResults, examples: Sequence[ReportExample]) -> None:
         try:
             from darksynth.evaluation import figures
         except ImportError as error:  # matplotlib is in the "eval" extra
@@ -569,183 +481,46 @@ class _Html:
         self.figures = figures
         self.results = results
         self.examples = examples
-        self.order = _method_order(results, examples)
-        self.oracles = _oracles(results)
-        self.label = _labeller(self.oracles)
-        self.colours = figures.method_colours(self.order)
+        order = list(results.method_order)
+        for example in examples:
+            order += [n for n in (*example.noisy, *example.noise) if n not in order and n != "real"]
+        self.order = order
+        self.layout = _Layout(results, order, figures.method_colours(order))
         self.ids = _Ids()
-        self.metric_text = {k: _text(v) for k, v in _dict(results.get("metrics")).items()}
-        self.set_ids = {name: self.ids("set", name) for name in _sets(results)}
-        self.downstream = _downstream(results)
-        self.references = self.downstream.references if self.downstream is not None else set()
+        self.set_ids = {name: self.ids("set", name) for name in results.sets}
 
-    # -- small pieces
+    def label(self, name: str) -> str:
+        return self.layout.method(name).label
 
-    def method_name(self, name: str) -> str:
-        if name in self.references:
-            return f'<span class="name">{_e(name)}</span>'
-        swatch = f'<span class="swatch" style="background:{self.colours.get(name, "#888888")}"></span>'
-        oracle = '<span class="oracle-label">oracle</span>' if name in self.oracles else ""
-        return f'{swatch}<span class="name">{_e(name)}</span>{oracle}'
-
-    def row_attrs(self, name: str) -> str:
-        classes = "reference" if name in self.references else "method oracle" if name in self.oracles else "method"
-        return f'class="{classes}" data-method="{_e(name)}"'
-
-    def table(
-        self,
-        css_class: str,
-        caption: str,
-        columns: Sequence[_Column],
-        headers: Sequence[str],
-        rows: Mapping[str, Mapping[str, Any]],
-        attrs: str = "",
-        excluded: set[str] | None = None,
-        names: Sequence[str] | None = None,
-    ) -> list[str]:
-        """A table with one row per method (``names``, by default in the usual order); ``excluded`` rows (by default
-        the oracles) are never bold."""
-        cells = _cells(rows, columns, self.oracles if excluded is None else excluded)
-        out = [f'<table class="{css_class}"{attrs}>', f"<caption>{_e(caption)}</caption>", "<thead><tr>"]
-        out.append('<th scope="col">method</th>')
-        for column, header in zip(columns, headers, strict=True):
-            title = self.metric_text.get(column.key)
-            tip = f' title="{_e(title)}"' if title else ""
-            out.append(f'<th scope="col" data-metric="{_e(column.key)}"{tip}>{_e(header)}</th>')
-        out.append("</tr></thead><tbody>")
-        for name in _ordered(rows, self.order) if names is None else names:
-            out.append(f'<tr {self.row_attrs(name)}><th scope="row">{self.method_name(name)}</th>')
-            for column, cell in zip(columns, cells[name], strict=True):
-                value = f"<strong>{_e(cell.value)}</strong>" if cell.best else _e(cell.value)
-                extra = f'<span class="ci">{_e(cell.extra)}</span>' if cell.extra else ""
-                best = ' class="best"' if cell.best else ""
-                out.append(f'<td data-metric="{_e(column.key)}"{best}><span class="value">{value}</span>{extra}</td>')
-            out.append("</tr>")
-        out.append("</tbody></table>")
-        return out
-
-    def chart(self, css_class: str, png: bytes, alt: str, caption: str) -> list[str]:
-        return [
-            f'<figure class="chart {css_class}">',
-            f'<img src="{_data_uri(png)}" alt="{_e(alt)}">',
-            f"<figcaption>{caption}</figcaption>",
-            "</figure>",
-        ]
-
-    # -- sections
-
-    def header(self) -> list[str]:
-        sets = list(_sets(self.results))
-        out = ["<header>", "<h1>darksynth evaluate: real vs synthetic noise</h1>"]
-        out.append(f'<pre class="command" id="command"><code>{_e(self.results.get("command", ""))}</code></pre>')
-        facts = _run_facts(self.results)
-        if facts:
-            out.append(f'<p class="note">{_e(facts)}</p>')
-        provenance = _dict(self.results.get("provenance"))
-        if provenance:
-            out.append('<dl class="provenance">')
-            for key, value in provenance.items():
-                out.append(f"<dt>{_e(key)}</dt><dd><pre>{_e(value)}</pre></dd>")
-            out.append("</dl>")
-        links = [('<a href="#methods">methods</a>')]
-        links += [f'<a href="#{self.set_ids[name]}">{_e(name)}</a>' for name in sets]
-        if _downstream(self.results) is not None:
-            links.append('<a href="#downstream">downstream</a>')
-        links += ['<a href="#problems">problems</a>', '<a href="#metric-recipes">metrics</a>']
-        out += ['<nav class="toc">' + "".join(links) + "</nav>", "</header>"]
-        return out
-
-    def methods_section(self) -> list[str]:
-        info = _dict(self.results.get("methods"))
-        out = ['<section id="methods">', "<h2>Methods</h2>"]
-        if not info:
-            return [*out, '<p class="note">The results list no methods.</p>', "</section>"]
-        out.append('<table class="methods"><thead><tr><th scope="col">method</th>')
-        out.append('<th scope="col" class="text">uses the clean image</th><th scope="col" class="text">summary</th>')
-        out.append("</tr></thead><tbody>")
-        for name in _ordered(info, self.order):
-            details = _dict(info[name])
-            oracle = "yes (oracle)" if name in self.oracles else "no"
-            out.append(f'<tr {self.row_attrs(name)}><th scope="row">{self.method_name(name)}</th>')
-            out.append(f'<td class="text">{oracle}</td><td class="summary">{_e(details.get("summary", ""))}</td></tr>')
-        out.append("</tbody></table>")
-        return [*out, "</section>"]
-
-    def set_section(self, name: str, entry: Mapping[str, Any]) -> list[str]:
-        methods = _set_methods(entry)
-        out = [f'<section id="{self.set_ids[name]}" class="set" data-set="{_e(name)}">']
-        out.append(f'<h2>{_e(name)}<span class="count">{_e(_num(entry.get("pairs")))} pairs</span></h2>')
-        if methods:
-            headers = [f"{c.title} [95% CI]" if c.ci else f"{c.title} ± std" if c.std else c.title for c in SET_COLUMNS]
-            out += self.table("metrics", f"{name}: real vs synthetic noise. {LEGEND}", SET_COLUMNS, headers, methods)
-        else:
-            out.append('<p class="note">No method was evaluated on this set.</p>')
-        missing = _not_evaluated(self.results, entry)
-        if missing:
-            out.append(
-                f'<p class="note missing">Not evaluated on this set: {_e(", ".join(missing))} (see problems).</p>'
-            )
-        out += self.radar(name, methods)
-        camera_parts: list[str] = []
-        for metric, title, ci in CAMERA_METRICS:
-            columns, camera_rows, camera_headers = _camera_table(methods, metric, ci, title)
-            if columns:
-                caption = f"{name}, per camera: {title} [95% CI]. Lower is better; bold: best blind method."
-                titles = [camera_headers[c.key] for c in columns]
-                camera_parts += self.table(
-                    "per-camera", caption, columns, titles, camera_rows, f' data-metric="{metric}"'
-                )
-        if camera_parts:
-            out += ["<h3>Per camera</h3>", *camera_parts]
-        set_examples = [example for example in self.examples if example.set_name == name]
-        if set_examples:
-            out.append("<h3>Examples</h3>")
-            for example in set_examples:
-                out += self.example(example)
-        return [*out, "</section>"]
-
-    def radar(self, set_name: str, methods: Mapping[str, Mapping[str, Any]]) -> list[str]:
-        metrics = [m for m in RADAR_METRICS if any(_finite(row.get(m)) for row in methods.values())]
-        if len(metrics) < 3:
-            shown = ", ".join(metrics) or "none"
-            return [f'<p class="note radar-missing">No radar chart: it needs three metrics, this set has {shown}.</p>']
-        titles = {c.key: c.title for c in SET_COLUMNS}
+    def radar(self, set_name: str) -> _Radar:
+        methods = self.results.sets[set_name].methods
+        present = [metric for metric in RADAR_METRICS if any(_is_finite(row.value(metric)) for row in methods.values())]
+        if len(present) < 3:
+            return _Radar(None, ", ".join(present) or "none")
         order = _ordered(methods, self.order)
-        scores = self.figures.radar_scores({n: methods[n] for n in order}, metrics)
+        scores = self.figures.radar_scores({n: {m: methods[n].value(m) for m in present} for n in order}, present)
         png = self.figures.radar_png(
             scores,
-            [titles[m] for m in metrics],
-            self.colours,
+            [SET_TITLES[m] for m in present],
+            self.layout.colours,
             {n: self.label(n) for n in order},
-            dashed=self.oracles,
+            dashed=self.results.oracles,
             title=f"{set_name}: normalised metrics (outward is better)",
         )
-        axis_list = ", ".join(titles[m] for m in metrics)
-        alt = f"Radar chart for {set_name}: {axis_list} of each method, normalised so that outward is better."
-        caption = (
-            f"Each axis ({_e(axis_list)}) is normalised so that better is outward: score = best / value, where best "
-            "is the lowest value of that metric among the methods shown (oracles included, dashed), so the best "
-            "method on an axis reaches the outer ring and a method twice as far from the real noise sits halfway. "
-            "Values ≤ 0 (possible for the unbiased KID) count as the smallest positive value."
-        )
-        return self.chart("radar", png, alt, caption)
+        axes = ", ".join(SET_TITLES[m] for m in present)
+        alt = f"Radar chart for {set_name}: {axes} of each method, normalised so that outward is better."
+        return _Radar(_Image(_data_uri(png), alt), axes)
 
-    def example(self, example: ReportExample) -> list[str]:
+    def example(self, example: ReportExample) -> _Example:
         where = f"{example.set_name}/{example.pair_name}"
-        article_id = self.ids("example", f"{example.set_name}-{example.pair_name}")
-        out = [
-            f'<article class="example" id="{article_id}" data-set="{_e(example.set_name)}" '
-            f'data-pair="{_e(example.pair_name)}">',
-            f"<h4>{_e(where)}</h4>",
-        ]
         clean = np.asarray(example.clean)
-        width = clean.shape[1] if clean.ndim >= 2 else 1
-        scale = max(1, math.ceil(MIN_CROP_DISPLAY / max(width, 1)))
-        size = f'width="{width * scale}" height="{clean.shape[0] * scale}"' if clean.ndim >= 2 else ""
-        out.append('<div class="crops">')
-        out += self.crop_figure("clean", "clean", [(clean, f"{where}: clean crop")], size, where)
-        shown = ["real", *[m for m in self.order if m in example.noisy]]
-        for name in shown:
+        size = None
+        if clean.ndim >= 2:
+            width = clean.shape[1]
+            scale = max(1, math.ceil(MIN_CROP_DISPLAY / max(width, 1)))
+            size = (width * scale, clean.shape[0] * scale)
+        crops = [_Crop("clean", None, [_Image(_data_uri(_crop_png(clean, f"{where}: clean")), f"{where}: clean crop")])]
+        for name in ["real", *[m for m in self.order if m in example.noisy]]:
             if name not in example.noisy:
                 continue
             noisy = np.asarray(example.noisy[name])
@@ -754,143 +529,58 @@ class _Html:
             noise = _noise_crop(noisy, clean)
             if noise is not None:
                 images.append((noise, f"{where}: {label} noise (noisy − clean) ×{NOISE_GAIN}, mid-grey is zero"))
-            out += self.crop_figure(name, label, images, size, where)
-        out.append("</div>")
-        out.append(
-            f'<p class="note">Each column: the noisy crop, and under it the noise (noisy − clean) ×{NOISE_GAIN} '
-            "around mid-grey. Real is the camera's noisy image; the others are synthesised from the clean image.</p>"
-        )
-        methods = [m for m in self.order if m in example.noise]
-        labels = {n: self.label(n) for n in methods}
+            pngs = [_Image(_data_uri(_crop_png(pixels, f"{where}: {label}")), alt) for pixels, alt in images]
+            crops.append(_Crop(name, None if name == "real" else self.layout.method(name), pngs))
+        histogram = spectrum = None
         if example.noise:
-            histogram = self.figures.histogram_png(example.noise, methods, self.colours, labels)
-            out += self.chart(
-                "histogram",
-                histogram,
-                f"Noise histograms of {where}: real versus each method, log scale.",
-                "Noise histograms of the whole image (all channels pooled), real (grey) vs each method (line): "
-                "fraction of values per 8-bit level over [−0.1, 0.1] on the [0, 1] scale (±25 levels), log scale; "
-                "σ is the standard deviation in 8-bit levels.",
+            methods = [m for m in self.order if m in example.noise]
+            labels = {n: self.label(n) for n in methods}
+            colours = self.layout.colours
+            png = self.figures.histogram_png(example.noise, methods, colours, labels)
+            histogram = _Image(_data_uri(png), f"Noise histograms of {where}: real versus each method, log scale.")
+            png = self.figures.spectrum_png(example.noise, methods, colours, labels)
+            spectrum = _Image(_data_uri(png), f"Noise power spectra of {where}: real versus each method, log-log.")
+        article_id = self.ids("example", f"{example.set_name}-{example.pair_name}")
+        return _Example(article_id, example.set_name, example.pair_name, where, size, crops, histogram, spectrum)
+
+    def render(self) -> str:
+        results = self.results
+        sets = []
+        for name, entry in results.sets.items():
+            sets.append(
+                {
+                    "name": name,
+                    "id": self.set_ids[name],
+                    "entry": entry,
+                    "table": self.layout.set_table(name),
+                    "missing": results.not_evaluated(name),
+                    "radar": self.radar(name),
+                    "cameras": self.layout.camera_tables(name),
+                    "examples": [self.example(e) for e in self.examples if e.set_name == name],
+                }
             )
-            spectrum = self.figures.spectrum_png(example.noise, methods, self.colours, labels)
-            out += self.chart(
-                "spectrum",
-                spectrum,
-                f"Noise power spectra of {where}: real versus each method, log-log.",
-                "Radially averaged power spectrum of the noise's luminance (Rec. 709), whole image, averaged over "
-                "Hann-windowed square tiles (256 pixels, or the image side if smaller); log-log. Flat means white "
-                "(pixel-independent) noise; power falling towards high frequencies means spatially correlated noise "
-                "(demosaicing, denoising, compression).",
-            )
-        return [*out, "</article>"]
-
-    def crop_figure(
-        self, name: str, label: str, images: Sequence[tuple[np.ndarray, str]], size: str, where: str
-    ) -> list[str]:
-        out = [f'<figure class="crop" data-method="{_e(name)}">']
-        for pixels, alt in images:
-            png = _crop_png(pixels, f"{where}: {label}")
-            out.append(f'<img src="{_data_uri(png)}" {size} alt="{_e(alt)}">')
-        caption = self.method_name(name) if name not in ("clean", "real") else _e(name)
-        return [*out, f"<figcaption>{caption}</figcaption>", "</figure>"]
-
-    def orphan_examples(self) -> list[str]:
-        sets = _sets(self.results)
-        orphans = [example for example in self.examples if example.set_name not in sets]
-        if not orphans:
-            return []
-        out = ['<section id="other-examples">', "<h2>Other examples</h2>"]
-        for example in orphans:
-            out += self.example(example)
-        return [*out, "</section>"]
-
-    def downstream_section(self) -> list[str]:
-        downstream = self.downstream
-        if downstream is None:
-            return []
-        out = [
-            '<section id="downstream">',
-            "<h2>Downstream denoising</h2>",
-            f'<p class="legend">{_e(DOWNSTREAM_LEGEND)}</p>',
-        ]
-        for css_class, info in (("settings", downstream.settings), ("notes", downstream.notes)):
-            if info:
-                out.append(f'<dl class="{css_class}">')
-                out += [f"<dt>{_e(k)}</dt><dd>{_e(v)}</dd>" for k, v in info.items()]
-                out.append("</dl>")
-        headers = [c.title for c in DOWNSTREAM_COLUMNS]
-        excluded = self.oracles | downstream.references
-        for name, rows in downstream.sets.items():
-            names = _downstream_order(rows, self.order, downstream.references)
-            caption = f"{name}: denoising the real pairs."
-            attrs = f' data-set="{_e(name)}"'
-            out += self.table("downstream", caption, DOWNSTREAM_COLUMNS, headers, rows, attrs, excluded, names)
-        if downstream.problems:
-            out.append("<h3>Problems of the downstream run</h3>")
-            out += ['<ul class="problems">', *(f"<li>{_e(p)}</li>" for p in downstream.problems), "</ul>"]
-        return [*out, "</section>"]
-
-    def problems_section(self) -> list[str]:
-        problems = self.results.get("problems") or []
-        out = ['<section id="problems">', f"<h2>Problems <span class='count'>{len(problems)}</span></h2>"]
-        if not problems:
-            return [*out, '<p class="note">None.</p>', "</section>"]
-        return [*out, '<ul class="problems">', *(f"<li>{_e(p)}</li>" for p in problems), "</ul>", "</section>"]
-
-    def metrics_section(self) -> list[str]:
-        out = ['<section id="metric-recipes">', "<h2>Metrics</h2>"]
-        if not self.metric_text:
-            return [*out, '<p class="note">No metric descriptions.</p>', "</section>"]
-        out.append('<dl class="metric-recipes">')
-        out += [f"<dt>{_e(k)}</dt><dd>{_e(v)}</dd>" for k, v in self.metric_text.items()]
-        return [*out, "</dl>", "</section>"]
-
-    def headline_section(self) -> list[str]:
-        lines = headline_lines(self.results)
-        section = []
-        if lines:
-            items = "".join(f"<li>{_e(line)}</li>" for line in lines)
-            section.append(f'<section id="headline"><h2>{_e(HEADLINE_TITLE)}</h2><ul>{items}</ul></section>')
-        beyond = beyond_paper_lines(self.results)
-        if beyond:
-            items = "".join(f"<li>{_e(line)}</li>" for line in beyond)
-            section.append(f'<section id="beyond-paper"><h2>{_e(BEYOND_TITLE)}</h2><ul>{items}</ul></section>')
-        return section
-
-    def page(self) -> str:
-        sets = _sets(self.results)
-        title = "darksynth evaluate" + (": " + ", ".join(sets) if sets else "")
-        body = [*self.header(), "<main>", *self.headline_section(), *self.methods_section()]
-        for name, entry in sets.items():
-            body += self.set_section(name, entry)
-        body += [
-            *self.orphan_examples(),
-            *self.downstream_section(),
-            *self.problems_section(),
-            *self.metrics_section(),
-            "</main>",
-        ]
-        head = [
-            "<!DOCTYPE html>",
-            '<html lang="en">',
-            "<head>",
-            '<meta charset="utf-8">',
-            '<meta name="viewport" content="width=device-width, initial-scale=1">',
-            f'<meta http-equiv="Content-Security-Policy" content="{CSP}">',
-            f"<title>{_e(title)}</title>",
-            f"<style>{CSS}</style>",
-            "</head>",
-            "<body>",
-        ]
-        return "\n".join([*head, *body, f"<script>{SCRIPT}</script>", "</body>", "</html>"]) + "\n"
+        orphans = [self.example(e) for e in self.examples if e.set_name not in results.sets]
+        title = "darksynth evaluate" + (": " + ", ".join(results.sets) if results.sets else "")
+        methods = [self.layout.method(name) for name in _ordered(results.methods, self.order)]
+        template = _environment(autoescape=True).get_template("report.html.j2")
+        return template.render(
+            **_common(results),
+            title=title,
+            csp=CSP,
+            sets=sets,
+            orphans=orphans,
+            methods=methods,
+            downstream_tables=self.layout.downstream_tables(),
+            noise_gain=NOISE_GAIN,
+        )
 
 
-def render_html(results: Mapping[str, Any], examples: Sequence[ReportExample]) -> str:
+def render_html(results: EvaluationResults | Mapping[str, Any], examples: Sequence[ReportExample]) -> str:
     """The self-contained HTML report (see :func:`write_html_report`)."""
-    return _Html(results, examples).page()
+    return _HtmlPage(_typed(results), examples).render()
 
 
-def write_html_report(results: dict[str, Any], examples: Sequence[ReportExample], path: Path) -> None:
+def write_html_report(results: Mapping[str, Any], examples: Sequence[ReportExample], path: Path) -> None:
     """Write one self-contained HTML page of ``darksynth evaluate`` results, atomically.
 
     The page shows the command and provenance; the methods; per set the metrics table (oracle methods labelled,
