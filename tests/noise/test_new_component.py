@@ -1,0 +1,160 @@
+"""A component declared in the table, and nowhere else, goes end to end.
+
+The test declares a dummy component (uniform dither, a profile-version-3 parameter that no fast path covers)
+inside the test, adds it to the table, and runs it through sampling, the profile schema (load, save, version
+rules), the composer, ``synthesize`` on float and 8-bit input, the level's closed form, ``apply`` on an image
+file and its manifest. Nothing else in darksynth is changed for it: if a consumer kept its own list of
+components, this test would fail there.
+"""
+
+from __future__ import annotations
+
+import json
+import math
+from collections.abc import Iterator, Mapping
+from pathlib import Path
+
+import numpy as np
+import pytest
+import torch
+from PIL import Image
+
+import darksynth
+from darksynth.apply import ApplyOptions, apply
+from darksynth.darkening import Darkening
+from darksynth.errors import ProfileError
+from darksynth.noise import components
+from darksynth.noise.components import NoiseComponent, Parameter
+from darksynth.noise.level import mean_noise_variance
+from darksynth.noise.sampling import random_noise_values
+from darksynth.noise.values import NoiseValues
+from darksynth.profile import load_profile, profile_schema, save_profile
+from darksynth.synthesize import ClipParameters, ClipSynthesizer
+
+DITHER = 0.08
+
+
+def _draw_dither(
+    signal: torch.Tensor, values: Mapping[str, torch.Tensor], generator: torch.Generator | None
+) -> torch.Tensor:
+    width = values["dither"][..., 0].reshape(*values["dither"].shape[:-1], *([1] * 4))
+    unit = torch.rand(signal.shape, generator=generator, device=signal.device, dtype=signal.dtype)
+    return (2.0 * unit - 1.0) * width if signal.dim() >= 4 else (2.0 * unit - 1.0) * width.reshape(())
+
+
+def _dither_variance(values: Mapping[str, torch.Tensor], channel_means: torch.Tensor) -> torch.Tensor:
+    # U(-d, d) has variance d^2 / 3.
+    return (values["dither"][:, :1].square() / 3.0).expand_as(channel_means)
+
+
+DUMMY = NoiseComponent(
+    name="dither",
+    parameters=(
+        Parameter("dither", 1, "half-width d of a uniform U(-d, d) per pixel", 0.5, (0.0, 0.1), since_version=3),
+    ),
+    structure="pixel",
+    draw=_draw_dither,
+    variance=_dither_variance,
+    reference="a component that exists only in this test",
+)
+
+
+@pytest.fixture
+def with_dither(monkeypatch: pytest.MonkeyPatch) -> Iterator[None]:
+    monkeypatch.setattr(components, "NOISE_COMPONENTS", (*components.NOISE_COMPONENTS, DUMMY))
+    yield
+
+
+def _document(version: int, **noise: float) -> dict[str, object]:
+    paper = {"shot": 0.0, "read": 0.0, "quantization": 0.0, "banding": 0.0, "temporal_banding": 0.0}
+    return {
+        "format": "darksynth-profile",
+        "version": version,
+        "noise": paper | {"periodic": [0.0, 0.0, 0.0]} | noise,
+        "darkening": {"alpha": 0.5, "gamma": 1.0},
+    }
+
+
+def _write(path: Path, document: dict[str, object]) -> Path:
+    path.write_text(json.dumps(document), encoding="utf-8")
+    return path
+
+
+@pytest.mark.usefixtures("with_dither")
+def test_sampling_draws_the_new_parameter_within_its_training_range() -> None:
+    values = random_noise_values(batch_shape=(2000,), generator=torch.Generator().manual_seed(0))
+    drawn = values["dither"]
+    assert drawn.shape == (2000, 1)
+    assert float(drawn.min()) >= 0.0 and float(drawn.max()) <= 0.1
+    assert float(drawn.max()) - float(drawn.min()) > 0.09
+    assert NoiseValues.neutral()["dither"].tolist() == [0.0]
+
+
+@pytest.mark.usefixtures("with_dither")
+def test_profile_schema_and_versions_follow_the_declaration(tmp_path: Path) -> None:
+    schema = profile_schema().model_json_schema()
+    assert "dither" in json.dumps(schema)
+    profile = load_profile(_write(tmp_path / "v3.json", _document(3, dither=DITHER)))
+    assert profile.noise.scalar("dither") == DITHER
+    save_profile(tmp_path / "copy.json", profile)
+    written = json.loads((tmp_path / "copy.json").read_text(encoding="utf-8"))
+    assert written["version"] == 3 and written["noise"]["dither"] == DITHER
+    assert load_profile(tmp_path / "copy.json") == profile
+    # Older documents: read with the new parameter neutral, refused when they carry it.
+    older = load_profile(_write(tmp_path / "v2.json", _document(2)))
+    assert older.noise.scalar("dither") == 0.0
+    with pytest.raises(ProfileError, match=r"noise\.dither needs profile version 3, this document is version 2"):
+        load_profile(_write(tmp_path / "bad.json", _document(2, dither=DITHER)))
+    with pytest.raises(ProfileError, match=r"noise\.dither must lie in \[0, 0\.5\].*got 0\.7"):
+        load_profile(_write(tmp_path / "big.json", _document(3, dither=0.7)))
+
+
+@pytest.mark.usefixtures("with_dither")
+def test_synthesize_draws_it_with_its_law_on_float_and_8bit_input(tmp_path: Path) -> None:
+    profile = load_profile(_write(tmp_path / "p.json", _document(3, dither=DITHER)))
+    clean = torch.full((3, 128, 128), 0.8)
+    result = darksynth.synthesize(clean, profile, generator=torch.Generator().manual_seed(1))
+    noise = result.image.double() - 0.4  # darkened: 0.5 * 0.8
+    assert float(noise.abs().max()) <= DITHER + 1e-6
+    assert abs(float(noise.mean())) < 5 * DITHER / math.sqrt(3 * noise.numel())
+    assert abs(float(noise.var()) / (DITHER**2 / 3) - 1.0) < 0.03
+    assert result.parameters["noise"]["dither"] == DITHER  # type: ignore[call-overload,index]
+    # 8-bit input: no fast path covers the new parameter, so the general composer draws it.
+    synthesizer = ClipSynthesizer(ClipParameters(profile.noise, Darkening(0.5, 1.0)), generator=torch.Generator())
+    frame = torch.full((3, 96, 96), 204, dtype=torch.uint8)
+    levels = synthesizer(frame).double() - 102.0
+    assert float(levels.abs().max()) <= DITHER * 255 + 1
+    assert abs(float(levels.std()) / (DITHER * 255 / math.sqrt(3)) - 1.0) < 0.05
+
+
+@pytest.mark.usefixtures("with_dither")
+def test_the_level_counts_its_declared_variance() -> None:
+    values = NoiseValues.from_values({"dither": DITHER, "read": 0.01}, batch_shape=(1,))
+    dark = torch.full((1, 1, 3, 8, 8), 0.3, dtype=torch.float64)
+    assert float(mean_noise_variance(values, dark)[0]) == pytest.approx(0.01**2 + DITHER**2 / 3)
+
+
+@pytest.mark.usefixtures("with_dither")
+def test_apply_on_an_image_writes_it_and_records_it_in_the_manifest(tmp_path: Path) -> None:
+    source = tmp_path / "clean.png"
+    Image.fromarray(np.full((64, 80, 3), 200, dtype=np.uint8)).save(source)
+    profile = load_profile(_write(tmp_path / "p.json", _document(3, dither=DITHER)))
+    out = tmp_path / "out.png"
+    report = apply(source, out, ApplyOptions(profile=profile, seed=3))
+    pixels = np.asarray(Image.open(out), dtype=np.float64) - round(0.5 * 200)
+    assert np.abs(pixels).max() <= DITHER * 255 + 1
+    assert abs(pixels.std() / (DITHER * 255 / math.sqrt(3)) - 1.0) < 0.1
+    assert report.manifest is not None
+    manifest = json.loads(report.manifest.read_text(encoding="utf-8"))
+    assert manifest["profile"]["version"] == 3
+    assert manifest["profile"]["noise"]["dither"] == DITHER
+    assert manifest["files"][0]["parameters"]["noise"]["dither"] == DITHER
+
+
+def test_without_the_declaration_the_parameter_is_unknown(tmp_path: Path) -> None:
+    """The control: the same document is refused by the table as shipped, so the tests above are not vacuous."""
+    with pytest.raises(ProfileError, match=r"noise\.dither is not a noise parameter"):
+        load_profile(_write(tmp_path / "v2.json", _document(2, dither=DITHER)))
+    with pytest.raises(ProfileError, match=r"unsupported version 3"):
+        load_profile(_write(tmp_path / "v3.json", _document(3)))
+    assert "dither" not in NoiseValues.neutral()
