@@ -18,11 +18,12 @@ import numpy as np
 import torch
 
 from darksynth.estimate import estimate
-from darksynth.io.arrays import hwc_to_chw, to_8bit_levels
+from darksynth.io.arrays import hwc_to_chw
 from darksynth.io.images import read_image
 from darksynth.noise.level import mean_noise_variance
 from darksynth.noise.simulate import add_noise
 from darksynth.noise.values import NoiseValues
+from darksynth.tensors import to_8bit_levels
 from darksynth.training.weights import default_weights_path, load_weights
 
 SETTINGS: tuple[dict[str, float | tuple[float, ...]], ...] = (

@@ -6,7 +6,7 @@ from dataclasses import dataclass
 
 import torch
 
-from darksynth.noise._broadcast import per_clip
+from darksynth.tensors import per_clip
 
 ALPHA_RANGE: tuple[float, float] = (0.05, 0.3)
 """The paper's training range of the exposure scale alpha."""

@@ -21,7 +21,6 @@ import torch
 
 from darksynth.darkening import ALPHA_RANGE, GAMMA_RANGE, Darkening, darken
 from darksynth.io.arrays import numpy_to_tensor, tensor_to_numpy
-from darksynth.noise._broadcast import CLIP_DIMS
 from darksynth.noise.components import noise_parameters
 from darksynth.noise.counter_rng import random_key
 from darksynth.noise.kernel8 import (
@@ -37,6 +36,7 @@ from darksynth.noise.sampling import random_uniform
 from darksynth.noise.simulate import add_noise, column_noise
 from darksynth.noise.values import NoiseValues
 from darksynth.profile import Profile
+from darksynth.tensors import CLIP_DIMS
 
 logger = logging.getLogger(__name__)
 

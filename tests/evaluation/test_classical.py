@@ -12,7 +12,7 @@ from darksynth.evaluation.classical import (
     blind_poisson_gaussian,
     oracle_poisson_gaussian,
 )
-from darksynth.io.arrays import to_8bit_levels
+from darksynth.tensors import to_8bit_levels
 
 LAW = PoissonGaussian(a=(1e-3, 2e-3, 5e-4), b=(1e-4, 4e-4, 2.5e-5))
 

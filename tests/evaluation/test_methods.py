@@ -8,7 +8,7 @@ import pytest
 import torch
 
 from darksynth.evaluation.methods import AWGN_SIGMA, METHOD_NAMES, MethodUnavailableError, build_method
-from darksynth.io.arrays import to_8bit_levels
+from darksynth.tensors import to_8bit_levels
 from tests.evaluation.test_classical import smooth_scene
 
 ZERO_SHOT_ADAPTIVE = ("awgn-blind", "pg-blind", "den")

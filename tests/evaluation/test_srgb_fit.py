@@ -8,7 +8,7 @@ import torch
 from darksynth.evaluation.classical import PoissonGaussian
 from darksynth.evaluation.methods import build_method
 from darksynth.evaluation.srgb_fit import SrgbNoise, fit_srgb_noise, synthesize_srgb
-from darksynth.io.arrays import to_8bit_levels
+from darksynth.tensors import to_8bit_levels
 
 
 def smooth_scene(size: int) -> torch.Tensor:

@@ -12,7 +12,7 @@ import numpy as np
 import torch
 import torch.nn.functional as F
 
-from darksynth.io.arrays import to_8bit_levels
+from darksynth.tensors import to_8bit_levels
 
 LEVEL_BINS = 16
 """Intensity bins of the variance-against-level fits."""

@@ -24,9 +24,9 @@ from darksynth.evaluation.classical import (
     oracle_poisson_gaussian,
 )
 from darksynth.evaluation.srgb_fit import JPEG_CANDIDATES
-from darksynth.io.arrays import to_8bit_levels
 from darksynth.noise.simulate import add_noise
 from darksynth.noise.values import NoiseValues
+from darksynth.tensors import to_8bit_levels
 from darksynth.training.weights import default_weights_path
 
 AWGN_SIGMA = 5.0 / 255.0

@@ -1,4 +1,4 @@
-"""Conversion between numpy images (H, W, C) and torch frames (C, H, W), uint16 included; 8-bit levels."""
+"""Conversion between numpy images (H, W, C) and torch frames (C, H, W), uint16 included."""
 
 from __future__ import annotations
 
@@ -30,8 +30,3 @@ def hwc_to_chw(array: np.ndarray) -> torch.Tensor:
 def chw_to_hwc(frame: torch.Tensor) -> np.ndarray:
     """A (C, H, W) frame tensor as a contiguous (H, W, C) array."""
     return tensor_to_numpy(frame.permute(1, 2, 0))
-
-
-def to_8bit_levels(image: torch.Tensor) -> torch.Tensor:
-    """Clip to [0, 1] and round to the 256 levels an 8-bit file stores, as a real sRGB reference arrives."""
-    return (image.clamp(0.0, 1.0) * 255.0).round() / 255.0

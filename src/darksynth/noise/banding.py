@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import torch
 
-from darksynth.noise._broadcast import check_clip_shape, per_clip
+from darksynth.tensors import check_clip_shape, per_clip
 
 
 def banding_noise(

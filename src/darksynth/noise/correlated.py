@@ -31,7 +31,7 @@ import torch
 import torch.nn.functional as F
 from PIL import Image
 
-from darksynth.io.arrays import to_8bit_levels
+from darksynth.tensors import to_8bit_levels
 
 KERNEL_RADIUS_STDS = 3.0
 """The Gaussian kernel is cut at this many standard deviations (at least one pixel each side)."""

@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import torch
 
-from darksynth.noise._broadcast import per_clip
+from darksynth.tensors import per_clip
 
 
 def heteroscedastic_std(signal: torch.Tensor, shot: torch.Tensor | float, read: torch.Tensor | float) -> torch.Tensor:

@@ -6,7 +6,7 @@ import math
 
 import torch
 
-from darksynth.noise._broadcast import CLIP_DIMS, check_clip_shape
+from darksynth.tensors import CLIP_DIMS, check_clip_shape
 
 # cos(pi * w / 2) and sin(pi * w / 2) at integer columns, exactly: the mode at W/4 cycles per frame width.
 _QUARTER_COS = (1.0, 0.0, -1.0, 0.0)

@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import torch
 
-from darksynth.noise._broadcast import per_clip
+from darksynth.tensors import per_clip
 
 QUANTIZATION_LEVELS = 256
 """The uniform variate is drawn on this many equally spaced levels (one random byte per pixel).

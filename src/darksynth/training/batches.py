@@ -7,11 +7,11 @@ from dataclasses import dataclass
 import torch
 
 from darksynth.darkening import darken
-from darksynth.io.arrays import to_8bit_levels
 from darksynth.noise.components import NoiseModel, model_parameters, noise_components
 from darksynth.noise.sampling import random_darkening_values, random_noise_values
 from darksynth.noise.simulate import add_noise
 from darksynth.noise.values import NoiseValues
+from darksynth.tensors import to_8bit_levels
 
 BRIGHT_ALPHA_RANGE = (0.3, 1.0)
 BRIGHT_GAMMA_RANGE = (0.5, 1.0)

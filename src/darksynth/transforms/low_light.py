@@ -34,9 +34,9 @@ import torch
 import torch.utils.data
 
 from darksynth.darkening import Darkening
-from darksynth.io.arrays import to_8bit_levels
 from darksynth.profile import Profile, load_profile, parse_profile, validate_profile
 from darksynth.synthesize import DarkeningChoice, LowLightResult, synthesize
+from darksynth.tensors import to_8bit_levels
 
 FLOAT_RANGE_TOLERANCE = 0.25
 """How far outside [0, 1] float values may lie (resampling overshoot, clipped away); normalised tensors

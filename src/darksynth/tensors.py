@@ -1,4 +1,6 @@
-"""Broadcasting of per-clip parameters against clips shaped (*batch, T, C, H, W)."""
+"""Tensor conventions shared by every layer: clips shaped (*batch, T, C, H, W), per-clip parameters broadcast
+against them, and the 8-bit levels a stored image has. Imports nothing of darksynth, so the pure core
+(darkening, noise) and the edges (io, training, evaluation) can all use it."""
 
 from __future__ import annotations
 
@@ -34,3 +36,8 @@ def check_clip_shape(shape: torch.Size | tuple[int, ...]) -> None:
     """Reject shapes that are not (*batch, T, C, H, W)."""
     if len(shape) < CLIP_DIMS:
         raise ValueError(f"expected a clip shaped (..., T, C, H, W), got shape {tuple(shape)}")
+
+
+def to_8bit_levels(image: torch.Tensor) -> torch.Tensor:
+    """Clip to [0, 1] and round to the 256 levels an 8-bit file stores, as a real sRGB reference arrives."""
+    return (image.clamp(0.0, 1.0) * 255.0).round() / 255.0

@@ -1,0 +1,108 @@
+"""Imports go strictly downward: the layer of every darksynth module and what it may import.
+
+Layers, lowest first (a module may import its own package and any lower layer, never a higher one or a
+sibling of its own layer):
+
+0. ``errors``, ``tensors``, ``seeding``: conventions that import nothing of darksynth;
+1. ``io`` (files, videos, atomic writes) and ``darkening``;
+2. ``noise``: the components, their table, the carrier of values, the composer;
+3. ``profile``, ``darkening_estimate``;
+4. ``synthesize``, ``models``;
+5. ``apply``, ``estimate``, ``training``, ``transforms``;
+6. ``baselines``, ``datasets``;
+7. ``evaluation``, ``demo``;
+8. ``cli``, the package ``__init__``; 9. ``__main__``, which only calls the cli.
+
+The pure core (``tensors``, ``darkening``, ``noise``) also never imports ``io``: reading and writing files is
+for the edges, so the core runs on tensors alone.
+"""
+
+from __future__ import annotations
+
+import ast
+from pathlib import Path
+
+import pytest
+
+SOURCE = Path(__file__).resolve().parent.parent / "src" / "darksynth"
+
+LAYERS: dict[str, int] = {
+    "errors": 0,
+    "tensors": 0,
+    "seeding": 0,
+    "io": 1,
+    "darkening": 1,
+    "noise": 2,
+    "profile": 3,
+    "darkening_estimate": 3,
+    "synthesize": 4,
+    "models": 4,
+    "apply": 5,
+    "estimate": 5,
+    "training": 5,
+    "transforms": 5,
+    "baselines": 6,
+    "datasets": 6,
+    "evaluation": 7,
+    "demo": 7,
+    "cli": 8,
+    "__main__": 9,
+    "__init__": 8,
+}
+
+PURE_CORE = frozenset({"tensors", "darkening", "noise"})
+
+
+def _unit(path: Path) -> str:
+    """The top-level module or package a source file belongs to."""
+    return path.relative_to(SOURCE).parts[0].removesuffix(".py")
+
+
+def _imported_units(path: Path) -> set[str]:
+    units = set()
+    for node in ast.walk(ast.parse(path.read_text(encoding="utf-8"))):
+        if isinstance(node, ast.ImportFrom) and node.module and node.level == 0:
+            names = [node.module]
+        elif isinstance(node, ast.Import):
+            names = [alias.name for alias in node.names]
+        else:
+            continue
+        for name in names:
+            parts = name.split(".")
+            if parts[0] == "darksynth" and len(parts) > 1:
+                units.add(parts[1])
+            elif parts[0] == "darksynth" and isinstance(node, ast.ImportFrom):
+                # `from darksynth import x`: x is the unit.
+                units.update(alias.name for alias in node.names)
+    return units
+
+
+SOURCES = sorted(p for p in SOURCE.rglob("*.py"))
+
+
+def test_every_module_has_a_layer() -> None:
+    units = {_unit(p) for p in SOURCES}
+    assert units <= set(LAYERS), f"modules without a layer: {sorted(units - set(LAYERS))}"
+
+
+@pytest.mark.parametrize("path", SOURCES, ids=lambda p: str(p.relative_to(SOURCE)))
+def test_imports_only_go_down(path: Path) -> None:
+    unit = _unit(path)
+    if unit == "__init__":
+        return
+    wrong = []
+    for imported in _imported_units(path) - {unit}:
+        if imported not in LAYERS:
+            continue  # a name re-exported by the package, not a module
+        if LAYERS[imported] >= LAYERS[unit]:
+            wrong.append(f"{imported} (layer {LAYERS[imported]})")
+        if unit in PURE_CORE and imported == "io":
+            wrong.append("io (the pure core reads no files)")
+    assert not wrong, f"{path.relative_to(SOURCE)} (layer {LAYERS[unit]}) imports upward or sideways: {wrong}"
+
+
+def test_the_check_sees_an_upward_import(tmp_path: Path) -> None:
+    """The control: a module of the noise layer importing the profile is caught."""
+    module = tmp_path / "bad.py"
+    module.write_text("from darksynth.profile import load_profile\nimport darksynth.io.arrays\n", encoding="utf-8")
+    assert _imported_units(module) == {"profile", "io"}
