@@ -28,10 +28,10 @@ import torch
 import torch.nn.functional as F
 from torch import nn
 
-from darksynth.apply import derive_seed
 from darksynth.errors import DarksynthError
 from darksynth.evaluation.methods import NoiseMethod, build_methods
 from darksynth.evaluation.pairs import LoadedPair, Pair, list_pair_sets, load_pair
+from darksynth.seeding import derive_seed, seeded_generator
 
 LPIPS_STATUS = (
     "not computed: the PyPI package lpips (0.1.4) ships only its small linear layers (lpips/weights/v0.1/"
@@ -119,7 +119,7 @@ class ResidualDenoiser(nn.Module):
 
     def _initialise(self, seed: int) -> None:
         # Own generator: the same seed gives the same weights whatever the global RNG went through.
-        generator = torch.Generator().manual_seed(derive_seed(seed, "downstream/weights"))
+        generator = seeded_generator(derive_seed("darksynth", seed, "downstream/weights"))
         convolutions = [m for m in self.body if isinstance(m, nn.Conv2d)]
         with torch.no_grad():
             for index, convolution in enumerate(convolutions):
@@ -215,9 +215,9 @@ def train_denoiser(
     if not parameters_list:
         raise DarksynthError(f"{method.name}: no fitted parameters to synthesise training noise with")
     images = _usable_images(clean_images, settings.crop)
-    crops = torch.Generator().manual_seed(derive_seed(settings.seed, "downstream/crops"))
-    draws = torch.Generator().manual_seed(derive_seed(settings.seed, "downstream/parameters"))
-    noise = torch.Generator().manual_seed(derive_seed(settings.seed, "downstream/noise"))
+    crops = seeded_generator(derive_seed("darksynth", settings.seed, "downstream/crops"))
+    draws = seeded_generator(derive_seed("darksynth", settings.seed, "downstream/parameters"))
+    noise = seeded_generator(derive_seed("darksynth", settings.seed, "downstream/noise"))
     model = build_denoiser(settings)
     model.train()
     optimizer = torch.optim.Adam(model.parameters(), lr=settings.learning_rate)
