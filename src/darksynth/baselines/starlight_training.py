@@ -86,6 +86,8 @@ class StarlightTrainConfig:
     crop: int = 64
     clip_fraction: float = 0.5
     single_frame_every: int = 2
+    """Every this-th batch holds single frames, as in the DEN's training
+    (:func:`~darksynth.training.scaffold.single_frame_step`); 0: none."""
     absent_probability: float = 0.15
     learning_rate: float = 5e-4
     physics_learning_rate: float = 2e-2

@@ -1,4 +1,8 @@
-"""The training loop: Adam on lambda1 * MSE(v_hat, v) + lambda2 * L1(x_hat_d, x_d), validation, checkpoints."""
+"""The DEN's training: Adam on lambda1 * MSE(v_hat, v) + lambda2 * L1(x_hat_d, x_d), validation, checkpoints.
+
+The step loop, the validation set's seed and the single-frame steps are the shared ones of
+:mod:`darksynth.training.scaffold`; this module draws the batches, computes the loss, validates and checkpoints.
+"""
 
 from __future__ import annotations
 
@@ -57,8 +61,10 @@ class TrainConfig:
     the predicted v would give the clip to the true one (:func:`darksynth.noise.level.mean_noise_variance`), so
     that the network gets the overall level right even where shot and read cannot be told apart.
 
-    Every ``single_frame_every``-th batch holds single frames (T = 1) instead of ``frames``-frame clips, so that
-    one network serves image references (where temporal banding cannot be told from banding) and clips.
+    Every ``single_frame_every``-th batch (steps counted from 1; 0: none; see
+    :func:`~darksynth.training.scaffold.single_frame_step`) holds single frames (T = 1) instead of
+    ``frames``-frame clips, so that one network serves image references (where temporal banding cannot be told
+    from banding) and clips.
     """
 
     model: DENConfig = field(default_factory=DENConfig)
@@ -231,7 +237,7 @@ def _calibrate_statistics(model: DEN, corpus: CleanCorpus, config: TrainConfig, 
 
     measured = []
     for index in range(16):
-        frames = 1 if index % 2 else config.frames
+        frames = 1 if single_frame_step(index + 1, 2) else config.frames
         clean = sample_clean_clips(
             corpus, config.batch, frames, config.crop, clip_fraction=config.clip_fraction, generator=generator
         )
