@@ -84,7 +84,7 @@ def main(argv: list[str] | None = None) -> int:
     started = time.perf_counter()
     try:
         corpus = load_corpus(args.data, args.clips, minimum_side=config.crop)
-        holdout = load_corpus(args.holdout, minimum_side=config.holdout_crop) if args.holdout else None
+        holdout = load_corpus(args.holdout, minimum_side=config.validation_crop) if args.holdout else None
     except DarksynthError as error:
         print(f"error: {error}", file=sys.stderr)
         return 1

@@ -7,7 +7,6 @@ the order or the process in which tasks run.
 
 from __future__ import annotations
 
-import hashlib
 import json
 import os
 import sys
@@ -29,6 +28,7 @@ from darksynth.io.discover import check_output_location, classify_input, scan_fo
 from darksynth.io.images import IMAGE_SUFFIXES, Image, read_image, write_image
 from darksynth.io.video import VIDEO_SUFFIXES, VideoWriter, iter_video_frames, probe_video
 from darksynth.profile import Profile, profile_to_dict
+from darksynth.seeding import derive_seed
 from darksynth.synthesize import ClipParameters, ClipSynthesizer, DarkeningChoice, draw_clip_parameters
 
 TaskKind = Literal["image", "video", "clip"]
@@ -95,10 +95,9 @@ class ApplyReport:
     seconds: float = 0.0
 
 
-def derive_seed(run_seed: int, key: str) -> int:
+def task_seed(run_seed: int, key: str) -> int:
     """A task's seed from the run seed and its relative path: independent of processing order."""
-    digest = hashlib.sha256(f"darksynth:{run_seed}:{key}".encode()).digest()
-    return int.from_bytes(digest[:8], "little") & (2**63 - 1)
+    return derive_seed("darksynth", run_seed, key)
 
 
 def manifest_path(output: Path) -> Path:
@@ -161,7 +160,7 @@ def run_task(task: Task, options: ApplyOptions, progress: Progress | None = None
 
 
 def _run_task(task: Task, options: ApplyOptions, progress: Progress | None) -> dict[str, Any]:
-    seed = derive_seed(options.seed, task.key)
+    seed = task_seed(options.seed, task.key)
     generator = torch.Generator(device=options.device).manual_seed(seed)
     parameters = draw_clip_parameters(options.profile, darkening=options.darkening, generator=generator)
     frames = len(task.inputs)

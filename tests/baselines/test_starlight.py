@@ -37,8 +37,8 @@ TINY_TRAINING = StarlightTrainConfig(
     crop=32,
     discriminator_width=4,
     log_every=2,
-    holdout_size=2,
-    holdout_crop=32,
+    validation_size=2,
+    validation_crop=32,
 )
 OFF = 1e-12
 """A scale so small that its term vanishes in float32 next to the others."""

@@ -14,7 +14,7 @@ import pytest
 import yaml
 from PIL import Image
 
-from darksynth.apply import derive_seed
+from darksynth.apply import task_seed
 from darksynth.datasets import (
     MANIFEST_NAME,
     ConvertOptions,
@@ -57,7 +57,7 @@ def test_coco_images_converted_annotations_still_valid(coco_dataset: Path, profi
     assert [f["input"] for f in manifest["files"]] == [f"train2017/{i:012d}.jpg" for i in range(3)]
     assert manifest["problems"] == [] and manifest["failures"] == []
     # Seeds come from the run seed and the relative path, as in apply.
-    assert manifest["files"][0]["seed"] == derive_seed(1, "train2017/000000000000.jpg")
+    assert manifest["files"][0]["seed"] == task_seed(1, "train2017/000000000000.jpg")
 
 
 def test_yolo_labels_copied_and_yaml_points_at_output(yolo_dataset: Path, profile_path: Path, tmp_path: Path) -> None:

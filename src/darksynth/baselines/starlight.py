@@ -29,9 +29,9 @@ from darksynth.baselines.starlight_training import (
     StarlightTrainConfig,
     evaluate_starlight,
     histogram_kl,
-    holdout_batches,
     summary_path,
     train_starlight,
+    validation_batches,
 )
 
 __all__ = [
@@ -45,9 +45,9 @@ __all__ = [
     "default_starlight_path",
     "evaluate_starlight",
     "histogram_kl",
-    "holdout_batches",
     "load_starlight",
     "save_starlight",
     "summary_path",
     "train_starlight",
+    "validation_batches",
 ]

@@ -22,7 +22,6 @@ from __future__ import annotations
 import copy
 import itertools
 import json
-import time
 from collections.abc import Callable
 from dataclasses import asdict, dataclass, field
 from functools import partial
@@ -43,8 +42,17 @@ from darksynth.baselines.starlight_model import (
 from darksynth.io.atomic import write_text_atomic
 from darksynth.noise.components import model_parameters
 from darksynth.noise.statistics import LEVEL_BINS, noise_statistics
+from darksynth.seeding import seeded_generator
 from darksynth.training.batches import TrainingBatch, synthesize_batch
 from darksynth.training.corpus import CleanCorpus, sample_clean_clips
+from darksynth.training.scaffold import (
+    Report,
+    StepPlan,
+    draw_validation_batches,
+    initial_weights,
+    run_steps,
+    single_frame_step,
+)
 
 RESIDUAL_FEATURE_SCALE = 10.0
 """The discriminator reads residuals times this (they are of the order of 0.01-0.1)."""
@@ -78,6 +86,8 @@ class StarlightTrainConfig:
     crop: int = 64
     clip_fraction: float = 0.5
     single_frame_every: int = 2
+    """Every this-th batch holds single frames, as in the DEN's training
+    (:func:`~darksynth.training.scaffold.single_frame_step`); 0: none."""
     absent_probability: float = 0.15
     learning_rate: float = 5e-4
     physics_learning_rate: float = 2e-2
@@ -92,8 +102,9 @@ class StarlightTrainConfig:
     max_seconds: float | None = None
     """Stop early once training has taken this long (the summary records the steps done); None: no limit."""
     log_every: int = 50
-    holdout_size: int = 64
-    holdout_crop: int = 128
+    validation_size: int = 64
+    """Clips of the fixed validation set (:func:`validation_batches`) the final figures are measured on."""
+    validation_crop: int = 128
     device: str = "cpu"
 
     def to_dict(self) -> dict[str, Any]:
@@ -173,23 +184,22 @@ def histogram_kl(first: torch.Tensor, second: torch.Tensor) -> float:
     return float(0.5 * (forward + inverse))
 
 
-def holdout_batches(holdout: CleanCorpus, config: StarlightTrainConfig) -> list[TrainingBatch]:
-    """A fixed set of target batches from held-out material (its own seed: every run sees the same set)."""
-    generator = torch.Generator().manual_seed(config.seed + 1_000_003)
-    batches = []
-    for _ in range(max(1, config.holdout_size // config.batch)):
+def validation_batches(holdout: CleanCorpus, config: StarlightTrainConfig) -> list[TrainingBatch]:
+    """The run's fixed validation set (:func:`~darksynth.training.scaffold.draw_validation_batches`): target
+    batches drawn as in training from held-out material, ``validation_crop`` pixels wide."""
+
+    def draw(generator: torch.Generator) -> TrainingBatch:
         clean = sample_clean_clips(
             holdout,
             config.batch,
             config.frames,
-            config.holdout_crop,
+            config.validation_crop,
             clip_fraction=config.clip_fraction,
             generator=generator,
         )
-        batches.append(
-            synthesize_batch(clean, generator=generator, absent_probability=config.absent_probability, model="paper")
-        )
-    return batches
+        return synthesize_batch(clean, generator=generator, absent_probability=config.absent_probability, model="paper")
+
+    return draw_validation_batches(draw, config.validation_size, config.batch, config.seed)
 
 
 def _noise_levels(dark: torch.Tensor, residual: torch.Tensor) -> list[float | None]:
@@ -274,6 +284,71 @@ def prior_mean_values(absent_probability: float = 0.15) -> dict[str, float]:
 ProgressCallback = Callable[[int, dict[str, Any]], None]
 
 
+class _StarlightSteps:
+    """Starlight's part of :func:`~darksynth.training.scaffold.run_steps`: a discriminator step then a generator
+    step on a batch of the target, and at a report the mean losses since the last one and the physics."""
+
+    def __init__(
+        self,
+        model: StarlightGenerator,
+        discriminator: PatchDiscriminator,
+        corpus: CleanCorpus,
+        config: StarlightTrainConfig,
+    ) -> None:
+        self.model, self.discriminator, self.corpus, self.config = model, discriminator, corpus, config
+        self.device = torch.device(config.device)
+        physics = [p for n, p in model.named_parameters() if n.startswith("log_")]
+        network = [p for n, p in model.named_parameters() if not n.startswith("log_")]
+        groups: list[dict[str, Any]] = [{"params": network}, {"params": physics, "lr": config.physics_learning_rate}]
+        self.optimizer = torch.optim.Adam(groups, lr=config.learning_rate, betas=config.betas)
+        self.optimizer_d = torch.optim.Adam(
+            discriminator.parameters(), lr=config.discriminator_learning_rate, betas=config.betas
+        )
+        self.schedules = [
+            torch.optim.lr_scheduler.LambdaLR(o, partial(_decay, config)) for o in (self.optimizer, self.optimizer_d)
+        ]
+        self.generator = seeded_generator(config.seed)
+
+    def train_step(self, step: int) -> dict[str, float]:
+        config, model, discriminator = self.config, self.model, self.discriminator
+        frames = 1 if single_frame_step(step, config.single_frame_every) else config.frames
+        clean = sample_clean_clips(
+            self.corpus, config.batch, frames, config.crop, clip_fraction=config.clip_fraction, generator=self.generator
+        )
+        batch = synthesize_batch(
+            clean, generator=self.generator, absent_probability=config.absent_probability, model="paper"
+        )
+        dark, real = batch.dark.to(self.device), batch.noisy.to(self.device)
+        fake = model(dark, self.generator)
+
+        scores_real = discriminator(discriminator_features(dark, real))
+        scores_fake = discriminator(discriminator_features(dark, fake.detach()))
+        loss_d = 0.5 * ((scores_real - 1.0).square().mean() + scores_fake.square().mean())
+        self.optimizer_d.zero_grad(set_to_none=True)
+        loss_d.backward()
+        self.optimizer_d.step()
+
+        adversarial = (discriminator(discriminator_features(dark, fake)) - 1.0).square().mean()
+        matching = statistics_loss(fake, real)
+        loss_g = config.lambda_adversarial * adversarial + config.lambda_statistics * matching
+        self.optimizer.zero_grad(set_to_none=True)
+        loss_g.backward()
+        self.optimizer.step()
+        for schedule in self.schedules:
+            schedule.step()
+        return {
+            "discriminator": float(loss_d.detach()),
+            "adversarial": float(adversarial.detach()),
+            "statistics": float(matching.detach()),
+        }
+
+    def report(self, report: Report) -> dict[str, Any]:
+        entry: dict[str, Any] = {"step": report.step, **{k: round(v, 5) for k, v in report.mean_losses.items()}}
+        entry["physics"] = _rounded(self.model.physics_values())
+        entry["seconds"] = round(report.seconds, 1)
+        return entry
+
+
 def train_starlight(
     corpus: CleanCorpus,
     config: StarlightTrainConfig | None = None,
@@ -287,7 +362,7 @@ def train_starlight(
     Args:
         corpus: clean training material.
         config: training settings (the shipped weights' by default).
-        holdout: clean held-out material for the final figures (none when None).
+        holdout: clean held-out material for the final figures, on :func:`validation_batches` (none when None).
         out: weights path; its summary goes to ``OUT_STEM_training.json`` beside it. Nothing is written when None.
         progress: called every ``log_every`` steps (and at the last) with the step and the logged figures.
 
@@ -295,98 +370,47 @@ def train_starlight(
         The trained generator (eval mode) and the summary.
     """
     config = config or StarlightTrainConfig()
-    torch.manual_seed(config.seed)  # initialisation only; every data and noise draw uses the explicit generator
     device = torch.device(config.device)
-    model = StarlightGenerator(config.model).to(device)
-    discriminator = PatchDiscriminator(config.discriminator_width, inputs=4 * config.model.channels).to(device)
+    model, discriminator = initial_weights(
+        config.seed,
+        lambda: (
+            StarlightGenerator(config.model),
+            PatchDiscriminator(config.discriminator_width, inputs=4 * config.model.channels),
+        ),
+    )
+    model, discriminator = model.to(device), discriminator.to(device)
     initial = copy.deepcopy(model)
-    physics = [p for n, p in model.named_parameters() if n.startswith("log_")]
-    network = [p for n, p in model.named_parameters() if not n.startswith("log_")]
-    groups: list[dict[str, Any]] = [{"params": network}, {"params": physics, "lr": config.physics_learning_rate}]
-    optimizer = torch.optim.Adam(
-        groups,
-        lr=config.learning_rate,
-        betas=config.betas,
-    )
-    optimizer_d = torch.optim.Adam(
-        discriminator.parameters(), lr=config.discriminator_learning_rate, betas=config.betas
-    )
-    schedules = [torch.optim.lr_scheduler.LambdaLR(o, partial(_decay, config)) for o in (optimizer, optimizer_d)]
-    generator = torch.Generator().manual_seed(config.seed)
-    history: list[dict[str, Any]] = []
-    steps_done = 0
-    sums = {"discriminator": 0.0, "adversarial": 0.0, "statistics": 0.0}
-    count = 0
-    started = time.perf_counter()
+    steps = _StarlightSteps(model, discriminator, corpus, config)
+
+    def on_step(step: int, losses: dict[str, float], entry: dict[str, Any] | None) -> None:
+        if progress and entry is not None:
+            progress(step, entry)
+
     model.train()
-    for step in range(1, config.steps + 1):
-        frames = 1 if config.single_frame_every and step % config.single_frame_every == 0 else config.frames
-        clean = sample_clean_clips(
-            corpus, config.batch, frames, config.crop, clip_fraction=config.clip_fraction, generator=generator
-        )
-        batch = synthesize_batch(
-            clean, generator=generator, absent_probability=config.absent_probability, model="paper"
-        )
-        dark, real = batch.dark.to(device), batch.noisy.to(device)
-        fake = model(dark, generator)
-
-        scores_real = discriminator(discriminator_features(dark, real))
-        scores_fake = discriminator(discriminator_features(dark, fake.detach()))
-        loss_d = 0.5 * ((scores_real - 1.0).square().mean() + scores_fake.square().mean())
-        optimizer_d.zero_grad(set_to_none=True)
-        loss_d.backward()
-        optimizer_d.step()
-
-        adversarial = (discriminator(discriminator_features(dark, fake)) - 1.0).square().mean()
-        matching = statistics_loss(fake, real)
-        loss_g = config.lambda_adversarial * adversarial + config.lambda_statistics * matching
-        optimizer.zero_grad(set_to_none=True)
-        loss_g.backward()
-        optimizer.step()
-        for schedule in schedules:
-            schedule.step()
-
-        sums["discriminator"] += float(loss_d.detach())
-        sums["adversarial"] += float(adversarial.detach())
-        sums["statistics"] += float(matching.detach())
-        count += 1
-        steps_done = step
-        out_of_time = config.max_seconds is not None and time.perf_counter() - started > config.max_seconds
-        if step % config.log_every == 0 or step == config.steps or out_of_time:
-            entry: dict[str, Any] = {"step": step, **{k: round(v / count, 5) for k, v in sums.items()}}
-            entry["physics"] = _rounded(model.physics_values())
-            entry["seconds"] = round(time.perf_counter() - started, 1)
-            history.append(entry)
-            sums = dict.fromkeys(sums, 0.0)
-            count = 0
-            if progress:
-                progress(step, entry)
-        if out_of_time:
-            break
-    seconds = time.perf_counter() - started
+    result = run_steps(steps, StepPlan(config.steps, config.log_every, config.max_seconds), on_step=on_step)
     model.eval()
     summary: dict[str, Any] = {
         "model": MODEL_NAME,
         "version": MODEL_VERSION,
         "config": config.to_dict(),
-        "steps": steps_done,
-        "stopped_by_time_limit": steps_done < config.steps,
-        "training_seconds": round(seconds, 1),
+        "steps": result.steps,
+        "stopped_by_time_limit": result.stopped_by_time_limit,
+        "training_seconds": round(result.seconds, 1),
         "torch_threads": torch.get_num_threads(),
         "training_sources": len(corpus),
         "final_physics": _rounded(model.physics_values()),
         "target_prior_mean": prior_mean_values(config.absent_probability),
-        "history": history,
+        "history": result.history,
     }
     if holdout is not None:
-        batches = holdout_batches(holdout, config)
+        batches = validation_batches(holdout, config)
         absent = config.absent_probability
         summary["holdout_sources"] = holdout.sources
         summary["holdout"] = evaluate_starlight(model, batches, seed=config.seed, absent_probability=absent)
         untrained = evaluate_starlight(initial, batches, seed=config.seed, absent_probability=absent)
         summary["holdout_untrained"] = {"kl_generated_vs_target": untrained["kl_generated_vs_target"]}
     if out is not None:
-        save_starlight(out, model, training={"steps": steps_done, "final_physics": summary["final_physics"]})
+        save_starlight(out, model, training={"steps": result.steps, "final_physics": summary["final_physics"]})
         write_text_atomic(summary_path(out), json.dumps(summary, indent=2) + "\n")
     return model, summary
 

@@ -28,10 +28,11 @@ import torch
 import torch.nn.functional as F
 from torch import nn
 
-from darksynth.apply import derive_seed
 from darksynth.errors import DarksynthError
 from darksynth.evaluation.methods import NoiseMethod, build_methods
 from darksynth.evaluation.pairs import LoadedPair, Pair, list_pair_sets, load_pair
+from darksynth.seeding import derive_seed, seeded_generator
+from darksynth.training.scaffold import Report, StepPlan, run_steps
 
 LPIPS_STATUS = (
     "not computed: the PyPI package lpips (0.1.4) ships only its small linear layers (lpips/weights/v0.1/"
@@ -119,7 +120,7 @@ class ResidualDenoiser(nn.Module):
 
     def _initialise(self, seed: int) -> None:
         # Own generator: the same seed gives the same weights whatever the global RNG went through.
-        generator = torch.Generator().manual_seed(derive_seed(seed, "downstream/weights"))
+        generator = seeded_generator(derive_seed("darksynth", seed, "downstream/weights"))
         convolutions = [m for m in self.body if isinstance(m, nn.Conv2d)]
         with torch.no_grad():
             for index, convolution in enumerate(convolutions):
@@ -195,6 +196,58 @@ def _clean_crops(images: Sequence[np.ndarray], batch: int, crop: int, generator:
     return out
 
 
+class _DenoiserSteps:
+    """The denoiser's part of :func:`~darksynth.training.scaffold.run_steps`: an Adam step on a batch of
+    synthetic noisy crops (cosine learning rate), and at a report a progress line."""
+
+    def __init__(
+        self,
+        method: NoiseMethod,
+        parameters_list: Sequence[Any],
+        images: Sequence[np.ndarray],
+        settings: DownstreamSettings,
+        progress: Progress | None,
+    ) -> None:
+        self.method, self.parameters_list, self.images, self.settings = method, parameters_list, images, settings
+        self.progress = progress
+        self.crops = seeded_generator(derive_seed("darksynth", settings.seed, "downstream/crops"))
+        self.draws = seeded_generator(derive_seed("darksynth", settings.seed, "downstream/parameters"))
+        self.noise = seeded_generator(derive_seed("darksynth", settings.seed, "downstream/noise"))
+        self.model = build_denoiser(settings)
+        self.optimizer = torch.optim.Adam(self.model.parameters(), lr=settings.learning_rate)
+        self.loss_function = F.l1_loss if settings.loss == "l1" else F.mse_loss
+
+    def train_step(self, step: int) -> dict[str, float]:
+        settings, model = self.settings, self.model
+        for group in self.optimizer.param_groups:
+            group["lr"] = settings.learning_rate * 0.5 * (1.0 + math.cos(math.pi * (step - 1) / settings.steps))
+        clean = _clean_crops(self.images, settings.batch, settings.crop, self.crops)
+        choices = torch.randint(0, len(self.parameters_list), (settings.batch,), generator=self.draws).tolist()
+        noisy = torch.stack(
+            [
+                self.method.synthesize(crop, self.parameters_list[choice], self.noise)
+                for crop, choice in zip(clean, choices, strict=True)
+            ]
+        )
+        clean_batch = clean.to(device=settings.device, dtype=torch.float32)
+        noisy_batch = noisy.to(device=settings.device, dtype=torch.float32)
+        loss = self.loss_function(model(noisy_batch), clean_batch)
+        self.optimizer.zero_grad(set_to_none=True)
+        loss.backward()  # type: ignore[no-untyped-call]
+        self.optimizer.step()
+        model.training_losses.append(float(loss.detach()))
+        model.input_losses.append(float(self.loss_function(noisy_batch, clean_batch)))
+        return {"loss": model.training_losses[-1]}
+
+    def report(self, report: Report) -> dict[str, Any]:
+        loss = report.mean_losses["loss"]
+        if self.progress is not None:
+            self.progress(
+                f"{self.method.name}: step {report.step}/{self.settings.steps}, loss {loss:.5f}, {report.seconds:.0f} s"
+            )
+        return {"step": report.step, "loss": loss}
+
+
 def train_denoiser(
     method: NoiseMethod,
     parameters_list: Sequence[Any],
@@ -207,50 +260,19 @@ def train_denoiser(
 
     Each step draws ``batch`` random crops of the clean images (uint8 (H, W, 3)), the same crops for every
     method, and for each crop a random entry of ``parameters_list``, with which ``method.synthesize`` makes
-    its noisy version; the denoiser learns to map it back to the clean crop.
+    its noisy version; the denoiser learns to map it back to the clean crop. ``progress`` gets a line ten times
+    over the run (the mean loss since the previous line).
 
     Raises:
         DarksynthError: no parameters, or no clean image as large as the crop.
     """
     if not parameters_list:
         raise DarksynthError(f"{method.name}: no fitted parameters to synthesise training noise with")
-    images = _usable_images(clean_images, settings.crop)
-    crops = torch.Generator().manual_seed(derive_seed(settings.seed, "downstream/crops"))
-    draws = torch.Generator().manual_seed(derive_seed(settings.seed, "downstream/parameters"))
-    noise = torch.Generator().manual_seed(derive_seed(settings.seed, "downstream/noise"))
-    model = build_denoiser(settings)
-    model.train()
-    optimizer = torch.optim.Adam(model.parameters(), lr=settings.learning_rate)
-    loss_function = F.l1_loss if settings.loss == "l1" else F.mse_loss
-    report_every = max(1, settings.steps // 10)
-    started = time.perf_counter()
-    for step in range(settings.steps):
-        for group in optimizer.param_groups:
-            group["lr"] = settings.learning_rate * 0.5 * (1.0 + math.cos(math.pi * step / settings.steps))
-        clean = _clean_crops(images, settings.batch, settings.crop, crops)
-        choices = torch.randint(0, len(parameters_list), (settings.batch,), generator=draws).tolist()
-        noisy = torch.stack(
-            [
-                method.synthesize(crop, parameters_list[choice], noise)
-                for crop, choice in zip(clean, choices, strict=True)
-            ]
-        )
-        clean_batch = clean.to(device=settings.device, dtype=torch.float32)
-        noisy_batch = noisy.to(device=settings.device, dtype=torch.float32)
-        loss = loss_function(model(noisy_batch), clean_batch)
-        optimizer.zero_grad(set_to_none=True)
-        loss.backward()  # type: ignore[no-untyped-call]
-        optimizer.step()
-        model.training_losses.append(float(loss.detach()))
-        model.input_losses.append(float(loss_function(noisy_batch, clean_batch)))
-        if progress is not None and ((step + 1) % report_every == 0 or step + 1 == settings.steps):
-            recent = model.training_losses[-report_every:]
-            progress(
-                f"{method.name}: step {step + 1}/{settings.steps}, loss {sum(recent) / len(recent):.5f}, "
-                f"{time.perf_counter() - started:.0f} s"
-            )
-    model.eval()
-    return model
+    steps = _DenoiserSteps(method, parameters_list, _usable_images(clean_images, settings.crop), settings, progress)
+    steps.model.train()
+    run_steps(steps, StepPlan(settings.steps, max(1, settings.steps // 10)))
+    steps.model.eval()
+    return steps.model
 
 
 def denoise(model: nn.Module, noisy: torch.Tensor) -> torch.Tensor:

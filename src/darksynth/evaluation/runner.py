@@ -17,7 +17,6 @@ from typing import Any
 import numpy as np
 import torch
 
-from darksynth.apply import derive_seed
 from darksynth.errors import DarksynthError
 from darksynth.evaluation.methods import NoiseMethod, build_methods
 from darksynth.evaluation.metrics import (
@@ -29,6 +28,7 @@ from darksynth.evaluation.metrics import (
 )
 from darksynth.evaluation.pairs import LoadedPair, PairSet, list_pair_sets, load_pair
 from darksynth.evaluation.report import ReportExample
+from darksynth.seeding import derive_seed, seeded_generator
 
 METRIC_DESCRIPTIONS = {
     "kld": "KL(real || synthetic) of noise histograms, Noise Flow recipe (Abdelhamed et al. 2019): [0, 1] scale, "
@@ -159,7 +159,7 @@ def _evaluate_set(
         noisy_crops = {"real": _center_crop(loaded.noisy, options.example_crop)}
         noise_maps = {"real": _noise_array(real)}
         for name, method in methods.items():
-            generator = torch.Generator().manual_seed(derive_seed(options.seed, f"{pair_set.name}/{pair.name}/{name}"))
+            generator = seeded_generator(derive_seed("darksynth", options.seed, f"{pair_set.name}/{pair.name}/{name}"))
             try:
                 parameters = method.fit(loaded.noisy, loaded.clean)
                 synthetic = method.synthesize(loaded.clean, parameters, generator)

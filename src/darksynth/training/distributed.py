@@ -20,6 +20,7 @@ from torch import nn
 from torch.nn.parallel import DistributedDataParallel
 
 from darksynth.errors import DarksynthError
+from darksynth.seeding import derive_seed
 
 __all__ = [
     "SINGLE_PROCESS",
@@ -120,8 +121,7 @@ def process_seed(seed: int, ranks: Ranks) -> int:
     of a world of one), a seed derived from the run seed and the rank on the others."""
     if ranks.rank == 0:
         return seed
-    digest = hashlib.sha256(f"darksynth:train:{seed}:rank:{ranks.rank}".encode()).digest()
-    return int.from_bytes(digest[:8], "little") & (2**63 - 1)
+    return derive_seed("darksynth", "train", seed, "rank", ranks.rank)
 
 
 def per_process_batch(batch: int, ranks: Ranks) -> int:

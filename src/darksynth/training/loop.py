@@ -1,9 +1,12 @@
-"""The training loop: Adam on lambda1 * MSE(v_hat, v) + lambda2 * L1(x_hat_d, x_d), validation, checkpoints."""
+"""The DEN's training: Adam on lambda1 * MSE(v_hat, v) + lambda2 * L1(x_hat_d, x_d), validation, checkpoints.
+
+The step loop, the validation set's seed and the single-frame steps are the shared ones of
+:mod:`darksynth.training.scaffold`; this module draws the batches, computes the loss, validates and checkpoints.
+"""
 
 from __future__ import annotations
 
 import json
-import time
 from collections.abc import Callable
 from dataclasses import asdict, dataclass, field
 from pathlib import Path
@@ -19,6 +22,7 @@ from darksynth.models.den import DEN, DENConfig
 from darksynth.noise.components import NoiseModel, model_parameters
 from darksynth.noise.level import mean_noise_variance
 from darksynth.noise.values import NoiseValues
+from darksynth.seeding import seeded_generator
 from darksynth.training.batches import TrainingBatch, synthesize_batch
 from darksynth.training.corpus import CleanCorpus, sample_clean_clips
 from darksynth.training.distributed import (
@@ -33,6 +37,14 @@ from darksynth.training.distributed import (
     process_seed,
     rank_device,
     wrap_model,
+)
+from darksynth.training.scaffold import (
+    Report,
+    StepPlan,
+    draw_validation_batches,
+    initial_weights,
+    run_steps,
+    single_frame_step,
 )
 from darksynth.training.weights import save_weights
 
@@ -50,8 +62,10 @@ class TrainConfig:
     the predicted v would give the clip to the true one (:func:`darksynth.noise.level.mean_noise_variance`), so
     that the network gets the overall level right even where shot and read cannot be told apart.
 
-    Every ``single_frame_every``-th batch holds single frames (T = 1) instead of ``frames``-frame clips, so that
-    one network serves image references (where temporal banding cannot be told from banding) and clips.
+    Every ``single_frame_every``-th batch (steps counted from 1; 0: none; see
+    :func:`~darksynth.training.scaffold.single_frame_step`) holds single frames (T = 1) instead of
+    ``frames``-frame clips, so that one network serves image references (where temporal banding cannot be told
+    from banding) and clips.
     """
 
     model: DENConfig = field(default_factory=DENConfig)
@@ -113,21 +127,23 @@ def r_squared(predicted: torch.Tensor, truth: torch.Tensor) -> torch.Tensor:
     return 1.0 - residual / total
 
 
-def validation_set(corpus: CleanCorpus, config: TrainConfig, *, frames: int | None = None) -> list[TrainingBatch]:
-    """A fixed synthetic set from held-out material (its own seed, so every run validates on the same data)."""
-    generator = torch.Generator().manual_seed(config.seed + 1_000_003)
-    batches = []
-    for _ in range(max(1, config.validation_size // config.batch)):
+def validation_batches(holdout: CleanCorpus, config: TrainConfig, *, frames: int | None = None) -> list[TrainingBatch]:
+    """The run's fixed validation set (:func:`~darksynth.training.scaffold.draw_validation_batches`): synthetic
+    batches of ``frames``-frame clips (the configured length by default) from held-out material, every
+    component present."""
+
+    def draw(generator: torch.Generator) -> TrainingBatch:
         clean = sample_clean_clips(
-            corpus,
+            holdout,
             config.batch,
             frames or config.frames,
             config.crop,
             clip_fraction=config.clip_fraction,
             generator=generator,
         )
-        batches.append(training_batch(clean, config, generator, absent_probability=0.0))
-    return batches
+        return training_batch(clean, config, generator, absent_probability=0.0)
+
+    return draw_validation_batches(draw, config.validation_size, config.batch, config.seed)
 
 
 @torch.no_grad()
@@ -222,7 +238,7 @@ def _calibrate_statistics(model: DEN, corpus: CleanCorpus, config: TrainConfig, 
 
     measured = []
     for index in range(16):
-        frames = 1 if index % 2 else config.frames
+        frames = 1 if single_frame_step(index + 1, 2) else config.frames
         clean = sample_clean_clips(
             corpus, config.batch, frames, config.crop, clip_fraction=config.clip_fraction, generator=generator
         )
@@ -271,6 +287,73 @@ def _stop_unless_all_agree(failure: Exception | None) -> None:
     raise DarksynthError("training stopped: another process failed (see its message)")
 
 
+class _DENSteps:
+    """The DEN's part of :func:`~darksynth.training.scaffold.run_steps`: one Adam step on the loss of a batch of
+    this process's share, and at a report the validation figures and a checkpoint (rank 0)."""
+
+    def __init__(
+        self,
+        model: DEN,
+        network: torch.nn.Module,
+        optimizer: torch.optim.Optimizer,
+        generator: torch.Generator,
+        corpus: CleanCorpus,
+        holdout: CleanCorpus,
+        config: TrainConfig,
+        checkpoint: Path,
+        device: torch.device,
+        batch_size: int,
+        ranks: Ranks,
+    ) -> None:
+        self.model, self.network, self.optimizer, self.generator = model, network, optimizer, generator
+        self.corpus, self.config, self.checkpoint = corpus, config, checkpoint
+        self.device, self.batch_size, self.ranks = device, batch_size, ranks
+        self.validation = validation_batches(holdout, config) if ranks.is_main else []
+        self.single_frames = validation_batches(holdout, config, frames=1) if ranks.is_main else []
+
+    def train_step(self, step: int) -> dict[str, float]:
+        config, model, device = self.config, self.model, self.device
+        frames = 1 if single_frame_step(step, config.single_frame_every) else config.frames
+        clean = sample_clean_clips(
+            self.corpus,
+            self.batch_size,
+            frames,
+            config.crop,
+            clip_fraction=config.clip_fraction,
+            generator=self.generator,
+        )
+        batch = training_batch(clean, config, self.generator)
+        output = self.network(batch.noisy.to(device))
+        loss = config.lambda_parameters * F.mse_loss(output.normalised, model.normalise(batch.vector.to(device)))
+        if config.lambda_level > 0:
+            loss = loss + config.lambda_level * level_loss(output.values, batch, model.noise_model, device)
+        if output.dark is not None and config.lambda_reconstruction > 0:
+            loss = loss + config.lambda_reconstruction * F.l1_loss(output.dark, batch.dark.to(device))
+        self.optimizer.zero_grad(set_to_none=True)
+        loss.backward()  # type: ignore[no-untyped-call]
+        self.optimizer.step()
+        return {"loss": loss.item()}
+
+    def report(self, report: Report) -> dict[str, Any] | None:
+        generator_states = all_gather_tensor(self.generator.get_state())
+        # Equal shares: the mean of the processes' mean losses is the whole batch's mean loss.
+        losses = all_gather_tensor(torch.tensor([report.mean_losses["loss"]], dtype=torch.float64))
+        entry, failure = None, None
+        if self.ranks.is_main:
+            try:
+                mean_loss = sum(float(x) for x in losses) / len(losses)
+                entry = {"step": report.step, "loss": mean_loss, **evaluate(self.model, self.validation, self.device)}
+                entry["single_frame"] = evaluate(self.model, self.single_frames, self.device)
+                history = [*report.history, entry]
+                _save_checkpoint(
+                    self.checkpoint, self.model, self.optimizer, generator_states, report.step, history, self.config
+                )
+            except Exception as error:
+                failure = error
+        _stop_unless_all_agree(failure)
+        return entry
+
+
 def _train(
     corpus: CleanCorpus,
     holdout: CleanCorpus,
@@ -283,10 +366,9 @@ def _train(
     progress: ProgressCallback | None,
     ranks: Ranks,
 ) -> dict[str, Any]:
-    torch.manual_seed(config.seed)  # weight initialisation only; all data draws use the explicit generator
-    model = DEN(config.model).to(device)
+    model = initial_weights(config.seed, lambda: DEN(config.model)).to(device)
     optimizer = torch.optim.Adam(model.parameters(), lr=config.learning_rate, betas=config.betas)
-    generator = torch.Generator().manual_seed(process_seed(config.seed, ranks))
+    generator = seeded_generator(process_seed(config.seed, ranks))
     checkpoint = _checkpoint_path(out)
     step, history = 0, list[dict[str, Any]]()
     if resume:
@@ -296,50 +378,24 @@ def _train(
     # A v3 decoder whose loss weight is 0 gets no gradient, which DistributedDataParallel must be told about.
     unused = config.model.variant == "v3" and config.lambda_reconstruction <= 0
     network = wrap_model(model, device, find_unused_parameters=unused)
-    validation = validation_set(holdout, config) if ranks.is_main else []
-    single_frames = validation_set(holdout, config, frames=1) if ranks.is_main else []
-    started = time.perf_counter()
-    model.train()
-    while step < config.steps:
-        frames = 1 if config.single_frame_every and step % config.single_frame_every == 1 else config.frames
-        clean = sample_clean_clips(
-            corpus, batch_size, frames, config.crop, clip_fraction=config.clip_fraction, generator=generator
-        )
-        batch = training_batch(clean, config, generator)
-        output = network(batch.noisy.to(device))
-        loss = config.lambda_parameters * F.mse_loss(output.normalised, model.normalise(batch.vector.to(device)))
-        if config.lambda_level > 0:
-            loss = loss + config.lambda_level * level_loss(output.values, batch, model.noise_model, device)
-        if output.dark is not None and config.lambda_reconstruction > 0:
-            loss = loss + config.lambda_reconstruction * F.l1_loss(output.dark, batch.dark.to(device))
-        optimizer.zero_grad(set_to_none=True)
-        loss.backward()  # type: ignore[no-untyped-call]
-        optimizer.step()
-        step += 1
-        report = None
-        if step % config.validate_every == 0 or step == config.steps:
-            generator_states = all_gather_tensor(generator.get_state())
-            losses = all_gather_tensor(loss.detach().reshape(1))  # the whole batch's loss: the mean of the shares
-            failure = None
-            if ranks.is_main:
-                try:
-                    mean_loss = sum(float(x) for x in losses) / len(losses)
-                    report = {"step": step, "loss": mean_loss, **evaluate(model, validation, device)}
-                    report["single_frame"] = evaluate(model, single_frames, device)
-                    history.append(report)
-                    _save_checkpoint(checkpoint, model, optimizer, generator_states, step, history, config)
-                except Exception as error:
-                    failure = error
-            _stop_unless_all_agree(failure)
+    steps = _DENSteps(
+        model, network, optimizer, generator, corpus, holdout, config, checkpoint, device, batch_size, ranks
+    )
+
+    def on_step(step: int, losses: dict[str, float], entry: dict[str, Any] | None) -> None:
         if progress and ranks.is_main:
-            progress(step, loss.item(), report)
-    seconds = time.perf_counter() - started
+            progress(step, losses["loss"], entry)
+
+    model.train()
+    result = run_steps(
+        steps, StepPlan(config.steps, config.validate_every), start=step, history=history, on_step=on_step
+    )
     summary = {
         "config": config.to_dict(),
-        "steps": step,
-        "seconds_this_run": round(seconds, 1),
-        "final_validation": history[-1] if history else None,
-        "history": history,
+        "steps": result.steps,
+        "seconds_this_run": round(result.seconds, 1),
+        "final_validation": result.last,
+        "history": result.history,
         "training_sources": len(corpus),
         "holdout_sources": holdout.sources,
     }
@@ -352,7 +408,7 @@ def _train(
     failure = None
     if ranks.is_main:
         try:
-            save_weights(out, model, training={"steps": step, "final_validation": summary["final_validation"]})
+            save_weights(out, model, training={"steps": result.steps, "final_validation": summary["final_validation"]})
             write_text_atomic(out.with_suffix(".json"), json.dumps(summary, indent=2) + "\n")
         except Exception as error:
             failure = error

@@ -24,7 +24,6 @@ Seeding: the transform owns a ``torch.Generator``, created on the first call in 
 
 from __future__ import annotations
 
-import hashlib
 import os
 from pathlib import Path
 from typing import Any
@@ -35,6 +34,7 @@ import torch.utils.data
 
 from darksynth.darkening import Darkening
 from darksynth.profile import Profile, load_profile, parse_profile, validate_profile
+from darksynth.seeding import derive_seed
 from darksynth.synthesize import DarkeningChoice, LowLightResult, synthesize
 from darksynth.tensors import to_8bit_levels
 
@@ -48,8 +48,7 @@ _SUPPORTED_CHANNELS = (1, 3)
 def mix_seed(*parts: int | str) -> int:
     """A 63-bit seed from several parts (a user seed, a worker's seed, a sample index): a hash, so that nearby
     parts (worker 0 and 1, index 7 and 8) give unrelated generator streams."""
-    text = ":".join(("darksynth-transform", *(str(part) for part in parts)))
-    return int.from_bytes(hashlib.sha256(text.encode()).digest()[:8], "little") & (2**63 - 1)
+    return derive_seed("darksynth-transform", *parts)
 
 
 def dataloader_worker_seed() -> int | None:
