@@ -2,11 +2,14 @@
 
 from __future__ import annotations
 
+import dataclasses
 import os
 import secrets
+import shlex
 import sys
+from collections.abc import Sequence
 from pathlib import Path
-from typing import TYPE_CHECKING, Annotated
+from typing import Annotated, Any, cast, get_args
 
 import typer
 from rich.console import Console
@@ -15,13 +18,15 @@ from rich.progress import BarColumn, MofNCompleteColumn, Progress, TextColumn, T
 from darksynth import __version__
 from darksynth.apply import ApplyOptions, ApplyReport, Task, apply
 from darksynth.darkening import Darkening
+from darksynth.datasets import FORMATS, ConversionReport, ConvertOptions, DatasetFormat, Shard
 from darksynth.errors import DarksynthError
-from darksynth.noise.components import NOISE_MODELS
+from darksynth.evaluation.job import EvaluationOptions
+from darksynth.models.den import DENConfig, Variant
+from darksynth.noise.components import NOISE_MODELS, NoiseModel
 from darksynth.profile import load_profile
 from darksynth.synthesize import DarkeningChoice
-
-if TYPE_CHECKING:
-    from darksynth.datasets import ConversionReport
+from darksynth.training.loop import TrainConfig
+from darksynth.training.weights import LOG_LEVELS, DENChoice
 
 app = typer.Typer(
     name="darksynth",
@@ -42,6 +47,29 @@ def fail(message: str) -> typer.Exit:
     """Print a one-line error and return the exit to raise."""
     say(f"darksynth: error: {message}")
     return typer.Exit(code=1)
+
+
+def default_of(options: type[Any], name: str) -> Any:
+    """The default of a field of a job's options dataclass: the command line writes no default of its own."""
+    for option in dataclasses.fields(options):
+        if option.name == name:
+            if option.default is not dataclasses.MISSING:
+                return option.default
+            if option.default_factory is not dataclasses.MISSING:
+                return option.default_factory()
+            raise TypeError(f"{options.__name__}.{name} has no default")
+    raise TypeError(f"{options.__name__} has no field {name!r}")
+
+
+def checked_choice(flag: str, value: str, choices: Sequence[str]) -> str:
+    """``value`` if it is one of ``choices``, else a one-line error naming the flag."""
+    if value not in choices:
+        allowed = " or ".join(choices) if len(choices) == 2 else f"one of {', '.join(choices)}"
+        raise DarksynthError(f"{flag} must be {allowed}, got {value!r}")
+    return value
+
+
+VARIANTS: tuple[str, ...] = get_args(Variant)
 
 
 def darkening_choice(alpha: float | None, gamma: float | None, no_darken: bool) -> DarkeningChoice:
@@ -96,14 +124,22 @@ def apply_command(
     alpha: Annotated[float | None, typer.Option(help="Darkening scale, with --gamma.")] = None,
     gamma: Annotated[float | None, typer.Option(help="Darkening exponent: x_d = alpha * x ** (1/gamma).")] = None,
     no_darken: Annotated[bool, typer.Option("--no-darken", help="Add noise only, keep the brightness.")] = False,
-    clip: Annotated[bool, typer.Option("--clip", help="Each folder of frames is one clip.")] = False,
-    workers: Annotated[int, typer.Option(min=1, help="Processes for folders.")] = 1,
-    codec: Annotated[str | None, typer.Option(help="Video codec, e.g. libx264 (default), ffv1.")] = None,
-    crf: Annotated[int | None, typer.Option(min=0, max=63, help="Video quality (lower is better).")] = None,
-    device: Annotated[str, typer.Option(help="torch device: cpu, cuda, cuda:1 ...")] = "cpu",
+    clip: Annotated[bool, typer.Option("--clip", help="Each folder of frames is one clip.")] = default_of(
+        ApplyOptions, "clip"
+    ),
+    workers: Annotated[int, typer.Option(min=1, help="Processes for folders.")] = default_of(ApplyOptions, "workers"),
+    codec: Annotated[str | None, typer.Option(help="Video codec, e.g. libx264 (default), ffv1.")] = default_of(
+        ApplyOptions, "codec"
+    ),
+    crf: Annotated[int | None, typer.Option(min=0, max=63, help="Video quality (lower is better).")] = default_of(
+        ApplyOptions, "crf"
+    ),
+    device: Annotated[str, typer.Option(help="torch device: cpu, cuda, cuda:1 ...")] = default_of(
+        ApplyOptions, "device"
+    ),
     compile_kernel: Annotated[
         bool | None, typer.Option("--compile/--no-compile", help="Fuse the 8-bit kernel (default: for long clips).")
-    ] = None,
+    ] = default_of(ApplyOptions, "compile"),
 ) -> None:
     """Make low-light versions of clean images, videos or folders with a noise profile."""
     try:
@@ -141,21 +177,33 @@ def convert_command(
     dataset_format: Annotated[
         str, typer.Option("--format", "-f", help="coco, yolo, folder (class per folder) or video-folder.")
     ],
-    seed: Annotated[int, typer.Option(help="Run seed (the same seed gives the same bytes).")] = 0,
-    workers: Annotated[int, typer.Option(min=1, help="Processes on this machine.")] = 1,
+    seed: Annotated[int, typer.Option(help="Run seed (the same seed gives the same bytes).")] = default_of(
+        ConvertOptions, "seed"
+    ),
+    workers: Annotated[int, typer.Option(min=1, help="Processes on this machine.")] = default_of(
+        ConvertOptions, "workers"
+    ),
     jitter: Annotated[
         bool, typer.Option("--jitter", help="Draw parameters per image or clip within the profile's ranges.")
-    ] = False,
-    shard: Annotated[str | None, typer.Option(help="Convert only part K of N (1-based), e.g. 3/8.")] = None,
+    ] = default_of(ConvertOptions, "jitter"),
+    shard: Annotated[str | None, typer.Option(help="Convert only part K of N (1-based), e.g. 3/8.")] = default_of(
+        ConvertOptions, "shard"
+    ),
     images_root: Annotated[
         Path | None, typer.Option("--images-root", help="COCO: folder that file_name entries are relative to.")
-    ] = None,
+    ] = default_of(ConvertOptions, "images_root"),  # noqa: B008 (a dataclass default: immutable, read once)
     overwrite: Annotated[
         bool, typer.Option("--overwrite", help="Start over in an output written with other options.")
-    ] = False,
-    codec: Annotated[str | None, typer.Option(help="Video codec, e.g. libx264 (default), ffv1.")] = None,
-    crf: Annotated[int | None, typer.Option(min=0, max=63, help="Video quality (lower is better).")] = None,
-    device: Annotated[str, typer.Option(help="torch device: cpu, cuda, cuda:1 ...")] = "cpu",
+    ] = default_of(ConvertOptions, "overwrite"),
+    codec: Annotated[str | None, typer.Option(help="Video codec, e.g. libx264 (default), ffv1.")] = default_of(
+        ConvertOptions, "codec"
+    ),
+    crf: Annotated[int | None, typer.Option(min=0, max=63, help="Video quality (lower is better).")] = default_of(
+        ConvertOptions, "crf"
+    ),
+    device: Annotated[str, typer.Option(help="torch device: cpu, cuda, cuda:1 ...")] = default_of(
+        ConvertOptions, "device"
+    ),
     use_ray: Annotated[
         bool,
         typer.Option(
@@ -166,63 +214,40 @@ def convert_command(
     ] = False,
 ) -> None:
     """Convert a whole annotated dataset to low light; annotations carried over, resumable, shardable."""
-    from typing import cast
+    from darksynth.datasets import convert_dataset
 
-    from darksynth.datasets import FORMATS, DatasetFormat, convert_dataset
-
-    if dataset_format not in FORMATS:
-        raise fail(f"--format must be one of {', '.join(FORMATS)}, got {dataset_format!r}")
-    if use_ray:
-        if shard is not None or workers != 1 or device != "cpu":
-            raise fail("--ray schedules the work itself: it takes no --shard, --workers or --device")
-        from darksynth.datasets.ray_convert import convert_dataset_with_ray
-
-        try:
-            report = convert_dataset_with_ray(
-                dataset,
-                output,
-                profile,
-                format=cast(DatasetFormat, dataset_format),
-                seed=seed,
-                jitter=jitter,
-                images_root=images_root,
-                overwrite=overwrite,
-                codec=codec,
-                crf=crf,
-                on_failure=lambda message: say(f"darksynth: error: {message}"),
-            )
-        except DarksynthError as error:
-            raise fail(str(error)) from None
-        _convert_summary(report)
-        return
-    columns = (TextColumn("{task.description}"), BarColumn(), MofNCompleteColumn(), TimeRemainingColumn())
     try:
-        with Progress(*columns, console=console, transient=True) as progress:
-            bar = progress.add_task("converting", total=None)
+        options = ConvertOptions(
+            dataset=dataset,
+            output=output,
+            profile=load_profile(profile),
+            format=cast(DatasetFormat, checked_choice("--format", dataset_format, FORMATS)),
+            seed=seed,
+            jitter=jitter,
+            workers=workers,
+            shard=None if shard is None else Shard.parse(shard),
+            images_root=images_root,
+            overwrite=overwrite,
+            codec=codec,
+            crf=crf,
+            device=device,
+        )
+        if use_ray:
+            from darksynth.datasets.ray_convert import convert_dataset_with_ray
 
-            def on_progress(finished: int, total: int) -> None:
-                progress.update(bar, completed=finished, total=total)
+            report = convert_dataset_with_ray(options, on_failure=lambda message: say(f"darksynth: error: {message}"))
+        else:
+            columns = (TextColumn("{task.description}"), BarColumn(), MofNCompleteColumn(), TimeRemainingColumn())
+            with Progress(*columns, console=console, transient=True) as progress:
+                bar = progress.add_task("converting", total=None)
 
-            def on_failure(message: str) -> None:
-                say(f"darksynth: error: {message}", progress.console)
+                def on_progress(finished: int, total: int) -> None:
+                    progress.update(bar, completed=finished, total=total)
 
-            report = convert_dataset(
-                dataset,
-                output,
-                profile,
-                format=cast(DatasetFormat, dataset_format),
-                seed=seed,
-                workers=workers,
-                jitter=jitter,
-                shard=shard,
-                images_root=images_root,
-                overwrite=overwrite,
-                codec=codec,
-                crf=crf,
-                device=device,
-                on_progress=on_progress,
-                on_failure=on_failure,
-            )
+                def on_failure(message: str) -> None:
+                    say(f"darksynth: error: {message}", progress.console)
+
+                report = convert_dataset(options, on_progress=on_progress, on_failure=on_failure)
     except DarksynthError as error:
         raise fail(str(error)) from None
     _convert_summary(report)
@@ -255,20 +280,32 @@ def train_command(
     holdout: Annotated[
         list[Path] | None, typer.Option("--holdout", help="Clean material for validation only (never trained on).")
     ] = None,
-    variant: Annotated[str, typer.Option(help="v3 (U-Net + head) or v2 (encoder + head).")] = "v3",
+    variant: Annotated[str, typer.Option(help="v3 (U-Net + head) or v2 (encoder + head).")] = default_of(
+        DENConfig, "variant"
+    ),
     model: Annotated[
         str, typer.Option("--model", help="Noise model: srgb (paper + sRGB structure, default) or paper.")
-    ] = "srgb",
-    width: Annotated[int, typer.Option(min=4, help="Channels of the first level.")] = 8,
-    depth: Annotated[int, typer.Option(min=1, max=5, help="Down-sampling steps.")] = 3,
-    steps: Annotated[int, typer.Option(min=1)] = 2400,
-    batch: Annotated[int, typer.Option(min=1)] = 8,
-    frames: Annotated[int, typer.Option(min=1, help="Frames per training clip.")] = 4,
-    crop: Annotated[int, typer.Option(min=32, help="Side of the square training crops.")] = 128,
-    learning_rate: Annotated[float, typer.Option("--lr", help="Adam learning rate (paper: 2e-4).")] = 2e-4,
-    lambda_parameters: Annotated[float, typer.Option("--lambda1", help="Weight of MSE(v_hat, v).")] = 1.0,
-    lambda_reconstruction: Annotated[float, typer.Option("--lambda2", help="Weight of L1(x_hat_d, x_d).")] = 1.0,
-    validate_every: Annotated[int, typer.Option(min=1)] = 200,
+    ] = default_of(DENConfig, "noise_model"),
+    width: Annotated[
+        int, typer.Option(min=4, help="Channels of the first level (the shipped DENs: 8, docs/den.md).")
+    ] = default_of(DENConfig, "width"),
+    depth: Annotated[int, typer.Option(min=1, max=5, help="Down-sampling steps.")] = default_of(DENConfig, "depth"),
+    steps: Annotated[int, typer.Option(min=1)] = default_of(TrainConfig, "steps"),
+    batch: Annotated[int, typer.Option(min=1)] = default_of(TrainConfig, "batch"),
+    frames: Annotated[int, typer.Option(min=1, help="Frames per training clip.")] = default_of(TrainConfig, "frames"),
+    crop: Annotated[int, typer.Option(min=32, help="Side of the square training crops.")] = default_of(
+        TrainConfig, "crop"
+    ),
+    learning_rate: Annotated[float, typer.Option("--lr", help="Adam learning rate (paper: 2e-4).")] = default_of(
+        TrainConfig, "learning_rate"
+    ),
+    lambda_parameters: Annotated[float, typer.Option("--lambda1", help="Weight of MSE(v_hat, v).")] = default_of(
+        TrainConfig, "lambda_parameters"
+    ),
+    lambda_reconstruction: Annotated[float, typer.Option("--lambda2", help="Weight of L1(x_hat_d, x_d).")] = default_of(
+        TrainConfig, "lambda_reconstruction"
+    ),
+    validate_every: Annotated[int, typer.Option(min=1)] = default_of(TrainConfig, "validate_every"),
     bright_fraction: Annotated[
         float,
         typer.Option(
@@ -276,7 +313,7 @@ def train_command(
             max=1.0,
             help="Share of clips darkened less than the paper's ranges (real references are often brighter).",
         ),
-    ] = 0.0,
+    ] = default_of(TrainConfig, "bright_fraction"),
     lambda_level: Annotated[
         float,
         typer.Option(
@@ -284,31 +321,25 @@ def train_command(
             min=0.0,
             help="Weight of the noise-level target (log-ratio of the clip's mean noise variance); 0: paper loss.",
         ),
-    ] = 0.0,
-    seed: Annotated[int, typer.Option()] = 0,
+    ] = default_of(TrainConfig, "lambda_level"),
+    seed: Annotated[int, typer.Option()] = default_of(TrainConfig, "seed"),
     resume: Annotated[bool, typer.Option("--resume", help="Continue from OUT's checkpoint.")] = False,
-    device: Annotated[str, typer.Option(help="torch device.")] = "cpu",
+    device: Annotated[str, typer.Option(help="torch device.")] = default_of(TrainConfig, "device"),
 ) -> None:
     """Train the DEN self-supervised on clean material: random crops, darkening, random v, f(v)."""
-    from darksynth.models.den import DENConfig
     from darksynth.training.corpus import load_corpus
     from darksynth.training.distributed import ranks_from_environment
-    from darksynth.training.loop import TrainConfig, train
+    from darksynth.training.loop import train
 
-    if variant not in ("v2", "v3"):
-        raise fail(f"--variant must be v2 or v3, got {variant!r}")
-    if model not in NOISE_MODELS:
-        raise fail(f"--model must be {' or '.join(NOISE_MODELS)}, got {model!r}")
     try:
-        ranks = ranks_from_environment(os.environ)  # torchrun's WORLD_SIZE, RANK, LOCAL_RANK; none: one process
+        noise_model = cast(NoiseModel, checked_choice("--model", model, NOISE_MODELS))
         config = TrainConfig(
-            # The sRGB model learns levels on a log scale (docs/den.md); the paper's model as it was trained.
             model=DENConfig(
-                variant=variant,  # type: ignore[arg-type]
+                variant=cast(Variant, checked_choice("--variant", variant, VARIANTS)),
                 width=width,
                 depth=depth,
-                noise_model=model,
-                log_levels=model == "srgb",
+                noise_model=noise_model,
+                log_levels=LOG_LEVELS[noise_model],
             ),
             steps=steps,
             batch=batch,
@@ -323,6 +354,7 @@ def train_command(
             seed=seed,
             device=device,
         )
+        ranks = ranks_from_environment(os.environ)  # torchrun's WORLD_SIZE, RANK, LOCAL_RANK; none: one process
         corpus = load_corpus(data, clips or [], minimum_side=crop)
         held = load_corpus(holdout, minimum_side=crop) if holdout else corpus
         if ranks.is_main:
@@ -358,7 +390,7 @@ def estimate_command(
     weights: Annotated[Path | None, typer.Option(help="DEN weights (default: the shipped model of --variant).")] = None,
     variant: Annotated[
         str, typer.Option(help="Shipped DEN to use without --weights: v3 (full, default) or v2 (ablation).")
-    ] = "v3",
+    ] = default_of(DENChoice, "variant"),
     model: Annotated[
         str,
         typer.Option(
@@ -366,7 +398,7 @@ def estimate_command(
             help="Shipped noise model without --weights: srgb (the paper's components plus sRGB structure, "
             "default) or paper (the paper's five components, white noise).",
         ),
-    ] = "srgb",
+    ] = default_of(DENChoice, "noise_model"),
     device: Annotated[str, typer.Option(help="torch device.")] = "cpu",
 ) -> None:
     """Estimate a noise profile from one real low-light reference, zero-shot."""
@@ -374,16 +406,15 @@ def estimate_command(
 
     from darksynth.estimate import estimate, load_reference
     from darksynth.profile import profile_to_dict, save_profile
-    from darksynth.training.weights import default_weights_path, load_weights
+    from darksynth.training.weights import load_weights
 
     try:
-        if variant not in ("v2", "v3"):
-            raise DarksynthError(f"--variant must be v2 or v3, got {variant!r}")
-        if model not in NOISE_MODELS:
-            raise DarksynthError(f"--model must be {' or '.join(NOISE_MODELS)}, got {model!r}")
-        if weights is None and model == "srgb" and variant != "v3":
-            raise DarksynthError("--variant v2 is shipped for --model paper only")
-        network = load_weights(weights or default_weights_path(variant, model), device=device)
+        choice = DENChoice(
+            weights=weights,
+            noise_model=checked_choice("--model", model, NOISE_MODELS),
+            variant=checked_choice("--variant", variant, VARIANTS),
+        )
+        network = load_weights(choice.path(), device=device)
         frames = load_reference(reference, clip=clip)
         result = estimate(frames, network, source=str(reference), device=device)
     except DarksynthError as error:
@@ -411,6 +442,20 @@ def parse_weights(entries: list[str]) -> dict[str, Path]:
     return weights
 
 
+def evaluate_command_line(pairs: list[Path], out: Path, options: EvaluationOptions) -> str:
+    """The command that asks for this evaluation, every option spelled out, so that a report states exactly
+    what produced it."""
+    arguments = [part for path in pairs for part in ("--pairs", str(path))]
+    arguments += ["--methods", ",".join(options.methods)]
+    arguments += [part for name, file in options.weights.items() for part in ("--weights", f"{name}={file}")]
+    arguments += ["--seed", str(options.seed), "--device", options.device] + ([] if options.inception else ["--no-fid"])
+    for root in options.downstream:
+        arguments += ["--downstream", str(root)]
+    if options.downstream:
+        arguments += ["--downstream-steps", str(options.downstream_steps)]
+    return shlex.join(["darksynth", "evaluate", *arguments, "--out", str(out)])
+
+
 @app.command("evaluate")
 def evaluate_command(
     pairs: Annotated[
@@ -420,16 +465,18 @@ def evaluate_command(
     methods: Annotated[
         str,
         typer.Option(
-            help="Comma-separated methods. Default: den,den-v1,den-v2,awgn,awgn-blind,pg,pg-blind,pg-oracle,"
-            "starlight. Also by name: srgb-oracle and its ablations (docs/srgb-noise.md)."
+            help=f"Comma-separated methods. Default: {', '.join(default_of(EvaluationOptions, 'methods'))}. "
+            "Also by name: srgb-oracle and its ablations (docs/srgb-noise.md)."
         ),
     ] = "",
     weights: Annotated[
         list[str] | None, typer.Option("--weights", help="METHOD=FILE weights for a DEN variant; repeatable.")
     ] = None,
-    seed: Annotated[int, typer.Option(help="Seed of the synthetic noise.")] = 0,
-    device: Annotated[str, typer.Option(help="torch device.")] = "cpu",
-    inception: Annotated[bool, typer.Option("--fid/--no-fid", help="Compute FID and KID (InceptionV3).")] = True,
+    seed: Annotated[int, typer.Option(help="Seed of the synthetic noise.")] = default_of(EvaluationOptions, "seed"),
+    device: Annotated[str, typer.Option(help="torch device.")] = default_of(EvaluationOptions, "device"),
+    inception: Annotated[bool, typer.Option("--fid/--no-fid", help="Compute FID and KID (InceptionV3).")] = default_of(
+        EvaluationOptions, "inception"
+    ),
     downstream: Annotated[
         list[Path] | None,
         typer.Option(
@@ -438,66 +485,35 @@ def evaluate_command(
             "noise and test it on the real pairs (PSNR, SSIM). About 25 s per set and method on a CPU.",
         ),
     ] = None,
-    downstream_steps: Annotated[int, typer.Option(help="Training steps of each downstream denoiser.")] = 3000,
+    downstream_steps: Annotated[int, typer.Option(help="Training steps of each downstream denoiser.")] = default_of(
+        EvaluationOptions, "downstream_steps"
+    ),
 ) -> None:
-    """Compare each method's synthetic noise with real noise on sets of real noisy/clean pairs."""
-    import json
-    import shlex
+    """Compare each method's synthetic noise with real noise on sets of real pairs."""
+    from darksynth.evaluation.job import rank_by_kld, run_evaluation
 
-    from darksynth.evaluation.methods import DEFAULT_METHODS
-    from darksynth.evaluation.report import write_html_report, write_markdown
-    from darksynth.evaluation.runner import EvaluationOptions, evaluate_pairs
-    from darksynth.io.atomic import write_text_atomic
-
-    chosen = [m.strip() for m in methods.split(",") if m.strip()] or list(DEFAULT_METHODS)
-    # The command as parsed, so that the report states exactly what produced it.
-    arguments = [part for path in pairs for part in ("--pairs", str(path))]
-    arguments += ["--methods", ",".join(chosen)] + [part for w in weights or [] for part in ("--weights", w)]
-    arguments += ["--seed", str(seed), "--device", device] + ([] if inception else ["--no-fid"])
-    for root in downstream or []:
-        arguments += ["--downstream", str(root)]
-    if downstream:
-        arguments += ["--downstream-steps", str(downstream_steps)]
-    command = shlex.join(["darksynth", "evaluate", *arguments, "--out", str(out)])
+    chosen = [m.strip() for m in methods.split(",") if m.strip()]
     try:
         options = EvaluationOptions(
-            methods=chosen,
+            methods=chosen or default_of(EvaluationOptions, "methods"),
             seed=seed,
             device=device,
             weights=parse_weights(weights or []),
             inception=inception,
-            command=command,
+            downstream=tuple(downstream or ()),
+            downstream_steps=downstream_steps,
         )
-        if downstream_steps < 1:
-            raise DarksynthError(f"--downstream-steps must be at least 1, got {downstream_steps}")
+        options = dataclasses.replace(options, command=evaluate_command_line(pairs, out, options))
         with console.status("evaluating") as status:
-            outcome = evaluate_pairs(pairs, options, progress=lambda message: status.update(message))
-            if downstream:
-                from darksynth.evaluation.downstream import DownstreamSettings, run_downstream
-
-                settings = DownstreamSettings(steps=downstream_steps, seed=seed, device=device)
-                outcome.results["downstream"] = run_downstream(
-                    pairs,
-                    [name for name in chosen if name in outcome.results["methods"]],
-                    downstream,
-                    settings,
-                    weights=options.weights,
-                    progress=lambda message: status.update(f"downstream: {message}"),
-                )
-        out.mkdir(parents=True, exist_ok=True)
-        write_text_atomic(out / "results.json", json.dumps(outcome.results, indent=2) + "\n")
-        write_markdown(outcome.results, out / "results.md")
-        write_html_report(outcome.results, outcome.examples, out / "report.html")
+            run = run_evaluation(pairs, out, options, progress=lambda message: status.update(message))
     except DarksynthError as error:
         raise fail(str(error)) from None
-    except OSError as error:
-        raise fail(f"{error.filename or out}: {error.strerror or error}") from None
-    for problem in outcome.results["problems"]:
+    for problem in run.results["problems"]:
         say(f"darksynth: warning: {problem}")
-    for name, report in outcome.results["sets"].items():
-        ranked = sorted(report["methods"].items(), key=lambda item: item[1]["kld"])
-        say(f"{name} ({report['pairs']} pairs), kld: " + ", ".join(f"{m} {r['kld']:.3f}" for m, r in ranked))
-    say(f"wrote {out / 'results.json'}, {out / 'results.md'} and {out / 'report.html'}")
+    for name, ranked in rank_by_kld(run.results).items():
+        pair_count = run.results["sets"][name]["pairs"]
+        say(f"{name} ({pair_count} pairs), kld: " + ", ".join(f"{m} {kld:.3f}" for m, kld in ranked))
+    say(f"wrote {', '.join(str(path) for path in run.files[:-1])} and {run.files[-1]}")
 
 
 @app.command("demo")

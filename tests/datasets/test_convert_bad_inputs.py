@@ -8,8 +8,9 @@ from pathlib import Path
 import av
 import pytest
 
-from darksynth.datasets import MANIFEST_NAME, convert_dataset
+from darksynth.datasets import MANIFEST_NAME, ConvertOptions, convert_dataset
 from darksynth.errors import DarksynthError
+from darksynth.profile import load_profile
 from tests.cli.conftest import run_cli
 from tests.datasets.conftest import write_image, write_video
 
@@ -172,4 +173,4 @@ def test_bad_options(
 
 def test_output_inside_dataset_is_refused(folder_dataset: Path, profile_path: Path) -> None:
     with pytest.raises(DarksynthError, match="inside the input folder"):
-        convert_dataset(folder_dataset, folder_dataset / "out", profile_path, format="folder")
+        convert_dataset(ConvertOptions(folder_dataset, folder_dataset / "out", load_profile(profile_path), "folder"))

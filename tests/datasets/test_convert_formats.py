@@ -41,7 +41,7 @@ def _mean(path: Path) -> float:
 
 def test_coco_images_converted_annotations_still_valid(coco_dataset: Path, profile_path: Path, tmp_path: Path) -> None:
     output = tmp_path / "out"
-    report = convert_dataset(coco_dataset, output, profile_path, format="coco", seed=1)
+    report = convert_dataset(ConvertOptions(coco_dataset, output, load_profile(profile_path), "coco", seed=1))
     assert report.failures == [] and report.converted == 3 and report.carried == 2
     annotations = "annotations/instances_train2017.json"
     assert (output / annotations).read_bytes() == (coco_dataset / annotations).read_bytes()
@@ -62,7 +62,7 @@ def test_coco_images_converted_annotations_still_valid(coco_dataset: Path, profi
 
 def test_yolo_labels_copied_and_yaml_points_at_output(yolo_dataset: Path, profile_path: Path, tmp_path: Path) -> None:
     output = tmp_path / "out"
-    report = convert_dataset(yolo_dataset, output, profile_path, format="yolo")
+    report = convert_dataset(ConvertOptions(yolo_dataset, output, load_profile(profile_path), "yolo"))
     assert report.failures == [] and report.converted == 4
     for label in (yolo_dataset / "labels").rglob("*.txt"):
         assert (output / label.relative_to(yolo_dataset)).read_bytes() == label.read_bytes()
@@ -86,7 +86,7 @@ def test_rewrite_yolo_yaml_remaps_absolute_splits_only(tmp_path: Path) -> None:
 
 def test_folder_mirrors_tree(folder_dataset: Path, profile_path: Path, tmp_path: Path) -> None:
     output = tmp_path / "out"
-    report = convert_dataset(folder_dataset, output, profile_path, format="folder")
+    report = convert_dataset(ConvertOptions(folder_dataset, output, load_profile(profile_path), "folder"))
     assert report.converted == 4 and report.failures == []
     visible = sorted(p.relative_to(output).as_posix() for p in output.rglob("*") if p.is_file())
     visible = [p for p in visible if not p.startswith(".darksynth/")]
@@ -99,7 +99,7 @@ def test_video_folder_videos_and_clips_converted_masks_copied(
     video_dataset: Path, profile_path: Path, tmp_path: Path
 ) -> None:
     output = tmp_path / "out"
-    report = convert_dataset(video_dataset, output, profile_path, format="video-folder")
+    report = convert_dataset(ConvertOptions(video_dataset, output, load_profile(profile_path), "video-folder"))
     assert report.failures == [] and report.converted == 2
     before, after = probe_video(video_dataset / "videos/walk.mp4"), probe_video(output / "videos/walk.mp4")
     assert (after.width, after.height, after.frame_count, after.fps) == (WIDTH, HEIGHT, 6, Fraction(25))
@@ -141,7 +141,7 @@ def test_without_jitter_every_file_gets_the_profile_values(
     folder_dataset: Path, ranged_profile: Path, tmp_path: Path
 ) -> None:
     output = tmp_path / "out"
-    convert_dataset(folder_dataset, output, ranged_profile, format="folder")
+    convert_dataset(ConvertOptions(folder_dataset, output, load_profile(ranged_profile), "folder"))
     parameters = [f["parameters"] for f in _manifest(output)["files"]]
     assert all(p == parameters[0] for p in parameters)
     profile = load_profile(ranged_profile)
@@ -151,7 +151,7 @@ def test_without_jitter_every_file_gets_the_profile_values(
 
 def test_jitter_draws_per_file_within_ranges(folder_dataset: Path, ranged_profile: Path, tmp_path: Path) -> None:
     output = tmp_path / "out"
-    convert_dataset(folder_dataset, output, ranged_profile, format="folder", jitter=True, seed=5)
+    convert_dataset(ConvertOptions(folder_dataset, output, load_profile(ranged_profile), "folder", jitter=True, seed=5))
     manifest = _manifest(output)
     assert manifest["jitter"] is True
     shots = [f["parameters"]["noise"]["shot"] for f in manifest["files"]]
@@ -178,7 +178,7 @@ def test_convert_item_on_a_row_writes_its_record(folder_dataset: Path, profile_p
     assert (output / "cat/0.png").is_file()
     # The same bytes as the whole-dataset run.
     full = tmp_path / "full"
-    convert_dataset(folder_dataset, full, profile_path, format="folder")
+    convert_dataset(ConvertOptions(folder_dataset, full, load_profile(profile_path), "folder"))
     assert (full / "cat/0.png").read_bytes() == (output / "cat/0.png").read_bytes()
 
 

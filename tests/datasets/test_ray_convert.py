@@ -7,8 +7,9 @@ from pathlib import Path
 
 import pytest
 
-from darksynth.datasets import convert_dataset
+from darksynth.datasets import ConvertOptions, convert_dataset
 from darksynth.datasets.ray_convert import convert_dataset_with_ray
+from darksynth.profile import load_profile
 from tests.cli.conftest import run_cli
 from tests.datasets.conftest import tree_bytes, write_image
 
@@ -28,8 +29,12 @@ def test_ray_conversion_equals_a_local_one_and_resumes(
     local_ray: None, coco_dataset: Path, ranged_profile: Path, tmp_path: Path
 ) -> None:
     local, distributed = tmp_path / "local", tmp_path / "ray"
-    expected = convert_dataset(coco_dataset, local, ranged_profile, format="coco", seed=3, jitter=True)
-    report = convert_dataset_with_ray(coco_dataset, distributed, ranged_profile, format="coco", seed=3, jitter=True)
+    expected = convert_dataset(
+        ConvertOptions(coco_dataset, local, load_profile(ranged_profile), "coco", seed=3, jitter=True)
+    )
+    report = convert_dataset_with_ray(
+        ConvertOptions(coco_dataset, distributed, load_profile(ranged_profile), "coco", seed=3, jitter=True)
+    )
     assert report.converted == expected.converted > 0
     assert report.failures == expected.failures
     assert report.manifest is not None
@@ -38,7 +43,9 @@ def test_ray_conversion_equals_a_local_one_and_resumes(
     # A lost output is converted again on the next run, and only it.
     victim = next(p for p in sorted(distributed.rglob("*.jpg")) if ".darksynth" not in p.parts)
     victim.unlink()
-    again = convert_dataset_with_ray(coco_dataset, distributed, ranged_profile, format="coco", seed=3, jitter=True)
+    again = convert_dataset_with_ray(
+        ConvertOptions(coco_dataset, distributed, load_profile(ranged_profile), "coco", seed=3, jitter=True)
+    )
     assert (again.converted, again.already_done) == (1, expected.converted - 1)
     assert tree_bytes(distributed) == tree_bytes(local)
 
@@ -51,7 +58,7 @@ def test_ray_conversion_reports_a_broken_file_and_converts_the_rest(
     for index in range(3):
         write_image(dataset / "cats" / f"{index}.png", index)
     (dataset / "cats" / "broken.png").write_bytes(b"not a png")
-    report = convert_dataset_with_ray(dataset, tmp_path / "out", profile_path, format="folder")
+    report = convert_dataset_with_ray(ConvertOptions(dataset, tmp_path / "out", load_profile(profile_path), "folder"))
     assert report.converted == 3
     assert len(report.failures) == 1 and "broken.png" in report.failures[0]
     assert not (tmp_path / "out" / "cats" / "broken.png").exists()

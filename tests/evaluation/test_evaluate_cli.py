@@ -11,7 +11,9 @@ from PIL import Image
 from typer.testing import CliRunner
 
 from darksynth.cli import app
-from darksynth.evaluation.runner import EvaluationOptions, evaluate_pairs
+from darksynth.errors import DarksynthError
+from darksynth.evaluation.job import EvaluationOptions, rank_by_kld, run_evaluation
+from darksynth.evaluation.runner import evaluate_pairs
 from tests.evaluation.conftest import MakeSet
 
 
@@ -164,3 +166,28 @@ def test_reports_check_den_against_every_blind_method_the_oracle_and_the_paper_m
         f"loud: fid below den-paper: {fid}",
     ):
         assert line in markdown and line in html
+
+
+def test_run_evaluation_writes_the_three_files_and_ranks_by_kld(make_pair_set: MakeSet, tmp_path: Path) -> None:
+    root = make_pair_set("strong", count=2, sigma=14.0, size=64)
+    out = tmp_path / "deep" / "out"
+    options = EvaluationOptions(methods=["awgn", "pg-oracle"], inception=False, command="darksynth evaluate ...")
+    run = run_evaluation([root], out, options)
+    assert run.files == (out / "results.json", out / "results.md", out / "report.html")
+    assert json.loads(run.files[0].read_text()) == run.results
+    assert run.results["command"] == "darksynth evaluate ..." and run.results["downstream"] is None
+    ranking = rank_by_kld(run.results)
+    assert [name for name, _ in ranking["strong"]] == ["pg-oracle", "awgn"]
+    methods = run.results["sets"]["strong"]["methods"]
+    assert ranking["strong"] == [("pg-oracle", methods["pg-oracle"]["kld"]), ("awgn", methods["awgn"]["kld"])]
+
+
+def test_an_output_that_cannot_be_written_is_one_error_line(make_pair_set: MakeSet, tmp_path: Path) -> None:
+    root = make_pair_set(count=1)
+    blocked = tmp_path / "file"
+    blocked.write_text("a file where the output folder should go")
+    with pytest.raises(DarksynthError, match=f"^{blocked}: "):
+        run_evaluation([root], blocked, EvaluationOptions(methods=["awgn"], inception=False))
+    code, _, stderr = run_cli("evaluate", "--pairs", root, "--methods", "awgn", "--no-fid", "--out", blocked)
+    assert code == 1
+    assert stderr.strip().splitlines() == [f"darksynth: error: {blocked}: File exists"]

@@ -87,6 +87,18 @@ def test_the_default_comparison_is_the_papers_and_every_name_is_known() -> None:
     assert set(DEFAULT_METHODS) < set(METHOD_NAMES)
 
 
+def test_every_den_method_uses_a_shipped_den_of_its_noise_model_and_variant() -> None:
+    from darksynth.evaluation.methods import DEN_METHODS
+    from darksynth.training.weights import SHIPPED_WEIGHTS
+
+    assert DEN_METHODS == {"den": ("srgb", "v3"), "den-paper": ("paper", "v3"), "den-v2": ("paper", "v2")}
+    assert set(DEN_METHODS.values()) <= set(SHIPPED_WEIGHTS)
+    for name, (noise_model, variant) in DEN_METHODS.items():
+        method = build_method(name)
+        assert f"DEN {variant}, {noise_model} noise model" in method.summary
+        assert method.details["weights"].endswith(SHIPPED_WEIGHTS[noise_model, variant])
+
+
 def test_the_shipped_v2_ablation_is_a_den_without_decoder() -> None:
     method = build_method("den-v2")
     assert "DEN v2" in method.summary and method.details["weights"].endswith("den_v2.safetensors")

@@ -152,7 +152,11 @@ def test_paper_model_gives_white_uncompressed_noise(dark_image: Path) -> None:
     ("arguments", "message"),
     [
         (("--model", "fancy"), "darksynth: error: --model must be paper or srgb, got 'fancy'"),
-        (("--model", "srgb", "--variant", "v2"), "darksynth: error: --variant v2 is shipped for --model paper only"),
+        (
+            ("--model", "srgb", "--variant", "v2"),
+            "darksynth: error: no shipped DEN for noise model 'srgb' and variant 'v2'; "
+            "shipped: srgb v3, paper v3, paper v2",
+        ),
     ],
 )
 def test_unknown_model_or_unshipped_combination_is_one_error_line(

@@ -97,13 +97,37 @@ def test_version_1_weights_are_read_as_the_papers_model(tmp_path: Path, tiny_mod
         load_weights(srgb)
 
 
-def test_shipped_paper_weights_load_as_the_papers_model() -> None:
-    from darksynth.training.weights import default_weights_path
+def test_every_shipped_den_is_the_noise_model_and_variant_it_is_declared_as() -> None:
+    from darksynth.training.weights import SHIPPED_WEIGHTS, default_weights_path
 
-    for variant in ("v3", "v2"):
-        model = load_weights(default_weights_path(variant, "paper"))
-        assert model.noise_model == "paper"
-        assert model.config.variant == variant
+    assert set(SHIPPED_WEIGHTS) == {("srgb", "v3"), ("paper", "v3"), ("paper", "v2")}
+    for noise_model, variant in SHIPPED_WEIGHTS:
+        model = load_weights(default_weights_path(variant, noise_model))
+        assert (model.noise_model, model.config.variant) == (noise_model, variant)
+
+
+@pytest.mark.parametrize(("noise_model", "variant"), [("srgb", "v2"), ("paper", "v1"), ("fancy", "v3")])
+def test_an_unshipped_combination_is_one_error_line_naming_the_shipped_ones(noise_model: str, variant: str) -> None:
+    from darksynth.training.weights import DENChoice, default_weights_path
+
+    with pytest.raises(DarksynthError) as raised:
+        default_weights_path(variant, noise_model)
+    message = str(raised.value)
+    assert "\n" not in message
+    assert message == (
+        f"no shipped DEN for noise model {noise_model!r} and variant {variant!r}; shipped: srgb v3, paper v3, paper v2"
+    )
+    with pytest.raises(DarksynthError, match="no shipped DEN"):
+        DENChoice(noise_model=noise_model, variant=variant).path()
+
+
+def test_a_weights_file_is_chosen_whatever_the_noise_model_and_variant(tmp_path: Path) -> None:
+    from darksynth.training.weights import DENChoice, default_weights_path
+
+    own = tmp_path / "mine.safetensors"
+    assert DENChoice(own, noise_model="srgb", variant="v2").path() == own
+    assert DENChoice().path() == default_weights_path() == default_weights_path("v3", "srgb")
+    assert DENChoice(noise_model="paper", variant="v2").path().name == "den_v2.safetensors"
 
 
 BAD_METADATA = {

@@ -1,20 +1,20 @@
 """Whole annotated datasets (COCO, YOLO, class folders, video folders) -> their low-light versions.
 
-``convert_dataset`` runs a conversion end to end; ``plan_dataset`` and ``convert_item`` are its two halves for
-other schedulers (a Ray Data ``map`` over ``[item.to_row() for item in plan.items]``). Importing this package
-needs neither rich nor typer.
+``convert_dataset(ConvertOptions(...))`` runs a conversion end to end; ``plan_dataset`` and ``convert_item`` are
+its two halves for other schedulers (a Ray Data ``map`` over ``[item.to_row() for item in plan.items]``).
+Importing this package needs neither rich nor typer.
 """
 
 from __future__ import annotations
 
 from darksynth.datasets.convert import (
     MANIFEST_NAME,
+    SCHEDULING_OPTIONS,
     ConversionReport,
     ConvertOptions,
     Shard,
     StartedConversion,
     carry_file,
-    conversion_options,
     convert_dataset,
     convert_item,
     fixed_darkening,
@@ -40,6 +40,7 @@ from darksynth.datasets.formats import (
 __all__ = [
     "FORMATS",
     "MANIFEST_NAME",
+    "SCHEDULING_OPTIONS",
     "CarriedFile",
     "ConversionReport",
     "ConvertOptions",
@@ -50,7 +51,6 @@ __all__ = [
     "Shard",
     "StartedConversion",
     "carry_file",
-    "conversion_options",
     "convert_dataset",
     "convert_item",
     "fixed_darkening",

@@ -41,17 +41,18 @@ from darksynth.datasets.formats import rewrite_yolo_yaml as _rewrite_yolo_yaml
 from darksynth.errors import DarksynthError
 from darksynth.io.atomic import TEMP_MARKER, atomic_output, write_text_atomic
 from darksynth.io.discover import check_output_location
-from darksynth.profile import Profile, load_profile, profile_to_dict
+from darksynth.profile import Profile, profile_to_dict
+from darksynth.synthesize import DarkeningChoice
 
 __all__ = [
     "MANIFEST_NAME",
+    "SCHEDULING_OPTIONS",
     "STATE_FOLDER",
     "ConversionReport",
     "ConvertOptions",
     "Shard",
     "StartedConversion",
     "carry_file",
-    "conversion_options",
     "convert_dataset",
     "convert_item",
     "fixed_darkening",
@@ -104,13 +105,20 @@ class Shard:
         return shard_of(key, self.count) == self.index
 
 
+SCHEDULING_OPTIONS: Final = frozenset({"output", "workers", "shard", "overwrite"})
+"""The options of :class:`ConvertOptions` that do not change a single output byte, so that a run may resume with
+other values of them: where the output is, how the work is split, and whether an earlier run's state is kept."""
+
+
 @dataclass(frozen=True)
 class ConvertOptions:
-    """Everything a conversion needs; picklable, so a Ray or process-pool worker can receive it.
+    """Everything a conversion needs, and the defaults of ``darksynth convert``; picklable, so that a Ray or
+    process-pool worker can receive it. :meth:`checked` makes the paths absolute; the functions that take
+    options after it (:func:`convert_item`, :func:`prepare_output`, ...) expect checked options.
 
     Attributes:
-        dataset: the dataset root (absolute).
-        output: the output root (absolute; never the dataset or inside it).
+        dataset: the dataset root.
+        output: the output root (never the dataset or inside it).
         profile: the noise profile.
         format: the dataset format, one of :data:`darksynth.datasets.formats.FORMATS`.
         seed: run seed; each item's seed derives from it and the item's relative path.
@@ -137,23 +145,31 @@ class ConvertOptions:
     crf: int | None = None
     device: str = "cpu"
 
+    def checked(self) -> ConvertOptions:
+        """These options with absolute paths, once checked.
+
+        Raises:
+            DarksynthError: an unknown format, fewer than one worker, an output that is the dataset or inside it.
+        """
+        if self.format not in FORMATS:
+            raise DarksynthError(f"unknown dataset format {self.format!r}; use one of {', '.join(FORMATS)}")
+        if self.workers < 1:
+            raise DarksynthError(f"--workers must be at least 1, got {self.workers}")
+        check_output_location(self.dataset, self.output)
+        return dataclasses.replace(self, dataset=self.dataset.resolve(), output=self.output.resolve())
+
     def apply_options(self) -> ApplyOptions:
         """The ``apply`` options of each item: with ``jitter`` the profile as it is, else fixed values."""
-        if self.jitter:
-            return ApplyOptions(
-                profile=self.profile,
-                seed=self.seed,
-                workers=self.workers,
-                codec=self.codec,
-                crf=self.crf,
-                device=self.device,
-            )
-        # Without ranges and with a fixed darkening, draw_clip_parameters draws nothing: every item gets the
-        # same values and its seed only drives the noise itself.
+        profile: Profile = self.profile
+        darkening: DarkeningChoice = "profile"
+        if not self.jitter:
+            # Without ranges and with a fixed darkening, draw_clip_parameters draws nothing: every item gets the
+            # same values and its seed only drives the noise itself.
+            profile, darkening = dataclasses.replace(self.profile, ranges={}), fixed_darkening(self.profile)
         return ApplyOptions(
-            profile=dataclasses.replace(self.profile, ranges={}),
+            profile=profile,
             seed=self.seed,
-            darkening=fixed_darkening(self.profile),
+            darkening=darkening,
             workers=self.workers,
             codec=self.codec,
             crf=self.crf,
@@ -161,18 +177,18 @@ class ConvertOptions:
         )
 
     def fingerprint(self) -> dict[str, Any]:
-        """The options that decide the output bytes (not workers, shard or overwrite)."""
-        return {
-            "dataset": str(self.dataset),
-            "format": self.format,
-            "profile": profile_to_dict(self.profile),
-            "seed": self.seed,
-            "jitter": self.jitter,
-            "images_root": None if self.images_root is None else str(self.images_root),
-            "codec": self.codec,
-            "crf": self.crf,
-            "device": self.device,
-        }
+        """The options that decide the output bytes: all but those of :data:`SCHEDULING_OPTIONS`."""
+        fingerprint: dict[str, Any] = {}
+        for option in dataclasses.fields(self):
+            if option.name in SCHEDULING_OPTIONS:
+                continue
+            value = getattr(self, option.name)
+            if isinstance(value, Profile):
+                value = profile_to_dict(value)
+            elif isinstance(value, Path):
+                value = str(value)
+            fingerprint[option.name] = value
+        return fingerprint
 
 
 def fixed_darkening(profile: Profile) -> Darkening:
@@ -286,20 +302,8 @@ def is_done(output: Path, item: MediaItem) -> bool:
 
 
 def convert_dataset(
-    dataset: Path,
-    output: Path,
-    profile: Profile | Path | str,
+    options: ConvertOptions,
     *,
-    format: DatasetFormat,
-    seed: int = 0,
-    workers: int = 1,
-    jitter: bool = False,
-    shard: Shard | str | None = None,
-    images_root: Path | None = None,
-    overwrite: bool = False,
-    codec: str | None = None,
-    crf: int | None = None,
-    device: str = "cpu",
     on_progress: ProgressCallback | None = None,
     on_failure: Callable[[str], None] | None = None,
 ) -> ConversionReport:
@@ -309,40 +313,20 @@ def convert_dataset(
     ``ConversionReport.failures`` and the rest goes on.
 
     Args:
-        dataset: the dataset root folder.
-        output: the output folder (created; never the dataset or inside it).
-        profile: a noise profile or the path of its JSON file.
-        format: ``"coco"``, ``"yolo"``, ``"folder"`` or ``"video-folder"``.
-        shard: a :class:`Shard` or ``"K/N"``; None converts everything.
+        options: what to convert and how (see :class:`ConvertOptions`).
         on_progress: see :data:`ProgressCallback`.
         on_failure: called with each failure message as it happens.
-        Others: see :class:`ConvertOptions`.
 
     Returns:
         What this run did.
 
     Raises:
-        DarksynthError: the run cannot start: bad dataset, format, profile or options; an output inside the
-            dataset, not writable, or written by a run with other options (without ``overwrite``).
+        DarksynthError: the run cannot start: bad dataset, format or options; an output inside the dataset,
+            not writable, or written by a run with other options (without ``overwrite``).
     """
     started = time.perf_counter()
-    options = conversion_options(
-        dataset,
-        output,
-        profile,
-        format=format,
-        seed=seed,
-        jitter=jitter,
-        workers=workers,
-        shard=Shard.parse(shard) if isinstance(shard, str) else shard,
-        images_root=images_root,
-        overwrite=overwrite,
-        codec=codec,
-        crf=crf,
-        device=device,
-    )
     run = start_conversion(options, on_failure)
-    plan, report, items, todo = run.plan, run.report, run.items, run.todo
+    options, plan, report, items, todo = run.options, run.plan, run.report, run.items, run.todo
     finished = report.already_done
     if on_progress:
         on_progress(finished, len(items))
@@ -368,53 +352,12 @@ def convert_dataset(
     return report
 
 
-def conversion_options(
-    dataset: Path,
-    output: Path,
-    profile: Profile | Path | str,
-    *,
-    format: DatasetFormat,
-    seed: int = 0,
-    jitter: bool = False,
-    workers: int = 1,
-    shard: Shard | None = None,
-    images_root: Path | None = None,
-    overwrite: bool = False,
-    codec: str | None = None,
-    crf: int | None = None,
-    device: str = "cpu",
-) -> ConvertOptions:
-    """Checked options of a run, with absolute paths and the profile loaded.
-
-    Raises:
-        DarksynthError: an unknown format, fewer than one worker, a bad profile, an output inside the dataset.
-    """
-    if format not in FORMATS:
-        raise DarksynthError(f"unknown dataset format {format!r}; use one of {', '.join(FORMATS)}")
-    if workers < 1:
-        raise DarksynthError(f"--workers must be at least 1, got {workers}")
-    check_output_location(dataset, output)
-    return ConvertOptions(
-        dataset=dataset.resolve(),
-        output=output.resolve(),
-        profile=profile if isinstance(profile, Profile) else load_profile(profile),
-        format=format,
-        seed=seed,
-        jitter=jitter,
-        workers=workers,
-        shard=shard,
-        images_root=images_root,
-        overwrite=overwrite,
-        codec=codec,
-        crf=crf,
-        device=device,
-    )
-
-
 @dataclass
 class StartedConversion:
-    """A run after :func:`start_conversion`: its plan, its report so far, its items and those still to do."""
+    """A run after :func:`start_conversion`: its checked options, its plan, its report so far, its items and
+    those still to do."""
 
+    options: ConvertOptions
     plan: DatasetPlan
     report: ConversionReport
     items: list[MediaItem]
@@ -428,8 +371,10 @@ def start_conversion(options: ConvertOptions, on_failure: Callable[[str], None] 
     annotation files over, and list this run's items that no earlier run finished.
 
     Raises:
-        DarksynthError: the dataset cannot be planned or the output cannot be claimed (see :func:`prepare_output`).
+        DarksynthError: bad options (see :meth:`ConvertOptions.checked`), the dataset cannot be planned or the
+            output cannot be claimed (see :func:`prepare_output`).
     """
+    options = options.checked()
     plan = plan_dataset(options.dataset, options.format, images_root=options.images_root)
     prepare_output(options)
     owns = options.shard.owns if options.shard is not None else (lambda key: True)
@@ -453,7 +398,7 @@ def start_conversion(options: ConvertOptions, on_failure: Callable[[str], None] 
                 failed(str(carry_error))
     todo = [i for i in items if not is_done(options.output, i)]
     report.already_done = len(items) - len(todo)
-    return StartedConversion(plan, report, items, todo, failed)
+    return StartedConversion(options, plan, report, items, todo, failed)
 
 
 def prepare_output(options: ConvertOptions) -> None:

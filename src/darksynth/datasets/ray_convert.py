@@ -12,23 +12,23 @@ sees (NFS, Lustre, a mounted bucket); nothing is sent back to the driver but a o
 
 from __future__ import annotations
 
+import dataclasses
 import functools
 import time
 from collections.abc import Callable
-from pathlib import Path
-from typing import Any
+from typing import Any, Final
 
 from darksynth.datasets.convert import (
     ConversionReport,
     ConvertOptions,
-    conversion_options,
     convert_item,
     start_conversion,
     write_manifest_if_complete,
 )
-from darksynth.datasets.formats import DatasetFormat
 from darksynth.errors import DarksynthError
-from darksynth.profile import Profile
+
+RAY_SCHEDULES: Final = ("shard", "workers", "device")
+"""The options of :class:`ConvertOptions` that Ray decides itself: a Ray run takes them at their defaults."""
 
 
 def _convert_row(row: dict[str, Any], options: ConvertOptions) -> dict[str, Any]:
@@ -42,53 +42,41 @@ def _convert_row(row: dict[str, Any], options: ConvertOptions) -> dict[str, Any]
 
 
 def convert_dataset_with_ray(
-    dataset: Path,
-    output: Path,
-    profile: Profile | Path | str,
+    options: ConvertOptions,
     *,
-    format: DatasetFormat,
-    seed: int = 0,
-    jitter: bool = False,
-    images_root: Path | None = None,
-    overwrite: bool = False,
-    codec: str | None = None,
-    crf: int | None = None,
     concurrency: int | None = None,
     on_failure: Callable[[str], None] | None = None,
 ) -> ConversionReport:
     """Convert a dataset with Ray Data; connects to the running Ray instance (``ray.init()`` if none is).
 
     Args:
+        options: as for :func:`darksynth.datasets.convert_dataset`, with ``workers``, ``shard`` and ``device``
+            left at their defaults: Ray decides where and how many conversions run.
         concurrency: at most this many conversions at once (None: as many as Ray's CPUs allow).
         on_failure: called with each failure message.
-        Others: as for :func:`darksynth.datasets.convert_dataset` (no ``workers`` or ``shard``: Ray schedules).
 
     Returns:
         What this run did; ``manifest`` is written once every item has a record.
 
     Raises:
-        DarksynthError: the run cannot start (as for ``convert_dataset``), or ray is not installed.
+        DarksynthError: the run cannot start (as for ``convert_dataset``), options that Ray decides are set, or
+            ray is not installed.
     """
+    defaults = {option.name: option.default for option in dataclasses.fields(ConvertOptions)}
+    scheduled = [name for name in RAY_SCHEDULES if getattr(options, name) != defaults[name]]
+    if scheduled:
+        raise DarksynthError(
+            "--ray schedules the work itself: it takes no --shard, --workers or --device "
+            f"(got {', '.join(f'--{name}' for name in scheduled)})"
+        )
     try:
         import ray
         import ray.data
     except ImportError:
         raise DarksynthError("the Ray path needs ray: pip install 'darksynth[ray]'") from None
     started = time.perf_counter()
-    options = conversion_options(
-        dataset,
-        output,
-        profile,
-        format=format,
-        seed=seed,
-        jitter=jitter,
-        images_root=images_root,
-        overwrite=overwrite,
-        codec=codec,
-        crf=crf,
-    )
     run = start_conversion(options, on_failure)
-    report, todo = run.report, run.todo
+    options, report, todo = run.options, run.report, run.todo
     if todo:
         if not ray.is_initialized():
             ray.init()

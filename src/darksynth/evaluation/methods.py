@@ -27,7 +27,7 @@ from darksynth.evaluation.srgb_fit import JPEG_CANDIDATES
 from darksynth.noise.simulate import add_noise
 from darksynth.noise.values import NoiseValues
 from darksynth.tensors import to_8bit_levels
-from darksynth.training.weights import default_weights_path
+from darksynth.training.weights import DENChoice
 
 AWGN_SIGMA = 5.0 / 255.0
 """Fixed sigma of the `awgn` baseline: 5 of 255, the middle of the real sets' noise std (2.2-8.3 of 255 on
@@ -174,6 +174,13 @@ def _srgb_method(name: str) -> NoiseMethod:
     )
 
 
+DEN_METHODS: dict[str, tuple[str, str]] = {
+    "den": ("srgb", "v3"),
+    "den-paper": ("paper", "v3"),
+    "den-v2": ("paper", "v2"),
+}
+"""The DEN methods and the (noise model, variant) of the shipped DEN each uses unless given weights."""
+
 DEFAULT_METHODS: tuple[str, ...] = (
     "den",
     "den-paper",
@@ -204,19 +211,16 @@ def build_method(name: str, *, weights: dict[str, Path] | None = None, device: s
     """The method called ``name``.
 
     Args:
-        weights: weights files by method name for the DEN variants (the shipped weights by default: ``den`` the
-            sRGB model, ``den-paper`` the paper's model, ``den-v2`` the paper model's v2 ablation).
+        weights: weights files by method name for the DEN methods (the shipped weights by default, see
+            :data:`DEN_METHODS`).
 
     Raises:
         MethodUnavailableError: an unknown name, or a method whose weights do not exist.
     """
     weights = weights or {}
-    if name == "den":
-        return _den_method(name, weights.get(name, default_weights_path()), device)
-    if name == "den-paper":
-        return _den_method(name, weights.get(name, default_weights_path("v3", "paper")), device)
-    if name == "den-v2":
-        return _den_method(name, weights.get(name, default_weights_path("v2", "paper")), device)
+    if name in DEN_METHODS:
+        noise_model, variant = DEN_METHODS[name]
+        return _den_method(name, DENChoice(weights.get(name), noise_model=noise_model, variant=variant).path(), device)
     if name == "den-v1":
         raise MethodUnavailableError("den-v1: the v1 variant (a U-Net that outputs the noisy image) is not built")
     if name == "awgn":

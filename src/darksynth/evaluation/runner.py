@@ -10,7 +10,7 @@ from __future__ import annotations
 
 import time
 from collections.abc import Callable, Sequence
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
@@ -18,6 +18,7 @@ import numpy as np
 import torch
 
 from darksynth.errors import DarksynthError
+from darksynth.evaluation.job import EvaluationOptions
 from darksynth.evaluation.methods import NoiseMethod, build_methods
 from darksynth.evaluation.metrics import (
     frechet_distance,
@@ -42,22 +43,6 @@ METRIC_DESCRIPTIONS = {
 
 FID_CROP = 128
 """Side of the noise-map tiles whose Inception features FID and KID compare."""
-
-
-@dataclass(frozen=True)
-class EvaluationOptions:
-    """What to evaluate and how."""
-
-    methods: Sequence[str]
-    seed: int = 0
-    device: str = "cpu"
-    weights: dict[str, Path] = field(default_factory=dict)
-    inception: bool = True
-    fid_crops: int = 64
-    """Noise-map tiles per set and per source (real or a method) for FID/KID, spread evenly over the pairs."""
-    examples_per_set: int = 2
-    example_crop: int = 128
-    command: str = ""
 
 
 @dataclass

@@ -1,10 +1,13 @@
-"""DEN weights on disk: safetensors with the model's name, version and shape in the metadata. No pickle."""
+"""DEN weights on disk (safetensors with the model's name, version and shape in the metadata; no pickle), and which
+shipped DEN serves which noise model and variant."""
 
 from __future__ import annotations
 
 import json
+from collections.abc import Mapping
+from dataclasses import dataclass
 from pathlib import Path
-from typing import Any
+from typing import Any, Final
 
 import torch
 from safetensors import SafetensorError
@@ -14,6 +17,42 @@ from darksynth.errors import DarksynthError
 from darksynth.io.atomic import atomic_output
 from darksynth.io.weights_file import read_checked_metadata
 from darksynth.models.den import DEN, MODEL_NAME, MODEL_VERSION, READABLE_MODEL_VERSIONS, DENConfig
+from darksynth.noise.components import NoiseModel
+
+SHIPPED_WEIGHTS: Final[Mapping[tuple[str, str], str]] = {
+    ("srgb", "v3"): "den_srgb_v3.safetensors",
+    ("paper", "v3"): "den_v3.safetensors",
+    ("paper", "v2"): "den_v2.safetensors",
+}
+"""The DENs shipped in ``darksynth/data``, by (noise model, variant): the sRGB model as the full v3, the paper's
+model as v3 and as its v2 ablation (encoder and head only). docs/den.md gives the command that made each."""
+
+LOG_LEVELS: Final[Mapping[NoiseModel, bool]] = {"srgb": True, "paper": False}
+"""Whether a noise model's DEN predicts the noise levels on a log scale: the sRGB model does (docs/den.md); the
+paper's model keeps the linear scale its shipped weights were trained on."""
+
+
+@dataclass(frozen=True)
+class DENChoice:
+    """Which DEN to load: a weights file, or else the shipped DEN of a noise model and variant.
+
+    Attributes:
+        weights: a weights file; when given, ``noise_model`` and ``variant`` are not read (the file says them).
+        noise_model: the noise model of the shipped DEN (see :data:`SHIPPED_WEIGHTS`).
+        variant: the variant of the shipped DEN.
+    """
+
+    weights: Path | None = None
+    noise_model: str = "srgb"
+    variant: str = "v3"
+
+    def path(self) -> Path:
+        """The weights file to load.
+
+        Raises:
+            DarksynthError: no weights file is given and no DEN of this noise model and variant is shipped.
+        """
+        return self.weights if self.weights is not None else default_weights_path(self.variant, self.noise_model)
 
 
 def save_weights(path: Path, model: DEN, *, training: dict[str, Any] | None = None) -> None:
@@ -57,10 +96,16 @@ def load_weights(path: Path, *, device: torch.device | str = "cpu") -> DEN:
     return model.to(device).eval()
 
 
-def default_weights_path(variant: str = "v3", noise_model: str = "srgb") -> Path:
-    """The DEN shipped with the package: the ``srgb`` model (default) or the ``paper`` model, as the full v3
-    (default) or, for the paper model, the v2 ablation (encoder and head only)."""
-    data = Path(__file__).resolve().parent.parent / "data"
-    if noise_model == "srgb":
-        return data / f"den_srgb_{variant}.safetensors"
-    return data / f"den_{variant}.safetensors"
+def default_weights_path(variant: str = DENChoice.variant, noise_model: str = DENChoice.noise_model) -> Path:
+    """The shipped DEN of a noise model and variant (see :data:`SHIPPED_WEIGHTS`).
+
+    Raises:
+        DarksynthError: no DEN of that noise model and variant is shipped (one line naming those that are).
+    """
+    name = SHIPPED_WEIGHTS.get((noise_model, variant))
+    if name is None:
+        shipped = ", ".join(f"{model} {shipped_variant}" for model, shipped_variant in SHIPPED_WEIGHTS)
+        raise DarksynthError(
+            f"no shipped DEN for noise model {noise_model!r} and variant {variant!r}; shipped: {shipped}"
+        )
+    return Path(__file__).resolve().parent.parent / "data" / name

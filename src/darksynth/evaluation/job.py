@@ -1,0 +1,134 @@
+"""`darksynth evaluate` as one call: its options, the run (every method on every set of real pairs, then the
+optional downstream check) and its three files, ``results.json``, ``results.md`` and ``report.html``.
+
+Importing this module stays cheap (no scipy): the command line reads the options' defaults at start-up.
+"""
+
+from __future__ import annotations
+
+import json
+from collections.abc import Callable, Sequence
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any, Final
+
+from darksynth.errors import DarksynthError
+from darksynth.evaluation.downstream import DownstreamSettings
+from darksynth.evaluation.methods import DEFAULT_METHODS
+from darksynth.evaluation.report import write_html_report, write_markdown
+from darksynth.io.atomic import write_text_atomic
+
+Progress = Callable[[str], None]
+"""Called with a one-line description of what the run is doing."""
+
+RESULT_FILES: Final = ("results.json", "results.md", "report.html")
+"""What a run writes into its output folder."""
+
+_DOWNSTREAM_DEFAULTS: Final = DownstreamSettings()
+
+
+@dataclass(frozen=True)
+class EvaluationOptions:
+    """What to evaluate and how; the defaults are those of ``darksynth evaluate``.
+
+    Attributes:
+        methods: the methods to compare, by name (see :mod:`darksynth.evaluation.methods`).
+        seed: seed of the synthetic noise (each pair and method draws from a seed derived from it).
+        device: torch device of the methods and of the Inception network.
+        weights: weights files by DEN method name, instead of the shipped ones.
+        inception: compute FID and KID (InceptionV3 features of noise maps).
+        downstream: folders of clean training images for the downstream check; none: no check.
+        downstream_steps: training steps of each downstream denoiser.
+        fid_crops: noise-map tiles per set and per source (real or a method) for FID/KID, spread evenly over
+            the pairs.
+        examples_per_set: pairs per set shown in the report.
+        example_crop: side of the crops the report shows.
+        command: the command that asked for the run, stated in the results.
+
+    Raises:
+        DarksynthError: ``downstream_steps`` below 1.
+    """
+
+    methods: Sequence[str] = DEFAULT_METHODS
+    seed: int = 0
+    device: str = "cpu"
+    weights: dict[str, Path] = field(default_factory=dict)
+    inception: bool = True
+    downstream: tuple[Path, ...] = ()
+    downstream_steps: int = _DOWNSTREAM_DEFAULTS.steps
+    fid_crops: int = 64
+    examples_per_set: int = 2
+    example_crop: int = 128
+    command: str = ""
+
+    def __post_init__(self) -> None:
+        if self.downstream_steps < 1:
+            raise DarksynthError(f"--downstream-steps must be at least 1, got {self.downstream_steps}")
+
+
+@dataclass
+class EvaluationRun:
+    """What a run found and where it wrote it.
+
+    Attributes:
+        results: the document written to ``results.json`` (see :func:`darksynth.evaluation.runner.evaluate_pairs`;
+            ``"downstream"`` filled in when the options ask for the check).
+        files: the paths of :data:`RESULT_FILES`, in that order.
+    """
+
+    results: dict[str, Any]
+    files: tuple[Path, ...]
+
+
+def run_evaluation(
+    pair_roots: Sequence[Path], out: Path, options: EvaluationOptions, *, progress: Progress | None = None
+) -> EvaluationRun:
+    """Evaluate every method on every set of real pairs, run the downstream check if asked, write the results.
+
+    Problems that leave the rest of the run meaningful (a bad pair, an unavailable method, a failed fit) are
+    listed in ``results["problems"]`` (and the downstream check's in ``results["downstream"]["problems"]``).
+
+    Args:
+        pair_roots: folders of real pairs (``noisy/NAME``, ``clean/NAME``), or folders of such folders.
+        out: the folder to write :data:`RESULT_FILES` into (created).
+        options: what to evaluate and how.
+        progress: see :data:`Progress`.
+
+    Raises:
+        DarksynthError: nothing to evaluate (no set, no method), no usable clean image for the downstream check,
+            or a file that cannot be read or written (one line naming it).
+    """
+    # The runner imports scipy (about 0.7 s): only a run pays for it, not the command line's start.
+    from darksynth.evaluation.downstream import run_downstream
+    from darksynth.evaluation.runner import evaluate_pairs
+
+    say = progress or (lambda message: None)
+    try:
+        outcome = evaluate_pairs(pair_roots, options, progress=say)
+        if options.downstream:
+            settings = DownstreamSettings(steps=options.downstream_steps, seed=options.seed, device=options.device)
+            outcome.results["downstream"] = run_downstream(
+                pair_roots,
+                [name for name in options.methods if name in outcome.results["methods"]],
+                options.downstream,
+                settings,
+                weights=options.weights,
+                progress=lambda message: say(f"downstream: {message}"),
+            )
+        out.mkdir(parents=True, exist_ok=True)
+        files = tuple(out / name for name in RESULT_FILES)
+        results_json, results_md, report_html = files
+        write_text_atomic(results_json, json.dumps(outcome.results, indent=2) + "\n")
+        write_markdown(outcome.results, results_md)
+        write_html_report(outcome.results, outcome.examples, report_html)
+    except OSError as error:
+        raise DarksynthError(f"{error.filename or out}: {error.strerror or error}") from None
+    return EvaluationRun(outcome.results, files)
+
+
+def rank_by_kld(results: dict[str, Any]) -> dict[str, list[tuple[str, float]]]:
+    """Per set, the methods from the lowest (closest to real noise) to the highest mean KL divergence."""
+    return {
+        name: sorted(((method, entry["kld"]) for method, entry in report["methods"].items()), key=lambda m: m[1])
+        for name, report in results["sets"].items()
+    }

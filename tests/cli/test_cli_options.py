@@ -1,0 +1,222 @@
+"""Each command builds its job's options once, with the library's defaults: no flag, the options' default."""
+
+from __future__ import annotations
+
+import dataclasses
+from pathlib import Path
+from types import SimpleNamespace
+from typing import Any
+
+import pytest
+import typer
+from typer.testing import CliRunner
+
+import darksynth.datasets
+import darksynth.evaluation.job
+import darksynth.training.corpus
+import darksynth.training.loop
+import darksynth.training.weights
+from darksynth import cli
+from darksynth.apply import ApplyOptions, ApplyReport
+from darksynth.cli import app
+from darksynth.datasets import ConversionReport, ConvertOptions, Shard
+from darksynth.errors import DarksynthError
+from darksynth.evaluation.job import EvaluationOptions, EvaluationRun
+from darksynth.models.den import DENConfig
+from darksynth.profile import load_profile
+from darksynth.training.loop import TrainConfig
+from darksynth.training.weights import DENChoice, default_weights_path
+from tests.cli.conftest import run_cli
+
+
+def _flag_defaults(command: str) -> dict[str, Any]:
+    group = typer.main.get_command(app)
+    assert isinstance(group, typer.core.TyperGroup)
+    return {param.name: param.default for param in group.commands[command].params if param.name}
+
+
+@pytest.mark.parametrize(
+    ("command", "expected"),
+    [
+        (
+            "train",
+            {
+                "variant": DENConfig().variant,
+                "model": DENConfig().noise_model,
+                "width": DENConfig().width,
+                "depth": DENConfig().depth,
+                "steps": TrainConfig().steps,
+                "batch": TrainConfig().batch,
+                "frames": TrainConfig().frames,
+                "crop": TrainConfig().crop,
+                "learning_rate": TrainConfig().learning_rate,
+                "lambda_parameters": TrainConfig().lambda_parameters,
+                "lambda_reconstruction": TrainConfig().lambda_reconstruction,
+                "validate_every": TrainConfig().validate_every,
+                "bright_fraction": TrainConfig().bright_fraction,
+                "lambda_level": TrainConfig().lambda_level,
+                "seed": TrainConfig().seed,
+                "device": TrainConfig().device,
+            },
+        ),
+        ("estimate", {"variant": DENChoice().variant, "model": DENChoice().noise_model}),
+        (
+            "evaluate",
+            {
+                "seed": EvaluationOptions().seed,
+                "device": EvaluationOptions().device,
+                "inception": EvaluationOptions().inception,
+                "downstream_steps": EvaluationOptions().downstream_steps,
+            },
+        ),
+    ],
+)
+def test_flag_defaults_are_the_library_defaults(command: str, expected: dict[str, Any]) -> None:
+    defaults = _flag_defaults(command)
+    assert {name: defaults[name] for name in expected} == expected
+
+
+def test_train_help_shows_the_training_defaults() -> None:
+    result = CliRunner().invoke(app, ["train", "--help"], env={"COLUMNS": "200", "TERMINAL_WIDTH": "200"})
+    assert result.exit_code == 0
+    lines = result.stdout.splitlines()
+    for flag, default in (
+        ("--steps", TrainConfig().steps),
+        ("--validate-every", TrainConfig().validate_every),
+        ("--width", DENConfig().width),
+    ):
+        (line,) = [line for line in lines if f" {flag} " in line]
+        assert f"[default: {default}]" in line, line
+
+
+def test_apply_without_flags_builds_the_default_options(
+    monkeypatch: pytest.MonkeyPatch, rgb_image: Path, profile_file: Path, tmp_path: Path
+) -> None:
+    built: list[ApplyOptions] = []
+
+    def run(input_path: Path, output_path: Path, options: ApplyOptions) -> ApplyReport:
+        built.append(options)
+        return ApplyReport()
+
+    monkeypatch.setattr(cli, "run_with_progress", run)
+    code, _, err = run_cli("apply", rgb_image, tmp_path / "out.png", "-p", profile_file)
+    assert code == 0, err
+    (options,) = built
+    # Without --seed a random seed is drawn (and recorded): the one field without a default.
+    assert options == ApplyOptions(
+        profile=load_profile(profile_file), seed=options.seed, profile_source=str(profile_file)
+    )
+
+
+def test_convert_without_flags_builds_the_default_options(
+    monkeypatch: pytest.MonkeyPatch, profile_file: Path, tmp_path: Path
+) -> None:
+    built: list[ConvertOptions] = []
+
+    def convert(options: ConvertOptions, **callbacks: Any) -> ConversionReport:
+        built.append(options)
+        return ConversionReport()
+
+    monkeypatch.setattr(darksynth.datasets, "convert_dataset", convert)
+    dataset, output = tmp_path / "ds", tmp_path / "out"
+    code, _, err = run_cli("convert", dataset, output, "-p", profile_file, "-f", "folder")
+    assert code == 0, err
+    assert built == [ConvertOptions(dataset, output, load_profile(profile_file), "folder")]
+
+
+def test_convert_flags_reach_the_options(monkeypatch: pytest.MonkeyPatch, profile_file: Path, tmp_path: Path) -> None:
+    built: list[ConvertOptions] = []
+
+    def convert(options: ConvertOptions, **callbacks: Any) -> ConversionReport:
+        built.append(options)
+        return ConversionReport()
+
+    monkeypatch.setattr(darksynth.datasets, "convert_dataset", convert)
+    code, _, err = run_cli(
+        "convert", tmp_path / "ds", tmp_path / "out", "-p", profile_file, "-f", "coco", "--seed", "4", "--jitter",
+        "--workers", "2", "--shard", "2/3", "--images-root", "pictures", "--overwrite", "--codec", "ffv1",
+        "--crf", "0", "--device", "meta",
+    )  # fmt: skip
+    assert code == 0, err
+    expected = ConvertOptions(
+        tmp_path / "ds",
+        tmp_path / "out",
+        load_profile(profile_file),
+        "coco",
+        seed=4,
+        jitter=True,
+        workers=2,
+        shard=Shard(2, 3),
+        images_root=Path("pictures"),
+        overwrite=True,
+        codec="ffv1",
+        crf=0,
+        device="meta",
+    )
+    assert built == [expected]
+
+
+class _TinyCorpus(SimpleNamespace):
+    def __len__(self) -> int:
+        return 1
+
+
+@pytest.mark.parametrize(
+    ("flags", "expected"),
+    [
+        ([], TrainConfig()),
+        (["--model", "paper"], TrainConfig(model=DENConfig(noise_model="paper", log_levels=False))),
+        (
+            ["--variant", "v2", "--width", "8", "--steps", "7", "--lr", "1e-3"],
+            TrainConfig(model=DENConfig(variant="v2", width=8), steps=7, learning_rate=1e-3),
+        ),
+    ],
+)
+def test_train_builds_the_training_config_from_its_flags(
+    monkeypatch: pytest.MonkeyPatch, tmp_path: Path, flags: list[str], expected: TrainConfig
+) -> None:
+    built: list[TrainConfig] = []
+
+    def train(corpus: object, held: object, config: TrainConfig, out: Path, **_: object) -> dict[str, object]:
+        built.append(config)
+        return {"steps": 0}
+
+    monkeypatch.setattr(darksynth.training.loop, "train", train)
+    monkeypatch.setattr(darksynth.training.corpus, "load_corpus", lambda *_, **__: _TinyCorpus(images=[], clips=[]))
+    code, _, err = run_cli("train", tmp_path, "--out", tmp_path / "den.safetensors", *flags)
+    assert code == 0, err
+    assert built == [expected]
+
+
+def test_estimate_without_flags_loads_the_default_shipped_den(monkeypatch: pytest.MonkeyPatch, rgb_image: Path) -> None:
+    loaded: list[Path] = []
+
+    def load_weights(path: Path, **_: object) -> None:
+        loaded.append(path)
+        raise DarksynthError("stopped after choosing the weights")
+
+    monkeypatch.setattr(darksynth.training.weights, "load_weights", load_weights)
+    code, _, err = run_cli("estimate", rgb_image)
+    assert code == 1 and "stopped after choosing the weights" in err
+    assert loaded == [DENChoice().path()] == [default_weights_path("v3", "srgb")]
+
+
+def test_evaluate_without_flags_builds_the_default_options(monkeypatch: pytest.MonkeyPatch, tmp_path: Path) -> None:
+    built: list[EvaluationOptions] = []
+
+    def run(pairs: list[Path], out: Path, options: EvaluationOptions, **_: object) -> EvaluationRun:
+        built.append(options)
+        return EvaluationRun({"problems": [], "sets": {}}, (out / "a", out / "b", out / "c"))
+
+    monkeypatch.setattr(darksynth.evaluation.job, "run_evaluation", run)
+    code, _, err = run_cli("evaluate", "--pairs", tmp_path / "pairs", "--out", tmp_path / "out")
+    assert code == 0, err
+    (options,) = built
+    assert dataclasses.replace(options, command="") == EvaluationOptions()
+    assert f"--methods {','.join(EvaluationOptions().methods)} --seed 0 --device cpu --out" in options.command
+
+
+def test_bad_downstream_steps_is_one_error_line(tmp_path: Path) -> None:
+    code, _, err = run_cli("evaluate", "--pairs", tmp_path, "--out", tmp_path / "out", "--downstream-steps", "0")
+    assert code == 1
+    assert err.strip() == "darksynth: error: --downstream-steps must be at least 1, got 0"

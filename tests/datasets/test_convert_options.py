@@ -1,0 +1,87 @@
+"""ConvertOptions: the one list of conversion options, its fingerprint (what a resumed run must share) and checks."""
+
+from __future__ import annotations
+
+import dataclasses
+from pathlib import Path
+
+import pytest
+
+from darksynth.datasets import SCHEDULING_OPTIONS, ConvertOptions, Shard, fixed_darkening
+from darksynth.datasets.ray_convert import convert_dataset_with_ray
+from darksynth.errors import DarksynthError
+from darksynth.profile import load_profile, profile_to_dict
+
+
+@pytest.fixture
+def options(tmp_path: Path, ranged_profile: Path) -> ConvertOptions:
+    return ConvertOptions(tmp_path / "ds", tmp_path / "out", load_profile(ranged_profile), "coco", seed=3)
+
+
+def test_fingerprint_is_the_state_earlier_runs_recorded(options: ConvertOptions) -> None:
+    """Outputs written before the options became one object must still resume: the same keys, the same values."""
+    assert options.fingerprint() == {
+        "dataset": str(options.dataset),
+        "format": "coco",
+        "profile": profile_to_dict(options.profile),
+        "seed": 3,
+        "jitter": False,
+        "images_root": None,
+        "codec": None,
+        "crf": None,
+        "device": "cpu",
+    }
+
+
+def test_only_scheduling_options_leave_the_fingerprint_unchanged(options: ConvertOptions) -> None:
+    names = {option.name for option in dataclasses.fields(ConvertOptions)}
+    assert set(options.fingerprint()) == names - SCHEDULING_OPTIONS
+    scheduled = dataclasses.replace(options, output=Path("elsewhere"), workers=4, shard=Shard(1, 2), overwrite=True)
+    assert scheduled.fingerprint() == options.fingerprint()
+    for change in ({"seed": 4}, {"jitter": True}, {"codec": "ffv1"}, {"crf": 3}, {"images_root": Path("x")}):
+        assert dataclasses.replace(options, **change).fingerprint() != options.fingerprint(), change
+
+
+def test_checked_options_have_absolute_paths(
+    tmp_path: Path, options: ConvertOptions, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    monkeypatch.chdir(tmp_path)
+    relative = dataclasses.replace(options, dataset=Path("ds"), output=Path("out"))
+    checked = relative.checked()
+    assert checked.dataset == tmp_path.resolve() / "ds" and checked.output == tmp_path.resolve() / "out"
+    assert dataclasses.replace(checked, dataset=Path("ds"), output=Path("out")) == relative
+
+
+@pytest.mark.parametrize(
+    ("change", "message"),
+    [
+        ({"format": "voc"}, "unknown dataset format 'voc'; use one of coco, yolo, folder, video-folder"),
+        ({"workers": 0}, "--workers must be at least 1, got 0"),
+    ],
+)
+def test_bad_options_are_refused_by_check(options: ConvertOptions, change: dict[str, object], message: str) -> None:
+    with pytest.raises(DarksynthError, match=message):
+        dataclasses.replace(options, **change).checked()
+
+
+def test_apply_options_fix_the_parameters_unless_jitter(options: ConvertOptions) -> None:
+    fixed = options.apply_options()
+    assert fixed.profile.ranges == {} and fixed.darkening == fixed_darkening(options.profile)
+    jittered = dataclasses.replace(options, jitter=True).apply_options()
+    assert jittered.profile == options.profile and jittered.darkening == "profile"
+    assert (fixed.seed, fixed.workers, fixed.codec, fixed.crf, fixed.device) == (3, 1, None, None, "cpu")
+
+
+@pytest.mark.parametrize(
+    ("change", "named"),
+    [({"workers": 2}, "--workers"), ({"shard": Shard(1, 2)}, "--shard"), ({"device": "cuda"}, "--device")],
+)
+def test_ray_refuses_the_options_it_decides_itself(
+    options: ConvertOptions, change: dict[str, object], named: str
+) -> None:
+    """Refused before Ray is imported or started: one line naming the option given."""
+    with pytest.raises(DarksynthError) as raised:
+        convert_dataset_with_ray(dataclasses.replace(options, **change))
+    message = str(raised.value)
+    assert message.startswith("--ray schedules the work itself") and f"(got {named})" in message
+    assert "\n" not in message
