@@ -20,6 +20,7 @@ from darksynth.apply import ApplyOptions, ApplyReport, Task, apply
 from darksynth.darkening import Darkening
 from darksynth.datasets import FORMATS, ConversionReport, ConvertOptions, DatasetFormat, Shard
 from darksynth.errors import DarksynthError
+from darksynth.estimate import EstimateOptions
 from darksynth.evaluation.job import EvaluationOptions
 from darksynth.models.den import DENConfig, Variant
 from darksynth.noise.components import NOISE_MODELS, NoiseModel
@@ -386,7 +387,9 @@ def train_command(
 def estimate_command(
     reference: Annotated[Path, typer.Argument(help="Real low-light image, video, or frame folder (with --clip).")],
     out: Annotated[Path | None, typer.Option("--out", help="Profile JSON to write (stdout when omitted).")] = None,
-    clip: Annotated[bool, typer.Option("--clip", help="REFERENCE is a folder of frames of one clip.")] = False,
+    clip: Annotated[bool, typer.Option("--clip", help="REFERENCE is a folder of frames of one clip.")] = default_of(
+        EstimateOptions, "clip"
+    ),
     weights: Annotated[Path | None, typer.Option(help="DEN weights (default: the shipped model of --variant).")] = None,
     variant: Annotated[
         str, typer.Option(help="Shipped DEN to use without --weights: v3 (full, default) or v2 (ablation).")
@@ -399,12 +402,12 @@ def estimate_command(
             "default) or paper (the paper's five components, white noise).",
         ),
     ] = default_of(DENChoice, "noise_model"),
-    device: Annotated[str, typer.Option(help="torch device.")] = "cpu",
+    device: Annotated[str, typer.Option(help="torch device.")] = default_of(EstimateOptions, "device"),
 ) -> None:
     """Estimate a noise profile from one real low-light reference, zero-shot."""
     import json
 
-    from darksynth.estimate import estimate, load_reference
+    from darksynth.estimate import estimate_file
     from darksynth.profile import profile_to_dict, save_profile
     from darksynth.training.weights import load_weights
 
@@ -414,9 +417,9 @@ def estimate_command(
             noise_model=checked_choice("--model", model, NOISE_MODELS),
             variant=checked_choice("--variant", variant, VARIANTS),
         )
-        network = load_weights(choice.path(), device=device)
-        frames = load_reference(reference, clip=clip)
-        result = estimate(frames, network, source=str(reference), device=device)
+        options = EstimateOptions(clip=clip, device=device)
+        network = load_weights(choice.path(), device=options.device)
+        result = estimate_file(reference, network, options)
     except DarksynthError as error:
         raise fail(str(error)) from None
     for warning in result.warnings:

@@ -45,6 +45,29 @@ BRIGHT_MEAN = 0.35
 """A reference whose mean level is above this is not low-light; its estimate is less reliable."""
 
 
+@dataclass(frozen=True)
+class EstimateOptions:
+    """How ``estimate`` reads and runs on a reference file (the network is chosen by the caller).
+
+    Attributes:
+        clip: a folder is the frames of one clip (without it, a folder is refused).
+        device: torch device the network runs on.
+        max_frames: frames read from a video or frame folder.
+        batch: crops per forward pass.
+    """
+
+    clip: bool = False
+    device: str = "cpu"
+    max_frames: int = MAX_FRAMES
+    batch: int = 16
+
+
+def estimate_file(path: Path, model: DEN, options: EstimateOptions) -> Estimate:
+    """Read a reference file or frame folder and estimate its profile (the ``estimate`` job)."""
+    frames = load_reference(path, clip=options.clip, max_frames=options.max_frames)
+    return estimate(frames, model, source=str(path), batch=options.batch, device=options.device)
+
+
 @dataclass
 class Estimate:
     """A profile and what was learned on the way: per-crop values and warnings."""

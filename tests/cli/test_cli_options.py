@@ -21,6 +21,7 @@ from darksynth.apply import ApplyOptions, ApplyReport
 from darksynth.cli import app
 from darksynth.datasets import ConversionReport, ConvertOptions, Shard
 from darksynth.errors import DarksynthError
+from darksynth.estimate import EstimateOptions
 from darksynth.evaluation.job import EvaluationOptions, EvaluationRun
 from darksynth.models.den import DENConfig
 from darksynth.profile import load_profile
@@ -59,7 +60,15 @@ def _flag_defaults(command: str) -> dict[str, Any]:
                 "device": TrainConfig().device,
             },
         ),
-        ("estimate", {"variant": DENChoice().variant, "model": DENChoice().noise_model}),
+        (
+            "estimate",
+            {
+                "variant": DENChoice().variant,
+                "model": DENChoice().noise_model,
+                "clip": EstimateOptions().clip,
+                "device": EstimateOptions().device,
+            },
+        ),
         (
             "evaluate",
             {
