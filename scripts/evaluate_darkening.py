@@ -90,7 +90,7 @@ def evaluate(
         for _ in range(draws):
             alpha = float(torch.empty(()).uniform_(*ALPHA_RANGE, generator=generator))
             gamma = float(torch.empty(()).uniform_(*GAMMA_RANGE, generator=generator))
-            drawn = random_noise_values(generator=generator, model="paper")
+            drawn = random_noise_values(generator=generator, noise_model="paper")
             values = drawn.replace(**{p.name: drawn[p.name] * noise_scale for p in model_parameters("paper")})
             noisy = add_noise(darken(clean, alpha, gamma)[None], values, generator=generator)[0]
             noisy = (noisy * 255).round() / 255

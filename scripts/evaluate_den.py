@@ -35,7 +35,7 @@ from darksynth.training.weights import default_weights_path, load_weights
 
 def draw_profile(generator: torch.Generator, model: NoiseModel) -> Profile:
     """Every parameter of the noise model from its training range (the others neutral), the paper's darkening."""
-    noise = random_noise_values(generator=generator, dtype=torch.float64, model=model)
+    noise = random_noise_values(generator=generator, dtype=torch.float64, noise_model=model)
     alpha, gamma = random_darkening_values(generator=generator)
     return Profile(
         noise=NoiseValues.from_values(noise),

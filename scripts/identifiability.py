@@ -69,7 +69,7 @@ def main() -> int:
     for trial in range(args.trials):
         pixels = read_image(paths[trial % len(paths)]).pixels
         clean = torch.from_numpy(pixels.astype(np.float64) / 255.0).permute(2, 0, 1)[None]
-        values = random_noise_values(generator=generator, dtype=torch.float64, model="paper")
+        values = random_noise_values(generator=generator, dtype=torch.float64, noise_model="paper")
         alpha, gamma = random_darkening_values(generator=generator)
         dark = darken(clean, float(alpha), float(gamma))
         pixel_only = NoiseValues.from_values({"shot": values["shot"], "read": values["read"]}, dtype=torch.float64)

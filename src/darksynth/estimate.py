@@ -62,10 +62,10 @@ class EstimateOptions:
     batch: int = 16
 
 
-def estimate_file(path: Path, model: DEN, options: EstimateOptions) -> Estimate:
+def estimate_file(path: Path, network: DEN, options: EstimateOptions) -> Estimate:
     """Read a reference file or frame folder and estimate its profile (the ``estimate`` job)."""
     frames = load_reference(path, clip=options.clip, max_frames=options.max_frames)
-    return estimate(frames, model, source=str(path), batch=options.batch, device=options.device)
+    return estimate(frames, network, source=str(path), batch=options.batch, device=options.device)
 
 
 @dataclass
@@ -163,7 +163,7 @@ def crop_grid(
 @torch.no_grad()
 def estimate(
     reference: torch.Tensor,
-    model: DEN,
+    network: DEN,
     *,
     source: str = "",
     batch: int = 16,
@@ -171,15 +171,15 @@ def estimate(
 ) -> Estimate:
     """Estimate a noise profile from reference frames (T, 3, H, W) in [0, 1]."""
     crops = crop_grid(reference)
-    model = model.to(device).eval()
+    network = network.to(device).eval()
     per_crop = NoiseValues.stack(
-        [model(crops[i : i + batch].to(device)).values.to("cpu") for i in range(0, len(crops), batch)]
+        [network(crops[i : i + batch].to(device)).values.to("cpu") for i in range(0, len(crops), batch)]
     ).to(dtype=torch.float64)
     # quantile(0.5) averages the two middle crops of an even count, where Tensor.median takes the lower one.
     noise = per_crop.map(lambda t: torch.quantile(t, 0.5, dim=0))
     low = per_crop.map(lambda t: torch.quantile(t, 0.1, dim=0))
     high = per_crop.map(lambda t: torch.quantile(t, 0.9, dim=0))
-    noise_model = model.noise_model
+    noise_model = network.noise_model
     # What the network does not estimate (the sRGB structure, for the paper's model) stays neutral, without a range.
     ranges = {
         p.name: tuple(zip(low[p.name].tolist(), high[p.name].tolist(), strict=True))
@@ -196,7 +196,7 @@ def estimate(
         warnings.append(f"{source or 'reference'}: nearly noise-free; the profile will add almost no noise")
     meta: dict[str, Any] = {
         "source": source,
-        "estimator": f"DEN {model.config.variant} width {model.config.width} depth {model.config.depth}",
+        "estimator": f"DEN {network.config.variant} width {network.config.width} depth {network.config.depth}",
         "noise_model": noise_model,
         "crops": len(crops),
         "frames": int(reference.shape[0]),

@@ -47,7 +47,7 @@ def test_vectors_lie_inside_the_training_ranges_over_many_draws() -> None:
 
 def test_every_component_is_present_when_absence_is_impossible() -> None:
     batch = synthesize_batch(
-        _clean(), generator=torch.Generator().manual_seed(3), absent_probability=0.0, model="paper"
+        _clean(), generator=torch.Generator().manual_seed(3), absent_probability=0.0, noise_model="paper"
     )
     assert (batch.vector > 0).all()
     assert not torch.equal(batch.noisy, (batch.dark * 255).round() / 255)
@@ -70,7 +70,7 @@ def test_absent_components_give_the_quantised_dark_clip_and_a_neutral_vector() -
     assert torch.equal(batch.vector, NEUTRAL.expand(6, vector_size()))
     assert torch.equal(batch.noisy, (batch.dark * 255.0).round() / 255.0)
     paper = synthesize_batch(
-        _clean(), generator=torch.Generator().manual_seed(4), absent_probability=1.0, model="paper"
+        _clean(), generator=torch.Generator().manual_seed(4), absent_probability=1.0, noise_model="paper"
     )
     assert torch.equal(paper.vector, torch.zeros(6, 8))
 

@@ -197,7 +197,9 @@ def validation_batches(holdout: CleanCorpus, config: StarlightTrainConfig) -> li
             clip_fraction=config.clip_fraction,
             generator=generator,
         )
-        return synthesize_batch(clean, generator=generator, absent_probability=config.absent_probability, model="paper")
+        return synthesize_batch(
+            clean, generator=generator, absent_probability=config.absent_probability, noise_model="paper"
+        )
 
     return draw_validation_batches(draw, config.validation_size, config.batch, config.seed)
 
@@ -267,7 +269,7 @@ def _redraw_target(batch: TrainingBatch, generator: torch.Generator, absent_prob
     from darksynth.training.batches import random_noisy_version
 
     noisy, _ = random_noisy_version(
-        batch.dark, generator=generator, absent_probability=absent_probability, model="paper"
+        batch.dark, generator=generator, absent_probability=absent_probability, noise_model="paper"
     )
     return noisy
 
@@ -316,7 +318,7 @@ class _StarlightSteps:
             self.corpus, config.batch, frames, config.crop, clip_fraction=config.clip_fraction, generator=self.generator
         )
         batch = synthesize_batch(
-            clean, generator=self.generator, absent_probability=config.absent_probability, model="paper"
+            clean, generator=self.generator, absent_probability=config.absent_probability, noise_model="paper"
         )
         dark, real = batch.dark.to(self.device), batch.noisy.to(self.device)
         fake = model(dark, self.generator)

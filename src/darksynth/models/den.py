@@ -65,11 +65,11 @@ class DENConfig:
 
 
 def parameter_bounds(
-    device: torch.device | str | None = None, model: NoiseModel = "srgb", log_levels: bool = False
+    device: torch.device | str | None = None, noise_model: NoiseModel = "srgb", log_levels: bool = False
 ) -> tuple[torch.Tensor, torch.Tensor, torch.Tensor]:
     """Low and high ends of every entry of a noise model's v, from the training ranges of the parameter table,
     and which entries are on a log scale (their low end is then the log floor)."""
-    parameters = model_parameters(model)
+    parameters = model_parameters(noise_model)
     logarithmic = [log_levels and p.log_floor is not None for p in parameters for _ in range(p.size)]
     low = [
         p.log_floor if log_levels and p.log_floor else p.training_range[0] for p in parameters for _ in range(p.size)
@@ -82,18 +82,18 @@ def parameter_bounds(
     )
 
 
-def normalise(vector: torch.Tensor, model: NoiseModel = "srgb", log_levels: bool = False) -> torch.Tensor:
+def normalise(vector: torch.Tensor, noise_model: NoiseModel = "srgb", log_levels: bool = False) -> torch.Tensor:
     """v (..., vector_size(model)) -> [0, 1] per entry over its training range; log-scale entries (with
     ``log_levels``) through their logarithm, values below the floor at 0."""
-    low, high, logarithmic = parameter_bounds(vector.device, model, log_levels)
+    low, high, logarithmic = parameter_bounds(vector.device, noise_model, log_levels)
     linear = (vector - low) / (high - low)
     logs = (vector.clamp_min(low).log() - low.log()) / (high.log() - low.log())
     return torch.where(logarithmic, logs, linear)
 
 
-def denormalise(normalised: torch.Tensor, model: NoiseModel = "srgb", log_levels: bool = False) -> torch.Tensor:
+def denormalise(normalised: torch.Tensor, noise_model: NoiseModel = "srgb", log_levels: bool = False) -> torch.Tensor:
     """Inverse of :func:`normalise` (0 on a log scale gives the floor)."""
-    low, high, logarithmic = parameter_bounds(normalised.device, model, log_levels)
+    low, high, logarithmic = parameter_bounds(normalised.device, noise_model, log_levels)
     linear = low + normalised * (high - low)
     # Bounds of the linear entries replaced by 1 inside the log branch: log(0) there would make the unused
     # branch infinite and its gradient NaN (the level loss differentiates through this function).

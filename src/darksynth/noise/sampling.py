@@ -41,7 +41,7 @@ def random_noise_values(
     generator: torch.Generator | None = None,
     device: torch.device | str | None = None,
     dtype: torch.dtype = torch.float32,
-    model: NoiseModel = "srgb",
+    noise_model: NoiseModel = "srgb",
     log_levels: bool = False,
 ) -> NoiseValues:
     """Draw every parameter of a noise model uniformly within its range (the training range where none is
@@ -52,7 +52,7 @@ def random_noise_values(
         Every parameter's values (*batch_shape, size), drawn in the order of the parameter table.
     """
     ranges = ranges or {}
-    drawn = {p.name for p in model_parameters(model)}
+    drawn = {p.name for p in model_parameters(noise_model)}
     values: dict[str, torch.Tensor] = {}
     for p in noise_parameters():
         if p.name not in drawn:

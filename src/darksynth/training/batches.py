@@ -25,7 +25,13 @@ class TrainingBatch:
 
     noisy: torch.Tensor  # (B, T, C, H, W), 8-bit levels / 255, as a real reference arrives
     dark: torch.Tensor  # (B, T, C, H, W), the darkened clean clips
-    vector: torch.Tensor  # (B, vector_size(model)), the true v of the noise model
+    values: NoiseValues  # (B,): the true noise values (those outside the noise model neutral)
+    noise_model: NoiseModel
+
+    @property
+    def vector(self) -> torch.Tensor:
+        """The true v of the noise model, (B, vector_size(noise_model)): the network's target."""
+        return self.values.vector(self.noise_model)
 
 
 def synthesize_batch(
@@ -33,7 +39,7 @@ def synthesize_batch(
     *,
     generator: torch.Generator | None = None,
     absent_probability: float = 0.15,
-    model: NoiseModel = "srgb",
+    noise_model: NoiseModel = "srgb",
     bright_fraction: float = 0.0,
     log_levels: bool = False,
 ) -> TrainingBatch:
@@ -55,9 +61,9 @@ def synthesize_batch(
         alpha, gamma = torch.where(bright, bright_alpha, alpha), torch.where(bright, bright_gamma, gamma)
     dark = darken(clean, alpha, gamma)
     noisy, values = random_noisy_version(
-        dark, generator=generator, absent_probability=absent_probability, model=model, log_levels=log_levels
+        dark, generator=generator, absent_probability=absent_probability, noise_model=noise_model, log_levels=log_levels
     )
-    return TrainingBatch(noisy=noisy, dark=dark, vector=values.vector(model))
+    return TrainingBatch(noisy=noisy, dark=dark, values=values, noise_model=noise_model)
 
 
 def random_noisy_version(
@@ -65,7 +71,7 @@ def random_noisy_version(
     *,
     generator: torch.Generator | None = None,
     absent_probability: float = 0.15,
-    model: NoiseModel = "srgb",
+    noise_model: NoiseModel = "srgb",
     log_levels: bool = False,
 ) -> tuple[torch.Tensor, NoiseValues]:
     """Dark clips (B, T, C, H, W) made noisy with v of a noise model drawn from the training ranges, on
@@ -81,10 +87,10 @@ def random_noisy_version(
     """
     batch = dark.shape[0]
     drawn = random_noise_values(
-        batch_shape=(batch,), generator=generator, device=dark.device, model=model, log_levels=log_levels
+        batch_shape=(batch,), generator=generator, device=dark.device, noise_model=noise_model, log_levels=log_levels
     )
     switched: dict[str, torch.Tensor | float] = {}
-    in_model = {p.name for p in model_parameters(model)}
+    in_model = {p.name for p in model_parameters(noise_model)}
     for component in noise_components():
         if not any(p.name in in_model for p in component.parameters):
             continue

@@ -49,9 +49,11 @@ from darksynth.training.scaffold import (
 from darksynth.training.weights import save_weights
 
 
-def vector_names(model: NoiseModel = "srgb") -> tuple[str, ...]:
+def vector_names(noise_model: NoiseModel = "srgb") -> tuple[str, ...]:
     """A label for every entry of a noise model's v: ``shot``, ..., ``periodic[2]``."""
-    return tuple(p.name if p.size == 1 else f"{p.name}[{i}]" for p in model_parameters(model) for i in range(p.size))
+    return tuple(
+        p.name if p.size == 1 else f"{p.name}[{i}]" for p in model_parameters(noise_model) for i in range(p.size)
+    )
 
 
 @dataclass(frozen=True)
@@ -102,7 +104,7 @@ def training_batch(
         clean,
         generator=generator,
         absent_probability=config.absent_probability if absent_probability is None else absent_probability,
-        model=config.model.noise_model,
+        noise_model=config.model.noise_model,
         bright_fraction=config.bright_fraction,
         log_levels=config.model.log_levels,
     )
@@ -112,11 +114,11 @@ LEVEL_FLOOR = (0.5 / 255) ** 2
 """Variance added to both sides of the level loss: below half an 8-bit step, levels need not be told apart."""
 
 
-def level_loss(predicted: NoiseValues, batch: TrainingBatch, model: NoiseModel, device: torch.device) -> torch.Tensor:
+def level_loss(predicted: NoiseValues, batch: TrainingBatch, device: torch.device) -> torch.Tensor:
     """Mean squared log-ratio of the clips' mean noise variance under the predicted and the true v."""
     dark = batch.dark.to(device)
     estimate = mean_noise_variance(predicted, dark)
-    truth = mean_noise_variance(NoiseValues.from_vector(batch.vector.to(device), model), dark)
+    truth = mean_noise_variance(batch.values.to(device), dark)
     return ((estimate + LEVEL_FLOOR).log() - (truth + LEVEL_FLOOR).log()).square().mean()
 
 
@@ -326,7 +328,7 @@ class _DENSteps:
         output = self.network(batch.noisy.to(device))
         loss = config.lambda_parameters * F.mse_loss(output.normalised, model.normalise(batch.vector.to(device)))
         if config.lambda_level > 0:
-            loss = loss + config.lambda_level * level_loss(output.values, batch, model.noise_model, device)
+            loss = loss + config.lambda_level * level_loss(output.values, batch, device)
         if output.dark is not None and config.lambda_reconstruction > 0:
             loss = loss + config.lambda_reconstruction * F.l1_loss(output.dark, batch.dark.to(device))
         self.optimizer.zero_grad(set_to_none=True)
