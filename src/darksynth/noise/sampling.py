@@ -8,7 +8,7 @@ from collections.abc import Mapping, Sequence
 import torch
 
 from darksynth.darkening import ALPHA_RANGE, GAMMA_RANGE
-from darksynth.noise.components import NoiseModel, model_parameters, noise_parameters
+from darksynth.noise.components import NoiseModel, model_parameters
 from darksynth.noise.values import NoiseValues
 
 Range = tuple[float, float]
@@ -52,12 +52,9 @@ def random_noise_values(
         Every parameter's values (*batch_shape, size), drawn in the order of the parameter table.
     """
     ranges = ranges or {}
-    drawn = {p.name for p in model_parameters(noise_model)}
     values: dict[str, torch.Tensor] = {}
-    for p in noise_parameters():
-        if p.name not in drawn:
-            values[p.name] = torch.full((*batch_shape, p.size), p.neutral, device=device, dtype=dtype)
-        elif log_levels and p.log_floor is not None and p.name not in ranges:
+    for p in model_parameters(noise_model):
+        if log_levels and p.log_floor is not None and p.name not in ranges:
             logs = random_uniform(
                 ((math.log(p.log_floor), math.log(p.training_range[1])),) * p.size,
                 batch_shape,
@@ -74,7 +71,7 @@ def random_noise_values(
                 device=device,
                 dtype=dtype,
             )
-    return NoiseValues(values)
+    return NoiseValues.from_values(values, batch_shape=batch_shape, device=device, dtype=dtype)
 
 
 def random_darkening_values(

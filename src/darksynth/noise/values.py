@@ -80,6 +80,9 @@ class NoiseValues(Mapping[str, torch.Tensor]):
             ValueError: a value with the wrong number of entries.
         """
         parameters = {p.name: p for p in table.noise_parameters()}
+        if device is None:
+            # Neutral values go where the given tensors are (a CUDA batch stays on CUDA).
+            device = next((v.device for v in values.values() if isinstance(v, torch.Tensor)), None)
         unknown = sorted(set(values) - set(parameters))
         if unknown:
             raise KeyError(f"unknown noise parameter {unknown[0]!r}; known: {', '.join(parameters)}")
