@@ -60,9 +60,16 @@ def test_anisotropic_lengths_are_separate() -> None:
     assert abs(lag_correlation(noise, 1, -2)) < 0.03
 
 
-def test_white_noise_of_any_size_and_batch() -> None:
+def test_noise_of_any_size_and_batch_has_unit_variance_up_to_its_borders() -> None:
     noise = correlated_normal((2, 3, 17, 9), torch.Generator().manual_seed(0), 1.2)
     assert noise.shape == (2, 3, 17, 9) and noise.dtype == torch.float32
+    # 600 independent draws of a small odd-sized frame: every pixel, the corners too, has variance 1, and
+    # neighbours are correlated as the kernel says.
+    many = correlated_normal((600, 17, 9), torch.Generator().manual_seed(1), 1.2, dtype=torch.float64)
+    per_pixel = many.var(dim=0)
+    assert float((per_pixel - 1).abs().max()) < 0.25
+    assert abs(float(per_pixel.mean()) - 1) < 0.03
+    assert abs(lag_correlation(many, 1, -1) - kernel_autocorrelation(1.2, 1)) < 0.03
 
 
 @pytest.mark.parametrize("rho", [0.0, 0.3, 0.66])

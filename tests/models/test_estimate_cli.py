@@ -143,9 +143,14 @@ def test_variant_picks_the_shipped_v2_ablation(dark_image: Path) -> None:
 def test_paper_model_gives_white_uncompressed_noise(dark_image: Path) -> None:
     code, stdout, stderr = run_cli("estimate", dark_image, "--model", "paper")
     assert code == 0, stderr
-    noise = json.loads(stdout)["noise"]
+    profile = json.loads(stdout)
+    assert profile["meta"]["noise_model"] == "paper"
+    noise = profile["noise"]
     assert noise["correlation_length"] == 0.0 and noise["compression"] == 0.0
     assert noise["channel_gain"] == [1.0, 1.0]
+    # The paper's network estimates its own eight values (a range each) and nothing of the sRGB structure.
+    assert set(profile["ranges"]) == {"shot", "read", "quantization", "banding", "temporal_banding", "periodic"}
+    assert noise["read"] > 0
 
 
 @pytest.mark.parametrize(
