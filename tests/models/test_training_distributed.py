@@ -21,6 +21,7 @@ import torch.distributed as dist
 from safetensors import safe_open
 from safetensors.torch import load_file
 
+import darksynth
 from darksynth.errors import DarksynthError
 from darksynth.models.den import DEN, DENConfig
 from darksynth.training.corpus import CleanCorpus, load_corpus
@@ -102,7 +103,9 @@ def workdir(corpus_root: Path, tmp_path_factory: pytest.TempPathFactory) -> Path
         pytest.skip("torch.distributed with gloo is not available")
     workdir = tmp_path_factory.mktemp("distributed")
     (workdir / "blocked" / "den.checkpoint.safetensors").mkdir(parents=True)
-    environment = os.environ | {"PYTHONPATH": str(REPOSITORY), "OMP_NUM_THREADS": "1"}
+    # The workers import the same darksynth as this process (a worktree's src/ first, not the installed one).
+    source = Path(darksynth.__file__).resolve().parents[1]
+    environment = os.environ | {"PYTHONPATH": os.pathsep.join((str(source), str(REPOSITORY))), "OMP_NUM_THREADS": "1"}
     for name, options in LAUNCHES.items():
         out = workdir / ("resumed" if name == "resume" else name) / "den.safetensors"
         record = workdir / f"{name}.ranks"
