@@ -285,6 +285,7 @@ def test_the_shipped_weights_load_and_generate() -> None:
 # -- training ----------------------------------------------------------------------------------------------
 
 
+@pytest.mark.slow  # GAN training, three runs
 def test_training_is_deterministic_changes_the_parameters_and_writes_weights_and_summary(
     corpus: CleanCorpus, tmp_path: Path
 ) -> None:
@@ -323,6 +324,7 @@ def test_training_is_deterministic_changes_the_parameters_and_writes_weights_and
     assert 2 * pause - 0.05 <= summary["training_seconds"] <= elapsed + 0.05
 
 
+@pytest.mark.slow  # GAN training, 30 steps
 def test_statistics_matching_alone_moves_the_read_noise_towards_the_target(corpus: CleanCorpus) -> None:
     """With the adversarial term off, the physics follow the statistics: read noise grows from its small start."""
     config = TINY_TRAINING.__class__(

@@ -144,6 +144,7 @@ def test_reports_state_the_headline_plainly(make_pair_set: MakeSet, tmp_path: Pa
     assert verdict in (out / "report.html").read_text()
 
 
+@pytest.mark.slow  # every method on every pair, shipped networks included (~5-9 s)
 def test_reports_check_den_against_every_blind_method_the_oracle_and_the_paper_model(
     make_pair_set: MakeSet, tmp_path: Path
 ) -> None:

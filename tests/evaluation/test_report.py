@@ -456,6 +456,7 @@ def chromium(tmp_path: Path, *arguments: str) -> str:
     return done.stdout
 
 
+@pytest.mark.slow  # headless Chromium
 @needs_chromium
 def test_chromium_renders_every_image_and_section(report: Path, tmp_path: Path) -> None:
     dom = parse(chromium(tmp_path, "--dump-dom", report.as_uri()))
@@ -472,6 +473,7 @@ def test_chromium_renders_every_image_and_section(report: Path, tmp_path: Path) 
         assert len(section.find_all("figure", class_="crop")) == 2 + len(methods)
 
 
+@pytest.mark.slow  # headless Chromium
 @needs_chromium
 def test_chromium_screenshot_is_not_blank(report: Path, tmp_path: Path) -> None:
     shot = tmp_path / "report.png"
