@@ -2,8 +2,11 @@
 
 from __future__ import annotations
 
+import errno
 import json
+import os
 from pathlib import Path
+from typing import Any
 
 import av
 import pytest
@@ -86,15 +89,27 @@ def test_output_under_a_file_is_one_line_before_any_work(
     assert "cannot write the output folder" in line and str(blocker) in line
 
 
-@pytest.mark.skipif(not hasattr(__import__("os"), "geteuid") or __import__("os").geteuid() == 0, reason="root")
-def test_read_only_output_folder(folder_dataset: Path, profile_path: Path, tmp_path: Path) -> None:
+def test_read_only_output_folder(
+    folder_dataset: Path, profile_path: Path, tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
     locked = tmp_path / "locked"
     locked.mkdir(mode=0o500)
+    real_mkdir = Path.mkdir
+
+    def refusing_mkdir(self: Path, *args: Any, **kwargs: Any) -> None:
+        # Root (as on CI) ignores the mode bits: refuse as the kernel does for everyone else.
+        if self.is_relative_to(locked):
+            raise PermissionError(errno.EACCES, os.strerror(errno.EACCES), str(self))
+        real_mkdir(self, *args, **kwargs)
+
+    monkeypatch.setattr(Path, "mkdir", refusing_mkdir)
     try:
         code, err = _convert(folder_dataset, locked / "out", profile_path, "folder")
     finally:
         locked.chmod(0o700)
-    assert code == 1 and "cannot write the output folder" in err
+    assert code == 1
+    (line,) = _error_lines(err)
+    assert "cannot write the output folder" in line and str(locked / "out") in line
 
 
 def test_video_failing_half_way_leaves_no_file(
