@@ -17,17 +17,17 @@ TESTS = Path(__file__).resolve().parent
 
 HEAVY_TESTS: dict[str, tuple[str, ...]] = {
     "torchrun": (
-        "models/test_training_distributed.py::test_rank_0_writes_the_files_once_and_both_ranks_hold_the_same_network",
-        "models/test_training_distributed.py::test_resumed_two_process_run_equals_an_uninterrupted_one",
-        "models/test_training_distributed.py::test_a_failure_on_rank_0_stops_the_other_rank_too",
+        "training/test_distributed.py::test_rank_0_writes_the_files_once_and_both_ranks_hold_the_same_network",
+        "training/test_distributed.py::test_resumed_two_process_run_equals_an_uninterrupted_one",
+        "training/test_distributed.py::test_a_failure_on_rank_0_stops_the_other_rank_too",
     ),
     "Ray": (
         "datasets/test_ray_convert.py::test_ray_conversion_equals_a_local_one_and_resumes",
         "datasets/test_ray_convert.py::test_cli_ray_flag_converts_and_refuses_local_scheduling_options",
     ),
     "torch.compile": (
-        "core/test_core_kernel8.py::test_compiled_kernel_is_bit_identical_to_eager",
-        "cli/test_cli_apply.py::test_compiled_and_eager_runs_write_the_same_bytes",
+        "noise/test_kernel8.py::test_compiled_kernel_is_bit_identical_to_eager",
+        "test_apply_cli.py::test_compiled_and_eager_runs_write_the_same_bytes",
     ),
     "GAN training": (
         "baselines/test_starlight.py::test_training_is_deterministic_changes_the_parameters_and_writes_weights_and_summary",

@@ -14,7 +14,7 @@ import pytest
 from darksynth.datasets import MANIFEST_NAME, ConvertOptions, convert_dataset
 from darksynth.errors import DarksynthError
 from darksynth.profile import load_profile
-from tests.cli.conftest import run_cli
+from tests.command_line import run_cli
 from tests.datasets.conftest import write_image, write_video
 
 

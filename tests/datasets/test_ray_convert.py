@@ -10,7 +10,7 @@ import pytest
 from darksynth.datasets import ConvertOptions, convert_dataset
 from darksynth.datasets.ray_convert import convert_dataset_with_ray
 from darksynth.profile import load_profile
-from tests.cli.conftest import run_cli
+from tests.command_line import run_cli
 from tests.datasets.conftest import tree_bytes, write_image
 
 ray = pytest.importorskip("ray", reason="the Ray path is an optional extra: pip install 'darksynth[ray]'")

@@ -8,20 +8,12 @@ from pathlib import Path
 import numpy as np
 import pytest
 from PIL import Image
-from typer.testing import CliRunner
 
-from darksynth.cli import app
 from darksynth.errors import DarksynthError
 from darksynth.evaluation.job import EvaluationOptions, rank_by_kld, run_evaluation
 from darksynth.evaluation.runner import evaluate_pairs
+from tests.command_line import run_cli
 from tests.evaluation.conftest import MakeSet
-
-
-def run_cli(*args: str | Path) -> tuple[int, str, str]:
-    result = CliRunner().invoke(app, [str(a) for a in args])
-    if result.exception is not None and not isinstance(result.exception, SystemExit):
-        raise result.exception
-    return result.exit_code, result.stdout, result.stderr
 
 
 def test_results_have_the_documented_shape_and_rank_methods_sensibly(make_pair_set: MakeSet) -> None:

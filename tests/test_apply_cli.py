@@ -14,7 +14,7 @@ import pytest
 from PIL import Image
 
 from darksynth.io.video import VideoWriter, iter_video_frames, probe_video
-from tests.cli.conftest import run_cli
+from tests.command_line import run_cli
 
 
 def _pixels(path: Path) -> np.ndarray:

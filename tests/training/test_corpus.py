@@ -10,7 +10,7 @@ import torch
 
 from darksynth.errors import DarksynthError
 from darksynth.training.corpus import CleanCorpus, load_corpus, sample_clean_clips
-from tests.models.conftest import smooth_rgb, write_png
+from tests.clean_images import smooth_rgb, write_png
 
 
 def test_stills_and_clip_folders_are_read(image_folder: Path, clip_root: Path) -> None:

@@ -16,7 +16,7 @@ from darksynth.noise.values import NoiseValues
 from darksynth.training.corpus import CleanCorpus, load_corpus
 from darksynth.training.loop import TrainConfig, level_loss, r_squared, train, training_batch, vector_names
 from darksynth.training.weights import load_weights
-from tests.models.conftest import write_tiny_corpus
+from tests.clean_images import write_tiny_corpus
 
 CONFIG = TrainConfig(
     model=DENConfig(width=4, depth=1),

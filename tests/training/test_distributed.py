@@ -90,7 +90,7 @@ def _load(root: Path) -> CleanCorpus:
 
 @pytest.fixture(scope="module")
 def corpus_root(tmp_path_factory: pytest.TempPathFactory) -> Path:
-    from tests.models.conftest import write_tiny_corpus
+    from tests.clean_images import write_tiny_corpus
 
     return write_tiny_corpus(tmp_path_factory.mktemp("corpus"))
 

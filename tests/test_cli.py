@@ -27,7 +27,7 @@ from darksynth.models.den import DENConfig
 from darksynth.profile import load_profile
 from darksynth.training.loop import TrainConfig
 from darksynth.training.weights import DENChoice, default_weights_path
-from tests.cli.conftest import run_cli
+from tests.command_line import run_cli
 
 
 def _flag_defaults(command: str) -> dict[str, Any]:

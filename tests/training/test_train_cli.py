@@ -5,22 +5,12 @@ from __future__ import annotations
 import json
 from pathlib import Path
 
-from typer.testing import CliRunner
-
-from darksynth.cli import app
 from darksynth.models.den import DENConfig
 from darksynth.training.loop import vector_names
 from darksynth.training.weights import load_weights
+from tests.command_line import run_cli
 
 TINY_FLAGS = ["--steps", "2", "--batch", "2", "--frames", "2", "--crop", "32", "--width", "4", "--depth", "1"]
-
-
-def run_cli(*args: str | Path) -> tuple[int, str, str]:
-    """Invoke the CLI in-process; returns (exit code, stdout, stderr)."""
-    result = CliRunner().invoke(app, [str(a) for a in args])
-    if result.exception is not None and not isinstance(result.exception, SystemExit):
-        raise result.exception
-    return result.exit_code, result.stdout, result.stderr
 
 
 def test_train_on_a_folder_writes_weights_summary_and_checkpoint(image_folder: Path, tmp_path: Path) -> None:

@@ -18,7 +18,7 @@ from darksynth.noise.components import noise_parameter, noise_parameters
 from darksynth.noise.values import NoiseValues
 from darksynth.synthesize import ClipParameters, ClipSynthesizer
 from darksynth.training.weights import default_weights_path, load_weights
-from tests.models.test_estimate_roundtrip import _clean_scene
+from tests.test_estimate_roundtrip import _clean_scene
 
 
 def _reference(noise: dict[str, tuple[float, ...]], frames: int, seed: int) -> torch.Tensor:

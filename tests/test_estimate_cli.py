@@ -8,21 +8,12 @@ from pathlib import Path
 
 import pytest
 from safetensors.torch import save_file
-from typer.testing import CliRunner
 
-from darksynth.cli import app
 from darksynth.models.den import DEN, DENConfig
 from darksynth.profile import load_profile, parse_profile
 from darksynth.training.weights import save_weights
-from tests.models.conftest import smooth_rgb, write_png
-
-
-def run_cli(*args: str | Path) -> tuple[int, str, str]:
-    """Invoke the CLI in-process; returns (exit code, stdout, stderr)."""
-    result = CliRunner().invoke(app, [str(a) for a in args])
-    if result.exception is not None and not isinstance(result.exception, SystemExit):
-        raise result.exception
-    return result.exit_code, result.stdout, result.stderr
+from tests.clean_images import smooth_rgb, write_png
+from tests.command_line import run_cli
 
 
 @pytest.fixture

@@ -13,7 +13,7 @@ from PIL import Image
 from darksynth.errors import DarksynthError
 from darksynth.estimate import MAX_FRAMES, MIN_SIDE, crop_grid, load_reference
 from darksynth.io.video import VideoWriter
-from tests.models.conftest import smooth_rgb, write_png
+from tests.clean_images import smooth_rgb, write_png
 
 
 def test_image_becomes_one_frame_of_its_pixels(tmp_path: Path) -> None:
