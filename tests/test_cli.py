@@ -22,7 +22,8 @@ from darksynth.cli import app
 from darksynth.datasets import ConversionReport, ConvertOptions, Shard
 from darksynth.errors import DarksynthError
 from darksynth.estimate import EstimateOptions
-from darksynth.evaluation.job import EvaluationOptions, EvaluationRun
+from darksynth.evaluation.job import EvaluationRun
+from darksynth.evaluation.options import EvaluationOptions
 from darksynth.models.den import DENConfig
 from darksynth.profile import load_profile
 from darksynth.training.loop import TrainConfig

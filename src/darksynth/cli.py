@@ -21,7 +21,7 @@ from darksynth.darkening import Darkening
 from darksynth.datasets import FORMATS, ConversionReport, ConvertOptions, DatasetFormat, Shard
 from darksynth.errors import DarksynthError
 from darksynth.estimate import EstimateOptions
-from darksynth.evaluation.job import EvaluationOptions
+from darksynth.evaluation.options import EvaluationOptions
 from darksynth.models.den import DENConfig, Variant
 from darksynth.noise.components import NOISE_MODELS, NoiseModel
 from darksynth.profile import load_profile

@@ -10,7 +10,8 @@ import pytest
 from PIL import Image
 
 from darksynth.errors import DarksynthError
-from darksynth.evaluation.job import EvaluationOptions, rank_by_kld, run_evaluation
+from darksynth.evaluation.job import rank_by_kld, run_evaluation
+from darksynth.evaluation.options import EvaluationOptions
 from darksynth.evaluation.runner import evaluate_pairs
 from tests.command_line import run_cli
 from tests.evaluation.conftest import MakeSet

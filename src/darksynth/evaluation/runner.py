@@ -18,7 +18,6 @@ import numpy as np
 import torch
 
 from darksynth.errors import DarksynthError
-from darksynth.evaluation.job import EvaluationOptions
 from darksynth.evaluation.methods import NoiseMethod, build_methods
 from darksynth.evaluation.metrics import (
     frechet_distance,
@@ -27,6 +26,7 @@ from darksynth.evaluation.metrics import (
     kl_divergence_srgb,
     mean_and_interval,
 )
+from darksynth.evaluation.options import EvaluationOptions
 from darksynth.evaluation.pairs import LoadedPair, PairSet, list_pair_sets, load_pair
 from darksynth.evaluation.report import ReportExample
 from darksynth.seeding import derive_seed, seeded_generator

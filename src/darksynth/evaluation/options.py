@@ -1,0 +1,53 @@
+"""The options of an evaluation run (``darksynth evaluate``), shared by the job and the per-pair runner."""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Final
+
+from darksynth.errors import DarksynthError
+from darksynth.evaluation.downstream import DownstreamSettings
+from darksynth.evaluation.methods import DEFAULT_METHODS
+
+_DOWNSTREAM_DEFAULTS: Final = DownstreamSettings()
+
+
+@dataclass(frozen=True)
+class EvaluationOptions:
+    """What to evaluate and how; the defaults are those of ``darksynth evaluate``.
+
+    Attributes:
+        methods: the methods to compare, by name (see :mod:`darksynth.evaluation.methods`).
+        seed: seed of the synthetic noise (each pair and method draws from a seed derived from it).
+        device: torch device of the methods and of the Inception network.
+        weights: weights files by DEN method name, instead of the shipped ones.
+        inception: compute FID and KID (InceptionV3 features of noise maps).
+        downstream: folders of clean training images for the downstream check; none: no check.
+        downstream_steps: training steps of each downstream denoiser.
+        fid_crops: noise-map tiles per set and per source (real or a method) for FID/KID, spread evenly over
+            the pairs.
+        examples_per_set: pairs per set shown in the report.
+        example_crop: side of the crops the report shows.
+        command: the command that asked for the run, stated in the results.
+
+    Raises:
+        DarksynthError: ``downstream_steps`` below 1.
+    """
+
+    methods: Sequence[str] = DEFAULT_METHODS
+    seed: int = 0
+    device: str = "cpu"
+    weights: dict[str, Path] = field(default_factory=dict)
+    inception: bool = True
+    downstream: tuple[Path, ...] = ()
+    downstream_steps: int = _DOWNSTREAM_DEFAULTS.steps
+    fid_crops: int = 64
+    examples_per_set: int = 2
+    example_crop: int = 128
+    command: str = ""
+
+    def __post_init__(self) -> None:
+        if self.downstream_steps < 1:
+            raise DarksynthError(f"--downstream-steps must be at least 1, got {self.downstream_steps}")
