@@ -3,8 +3,6 @@
 from __future__ import annotations
 
 import json
-import subprocess
-import sys
 from collections.abc import Callable
 from fractions import Fraction
 from pathlib import Path
@@ -269,19 +267,6 @@ def test_nan_profile(rgb_image: Path, tmp_path: Path) -> None:
     )
     code, _, err = run_cli("apply", rgb_image, tmp_path / "o.png", "-p", path)
     _assert_one_line_error(code, err, "noise.shot", "nan.json")
-
-
-def test_console_script_exit_code_and_single_line(tmp_path: Path, profile_file: Path) -> None:
-    """The installed entry point, not only the in-process runner: real exit status and stderr."""
-    missing = tmp_path / "missing.png"
-    completed = subprocess.run(
-        [sys.executable, "-m", "darksynth", "apply", str(missing), str(tmp_path / "o.png"), "-p", str(profile_file)],
-        capture_output=True,
-        text=True,
-        check=False,
-    )
-    assert completed.returncode == 1
-    assert completed.stderr.strip().splitlines() == [f"darksynth: error: {missing}: no such file or folder"]
 
 
 @pytest.mark.slow

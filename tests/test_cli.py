@@ -1,8 +1,11 @@
-"""Each command builds its job's options once, with the library's defaults: no flag, the options' default."""
+"""cli.py: each command builds its job's options once, with the library's defaults (no flag, the options'
+default); the installed entry point exits with a real status and one error line."""
 
 from __future__ import annotations
 
 import dataclasses
+import subprocess
+import sys
 from pathlib import Path
 from types import SimpleNamespace
 from typing import Any
@@ -230,3 +233,16 @@ def test_bad_downstream_steps_is_one_error_line(tmp_path: Path) -> None:
     code, _, err = run_cli("evaluate", "--pairs", tmp_path, "--out", tmp_path / "out", "--downstream-steps", "0")
     assert code == 1
     assert err.strip() == "darksynth: error: --downstream-steps must be at least 1, got 0"
+
+
+def test_console_script_exit_code_and_single_line(tmp_path: Path, profile_file: Path) -> None:
+    """The installed entry point, not only the in-process runner: real exit status and stderr."""
+    missing = tmp_path / "missing.png"
+    completed = subprocess.run(
+        [sys.executable, "-m", "darksynth", "apply", str(missing), str(tmp_path / "o.png"), "-p", str(profile_file)],
+        capture_output=True,
+        text=True,
+        check=False,
+    )
+    assert completed.returncode == 1
+    assert completed.stderr.strip().splitlines() == [f"darksynth: error: {missing}: no such file or folder"]

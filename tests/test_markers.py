@@ -30,8 +30,8 @@ HEAVY_TESTS: dict[str, tuple[str, ...]] = {
         "test_apply_cli.py::test_compiled_and_eager_runs_write_the_same_bytes",
     ),
     "GAN training": (
-        "baselines/test_starlight.py::test_training_is_deterministic_changes_the_parameters_and_writes_weights_and_summary",
-        "baselines/test_starlight.py::test_statistics_matching_alone_moves_the_read_noise_towards_the_target",
+        "baselines/test_starlight_training.py::test_training_is_deterministic_changes_the_parameters_and_writes_weights_and_summary",
+        "baselines/test_starlight_training.py::test_statistics_matching_alone_moves_the_read_noise_towards_the_target",
     ),
     "Chromium": (
         "evaluation/test_report.py::test_chromium_renders_every_image_and_section",

@@ -1,4 +1,5 @@
-"""ClipSynthesizer: frame-by-frame streaming with components held over the clip."""
+"""synthesize() and ClipSynthesizer: per-clip parameter draws from a profile, zero noise, reproducibility, and
+frame-by-frame streaming with components held over the clip."""
 
 from __future__ import annotations
 
@@ -9,10 +10,12 @@ import pytest
 import torch
 
 import darksynth
-from darksynth.darkening import Darkening
+from darksynth.darkening import ALPHA_RANGE, GAMMA_RANGE, Darkening, darken
 from darksynth.noise.values import NoiseValues
 from darksynth.profile import default_profile_path, load_profile
 from darksynth.synthesize import ClipParameters, ClipSynthesizer, draw_clip_parameters
+from tests.conftest import ProfileFactory
+from tests.noise.test_simulate import ALL_ON, ALPHA, GAMMA, _ramp_clip
 
 
 def _parameters(darkening: Darkening | None = None, **nonzero: float) -> ClipParameters:
@@ -108,3 +111,142 @@ def test_non_frame_input_is_rejected() -> None:
     synthesizer = ClipSynthesizer(_parameters())
     with pytest.raises(ValueError, match=r"\(C, H, W\)"):
         synthesizer(torch.zeros(1, 3, 8, 8))
+
+
+def test_fixed_profile_values_are_reproduced_exactly() -> None:
+    profile = load_profile(default_profile_path())
+    generator = torch.Generator().manual_seed(3)
+    state = generator.get_state()
+    parameters = draw_clip_parameters(profile, generator=generator)
+    assert parameters.noise == profile.noise
+    assert parameters.darkening == profile.darkening
+    # Nothing was drawn, so the generator is untouched.
+    assert torch.equal(generator.get_state(), state)
+
+
+def test_darkening_none_gives_no_darkening_and_an_explicit_one_is_kept() -> None:
+    profile = load_profile(default_profile_path())
+    assert draw_clip_parameters(profile, darkening=None).darkening is None
+    assert draw_clip_parameters(profile, darkening=Darkening(0.5, 2.0)).darkening == Darkening(0.5, 2.0)
+    record = darksynth.synthesize(torch.full((3, 8, 8), 0.5), profile, darkening=None).parameters
+    assert isinstance(record, dict) and record["darkening"] is None
+
+
+def test_ranges_are_sampled_inside_and_cover_them(make_profile: ProfileFactory) -> None:
+    ranges = {
+        "shot": [(0.02, 0.08)],
+        "periodic": [(0.0, 0.01), (0.005, 0.02), (0.01, 0.03)],
+        "alpha": [(0.1, 0.25)],
+        "gamma": [(0.3, 0.9)],
+    }
+    profile = make_profile(darkening=Darkening(0.2, 0.7), ranges=ranges, shot=0.05, read=0.01)
+    generator = torch.Generator().manual_seed(4)
+    draws = [draw_clip_parameters(profile, generator=generator) for _ in range(1000)]
+    samples: dict[str, list[tuple[float, ...]]] = {
+        "shot": [tuple(d.noise["shot"].tolist()) for d in draws],
+        "periodic": [tuple(d.noise["periodic"].tolist()) for d in draws],
+        "alpha": [(d.darkening.alpha,) for d in draws if d.darkening],
+        "gamma": [(d.darkening.gamma,) for d in draws if d.darkening],
+    }
+    for name, pairs in ranges.items():
+        columns = list(zip(*samples[name], strict=True))
+        assert len(columns) == len(pairs) and len(columns[0]) == 1000
+        for column, (low, high) in zip(columns, pairs, strict=True):
+            assert all(low <= v <= high for v in column), name
+            # 1000 uniform draws miss 1% of the width at an end with probability 0.99^1000 ~ 4e-5.
+            assert min(column) - low < 0.01 * (high - low)
+            assert high - max(column) < 0.01 * (high - low)
+    # Parameters without a range keep the profile's value in every draw.
+    assert all(d.noise["read"].tolist() == [0.01] for d in draws)
+    assert all(d.noise["banding"].tolist() == [0.0] for d in draws)
+    # Successive clips get independent draws.
+    shots = torch.tensor([s[0] for s in samples["shot"]], dtype=torch.float64)
+    assert abs(torch.corrcoef(torch.stack([shots[:-1], shots[1:]]))[0, 1].item()) < 5.0 / math.sqrt(999)
+
+
+def test_profile_without_darkening_draws_from_the_papers_ranges(make_profile: ProfileFactory) -> None:
+    profile = make_profile()
+    generator = torch.Generator().manual_seed(5)
+    draws = [draw_clip_parameters(profile, generator=generator).darkening for _ in range(500)]
+    assert all(d is not None for d in draws)
+    alphas = [d.alpha for d in draws if d]
+    gammas = [d.gamma for d in draws if d]
+    assert ALPHA_RANGE[0] <= min(alphas) and max(alphas) <= ALPHA_RANGE[1]
+    assert GAMMA_RANGE[0] <= min(gammas) and max(gammas) <= GAMMA_RANGE[1]
+    assert len(set(alphas)) == 500
+
+
+def test_synthesize_records_and_uses_the_drawn_values(make_profile: ProfileFactory) -> None:
+    profile = make_profile(ranges={"shot": [(0.02, 0.06)]}, shot=0.04)
+    clean = torch.full((2, 1, 3, 128, 128), 0.5)
+    result = darksynth.synthesize(clean, profile, darkening=None, generator=torch.Generator().manual_seed(6))
+    assert isinstance(result.parameters, list) and len(result.parameters) == 2
+
+    generator = torch.Generator().manual_seed(6)
+    expected_first = draw_clip_parameters(profile, darkening=None, generator=generator)
+    assert result.parameters[0] == expected_first.to_json()
+
+    assert isinstance(result.image, torch.Tensor)
+    n = result.image[0].numel()
+    shots = [record["noise"]["shot"] for record in result.parameters]
+    assert shots[0] != shots[1]
+    for clip, shot in enumerate(shots):
+        assert 0.02 <= shot <= 0.06
+        # The recorded shot is the one applied: the output variance is shot^2 * 0.5 within 5 standard errors
+        # (no clipping: the std is at most 0.042, 12 of them from either bound).
+        expected = shot**2 * 0.5
+        assert abs(result.image[clip].var().item() - expected) < 5.0 * expected * math.sqrt(2.0 / (n - 1))
+
+
+def test_fixed_gamma_is_kept_exactly_when_only_alpha_has_a_range(make_profile: ProfileFactory) -> None:
+    profile = make_profile(darkening=Darkening(0.2, 0.7), ranges={"alpha": [(0.1, 0.3)]})
+    parameters = draw_clip_parameters(profile, generator=torch.Generator().manual_seed(7))
+    assert parameters.darkening is not None
+    assert parameters.darkening.gamma == 0.7
+
+
+def test_synthesize_zero_noise_float_input_is_exactly_the_darkened_input(make_profile: ProfileFactory) -> None:
+    profile = make_profile(darkening=Darkening(ALPHA, GAMMA))
+    clean = _ramp_clip()[0]
+    result = darksynth.synthesize(clean, profile, generator=torch.Generator().manual_seed(6))
+    assert result.image.dtype == torch.float32
+    assert torch.equal(result.image, darken(clean, ALPHA, GAMMA))
+
+
+def test_synthesize_zero_noise_uint8_input_is_the_rounded_darkened_input(make_profile: ProfileFactory) -> None:
+    profile = make_profile(darkening=Darkening(ALPHA, GAMMA))
+    clean = torch.arange(256, dtype=torch.uint8).reshape(1, 16, 16).expand(3, 16, 16).contiguous()
+    result = darksynth.synthesize(clean, profile, generator=torch.Generator().manual_seed(7))
+    assert result.image.dtype == torch.uint8
+    reference = np.rint(ALPHA * np.power(np.arange(256) / 255.0, 1.0 / GAMMA) * 255.0).astype(np.uint8)
+    assert torch.equal(result.image, torch.from_numpy(reference).reshape(1, 16, 16).expand(3, 16, 16))
+
+
+def test_synthesize_zero_noise_clip_batch_float(make_profile: ProfileFactory) -> None:
+    profile = make_profile(darkening=Darkening(ALPHA, GAMMA))
+    clips = torch.rand(2, 3, 3, 8, 8, generator=torch.Generator().manual_seed(8))
+    result = darksynth.synthesize(clips, profile, generator=torch.Generator().manual_seed(8))
+    assert torch.equal(result.image, darken(clips, ALPHA, GAMMA))
+    assert isinstance(result.parameters, list) and len(result.parameters) == 2
+
+
+def test_clip_synthesizer_zero_noise_gives_the_darkened_frame() -> None:
+    parameters = ClipParameters(noise=NoiseValues.neutral(), darkening=Darkening(ALPHA, GAMMA))
+    synthesizer = ClipSynthesizer(parameters, generator=torch.Generator().manual_seed(9))
+    frame = _ramp_clip()[0]
+    for _ in range(3):
+        assert torch.equal(synthesizer(frame), darken(frame, ALPHA, GAMMA))
+    frame8 = (frame * 255).round().to(torch.uint8)
+    reference = np.rint(ALPHA * np.power(frame8.double().numpy() / 255.0, 1.0 / GAMMA) * 255.0)
+    assert torch.equal(synthesizer(frame8), torch.from_numpy(reference.astype(np.uint8)))
+
+
+def test_synthesize_with_noise_is_reproducible_and_seed_dependent(make_profile: ProfileFactory) -> None:
+    profile = make_profile(darkening=Darkening(ALPHA, GAMMA), **ALL_ON)
+    clean = torch.randint(0, 256, (3, 32, 48), dtype=torch.uint8, generator=torch.Generator().manual_seed(10))
+    for image in (clean, clean.float() / 255):
+        a = darksynth.synthesize(image, profile, generator=torch.Generator().manual_seed(11)).image
+        b = darksynth.synthesize(image, profile, generator=torch.Generator().manual_seed(11)).image
+        c = darksynth.synthesize(image, profile, generator=torch.Generator().manual_seed(12)).image
+        assert torch.equal(a, b)
+        assert not torch.equal(a, c)

@@ -15,10 +15,8 @@ from darksynth.darkening import Darkening
 from darksynth.noise.components import model_parameters
 from darksynth.noise.kernel8 import compiled_pixel_kernel, pixel_kernel_8bit
 from darksynth.noise.values import NoiseValues
-from darksynth.profile import Profile, default_profile_path, load_profile
+from darksynth.profile import default_profile_path, load_profile
 from darksynth.synthesize import ClipParameters, ClipSynthesizer, draw_clip_parameters
-
-ProfileFactory = Callable[..., Profile]
 
 
 def _per_level_moments(clean: torch.Tensor, noisy: torch.Tensor) -> tuple[torch.Tensor, torch.Tensor]:

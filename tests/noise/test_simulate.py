@@ -1,24 +1,17 @@
-"""The composer f(v): noise_sum / add_noise, and zero noise through synthesize and ClipSynthesizer."""
+"""The composer f(v): noise_sum / add_noise."""
 
 from __future__ import annotations
 
-from collections.abc import Callable
-
-import numpy as np
 import torch
 
-import darksynth
-from darksynth.darkening import Darkening, darken
+from darksynth.darkening import darken
 from darksynth.noise.banding import banding_noise, temporal_banding_noise
 from darksynth.noise.heteroscedastic import heteroscedastic_noise
 from darksynth.noise.periodic import periodic_noise
 from darksynth.noise.quantization import quantization_noise
 from darksynth.noise.simulate import add_noise, noise_sum
 from darksynth.noise.values import NoiseValues
-from darksynth.profile import Profile
-from darksynth.synthesize import ClipParameters, ClipSynthesizer
 
-ProfileFactory = Callable[..., Profile]
 ALPHA, GAMMA = 0.2, 0.7
 ALL_ON = {
     "shot": 0.06,
@@ -90,50 +83,3 @@ def test_same_seed_same_output_different_seed_different_output() -> None:
     assert not torch.equal(a, c)
     # Different seeds differ at almost every pixel, not just somewhere.
     assert (a != c).float().mean().item() > 0.9
-
-
-def test_synthesize_zero_noise_float_input_is_exactly_the_darkened_input(make_profile: ProfileFactory) -> None:
-    profile = make_profile(darkening=Darkening(ALPHA, GAMMA))
-    clean = _ramp_clip()[0]
-    result = darksynth.synthesize(clean, profile, generator=torch.Generator().manual_seed(6))
-    assert result.image.dtype == torch.float32
-    assert torch.equal(result.image, darken(clean, ALPHA, GAMMA))
-
-
-def test_synthesize_zero_noise_uint8_input_is_the_rounded_darkened_input(make_profile: ProfileFactory) -> None:
-    profile = make_profile(darkening=Darkening(ALPHA, GAMMA))
-    clean = torch.arange(256, dtype=torch.uint8).reshape(1, 16, 16).expand(3, 16, 16).contiguous()
-    result = darksynth.synthesize(clean, profile, generator=torch.Generator().manual_seed(7))
-    assert result.image.dtype == torch.uint8
-    reference = np.rint(ALPHA * np.power(np.arange(256) / 255.0, 1.0 / GAMMA) * 255.0).astype(np.uint8)
-    assert torch.equal(result.image, torch.from_numpy(reference).reshape(1, 16, 16).expand(3, 16, 16))
-
-
-def test_synthesize_zero_noise_clip_batch_float(make_profile: ProfileFactory) -> None:
-    profile = make_profile(darkening=Darkening(ALPHA, GAMMA))
-    clips = torch.rand(2, 3, 3, 8, 8, generator=torch.Generator().manual_seed(8))
-    result = darksynth.synthesize(clips, profile, generator=torch.Generator().manual_seed(8))
-    assert torch.equal(result.image, darken(clips, ALPHA, GAMMA))
-    assert isinstance(result.parameters, list) and len(result.parameters) == 2
-
-
-def test_clip_synthesizer_zero_noise_gives_the_darkened_frame() -> None:
-    parameters = ClipParameters(noise=NoiseValues.neutral(), darkening=Darkening(ALPHA, GAMMA))
-    synthesizer = ClipSynthesizer(parameters, generator=torch.Generator().manual_seed(9))
-    frame = _ramp_clip()[0]
-    for _ in range(3):
-        assert torch.equal(synthesizer(frame), darken(frame, ALPHA, GAMMA))
-    frame8 = (frame * 255).round().to(torch.uint8)
-    reference = np.rint(ALPHA * np.power(frame8.double().numpy() / 255.0, 1.0 / GAMMA) * 255.0)
-    assert torch.equal(synthesizer(frame8), torch.from_numpy(reference.astype(np.uint8)))
-
-
-def test_synthesize_with_noise_is_reproducible_and_seed_dependent(make_profile: ProfileFactory) -> None:
-    profile = make_profile(darkening=Darkening(ALPHA, GAMMA), **ALL_ON)
-    clean = torch.randint(0, 256, (3, 32, 48), dtype=torch.uint8, generator=torch.Generator().manual_seed(10))
-    for image in (clean, clean.float() / 255):
-        a = darksynth.synthesize(image, profile, generator=torch.Generator().manual_seed(11)).image
-        b = darksynth.synthesize(image, profile, generator=torch.Generator().manual_seed(11)).image
-        c = darksynth.synthesize(image, profile, generator=torch.Generator().manual_seed(12)).image
-        assert torch.equal(a, b)
-        assert not torch.equal(a, c)

@@ -8,12 +8,12 @@ import pytest
 import torch
 
 from darksynth.noise.components import (
-    model_parameters,
     noise_components,
     noise_parameter_names,
     noise_parameters,
     vector_size,
 )
+from darksynth.noise.sampling import random_noise_values
 from darksynth.noise.values import NoiseValues
 
 
@@ -43,17 +43,6 @@ def test_json_view_keeps_profile_numbers_exactly() -> None:
         NoiseValues.neutral((2,)).to_json()
 
 
-def test_vector_view_round_trips_and_fills_what_a_model_lacks() -> None:
-    vector = torch.rand(4, vector_size("paper"), generator=torch.Generator().manual_seed(0))
-    values = NoiseValues.from_vector(vector, "paper")
-    assert values.batch_shape == (4,) and values.dtype == vector.dtype
-    assert torch.equal(values.vector("paper"), vector)
-    assert values.vector("srgb").shape == (4, vector_size("srgb"))
-    assert torch.equal(values["compression"], torch.zeros(4, 1))
-    names = [p.name for p in model_parameters("paper")]
-    assert names[:2] == ["shot", "read"] and torch.equal(values["shot"][:, 0], vector[:, 0])
-
-
 def test_batches_stack_select_and_compare() -> None:
     a = NoiseValues.from_values({"read": 0.01})
     b = NoiseValues.from_values({"read": 0.02})
@@ -79,3 +68,42 @@ def test_activity_follows_amplitudes_and_shapes() -> None:
     assert not NoiseValues.neutral().is_active(component)
     # Shape parameters alone draw nothing.
     assert not NoiseValues.from_values({"correlation_length": 1.0}).is_active(component)
+
+
+def test_vector_view_keeps_batch_shape_and_dtype_and_widens_to_the_srgb_model() -> None:
+    vector = torch.rand(4, vector_size("paper"), generator=torch.Generator().manual_seed(0))
+    values = NoiseValues.from_vector(vector, "paper")
+    assert values.batch_shape == (4,) and values.dtype == vector.dtype
+    assert values.vector("srgb").shape == (4, vector_size("srgb"))
+
+
+def test_vector_round_trip_with_batch_dimensions() -> None:
+    vector = torch.rand(4, 2, vector_size(), generator=torch.Generator().manual_seed(0))
+    values = NoiseValues.from_vector(vector)
+    assert values["shot"].shape == (4, 2, 1) and values["periodic"].shape == (4, 2, 3)
+    assert torch.equal(values["shot"][..., 0], vector[..., 0])
+    assert torch.equal(values["periodic"], vector[..., 11:14])
+    assert torch.equal(values.vector(), vector)
+    paper_vector = vector[..., :8]
+    paper_values = NoiseValues.from_vector(paper_vector, "paper")
+    assert list(paper_values) == list(noise_parameter_names())
+    # What the paper's model lacks is neutral: white, uncompressed noise.
+    assert torch.equal(paper_values["channel_gain"], torch.ones(4, 2, 2))
+    assert torch.equal(paper_values["compression"], torch.zeros(4, 2, 1))
+    assert torch.equal(paper_values["periodic"], paper_vector[..., 5:8])
+    assert torch.equal(paper_values.vector("paper"), paper_vector)
+
+
+def test_values_round_trip_through_the_vector() -> None:
+    values = random_noise_values(batch_shape=(3,), generator=torch.Generator().manual_seed(1))
+    back = NoiseValues.from_vector(values.vector())
+    assert list(back) == list(noise_parameter_names())
+    for name in noise_parameter_names():
+        assert torch.equal(back[name], values[name])
+
+
+def test_vector_of_wrong_length_is_rejected() -> None:
+    with pytest.raises(ValueError, match="15"):
+        NoiseValues.from_vector(torch.zeros(2, 8))
+    with pytest.raises(ValueError, match="8"):
+        NoiseValues.from_vector(torch.zeros(2, 7), "paper")

@@ -1,40 +1,21 @@
-"""darksynth.transforms: the PyTorch transform and the albumentations transform, seeding in DataLoader workers."""
+"""darksynth.transforms.low_light: the PyTorch transform LowLight, its seeding in DataLoader workers, bad input."""
 
 from __future__ import annotations
 
-import importlib
 import math
 import pickle
-import sys
-from typing import Any
 
 import numpy as np
 import pytest
 import torch
 import torch.utils.data
 
-import darksynth
 from darksynth.darkening import Darkening, darken
-from darksynth.profile import Profile, parse_profile
+from darksynth.profile import Profile
 from darksynth.transforms import LowLight
-from darksynth.transforms.low_light import low_light
+from tests.conftest import build_profile
 
 LEVEL = 1.0 / 255.0
-PAPER_NOISE_OFF = {"shot": 0, "read": 0, "quantization": 0, "banding": 0, "temporal_banding": 0, "periodic": [0, 0, 0]}
-
-
-def build_profile(
-    darkening: Darkening | None = None, ranges: dict[str, Any] | None = None, **noise: float | list[float]
-) -> Profile:
-    """A profile with the given noise values, every other component off."""
-    document: dict[str, Any] = {"format": "darksynth-profile", "version": 2, "noise": {**PAPER_NOISE_OFF, **noise}}
-    if darkening is not None:
-        document["darkening"] = {"alpha": darkening.alpha, "gamma": darkening.gamma}
-    if ranges:
-        document["ranges"] = {
-            name: [list(pair) for pair in pairs] if len(pairs) > 1 else list(pairs[0]) for name, pairs in ranges.items()
-        }
-    return parse_profile(document)
 
 
 def _flat(value: float, shape: tuple[int, ...]) -> torch.Tensor:
@@ -301,137 +282,3 @@ def test_slight_resampling_overshoot_is_accepted_and_clipped() -> None:
     clean = torch.tensor([-0.05, 0.5, 1.05]).view(1, 1, 3)
     noisy = LowLight(build_profile(), seed=0, darkening=None)(clean)
     assert torch.equal(noisy, torch.tensor([0.0, 128 / 255, 1.0]).view(1, 1, 3))
-
-
-# --- albumentations -------------------------------------------------------------------------------------------
-
-A = pytest.importorskip("albumentations")
-
-
-def _albumentations_transform(p: float = 1.0, profile: Profile | None = None, **kwargs: object) -> object:
-    from darksynth.transforms import AlbumentationsLowLight
-
-    return AlbumentationsLowLight(profile or _everything_profile(), p=p, **kwargs)
-
-
-def _image(dtype: type, shape: tuple[int, ...] = (20, 24, 3)) -> np.ndarray:
-    values = np.random.default_rng(0).random(shape)
-    return (values * 255).round().astype(np.uint8) if dtype == np.uint8 else values.astype(dtype)
-
-
-@pytest.mark.parametrize(
-    ("dtype", "shape"),
-    [(np.uint8, (20, 24, 3)), (np.float32, (20, 24, 3)), (np.uint8, (20, 24)), (np.float32, (20, 24, 1))],
-)
-def test_albumentations_compose_with_a_seed_is_reproducible(dtype: type, shape: tuple[int, ...]) -> None:
-    image = _image(dtype, shape)
-    first = A.Compose([_albumentations_transform()], seed=17)
-    second = A.Compose([_albumentations_transform()], seed=17)
-    a1, a2 = first(image=image)["image"], first(image=image)["image"]
-    assert a1.shape == image.shape and a1.dtype == image.dtype
-    assert not np.array_equal(a1, a2)
-    assert np.array_equal(second(image=image)["image"], a1)
-    assert np.array_equal(second(image=image)["image"], a2)
-    assert not np.array_equal(A.Compose([_albumentations_transform()], seed=18)(image=image)["image"], a1)
-    if dtype == np.float32:
-        assert a1.min() >= 0.0 and a1.max() <= 1.0
-        assert np.abs(a1 * 255 - np.round(a1 * 255)).max() < 1e-3
-
-
-def test_albumentations_transform_is_the_torch_transform_seeded_by_albumentations() -> None:
-    image = _image(np.float32)
-    transform = _albumentations_transform()
-    expected = low_light(
-        torch.from_numpy(image).permute(2, 0, 1),
-        _everything_profile(),
-        generator=torch.Generator().manual_seed(42),
-    ).image
-    assert isinstance(expected, torch.Tensor)
-    assert np.array_equal(transform.apply(image, seed=42), expected.permute(1, 2, 0).numpy())  # type: ignore[attr-defined]
-
-
-def test_albumentations_respects_p() -> None:
-    image = _image(np.uint8, (4, 4, 3))
-    assert np.array_equal(A.Compose([_albumentations_transform(p=0.0)], seed=1)(image=image)["image"], image)
-    pipeline = A.Compose([_albumentations_transform(p=0.3, profile=build_profile(read=0.05))], seed=1)
-    applied = sum(not np.array_equal(pipeline(image=image)["image"], image) for _ in range(300))
-    # Binomial(300, 0.3): mean 90, std 7.9; 4 standard deviations.
-    assert abs(applied - 90) < 4 * math.sqrt(300 * 0.3 * 0.7)
-    with pytest.raises(ValueError, match="p must be a probability"):
-        _albumentations_transform(p=1.5)
-
-
-def test_albumentations_images_are_one_clip() -> None:
-    from darksynth.transforms import AlbumentationsLowLight
-
-    profile = build_profile(temporal_banding=0.02)
-    frames = np.full((3, 8, 64, 3), 128, dtype=np.uint8)
-    pipeline = A.Compose([AlbumentationsLowLight(profile, darkening=None, p=1.0)], seed=4)
-    noisy = pipeline(images=frames)["images"]
-    assert noisy.shape == frames.shape and noisy.dtype == np.uint8
-    assert np.array_equal(noisy[0], noisy[1]) and np.array_equal(noisy[0], noisy[2])
-    assert noisy[0, 0, :, 0].std() > 2.0
-
-
-def test_albumentations_serialisation_and_replay() -> None:
-    image = _image(np.uint8)
-    pipeline = A.Compose([_albumentations_transform(darkening=Darkening(alpha=0.2, gamma=0.8))], seed=3)
-    rebuilt = A.from_dict(A.to_dict(pipeline))
-    rebuilt.set_random_seed(3)
-    assert np.array_equal(rebuilt(image=image)["image"], pipeline(image=image)["image"])
-    replay = A.ReplayCompose([_albumentations_transform()])
-    replay.set_random_seed(2)
-    recorded = replay(image=image)
-    again = A.ReplayCompose.replay(recorded["replay"], image=image)
-    assert np.array_equal(again["image"], recorded["image"])
-
-
-@pytest.mark.parametrize(
-    ("image", "message"),
-    [
-        (np.zeros((8, 8, 4), dtype=np.uint8), r"1 \(grey\) or 3 \(RGB\) channels"),
-        (np.zeros((8, 8, 3), dtype=np.int32), r"unsupported dtype int32"),
-        (np.full((8, 8, 3), 200.0, dtype=np.float32), r"divide 0-255 floats by 255"),
-    ],
-)
-def test_albumentations_bad_input_is_refused(image: np.ndarray, message: str) -> None:
-    with pytest.raises(ValueError, match=message):
-        A.Compose([_albumentations_transform()], seed=0)(image=image)
-
-
-class _AlbumentationsDataset(torch.utils.data.Dataset[np.ndarray]):
-    def __init__(self) -> None:
-        self.pipeline = A.Compose([_albumentations_transform()], seed=9)
-        self.image = _image(np.uint8, (8, 8, 3))
-
-    def __len__(self) -> int:
-        return 4
-
-    def __getitem__(self, index: int) -> np.ndarray:
-        return np.asarray(self.pipeline(image=self.image)["image"])
-
-
-def test_albumentations_in_dataloader_workers_differs_per_worker_and_repeats() -> None:
-    def run() -> list[np.ndarray]:
-        torch.manual_seed(0)
-        loader = torch.utils.data.DataLoader(_AlbumentationsDataset(), batch_size=None, num_workers=2)
-        return [np.asarray(item) for item in loader]
-
-    first, again = run(), run()
-    # Items 0 and 1 are the first draws of workers 0 and 1, from identical albumentations states.
-    assert not np.array_equal(first[0], first[1])
-    assert all(np.array_equal(a, b) for a, b in zip(first, again, strict=True))
-
-
-def test_importing_the_package_does_not_need_albumentations(monkeypatch: pytest.MonkeyPatch) -> None:
-    # A fresh import of darksynth.transforms with albumentations made unimportable (None in sys.modules);
-    # monkeypatch puts the original modules back afterwards.
-    monkeypatch.setattr(darksynth, "transforms", sys.modules["darksynth.transforms"])
-    for name in [name for name in sys.modules if name.split(".")[0] == "albumentations"] + ["albumentations"]:
-        monkeypatch.setitem(sys.modules, name, None)
-    for name in ("darksynth.transforms", "darksynth.transforms.low_light", "darksynth.transforms._albumentations"):
-        monkeypatch.delitem(sys.modules, name, raising=False)
-    transforms = importlib.import_module("darksynth.transforms")
-    assert transforms.LowLight(_everything_profile(), seed=0)(_flat(0.5, (3, 8, 8))).shape == (3, 8, 8)
-    with pytest.raises(ImportError, match=r"needs albumentations 2\.x"):
-        transforms.AlbumentationsLowLight  # noqa: B018
