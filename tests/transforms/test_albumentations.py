@@ -3,21 +3,18 @@ without albumentations."""
 
 from __future__ import annotations
 
-import importlib
 import math
-import sys
 
 import numpy as np
 import pytest
 import torch
 import torch.utils.data
 
-import darksynth
 from darksynth.darkening import Darkening
 from darksynth.profile import Profile
 from darksynth.transforms.low_light import low_light
 from tests.conftest import build_profile
-from tests.transforms.test_low_light import _everything_profile, _flat
+from tests.transforms.test_low_light import _everything_profile
 
 A = pytest.importorskip("albumentations")
 
@@ -135,17 +132,3 @@ def test_albumentations_in_dataloader_workers_differs_per_worker_and_repeats() -
     # Items 0 and 1 are the first draws of workers 0 and 1, from identical albumentations states.
     assert not np.array_equal(first[0], first[1])
     assert all(np.array_equal(a, b) for a, b in zip(first, again, strict=True))
-
-
-def test_importing_the_package_does_not_need_albumentations(monkeypatch: pytest.MonkeyPatch) -> None:
-    # A fresh import of darksynth.transforms with albumentations made unimportable (None in sys.modules);
-    # monkeypatch puts the original modules back afterwards.
-    monkeypatch.setattr(darksynth, "transforms", sys.modules["darksynth.transforms"])
-    for name in [name for name in sys.modules if name.split(".")[0] == "albumentations"] + ["albumentations"]:
-        monkeypatch.setitem(sys.modules, name, None)
-    for name in ("darksynth.transforms", "darksynth.transforms.low_light", "darksynth.transforms._albumentations"):
-        monkeypatch.delitem(sys.modules, name, raising=False)
-    transforms = importlib.import_module("darksynth.transforms")
-    assert transforms.LowLight(_everything_profile(), seed=0)(_flat(0.5, (3, 8, 8))).shape == (3, 8, 8)
-    with pytest.raises(ImportError, match=r"needs albumentations 2\.x"):
-        transforms.AlbumentationsLowLight  # noqa: B018

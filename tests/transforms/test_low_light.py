@@ -2,14 +2,17 @@
 
 from __future__ import annotations
 
+import importlib
 import math
 import pickle
+import sys
 
 import numpy as np
 import pytest
 import torch
 import torch.utils.data
 
+import darksynth
 from darksynth.darkening import Darkening, darken
 from darksynth.profile import Profile
 from darksynth.transforms import LowLight
@@ -282,3 +285,17 @@ def test_slight_resampling_overshoot_is_accepted_and_clipped() -> None:
     clean = torch.tensor([-0.05, 0.5, 1.05]).view(1, 1, 3)
     noisy = LowLight(build_profile(), seed=0, darkening=None)(clean)
     assert torch.equal(noisy, torch.tensor([0.0, 128 / 255, 1.0]).view(1, 1, 3))
+
+
+def test_importing_the_package_does_not_need_albumentations(monkeypatch: pytest.MonkeyPatch) -> None:
+    # A fresh import of darksynth.transforms with albumentations made unimportable (None in sys.modules);
+    # monkeypatch puts the original modules back afterwards.
+    monkeypatch.setattr(darksynth, "transforms", sys.modules["darksynth.transforms"])
+    for name in [name for name in sys.modules if name.split(".")[0] == "albumentations"] + ["albumentations"]:
+        monkeypatch.setitem(sys.modules, name, None)
+    for name in ("darksynth.transforms", "darksynth.transforms.low_light", "darksynth.transforms._albumentations"):
+        monkeypatch.delitem(sys.modules, name, raising=False)
+    transforms = importlib.import_module("darksynth.transforms")
+    assert transforms.LowLight(_everything_profile(), seed=0)(_flat(0.5, (3, 8, 8))).shape == (3, 8, 8)
+    with pytest.raises(ImportError, match=r"needs albumentations 2\.x"):
+        transforms.AlbumentationsLowLight  # noqa: B018
