@@ -49,8 +49,8 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--batch", type=int, default=defaults.batch)
     parser.add_argument("--frames", type=int, default=defaults.frames)
     parser.add_argument("--crop", type=int, default=defaults.crop)
-    parser.add_argument("--width", type=int, default=defaults.model.width, help="U-Net width")
-    parser.add_argument("--depth", type=int, default=defaults.model.depth, help="U-Net depth")
+    parser.add_argument("--width", type=int, default=defaults.generator.width, help="U-Net width")
+    parser.add_argument("--depth", type=int, default=defaults.generator.depth, help="U-Net depth")
     parser.add_argument("--lambda-statistics", type=float, default=defaults.lambda_statistics)
     parser.add_argument("--lambda-adversarial", type=float, default=defaults.lambda_adversarial)
     parser.add_argument("--physics-lr", type=float, default=defaults.physics_learning_rate)
@@ -66,7 +66,7 @@ def main(argv: list[str] | None = None) -> int:
 
     config = dataclasses.replace(
         defaults,
-        model=dataclasses.replace(StarlightConfig(), width=args.width, depth=args.depth),
+        generator=dataclasses.replace(StarlightConfig(), width=args.width, depth=args.depth),
         steps=args.steps,
         seed=args.seed,
         batch=args.batch,

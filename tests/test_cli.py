@@ -178,10 +178,10 @@ class _TinyCorpus(SimpleNamespace):
     ("flags", "expected"),
     [
         ([], TrainConfig()),
-        (["--model", "paper"], TrainConfig(model=DENConfig(noise_model="paper", log_levels=False))),
+        (["--model", "paper"], TrainConfig(den=DENConfig(noise_model="paper", log_levels=False))),
         (
             ["--variant", "v2", "--width", "8", "--steps", "7", "--lr", "1e-3"],
-            TrainConfig(model=DENConfig(variant="v2", width=8), steps=7, learning_rate=1e-3),
+            TrainConfig(den=DENConfig(variant="v2", width=8), steps=7, learning_rate=1e-3),
         ),
     ],
 )

@@ -335,7 +335,7 @@ def train_command(
     try:
         noise_model = cast(NoiseModel, checked_choice("--model", model, NOISE_MODELS))
         config = TrainConfig(
-            model=DENConfig(
+            den=DENConfig(
                 variant=cast(Variant, checked_choice("--variant", variant, VARIANTS)),
                 width=width,
                 depth=depth,

@@ -29,7 +29,7 @@ from darksynth.training.corpus import CleanCorpus
 from tests.baselines.test_starlight_model import TINY, _generator
 
 TINY_TRAINING = StarlightTrainConfig(
-    model=TINY,
+    generator=TINY,
     steps=4,
     batch=2,
     frames=2,

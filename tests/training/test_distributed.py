@@ -42,7 +42,7 @@ from darksynth.training.weights import load_weights
 REPOSITORY = Path(__file__).resolve().parents[2]
 
 CONFIG = TrainConfig(
-    model=DENConfig(width=4, depth=1),
+    den=DENConfig(width=4, depth=1),
     steps=4,
     batch=2,
     frames=2,
@@ -166,7 +166,7 @@ def test_rank_0_writes_the_files_once_and_both_ranks_hold_the_same_network(workd
     weights = load_file(str(out))
     assert all(torch.isfinite(tensor).all() for tensor in weights.values())
     torch.manual_seed(CONFIG.seed)
-    initial = DEN(CONFIG.model).state_dict()
+    initial = DEN(CONFIG.den).state_dict()
     assert any(not torch.equal(initial[name], weights[name]) for name in weights if "statistics" not in name)
 
 

@@ -19,7 +19,7 @@ from darksynth.training.weights import load_weights
 from tests.clean_images import write_tiny_corpus
 
 CONFIG = TrainConfig(
-    model=DENConfig(width=4, depth=1),
+    den=DENConfig(width=4, depth=1),
     steps=4,
     batch=2,
     frames=2,
@@ -74,7 +74,7 @@ def test_train_writes_weights_summary_and_checkpoint(reference_run: tuple[Path, 
     assert written["final_validation"] == history[-1]
     assert summary["steps"] == 4
     model = load_weights(out)
-    assert model.config == CONFIG.model
+    assert model.config == CONFIG.den
 
 
 def test_trained_weights_differ_from_the_initial_ones(
@@ -123,7 +123,7 @@ def test_resume_without_a_checkpoint_is_an_error(corpus: CleanCorpus, tmp_path: 
 def test_resume_from_a_checkpoint_of_another_model_shape_is_an_error(corpus: CleanCorpus, tmp_path: Path) -> None:
     out = tmp_path / "den.safetensors"
     train(corpus, corpus, dataclasses.replace(CONFIG, steps=2), out)
-    wider = dataclasses.replace(CONFIG, model=DENConfig(width=8, depth=1))
+    wider = dataclasses.replace(CONFIG, den=DENConfig(width=8, depth=1))
     with pytest.raises(DarksynthError, match="another model shape"):
         train(corpus, corpus, wider, out, resume=True)
 
@@ -162,6 +162,6 @@ def test_level_loss_is_zero_for_the_true_vector_and_grows_with_a_wrong_level() -
     device = torch.device("cpu")
     assert level_loss(batch.values, batch, device).item() == pytest.approx(0.0, abs=1e-12)
     louder = batch.vector.clone()
-    louder[:, vector_names(CONFIG.model.noise_model).index("read")] *= 4.0
-    louder_values = NoiseValues.from_vector(louder, CONFIG.model.noise_model)
+    louder[:, vector_names(CONFIG.den.noise_model).index("read")] *= 4.0
+    louder_values = NoiseValues.from_vector(louder, CONFIG.den.noise_model)
     assert level_loss(louder_values, batch, device).item() > 0.01

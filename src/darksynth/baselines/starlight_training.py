@@ -79,7 +79,7 @@ LEVEL_EDGES = (0.0, 0.01, 0.03, 0.1, 0.3, 1.0)
 class StarlightTrainConfig:
     """Training settings, written beside the weights. Defaults: those of the shipped weights."""
 
-    model: StarlightConfig = field(default_factory=StarlightConfig)
+    generator: StarlightConfig = field(default_factory=StarlightConfig)
     steps: int = 1500
     batch: int = 8
     frames: int = 4
@@ -109,7 +109,7 @@ class StarlightTrainConfig:
 
     def to_dict(self) -> dict[str, Any]:
         document = asdict(self)
-        document["model"] = self.model.to_dict()
+        document["generator"] = self.generator.to_dict()
         return document
 
 
@@ -376,8 +376,8 @@ def train_starlight(
     model, discriminator = initial_weights(
         config.seed,
         lambda: (
-            StarlightGenerator(config.model),
-            PatchDiscriminator(config.discriminator_width, inputs=4 * config.model.channels),
+            StarlightGenerator(config.generator),
+            PatchDiscriminator(config.discriminator_width, inputs=4 * config.generator.channels),
         ),
     )
     model, discriminator = model.to(device), discriminator.to(device)

@@ -70,7 +70,7 @@ class TrainConfig:
     from banding) and clips.
     """
 
-    model: DENConfig = field(default_factory=DENConfig)
+    den: DENConfig = field(default_factory=DENConfig)
     steps: int = 4000
     batch: int = 8
     frames: int = 4
@@ -91,7 +91,7 @@ class TrainConfig:
 
     def to_dict(self) -> dict[str, Any]:
         document = asdict(self)
-        document["model"] = self.model.to_dict()
+        document["den"] = self.den.to_dict()
         return document
 
 
@@ -104,9 +104,9 @@ def training_batch(
         clean,
         generator=generator,
         absent_probability=config.absent_probability if absent_probability is None else absent_probability,
-        noise_model=config.model.noise_model,
+        noise_model=config.den.noise_model,
         bright_fraction=config.bright_fraction,
-        log_levels=config.model.log_levels,
+        log_levels=config.den.log_levels,
     )
 
 
@@ -216,7 +216,7 @@ def _load_checkpoint(
     except Exception as error:
         raise DarksynthError(f"{path}: unreadable checkpoint ({error})") from None
     saved = json.loads(metadata.get("config", "{}"))
-    if saved.get("model") != config.model.to_dict():
+    if saved.get("den") != config.den.to_dict():
         raise DarksynthError(f"{path}: checkpoint of another model shape {saved.get('model')}")
     processes = int(metadata.get("processes", "1"))
     if processes != ranks.world_size:
@@ -368,7 +368,7 @@ def _train(
     progress: ProgressCallback | None,
     ranks: Ranks,
 ) -> dict[str, Any]:
-    model = initial_weights(config.seed, lambda: DEN(config.model)).to(device)
+    model = initial_weights(config.seed, lambda: DEN(config.den)).to(device)
     optimizer = torch.optim.Adam(model.parameters(), lr=config.learning_rate, betas=config.betas)
     generator = seeded_generator(process_seed(config.seed, ranks))
     checkpoint = _checkpoint_path(out)
@@ -378,7 +378,7 @@ def _train(
     elif ranks.is_main:
         _calibrate_statistics(model, corpus, config, generator)  # the other processes receive rank 0's values
     # A v3 decoder whose loss weight is 0 gets no gradient, which DistributedDataParallel must be told about.
-    unused = config.model.variant == "v3" and config.lambda_reconstruction <= 0
+    unused = config.den.variant == "v3" and config.lambda_reconstruction <= 0
     network = wrap_model(model, device, find_unused_parameters=unused)
     steps = _DENSteps(
         model, network, optimizer, generator, corpus, holdout, config, checkpoint, device, batch_size, ranks
