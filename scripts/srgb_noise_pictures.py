@@ -7,16 +7,17 @@ Run: ``.venv/bin/python scripts/srgb_noise_pictures.py --pairs ../shared/data/re
 Licences decide what may be committed: the real-pair sets (polyu, nam-cc15: non-commercial; sidd: SIDD terms)
 must not be copied into the repository, so none of these pictures is committed (docs/srgb-noise.md describes
 them). For each ``--pairs DIR``, the first pair of the set gives three panels of noise (noisy - clean): real |
-white per-channel Poisson-Gaussian fitted with the clean image | the extended model fitted with the clean image
-(:func:`~darksynth.evaluation.srgb_fit.fit_srgb_noise`).
+white heteroscedastic noise (the table's model with its structure and compression left out) fitted with the
+clean image | the table's whole sRGB model fitted with the clean image
+(:func:`~darksynth.evaluation.srgb_fit.fit_srgb_noise`), both drawn through the composer ``add_noise``.
 
 ``--lol`` adds the MIT-licensed LOL low-light images (``real-lowlight/images/lol``), which have no clean image
 and could be committed; but the fit is then biased (see below), so they are not. For those, the clean image
 is replaced by a
 Gaussian blur (std BLUR pixels) of the dark image, the extended model is fitted against it with
 :func:`~darksynth.evaluation.srgb_fit.fit_srgb_noise`, and every panel shows the same high-pass
-``image - blur(image)`` of: the real dark image | white per-channel Poisson-Gaussian noise on the blurred image |
-the extended model's noise on the blurred image. Each panel is a CROP x CROP crop from the flattest part of the
+``image - blur(image)`` of: the real dark image | white heteroscedastic noise on the blurred image | the whole
+sRGB model's noise on the blurred image. Each panel is a CROP x CROP crop from the flattest part of the
 image, amplified GAIN times around mid-grey. The blur removes the correlated part of the real noise from
 the residual the model is fitted to, so the fitted gains and JPEG quality are wrong and the extended panel comes
 out too strong: these pictures show the texture of real dark noise, not a validation of the model.
@@ -33,7 +34,7 @@ import torch.nn.functional as F
 from PIL import Image
 
 from darksynth.evaluation.pairs import list_pair_set, load_pair
-from darksynth.evaluation.srgb_fit import fit_srgb_noise, synthesize_srgb
+from darksynth.evaluation.srgb_fit import WHITE, fit_srgb_noise, synthesize_image
 from darksynth.noise.correlated import gaussian_kernel1d
 
 CROP = 96
@@ -76,13 +77,13 @@ def save(panels: list[np.ndarray], path: Path) -> None:
 
 
 def three_panels(noisy: torch.Tensor, clean: torch.Tensor, high_pass: bool, seed: int) -> list[torch.Tensor]:
-    white = fit_srgb_noise(noisy, clean, spatial=False, chromatic=False, jpeg=False)
+    white = fit_srgb_noise(noisy, clean, WHITE)
     extended = fit_srgb_noise(noisy, clean)
-    print(f"  fitted: {extended.summary()}")
+    print(f"  fitted: {extended.to_json()}")
     images = [
         noisy,
-        synthesize_srgb(clean, white, torch.Generator().manual_seed(seed)),
-        synthesize_srgb(clean, extended, torch.Generator().manual_seed(seed)),
+        synthesize_image(clean, white, torch.Generator().manual_seed(seed)),
+        synthesize_image(clean, extended, torch.Generator().manual_seed(seed)),
     ]
     return [image - blur(image) if high_pass else image - clean for image in images]
 

@@ -1,4 +1,5 @@
-"""Statistics of the correlated sRGB noise components, with fixed seeds."""
+"""Statistics of the functions that shape the sRGB noise (spatial kernel, channel mixing, JPEG), with fixed
+seeds; drawn through the table's composer where a whole noisy image is needed."""
 
 from __future__ import annotations
 
@@ -8,15 +9,14 @@ import pytest
 import torch
 
 from darksynth.noise.correlated import (
-    add_correlated_noise,
-    apply_channel_gains,
     correlated_normal,
     gaussian_kernel1d,
-    heteroscedastic_std,
     jpeg_compress,
     kernel_autocorrelation,
-    mix_channels,
+    structured_normal,
 )
+from darksynth.noise.simulate import add_noise
+from darksynth.noise.values import NoiseValues
 
 
 def lag_correlation(noise: torch.Tensor, lag: int, axis: int) -> float:
@@ -54,10 +54,11 @@ def test_lag_autocorrelation_matches_the_kernel(length: float) -> None:
         assert abs(kernel_autocorrelation(length, 1) - math.exp(-1 / (4 * length**2))) < 0.01
 
 
-def test_anisotropic_lengths_are_separate() -> None:
-    noise = correlated_normal((1, 256, 256), torch.Generator().manual_seed(3), 2.0, 0.0, dtype=torch.float64)
-    assert abs(lag_correlation(noise, 1, -1) - kernel_autocorrelation(2.0, 1)) < 0.03
-    assert abs(lag_correlation(noise, 1, -2)) < 0.03
+def test_one_length_correlates_x_and_y_alike() -> None:
+    noise = correlated_normal((1, 256, 256), torch.Generator().manual_seed(3), 2.0, dtype=torch.float64)
+    theory = kernel_autocorrelation(2.0, 1)
+    assert abs(lag_correlation(noise, 1, -1) - theory) < 0.03
+    assert abs(lag_correlation(noise, 1, -2) - theory) < 0.03
 
 
 def test_noise_of_any_size_and_batch_has_unit_variance_up_to_its_borders() -> None:
@@ -73,33 +74,24 @@ def test_noise_of_any_size_and_batch_has_unit_variance_up_to_its_borders() -> No
 
 
 @pytest.mark.parametrize("rho", [0.0, 0.3, 0.66])
-def test_channel_correlation_equals_rho(rho: float) -> None:
-    white = torch.randn((3, 200, 200), generator=torch.Generator().manual_seed(4), dtype=torch.float64)
-    mixed = mix_channels(white, rho)
+def test_equal_pair_correlations_give_every_pair_rho_and_keep_unit_variance(rho: float) -> None:
+    mixed = structured_normal(
+        (1, 3, 200, 200),
+        torch.tensor(0.0),
+        torch.tensor([rho, rho, rho]),
+        torch.tensor([1.0, 1.0]),
+        generator=torch.Generator().manual_seed(4),
+        dtype=torch.float64,
+    )[0]
     matrix = torch.corrcoef(mixed.reshape(3, -1))
     for i, j in ((0, 1), (0, 2), (1, 2)):
         assert abs(float(matrix[i, j]) - rho) < 0.02
     assert torch.allclose(mixed.reshape(3, -1).var(dim=1), torch.ones(3, dtype=torch.float64), atol=0.03)
-    with pytest.raises(ValueError, match="rho"):
-        mix_channels(white, 1.0)
-
-
-def test_gains_scale_the_std_per_channel() -> None:
-    clean = torch.full((3, 128, 128), 0.4, dtype=torch.float64)
-    gains = (0.5, 1.0, 2.0)
-    std = heteroscedastic_std(clean, (1e-3,) * 3, (1e-4,) * 3, gains)
-    base = math.sqrt(1e-3 * 0.4 + 1e-4)
-    for channel, gain in enumerate(gains):
-        assert math.isclose(float(std[channel, 0, 0]), gain * base, rel_tol=1e-12)
-    white = torch.randn(clean.shape, generator=torch.Generator().manual_seed(5), dtype=torch.float64)
-    scaled = apply_channel_gains(white, gains)
-    for channel, gain in enumerate(gains):
-        assert abs(float(scaled[channel].std()) / gain - 1.0) < 0.03
 
 
 def test_jpeg_quality_lowers_fine_scale_energy() -> None:
-    clean = torch.full((3, 128, 128), 0.5)
-    noisy = add_correlated_noise(clean, torch.Generator().manual_seed(6), a=(0.0,) * 3, b=(0.03**2,) * 3)
+    clean = torch.full((1, 3, 128, 128), 0.5)
+    noisy = add_noise(clean, NoiseValues.from_values({"read": 0.03}), generator=torch.Generator().manual_seed(6))[0]
 
     def fine_energy(image: torch.Tensor) -> float:
         return float((image[..., :, 1:] - image[..., :, :-1]).square().mean())
@@ -111,10 +103,19 @@ def test_jpeg_quality_lowers_fine_scale_energy() -> None:
     assert torch.equal(compressed * 255, (compressed * 255).round())
 
 
-def test_add_correlated_noise_is_reproducible_and_8bit() -> None:
-    clean = torch.rand((3, 40, 30), generator=torch.Generator().manual_seed(0), dtype=torch.float64)
-    kwargs = {"a": (1e-3,) * 3, "b": (1e-4,) * 3, "correlation_length": 0.8, "rho": 0.4}
-    first = add_correlated_noise(clean, torch.Generator().manual_seed(9), **kwargs)  # type: ignore[arg-type]
-    second = add_correlated_noise(clean, torch.Generator().manual_seed(9), **kwargs)  # type: ignore[arg-type]
+def test_structured_compressed_noise_is_reproducible_and_8bit() -> None:
+    clean = torch.rand((1, 3, 40, 32), generator=torch.Generator().manual_seed(0), dtype=torch.float64)
+    values = NoiseValues.from_values(
+        {
+            "shot": 0.03,
+            "read": 0.01,
+            "correlation_length": 0.8,
+            "channel_correlation": [0.4, 0.3, 0.5],
+            "compression": 0.3,
+        }
+    )
+    first = add_noise(clean, values, generator=torch.Generator().manual_seed(9))
+    second = add_noise(clean, values, generator=torch.Generator().manual_seed(9))
     assert torch.equal(first, second)
     assert torch.equal(first * 255, (first * 255).round())
+    assert not torch.equal(first, add_noise(clean, values, generator=torch.Generator().manual_seed(10)))

@@ -23,7 +23,7 @@ from darksynth.evaluation.classical import (
     blind_poisson_gaussian,
     oracle_poisson_gaussian,
 )
-from darksynth.evaluation.srgb_fit import JPEG_CANDIDATES
+from darksynth.evaluation.srgb_fit import OracleComponents
 from darksynth.noise.simulate import add_noise
 from darksynth.noise.values import NoiseValues
 from darksynth.tensors import to_8bit_levels
@@ -131,45 +131,46 @@ def _starlight_method(device: str) -> NoiseMethod:
     )
 
 
-_SRGB_ORACLES: dict[str, tuple[str, tuple[bool, bool, bool, tuple[int | None, ...]]]] = {
+_SRGB_ORACLES: dict[str, tuple[str, OracleComponents]] = {
     "srgb-oracle": (
-        "Extended sRGB model fitted with the clean image: per-channel Poisson-Gaussian, gains, spatial "
-        "correlation (x/y lengths), channel correlation rho, JPEG quality (or none) by search",
-        (True, True, True, JPEG_CANDIDATES),
+        "sRGB noise model of the parameter table fitted with the clean image: green's shot and read, red and "
+        "blue gains, one correlation length, red-green/green-blue/red-blue correlations, JPEG compression (or "
+        "none) by search with a level correction",
+        OracleComponents(),
     ),
     "srgb-nojpeg-oracle": (
-        "Poisson-Gaussian + spatial correlation + channel correlation, fitted with the clean image; no JPEG",
-        (True, True, False, ()),
+        "Heteroscedastic law with channel gains + spatial correlation + per-pair channel correlations, fitted "
+        "with the clean image; no JPEG",
+        OracleComponents(jpeg=False),
     ),
     "srgb-gains-oracle": (
-        "Poisson-Gaussian + spatial + channel correlation + per-channel gains matching the real std, fitted with "
-        "the clean image; no JPEG",
-        (True, True, True, (None,)),
+        "Heteroscedastic law with channel gains + spatial + per-pair channel correlations, levels corrected to "
+        "the real per-channel std, fitted with the clean image; no JPEG",
+        OracleComponents(candidates=(None,)),
     ),
     "pg-corr-oracle": (
-        "Poisson-Gaussian + spatial correlation (x/y lengths), fitted with the clean image",
-        (True, False, False, ()),
+        "Heteroscedastic law with channel gains + spatial correlation (one length), fitted with the clean image",
+        OracleComponents(chromatic=False, jpeg=False),
     ),
     "pg-rho-oracle": (
-        "Poisson-Gaussian + channel correlation rho, fitted with the clean image",
-        (False, True, False, ()),
+        "Heteroscedastic law with channel gains + one channel correlation rho for all pairs, fitted with the "
+        "clean image",
+        OracleComponents(spatial=False, pairwise=False, jpeg=False),
     ),
 }
-"""The extended sRGB model's oracle and its ablations: summary and which components are fitted (spatial
-correlation, channel correlation, JPEG search with per-channel gains)."""
+"""The sRGB model's oracle and its ablations: summary and which parts are fitted
+(:class:`~darksynth.evaluation.srgb_fit.OracleComponents`)."""
 
 
 def _srgb_method(name: str) -> NoiseMethod:
-    from darksynth.evaluation.srgb_fit import fit_srgb_noise, synthesize_srgb
+    from darksynth.evaluation.srgb_fit import fit_srgb_noise, synthesize_image
 
-    summary, (spatial, chromatic, jpeg, candidates) = _SRGB_ORACLES[name]
+    summary, components = _SRGB_ORACLES[name]
     return NoiseMethod(
         name=name,
         summary=summary,
-        fit=lambda noisy, clean: fit_srgb_noise(
-            noisy, clean, spatial=spatial, chromatic=chromatic, jpeg=jpeg, candidates=candidates
-        ),
-        synthesize=synthesize_srgb,
+        fit=lambda noisy, clean: fit_srgb_noise(noisy, clean, components),
+        synthesize=synthesize_image,
         oracle=True,
     )
 

@@ -1,23 +1,25 @@
-"""sRGB noise components beyond the paper's white model: per-channel gains, spatial and cross-channel
-correlation, JPEG compression.
+"""sRGB noise structure beyond the paper's white model: per-channel gains, spatial and cross-channel
+correlation, JPEG compression; the functions the table's components (:mod:`darksynth.noise.components`) draw
+with.
 
 Real sRGB noise (docs/results.md, docs/srgb-noise.md) is not white: demosaicing, in-camera denoising and JPEG
 spread each pixel's noise over its neighbours (its std is up to 1.8x what neighbouring-pixel differences see)
-and across the colour channels (correlation 0.3-0.66). The functions here model that on top of a heteroscedastic
-(Poisson-Gaussian) law. All are pure: randomness only from an explicit ``torch.Generator``; images and noise
-are float tensors ``(..., C, H, W)`` on the [0, 1] scale, of any size and on any device; parameters are in
+and across the colour channels (correlation 0.2-0.7, different per pair). The functions here shape unit
+noise; the heteroscedastic component scales it by its std. All are pure: randomness only from an explicit
+``torch.Generator``; images and noise are float tensors on the [0, 1] scale, of any size; parameters are in
 pixels or dimensionless, so they do not depend on the image size.
 
-Equations (``z`` white standard normal, ``x`` the clean image, ``c`` the channel):
+Equations (``z`` white standard normal, ``x`` the clean image, ``c`` the channel; the table's parameters in
+brackets):
 
-* per-channel heteroscedastic std: ``s_c(x) = g_c * sqrt(a_c x + b_c)`` (gains ``g_c``);
-* spatial correlation: ``z' = (k_y * k_x * z) / sqrt(sum k_x^2 * sum k_y^2)``, ``k`` a normalised Gaussian of
-  std ``correlation_length`` pixels (separate x and y lengths allowed); ``var z' = 1`` exactly, and the
-  autocorrelation at lag ``d`` is ``sum_i k[i] k[i + d] / sum_i k[i]^2`` (about ``exp(-d^2 / (4 l^2))``);
-* cross-channel correlation: ``z'' = L z'`` over the channel axis, ``L L^T = R``, ``R`` with ones on the
-  diagonal and ``rho`` elsewhere (valid for ``-1/(C-1) < rho < 1``);
-* noisy image: ``y = Q_q(x + s(x) z'')``, ``Q_q`` Pillow's 8-bit JPEG encoder at quality ``q`` (or just
-  clipping and rounding to 8 bits when there is no compression).
+* spatial correlation: ``z' = (k * k^T * z) / sum k^2``, ``k`` a normalised Gaussian of std ``l`` pixels
+  (``correlation_length``) along x and along y; ``var z' = 1`` exactly, and the autocorrelation at lag ``d``
+  is ``sum_i k[i] k[i + d] / sum_i k[i]^2`` (about ``exp(-d^2 / (4 l^2))``);
+* cross-channel correlation and gains: ``z'' = G L z'`` over the channel axis, ``L L^T = R``, ``R`` with ones
+  on the diagonal and the red-green, green-blue, red-blue coefficients (``channel_correlation``) elsewhere,
+  ``G = diag(g_r, 1, g_b)`` (``channel_gain``);
+* noisy image: ``y = Q_q(x + sqrt(shot^2 x + read^2) z'')``, ``Q_q`` Pillow's 8-bit JPEG encoder at quality
+  ``q = round(100 (1 - c))`` (``compression`` c; none for c = 0).
 """
 
 from __future__ import annotations
@@ -30,8 +32,6 @@ import numpy as np
 import torch
 import torch.nn.functional as F
 from PIL import Image
-
-from darksynth.tensors import to_8bit_levels
 
 KERNEL_RADIUS_STDS = 3.0
 """The Gaussian kernel is cut at this many standard deviations (at least one pixel each side)."""
@@ -59,12 +59,12 @@ def kernel_autocorrelation(length: float, lag: int) -> float:
     return float((kernel[: kernel.numel() - lag] * kernel[lag:]).sum() / kernel.square().sum())
 
 
-def _filter_valid(noise: torch.Tensor, kernel_x: torch.Tensor, kernel_y: torch.Tensor) -> torch.Tensor:
-    """Separable 'valid' convolution over the last two axes of (..., H, W)."""
+def _filter_valid(noise: torch.Tensor, kernel: torch.Tensor) -> torch.Tensor:
+    """Separable 'valid' convolution by ``kernel`` along x and along y over the last two axes of (..., H, W)."""
     shape = noise.shape
     flat = noise.reshape(-1, 1, shape[-2], shape[-1])
-    flat = F.conv2d(flat, kernel_x.view(1, 1, 1, -1))
-    flat = F.conv2d(flat, kernel_y.view(1, 1, -1, 1))
+    flat = F.conv2d(flat, kernel.view(1, 1, 1, -1))
+    flat = F.conv2d(flat, kernel.view(1, 1, -1, 1))
     return flat.reshape(*shape[:-2], flat.shape[-2], flat.shape[-1])
 
 
@@ -72,7 +72,6 @@ def correlated_normal(
     shape: Sequence[int],
     generator: torch.Generator,
     correlation_length: float,
-    correlation_length_y: float | None = None,
     *,
     dtype: torch.dtype = torch.float32,
     device: torch.device | str = "cpu",
@@ -81,59 +80,19 @@ def correlated_normal(
 
     White noise is drawn with a margin of the kernel radius on each side and filtered without padding, so
     the result is stationary up to the borders and its per-pixel variance is exactly 1 (the filtered noise is
-    divided by ``sqrt(sum k_x^2 * sum k_y^2)``). ``correlation_length`` is the kernel's std in pixels along x,
-    ``correlation_length_y`` along y (the same as x when None). Lengths of 0 give white noise.
+    divided by ``sum k^2``). ``correlation_length`` is the kernel's std in pixels, the same along x and y
+    (the table's ``correlation_length``); a length of 0 gives white noise.
     """
-    length_y = correlation_length if correlation_length_y is None else correlation_length_y
-    kernel_x = gaussian_kernel1d(correlation_length, dtype=dtype, device=device)
-    kernel_y = gaussian_kernel1d(length_y, dtype=dtype, device=device)
+    kernel = gaussian_kernel1d(correlation_length, dtype=dtype, device=device)
     *lead, height, width = shape
-    padded = (*lead, height + kernel_y.numel() - 1, width + kernel_x.numel() - 1)
+    padded = (*lead, height + kernel.numel() - 1, width + kernel.numel() - 1)
     white = torch.randn(padded, generator=generator, dtype=dtype, device=device)
-    if kernel_x.numel() == 1 and kernel_y.numel() == 1:
+    if kernel.numel() == 1:
         return white
-    scale = (kernel_x.square().sum() * kernel_y.square().sum()).sqrt()
-    return _filter_valid(white, kernel_x, kernel_y) / scale
-
-
-def channel_correlation_matrix(rho: float, channels: int = 3) -> torch.Tensor:
-    """The (C, C) correlation matrix with ones on the diagonal and ``rho`` elsewhere (float64)."""
-    if not -1.0 / (channels - 1) < rho < 1.0:
-        raise ValueError(f"rho must lie in (-1/{channels - 1}, 1) for a valid correlation matrix, got {rho}")
-    return torch.full((channels, channels), rho, dtype=torch.float64).fill_diagonal_(1.0)
-
-
-def mix_channels(noise: torch.Tensor, rho: float) -> torch.Tensor:
-    """Correlate the channels (axis -3) of unit-variance, channel-independent noise: ``L z`` with
-    ``L L^T = R(rho)``. Each channel keeps variance 1 and every pair of channels gets correlation ``rho``."""
-    if rho == 0.0:
-        return noise
-    channels = noise.shape[-3]
-    factor = torch.linalg.cholesky(channel_correlation_matrix(rho, channels)).to(noise.dtype).to(noise.device)
-    return torch.einsum("ij,...jhw->...ihw", factor, noise)
-
-
-def heteroscedastic_std(
-    clean: torch.Tensor, a: Sequence[float], b: Sequence[float], gains: Sequence[float] | None = None
-) -> torch.Tensor:
-    """Per-pixel std ``g_c sqrt(a_c x + b_c)`` of a per-channel Poisson-Gaussian law with per-channel gains."""
-    channels = clean.shape[-3]
-
-    def column(values: Sequence[float]) -> torch.Tensor:
-        if len(values) != channels:
-            raise ValueError(f"expected {channels} per-channel values, got {len(values)}")
-        return torch.tensor(list(values), dtype=clean.dtype, device=clean.device).view(channels, 1, 1)
-
-    std = (column(a) * clean.clamp_min(0.0) + column(b)).clamp_min(0.0).sqrt()
-    return std if gains is None else std * column(gains)
-
-
-def apply_channel_gains(noise: torch.Tensor, gains: Sequence[float]) -> torch.Tensor:
-    """Scale each channel (axis -3) of a noise map by its gain."""
-    channels = noise.shape[-3]
-    if len(gains) != channels:
-        raise ValueError(f"expected {channels} gains, got {len(gains)}")
-    return noise * torch.tensor(list(gains), dtype=noise.dtype, device=noise.device).view(channels, 1, 1)
+    energy = kernel.square().sum()
+    # sqrt(sum k_x^2 sum k_y^2) with k_x = k_y, written as before the lengths were tied so that a seed draws
+    # bit-identical noise across versions.
+    return _filter_valid(white, kernel) / (energy * energy).sqrt()
 
 
 def jpeg_compress(image: torch.Tensor, quality: int) -> torch.Tensor:
@@ -160,58 +119,6 @@ def jpeg_compress(image: torch.Tensor, quality: int) -> torch.Tensor:
         decoded.append(torch.from_numpy(array.copy()).permute(2, 0, 1))
     out = torch.stack(decoded).reshape(pixels.shape)
     return out.to(device=image.device, dtype=image.dtype) / 255.0
-
-
-def correlated_noise(
-    clean: torch.Tensor,
-    generator: torch.Generator,
-    *,
-    a: Sequence[float],
-    b: Sequence[float],
-    gains: Sequence[float] | None = None,
-    correlation_length: float = 0.0,
-    correlation_length_y: float | None = None,
-    rho: float = 0.0,
-) -> torch.Tensor:
-    """The noise map ``s(x) * L (k * z)``: heteroscedastic, spatially and chromatically correlated."""
-    unit = correlated_normal(
-        clean.shape,
-        generator,
-        correlation_length,
-        correlation_length_y,
-        dtype=clean.dtype,
-        device=clean.device,
-    )
-    return heteroscedastic_std(clean, a, b, gains) * mix_channels(unit, rho)
-
-
-def add_correlated_noise(
-    clean: torch.Tensor,
-    generator: torch.Generator,
-    *,
-    a: Sequence[float],
-    b: Sequence[float],
-    gains: Sequence[float] | None = None,
-    correlation_length: float = 0.0,
-    correlation_length_y: float | None = None,
-    rho: float = 0.0,
-    jpeg_quality: int | None = None,
-) -> torch.Tensor:
-    """``Q_q(x + noise)``: the extended sRGB model's noisy image on 8-bit levels (JPEG when a quality is given;
-    then not differentiable)."""
-    noisy = clean + correlated_noise(
-        clean,
-        generator,
-        a=a,
-        b=b,
-        gains=gains,
-        correlation_length=correlation_length,
-        correlation_length_y=correlation_length_y,
-        rho=rho,
-    )
-    if jpeg_quality is not None:
-        return jpeg_compress(noisy, jpeg_quality)
-    return to_8bit_levels(noisy)
 
 
 def jpeg_quality(compression: float) -> int | None:
