@@ -128,9 +128,9 @@ def test_each_network_output_lands_in_its_named_profile_entry(tiny_model: Callab
 
 
 def test_srgb_model_outputs_land_in_their_profile_entries(tiny_model: Callable[..., DEN]) -> None:
-    # v of the sRGB model: shot, read, gain (2), length, correlations (3), quantization, banding,
-    # temporal banding, periodic (3), compression.
-    fractions = torch.linspace(0.05, 0.95, 15)
+    # v of the sRGB model: shot, read, gain (2), length, correlations (3), chroma length, quantization,
+    # banding, temporal banding, periodic (3), compression.
+    fractions = torch.linspace(0.05, 0.95, 16)
     result = estimate(_reference(1, 64, 64), _rigged(tiny_model(log_levels=False), fractions))
     noise = result.profile.noise
     assert noise["shot"] == pytest.approx((0.05 * 0.2,), rel=1e-5)
@@ -140,16 +140,21 @@ def test_srgb_model_outputs_land_in_their_profile_entries(tiny_model: Callable[.
     )
     assert noise["correlation_length"] == pytest.approx((float(fractions[4]) * 2.0,), rel=1e-5)
     assert noise["channel_correlation"] == pytest.approx(tuple(f * 0.7 for f in fractions[5:8].tolist()), rel=1e-5)
-    assert noise["periodic"] == pytest.approx(tuple(f * 0.02 for f in fractions[11:14].tolist()), rel=1e-5)
-    assert noise["compression"] == pytest.approx((float(fractions[14]) * 0.7,), rel=1e-5)
+    assert noise["chroma_length"] == pytest.approx((float(fractions[8]) * 3.0,), rel=1e-5)
+    assert noise["periodic"] == pytest.approx(tuple(f * 0.02 for f in fractions[12:15].tolist()), rel=1e-5)
+    assert noise["compression"] == pytest.approx((float(fractions[15]) * 0.7,), rel=1e-5)
     assert result.profile.meta["noise_model"] == "srgb"
     validate_profile(result.profile)
 
 
 def test_nearly_noise_free_estimate_warns(tiny_model: Callable[..., DEN]) -> None:
-    quiet = estimate(_reference(1, 64, 64), _rigged(tiny_model(), torch.full((15,), 0.001)), source="quiet.png")
+    quiet = estimate(
+        _reference(1, 64, 64), _rigged(tiny_model(), torch.full((vector_size(),), 0.001)), source="quiet.png"
+    )
     assert any(w.startswith("quiet.png: nearly noise-free") for w in quiet.warnings)
-    noisy = estimate(_reference(1, 64, 64), _rigged(tiny_model(), torch.full((15,), 0.5)), source="noisy.png")
+    noisy = estimate(
+        _reference(1, 64, 64), _rigged(tiny_model(), torch.full((vector_size(),), 0.5)), source="noisy.png"
+    )
     assert not any("noise-free" in w for w in noisy.warnings)
 
 

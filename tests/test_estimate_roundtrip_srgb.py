@@ -14,7 +14,7 @@ import torch
 from darksynth.darkening import Darkening
 from darksynth.estimate import estimate
 from darksynth.models.den import DEN
-from darksynth.noise.components import noise_parameter, noise_parameters
+from darksynth.noise.components import model_parameters, noise_parameter
 from darksynth.noise.values import NoiseValues
 from darksynth.synthesize import ClipParameters, ClipSynthesizer
 from darksynth.training.weights import default_weights_path, load_weights
@@ -47,8 +47,11 @@ def test_the_shipped_srgb_model_estimates_every_parameter(model: DEN) -> None:
     # only for what the network predicts, can.
     assert model.noise_model == "srgb"
     result = estimate(_reference({"read": (0.02,)}, 1, 0), model)
-    assert set(result.profile.ranges) == {p.name for p in noise_parameters()}
-    for parameter in noise_parameters():
+    predicted = model_parameters("srgb", model.config.table_version)
+    assert set(result.profile.ranges) == {p.name for p in predicted}
+    # Newer parameters than the network's table stay neutral, without a range.
+    assert result.profile.noise.is_neutral(noise_parameter("chroma_length"))
+    for parameter in predicted:
         per_crop = result.per_crop[parameter.name].numpy()
         assert per_crop.shape == (result.profile.meta["crops"], parameter.size), parameter.name
         np.testing.assert_allclose(result.profile.noise[parameter.name].numpy(), np.median(per_crop, axis=0))

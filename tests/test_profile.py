@@ -12,7 +12,7 @@ import torch
 
 from darksynth.darkening import Darkening
 from darksynth.errors import DarksynthError, ProfileError
-from darksynth.noise.components import noise_parameter_names
+from darksynth.noise.components import noise_parameter_names, profile_version
 from darksynth.profile import (
     Profile,
     default_profile_path,
@@ -119,7 +119,7 @@ BAD_DOCUMENTS: list[tuple[str, dict[str, Any], tuple[str, ...]]] = [
     ("periodic too long", _edit(("noise", "periodic"), [0.1, 0.2, 0.3, 0.4]), ("noise.periodic", "0.4")),
     ("periodic scalar", _edit(("noise", "periodic"), 0.1), ("noise.periodic", "0.1")),
     ("periodic item negative", _edit(("noise", "periodic"), [0.1, -0.2, 0.3]), ("noise.periodic[1]", "-0.2")),
-    ("version 3", _edit(("version",), 3), ("version", "3")),
+    ("version 4", _edit(("version",), 4), ("version", "4")),
     ("srgb field in version 1", _edit(("noise", "compression"), 0.3), ("noise.compression", "version 2")),
     (
         "gain below minimum",
@@ -245,10 +245,10 @@ def test_version_1_profile_reads_as_white_uncompressed_noise(tmp_path: Path) -> 
     assert profile.noise.to_json()["correlation_length"] == 0.0
     assert profile.noise.to_json()["channel_correlation"] == [0.0, 0.0, 0.0]
     assert profile.noise.to_json()["compression"] == 0.0
-    # Saved again, it becomes a version-2 document with the same noise.
+    # Saved again, it becomes a document of the newest version with the same noise.
     save_profile(tmp_path / "v2.json", profile)
     document = json.loads((tmp_path / "v2.json").read_text(encoding="utf-8"))
-    assert document["version"] == 2
+    assert document["version"] == profile_version() == 3
     assert document["noise"]["channel_gain"] == [1.0, 1.0]
     assert load_profile(tmp_path / "v2.json") == profile
 

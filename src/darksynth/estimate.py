@@ -183,7 +183,7 @@ def estimate(
     # What the network does not estimate (the sRGB structure, for the paper's model) stays neutral, without a range.
     ranges = {
         p.name: tuple(zip(low[p.name].tolist(), high[p.name].tolist(), strict=True))
-        for p in model_parameters(noise_model)
+        for p in model_parameters(noise_model, network.config.table_version)
     }
     warnings = []
     level = float(reference.mean())

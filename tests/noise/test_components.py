@@ -26,12 +26,16 @@ def test_the_papers_model_has_eight_values_in_table_order() -> None:
     assert noise_parameter("periodic").size == 3
     # The sRGB model extends the paper's v; the paper's parameters keep their order inside it.
     srgb = model_parameters("srgb")
-    assert vector_size() == vector_size("srgb") == 15
+    assert vector_size() == vector_size("srgb") == 16
+    # The shipped sRGB DEN was built for table version 2: its v keeps 15 values, chroma_length is newer.
+    assert vector_size("srgb", 2) == 15 and vector_size("paper", 2) == vector_size("paper", 1) == 8
+    assert "chroma_length" not in {p.name for p in model_parameters("srgb", 2)}
     assert [p.name for p in srgb if p.noise_model == "paper"] == [p.name for p in paper]
     assert {p.name for p in srgb if p.noise_model == "srgb"} == {
         "channel_gain",
         "correlation_length",
         "channel_correlation",
+        "chroma_length",
         "compression",
     }
     assert noise_parameter("channel_gain").neutral == 1.0

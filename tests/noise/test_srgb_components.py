@@ -187,3 +187,40 @@ def test_streaming_synthesizer_draws_the_structure(dtype: torch.dtype) -> None:
     assert compressed.dtype == dtype
     if dtype != torch.uint8:
         assert torch.equal(compressed * 255, (compressed * 255).round())
+
+
+def test_chroma_length_coarsens_colour_noise_and_keeps_the_channel_covariance() -> None:
+    """Colour blotches over a finer grain: the non-principal components get the longer kernel; the per-pixel
+    covariance G R G stays exact."""
+    pairs, gains, length, chroma = [0.5, 0.4, 0.6], (1.3, 1.1), 0.5, 1.5
+    shape = (1, 2, 3, 256, 256)
+    generator = torch.Generator().manual_seed(21)
+    noise = structured_normal(
+        shape,
+        torch.tensor([length]),
+        torch.tensor([pairs]),
+        torch.tensor([gains]),
+        generator=generator,
+        dtype=torch.float64,
+        chroma_lengths=torch.tensor([chroma]),
+    )[0]
+    flat = noise.permute(1, 0, 2, 3).reshape(3, -1)
+    scale = torch.tensor([gains[0], 1.0, gains[1]], dtype=torch.float64)
+    expected = valid_channel_correlation(pairs) * scale[:, None] * scale[None, :]
+    torch.testing.assert_close(torch.cov(flat), expected, atol=0.03, rtol=0.0)
+    # Project on the principal components: the main one has the brightness length, the others the longer one.
+    _, vectors = torch.linalg.eigh(expected)
+    components = torch.einsum("ji,tjhw->tihw", vectors, noise)
+    colour, brightness = components[:, :2], components[:, 2:]
+    assert abs(_lag_correlation(brightness, 1) - kernel_autocorrelation(length, 1)) < 0.03
+    longer = math.sqrt(length**2 + chroma**2)
+    assert abs(_lag_correlation(colour, 1) - kernel_autocorrelation(longer, 1)) < 0.03
+    assert _lag_correlation(colour, 1) > _lag_correlation(brightness, 1) + 0.2
+
+
+def test_chroma_length_zero_draws_exactly_the_previous_structure() -> None:
+    args = (torch.tensor([0.8]), torch.tensor([[0.3, 0.2, 0.5]]), torch.tensor([[1.2, 0.9]]))
+    shape = (1, 1, 3, 40, 48)
+    before = structured_normal(shape, *args, generator=torch.Generator().manual_seed(3))
+    after = structured_normal(shape, *args, generator=torch.Generator().manual_seed(3), chroma_lengths=torch.zeros(1))
+    assert torch.equal(before, after)

@@ -82,7 +82,7 @@ def test_vector_round_trip_with_batch_dimensions() -> None:
     values = NoiseValues.from_vector(vector)
     assert values["shot"].shape == (4, 2, 1) and values["periodic"].shape == (4, 2, 3)
     assert torch.equal(values["shot"][..., 0], vector[..., 0])
-    assert torch.equal(values["periodic"], vector[..., 11:14])
+    assert torch.equal(values["periodic"], vector[..., 12:15])
     assert torch.equal(values.vector(), vector)
     paper_vector = vector[..., :8]
     paper_values = NoiseValues.from_vector(paper_vector, "paper")
@@ -103,7 +103,7 @@ def test_values_round_trip_through_the_vector() -> None:
 
 
 def test_vector_of_wrong_length_is_rejected() -> None:
-    with pytest.raises(ValueError, match="15"):
+    with pytest.raises(ValueError, match="16"):
         NoiseValues.from_vector(torch.zeros(2, 8))
     with pytest.raises(ValueError, match="8"):
         NoiseValues.from_vector(torch.zeros(2, 7), "paper")

@@ -67,7 +67,7 @@ def test_train_writes_weights_summary_and_checkpoint(reference_run: tuple[Path, 
     assert [entry["step"] for entry in history] == [2, 4]
     for entry in history:
         assert set(entry["r2"]) == set(vector_names())
-        assert len(vector_names()) == 15 and len(vector_names("paper")) == 8
+        assert len(vector_names()) == 16 and len(vector_names("paper")) == 8
         assert set(entry["single_frame"]["r2"]) == set(vector_names())
         assert entry["samples"] == CONFIG.validation_size
         assert all(value == value for value in entry["r2"].values())  # no NaN

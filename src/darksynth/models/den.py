@@ -19,21 +19,21 @@ weights are read as the ``paper`` model.
 
 from __future__ import annotations
 
-from dataclasses import asdict, dataclass
+from dataclasses import asdict, dataclass, field
 from typing import Literal
 
 import torch
 import torch.nn.functional as F
 from torch import nn
 
-from darksynth.noise.components import NoiseModel, model_parameters, model_statistics, vector_size
+from darksynth.noise.components import NoiseModel, model_parameters, model_statistics, profile_version, vector_size
 from darksynth.noise.values import NoiseValues
 
 Variant = Literal["v2", "v3"]
 MODEL_NAME = "darksynth-den"
-MODEL_VERSION = 2
+MODEL_VERSION = 3
 """Weights are written with this version (2: the noise model is part of the config)."""
-READABLE_MODEL_VERSIONS = (1, 2)
+READABLE_MODEL_VERSIONS = (1, 2, 3)
 """Versions read on load; version 1 weights are the ``paper`` noise model."""
 
 
@@ -59,17 +59,24 @@ class DENConfig:
     channels: int = 3
     noise_model: NoiseModel = "srgb"
     log_levels: bool = True
+    table_version: int = field(default_factory=profile_version)
+    """The parameter table's version the head was built for: it predicts the noise model's parameters that had
+    arrived by then (:func:`darksynth.noise.components.model_parameters`), so a component added to the table
+    later leaves a trained network readable (version-1 weights: 1, version-2 weights: 2)."""
 
     def to_dict(self) -> dict[str, object]:
         return asdict(self)
 
 
 def parameter_bounds(
-    device: torch.device | str | None = None, noise_model: NoiseModel = "srgb", log_levels: bool = False
+    device: torch.device | str | None = None,
+    noise_model: NoiseModel = "srgb",
+    log_levels: bool = False,
+    version: int | None = None,
 ) -> tuple[torch.Tensor, torch.Tensor, torch.Tensor]:
     """Low and high ends of every entry of a noise model's v, from the training ranges of the parameter table,
     and which entries are on a log scale (their low end is then the log floor)."""
-    parameters = model_parameters(noise_model)
+    parameters = model_parameters(noise_model, version)
     logarithmic = [log_levels and p.log_floor is not None for p in parameters for _ in range(p.size)]
     low = [
         p.log_floor if log_levels and p.log_floor else p.training_range[0] for p in parameters for _ in range(p.size)
@@ -82,18 +89,22 @@ def parameter_bounds(
     )
 
 
-def normalise(vector: torch.Tensor, noise_model: NoiseModel = "srgb", log_levels: bool = False) -> torch.Tensor:
+def normalise(
+    vector: torch.Tensor, noise_model: NoiseModel = "srgb", log_levels: bool = False, version: int | None = None
+) -> torch.Tensor:
     """v (..., vector_size(model)) -> [0, 1] per entry over its training range; log-scale entries (with
     ``log_levels``) through their logarithm, values below the floor at 0."""
-    low, high, logarithmic = parameter_bounds(vector.device, noise_model, log_levels)
+    low, high, logarithmic = parameter_bounds(vector.device, noise_model, log_levels, version)
     linear = (vector - low) / (high - low)
     logs = (vector.clamp_min(low).log() - low.log()) / (high.log() - low.log())
     return torch.where(logarithmic, logs, linear)
 
 
-def denormalise(normalised: torch.Tensor, noise_model: NoiseModel = "srgb", log_levels: bool = False) -> torch.Tensor:
+def denormalise(
+    normalised: torch.Tensor, noise_model: NoiseModel = "srgb", log_levels: bool = False, version: int | None = None
+) -> torch.Tensor:
     """Inverse of :func:`normalise` (0 on a log scale gives the floor)."""
-    low, high, logarithmic = parameter_bounds(normalised.device, noise_model, log_levels)
+    low, high, logarithmic = parameter_bounds(normalised.device, noise_model, log_levels, version)
     linear = low + normalised * (high - low)
     # Bounds of the linear entries replaced by 1 inside the log branch: log(0) there would make the unused
     # branch infinite and its gradient NaN (the level loss differentiates through this function).
@@ -127,12 +138,15 @@ class DENOutput:
     dark: torch.Tensor | None
     noise_model: NoiseModel = "srgb"
     log_levels: bool = False
+    table_version: int | None = None
 
     @property
     def values(self) -> NoiseValues:
         """The estimated noise values in the parameters' units, batched (B,); those the noise model lacks neutral."""
         return NoiseValues.from_vector(
-            denormalise(self.normalised, self.noise_model, self.log_levels), self.noise_model
+            denormalise(self.normalised, self.noise_model, self.log_levels, self.table_version),
+            self.noise_model,
+            self.table_version,
         )
 
 
@@ -165,7 +179,7 @@ class DEN(nn.Module):
             self.to_image = nn.Sequential(nn.Conv2d(widths[0], 4 * config.channels, 1), nn.PixelShuffle(2))
         # The statistics span many decades and are standardised with the mean and spread measured on training
         # data before training starts (set_statistics_scale); the buffers travel with the weights.
-        statistics = sum(s.size for s in model_statistics(config.noise_model))
+        statistics = sum(s.size for s in model_statistics(config.noise_model, config.table_version))
         self.register_buffer("statistics_mean", torch.zeros(statistics))
         self.register_buffer("statistics_scale", torch.ones(statistics))
         self.pooled_norm = nn.LayerNorm(2 * widths[-1])
@@ -174,7 +188,7 @@ class DEN(nn.Module):
             nn.GELU(),
             nn.Linear(config.head_width, config.head_width),
             nn.GELU(),
-            nn.Linear(config.head_width, vector_size(config.noise_model)),
+            nn.Linear(config.head_width, vector_size(config.noise_model, config.table_version)),
         )
 
     @torch.no_grad()
@@ -226,13 +240,18 @@ class DEN(nn.Module):
                 x = decoder(torch.cat([up(x), skip], dim=1))
             dark = self.to_image(x)[..., :height, :width].reshape(batch, frames, channels, height, width)
         return DENOutput(
-            normalised=normalised, dark=dark, noise_model=self.config.noise_model, log_levels=self.config.log_levels
+            normalised=normalised,
+            dark=dark,
+            noise_model=self.config.noise_model,
+            log_levels=self.config.log_levels,
+            table_version=self.config.table_version,
         )
 
     def normalise(self, vector: torch.Tensor) -> torch.Tensor:
         """v in the parameters' units -> the [0, 1] space this model's head predicts in (training targets)."""
-        return normalise(vector, self.config.noise_model, self.config.log_levels)
+        return normalise(vector, self.config.noise_model, self.config.log_levels, self.config.table_version)
 
     def statistics(self, clip: torch.Tensor) -> torch.Tensor:
         """The fixed noise statistics this model's head reads, before standardisation."""
-        return torch.cat([s.compute(clip) for s in model_statistics(self.config.noise_model)], dim=-1)
+        statistics = model_statistics(self.config.noise_model, self.config.table_version)
+        return torch.cat([s.compute(clip) for s in statistics], dim=-1)

@@ -177,6 +177,20 @@ _HETEROSCEDASTIC_PARAMETERS: tuple[Parameter, ...] = (
         role="shape",
         training_off_probability=0.2,
     ),
+    # In-camera chroma denoising and 4:2:0 subsampling make colour noise coarser than brightness noise
+    # (docs/srgb-noise.md): blotches of colour over a finer grain.
+    Parameter(
+        "chroma_length",
+        1,
+        "extra std in pixels of the kernel of the colour part of the noise: sqrt(l^2 + e^2) (0: as the brightness)",
+        8.0,
+        (0.0, 3.0),
+        noise_model="srgb",
+        since_version=3,
+        statistics=SRGB_STATISTICS,
+        role="shape",
+        training_off_probability=0.3,
+    ),
 )
 
 
@@ -196,6 +210,7 @@ def _draw_heteroscedastic(
         values["channel_gain"].expand(*batch, 2),
         generator=generator,
         dtype=signal.dtype,
+        chroma_lengths=values["chroma_length"].expand(*batch, 1)[..., 0],
     ).reshape(signal.shape)
     return heteroscedastic_std(signal, shot, read) * unit
 
@@ -385,24 +400,31 @@ def noise_parameter_names() -> tuple[str, ...]:
     return tuple(p.name for p in noise_parameters())
 
 
-def model_parameters(noise_model: NoiseModel = "srgb") -> tuple[Parameter, ...]:
+def model_parameters(noise_model: NoiseModel = "srgb", version: int | None = None) -> tuple[Parameter, ...]:
     """The parameters of one noise model, in table order: ``paper`` is shot, read, quantization, banding,
-    temporal_banding, periodic (3), the paper's v of 8 values; ``srgb`` is every parameter."""
+    temporal_banding, periodic (3), the paper's v of 8 values; ``srgb`` is every parameter.
+
+    ``version``: only the parameters that had arrived by that table (profile) version, as an estimator trained
+    then predicts them (None: the table as it is now)."""
     if noise_model not in NOISE_MODELS:
         raise ValueError(f"unknown noise model {noise_model!r}; known: {', '.join(NOISE_MODELS)}")
     last = NOISE_MODELS.index(noise_model)
-    return tuple(p for p in noise_parameters() if NOISE_MODELS.index(p.noise_model) <= last)
+    return tuple(
+        p
+        for p in noise_parameters()
+        if NOISE_MODELS.index(p.noise_model) <= last and (version is None or p.since_version <= version)
+    )
 
 
-def vector_size(noise_model: NoiseModel = "srgb") -> int:
-    """Length of the flat v of one noise model (8 for ``paper``)."""
-    return sum(p.size for p in model_parameters(noise_model))
+def vector_size(noise_model: NoiseModel = "srgb", version: int | None = None) -> int:
+    """Length of the flat v of one noise model (8 for ``paper``), at a table version (None: now)."""
+    return sum(p.size for p in model_parameters(noise_model, version))
 
 
-def model_statistics(noise_model: NoiseModel = "srgb") -> tuple[EstimatorStatistics, ...]:
+def model_statistics(noise_model: NoiseModel = "srgb", version: int | None = None) -> tuple[EstimatorStatistics, ...]:
     """The statistics the estimator of a noise model reads: those its parameters name, in table order."""
     found: list[EstimatorStatistics] = []
-    for parameter in model_parameters(noise_model):
+    for parameter in model_parameters(noise_model, version):
         if parameter.statistics not in found:
             found.append(parameter.statistics)
     return tuple(found)

@@ -163,6 +163,7 @@ def structured_normal(
     *,
     generator: torch.Generator | None,
     dtype: torch.dtype = torch.float32,
+    chroma_lengths: torch.Tensor | None = None,
 ) -> torch.Tensor:
     """Zero-mean Gaussian noise for clips ``shape`` (*batch, T, C, H, W) with the sRGB structure of each clip.
 
@@ -171,6 +172,13 @@ def structured_normal(
     green-blue and red-blue have the ``correlations`` (*batch, 3) and scaled by ``gains`` (*batch, 2): the std
     of red and of blue relative to green. Grey clips get the spatial correlation only. Drawn on the
     generator's device (the global generator's when None).
+
+    ``chroma_lengths`` (*batch,): where above 0, the colour noise is coarser than its brightness noise, as
+    in-camera chroma denoising and 4:2:0 subsampling make it. The channel covariance S = G R G is split into its
+    principal components (S = V diag(lambda) V^T); the main one (brightness-like for positively correlated
+    channels) is drawn with the kernel of ``lengths``, the other two (colour) with a kernel of std
+    sqrt(length^2 + chroma_length^2), each at unit variance, and mixed by V diag(sqrt(lambda)): the per-pixel
+    covariance stays exactly S. At 0 the draw is the one above, bit for bit.
     """
     if generator is None:
         generator = torch.default_generator
@@ -181,8 +189,18 @@ def structured_normal(
     flat_lengths = lengths.expand(batch).reshape(-1).tolist() if batch else [float(lengths)]
     flat_correlations = correlations.expand(*batch, 3).reshape(-1, 3).tolist()
     flat_gains = gains.expand(*batch, 2).reshape(-1, 2).tolist()
+    flat_chroma = (
+        [0.0] * len(flat_lengths)
+        if chroma_lengths is None
+        else (chroma_lengths.expand(batch).reshape(-1).tolist() if batch else [float(chroma_lengths)])
+    )
     clips = []
-    for length, pairs, (red, blue) in zip(flat_lengths, flat_correlations, flat_gains, strict=True):
+    for length, pairs, (red, blue), chroma in zip(
+        flat_lengths, flat_correlations, flat_gains, flat_chroma, strict=True
+    ):
+        if channels == 3 and chroma > 0.0:
+            clips.append(_luma_chroma_normal(frame_shape, generator, length, chroma, pairs, (red, blue), dtype))
+            continue
         unit = correlated_normal(frame_shape, generator, float(length), dtype=dtype, device=device)
         if channels == 3:
             factor = torch.linalg.cholesky(valid_channel_correlation(pairs))
@@ -190,3 +208,27 @@ def structured_normal(
             unit = torch.einsum("ij,tjhw->tihw", factor.to(device=device, dtype=dtype), unit)
         clips.append(unit)
     return torch.stack(clips).reshape(*batch, *frame_shape)
+
+
+def _luma_chroma_normal(
+    frame_shape: tuple[int, ...],
+    generator: torch.Generator,
+    length: float,
+    chroma: float,
+    pairs: Sequence[float],
+    gains: tuple[float, float],
+    dtype: torch.dtype,
+) -> torch.Tensor:
+    """One clip (T, 3, H, W) of :func:`structured_normal` with coarser colour noise (see there)."""
+    device = generator.device
+    scale = torch.tensor([gains[0], 1.0, gains[1]], dtype=torch.float64)
+    covariance = valid_channel_correlation(pairs) * scale[:, None] * scale[None, :]
+    eigenvalues, eigenvectors = torch.linalg.eigh(covariance)  # ascending: the main component is the last
+    frames, _, height, width = frame_shape
+    colour = correlated_normal(
+        (frames, 2, height, width), generator, math.sqrt(length**2 + chroma**2), dtype=dtype, device=device
+    )
+    brightness = correlated_normal((frames, 1, height, width), generator, float(length), dtype=dtype, device=device)
+    components = torch.cat([colour, brightness], dim=1)
+    mixing = eigenvectors * eigenvalues.clamp_min(0.0).sqrt()[None, :]
+    return torch.einsum("ij,tjhw->tihw", mixing.to(device=device, dtype=dtype), components)

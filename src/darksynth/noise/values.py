@@ -105,10 +105,13 @@ class NoiseValues(Mapping[str, torch.Tensor]):
         return cls(tensors)
 
     @classmethod
-    def from_vector(cls, vector: torch.Tensor, noise_model: NoiseModel = "srgb") -> NoiseValues:
-        """Split a noise model's flat v ``(*batch, vector_size(noise_model))`` into named values; the parameters
-        the noise model lacks are neutral (white, uncompressed noise for the ``paper`` model)."""
-        parameters = table.model_parameters(noise_model)
+    def from_vector(
+        cls, vector: torch.Tensor, noise_model: NoiseModel = "srgb", version: int | None = None
+    ) -> NoiseValues:
+        """Split a noise model's flat v ``(*batch, vector_size(noise_model, version))`` into named values; the
+        parameters the noise model lacks (or that arrived after ``version``) are neutral (white, uncompressed
+        noise for the ``paper`` model)."""
+        parameters = table.model_parameters(noise_model, version)
         size = sum(p.size for p in parameters)
         if vector.shape[-1] != size:
             raise ValueError(f"a {noise_model} noise vector must end in {size} values, got shape {tuple(vector.shape)}")
@@ -188,9 +191,10 @@ class NoiseValues(Mapping[str, torch.Tensor]):
         """The unbatched values of one clip of a batch with one batch dimension."""
         return self.map(lambda t: t[index])
 
-    def vector(self, noise_model: NoiseModel = "srgb") -> torch.Tensor:
-        """The flat v of a noise model, ``(*batch, vector_size(noise_model))``: the network's view."""
-        return torch.cat([self._tensors[p.name] for p in table.model_parameters(noise_model)], dim=-1)
+    def vector(self, noise_model: NoiseModel = "srgb", version: int | None = None) -> torch.Tensor:
+        """The flat v of a noise model at a table version, ``(*batch, vector_size(noise_model, version))``: the
+        network's view."""
+        return torch.cat([self._tensors[p.name] for p in table.model_parameters(noise_model, version)], dim=-1)
 
     def scalar(self, name: str) -> float:
         """The single value of a parameter of size 1 in unbatched values: a fused kernel's view."""

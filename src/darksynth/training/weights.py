@@ -86,6 +86,9 @@ def load_weights(path: Path, *, device: torch.device | str = "cpu") -> DEN:
             # Version 1 predates the sRGB model: its weights are the paper's model.
             settings["noise_model"] = "paper"
             settings["log_levels"] = False
+        # Versions 1 and 2 predate the table version in the config: their heads were built for the table
+        # of their time.
+        settings.setdefault("table_version", int(metadata["version"]))
         config = DENConfig(**settings)
         model = DEN(config)
         model.load_state_dict(load_file(str(path), device=str(device)))
