@@ -136,3 +136,14 @@ def test_level_correction_moves_green_into_shot_and_read_and_keeps_the_gains(cle
     assert corrected.scalar("read") == pytest.approx(0.008, rel=0.1)
     assert _list(corrected, "channel_gain") == pytest.approx([1.3, 0.8], abs=0.05)
     assert corrected.scalar("correlation_length") == 0.9
+
+
+@pytest.mark.parametrize("chroma", [0.0, 1.5])
+def test_chroma_length_round_trip(clean: torch.Tensor, chroma: float) -> None:
+    """The colour part's own length is recovered from the principal components; none where there is none."""
+    known = KNOWN.replace(correlation_length=0.7, chroma_length=chroma)
+    noisy = synthesize_image(clean, known, torch.Generator().manual_seed(5))
+    fitted = fit_srgb_noise(noisy, clean, OracleComponents(jpeg=False))
+    assert fitted.scalar("correlation_length") == pytest.approx(0.7, abs=0.15)
+    assert fitted.scalar("chroma_length") == pytest.approx(chroma, abs=0.35)
+    assert fit_srgb_noise(noisy, clean, OracleComponents(jpeg=False, chroma=False)).scalar("chroma_length") == 0.0

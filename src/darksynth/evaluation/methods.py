@@ -138,6 +138,11 @@ _SRGB_ORACLES: dict[str, tuple[str, OracleComponents]] = {
         "none) by search with a level correction",
         OracleComponents(),
     ),
+    "srgb-nochroma-oracle": (
+        "srgb-oracle without the colour part's own length (chroma_length 0): one correlation length for "
+        "brightness and colour noise alike",
+        OracleComponents(chroma=False),
+    ),
     "srgb-nojpeg-oracle": (
         "Heteroscedastic law with channel gains + spatial correlation + per-pair channel correlations, fitted "
         "with the clean image; no JPEG",
@@ -200,11 +205,7 @@ DEFAULT_METHODS: tuple[str, ...] = (
 METHOD_NAMES: tuple[str, ...] = (
     *DEFAULT_METHODS,
     # Clean-aided ablations of the extended sRGB noise model (docs/srgb-noise.md), run by name only.
-    "srgb-oracle",
-    "srgb-nojpeg-oracle",
-    "srgb-gains-oracle",
-    "pg-corr-oracle",
-    "pg-rho-oracle",
+    *_SRGB_ORACLES,
 )
 
 

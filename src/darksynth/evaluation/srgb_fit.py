@@ -68,6 +68,9 @@ class OracleComponents:
         spatial: the correlation length.
         chromatic: the channel correlations.
         pairwise: one coefficient per pair of channels; False gives all three pairs their mean (one rho).
+        chroma: with ``spatial`` and ``chromatic``, the colour part's own length (``chroma_length``): the
+            correlation length is fitted on the main principal component of the noise, the chroma length on
+            the other two.
         jpeg: the search over ``candidates`` with its correction of the levels and the length.
         candidates: JPEG qualities searched (None: no compression); ``(None,)`` corrects the levels only.
     """
@@ -75,6 +78,7 @@ class OracleComponents:
     spatial: bool = True
     chromatic: bool = True
     pairwise: bool = True
+    chroma: bool = True
     jpeg: bool = True
     candidates: tuple[int | None, ...] = JPEG_CANDIDATES
 
@@ -166,6 +170,20 @@ def fit_correlation_length(correlations: Sequence[Sequence[float]]) -> float:
     theory = _theory_table()
     error = sum(np.square(theory - np.asarray(list(lags)[:MAX_LAG])[None, :]).sum(axis=1) for lags in correlations)
     return _clipped("correlation_length", float(LENGTH_GRID[int(np.argmin(error))]))
+
+
+def principal_noise(unit: torch.Tensor, values: NoiseValues) -> tuple[torch.Tensor, torch.Tensor]:
+    """The noise on the principal components of its channel covariance: the main (brightness-like) one
+    (1, H, W) and the other two (colour, 2, H, W), as the table's ``chroma_length`` draws them.
+
+    ``unit`` is divided by each channel's std; multiplied back by the gains it is the noise over the common
+    level, whose covariance is the model's G R G."""
+    gains = values["channel_gain"].to(unit.dtype)
+    scale = torch.stack([gains[0], torch.ones_like(gains[0]), gains[1]]).view(3, 1, 1)
+    noise = unit * scale
+    _, vectors = torch.linalg.eigh(torch.cov(noise.reshape(3, -1)))
+    components = torch.einsum("ji,jhw->ihw", vectors, noise)
+    return components[2:], components[:2]
 
 
 def channel_correlations(unit: torch.Tensor) -> list[float]:
@@ -274,6 +292,12 @@ def fit_srgb_noise(
     if components.chromatic:
         pairs = channel_correlations(unit)
         values = values.replace(channel_correlation=pairs if components.pairwise else sum(pairs) / len(pairs))
+    if components.spatial and components.chromatic and components.chroma:
+        brightness, colour = principal_noise(unit, values)
+        length = fit_correlation_length(autocorrelation(brightness))
+        colour_length = fit_correlation_length(autocorrelation(colour))
+        chroma = _clipped("chroma_length", math.sqrt(max(colour_length**2 - length**2, 0.0)))
+        values = values.replace(correlation_length=length, chroma_length=chroma)
     if not components.jpeg:
         return values
     real = _central_crop(noisy - clean, SEARCH_CROP)
