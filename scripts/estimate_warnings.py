@@ -8,6 +8,12 @@ the noise std the profile would add on this reference (``noise.level.mean_noise_
 whether the column components (banding, temporal banding, periodic) were kept or set absent with the measured
 column ratio (``meta.columns``), the darkening (alpha, gamma, confidence, bound hit) and the warnings; then the
 rate of each warning and of each column decision.
+
+``--confidence``: how the darkening's confidence relates to its error, which sets the threshold of the
+"darkening estimate is uncertain" warning: held-out Kodak images darkened with alpha ~ U(0.05, 0.3), gamma ~
+U(0.1, 1) and noise from the DEN's training ranges (as ``scripts/evaluate_darkening.py evaluate``, seed 0, 4
+draws each), the tone-curve error (mean absolute difference of the 5%-95% quantiles over the true mean level)
+per confidence bin, and how often each threshold would fire.
 """
 
 from __future__ import annotations
@@ -16,10 +22,16 @@ import argparse
 from collections import Counter
 from pathlib import Path
 
+import numpy as np
 import torch
 
+from darksynth.darkening import ALPHA_RANGE, GAMMA_RANGE, Darkening, darken
+from darksynth.darkening_estimate import estimate_darkening
+from darksynth.errors import DarksynthError
 from darksynth.estimate import NOISE_FREE_STD, EstimateOptions, estimate_file, load_reference
 from darksynth.noise.level import mean_noise_variance
+from darksynth.noise.sampling import random_noise_values
+from darksynth.noise.simulate import add_noise
 from darksynth.training.weights import default_weights_path, load_weights
 
 
@@ -36,11 +48,55 @@ def references(root: Path) -> list[tuple[Path, bool]]:
 WARNING_KINDS = ("nearly noise-free", "darkening estimate is uncertain", "bound of its search range", "bright")
 
 
+CURVE_LEVELS = torch.linspace(0.05, 0.95, 19, dtype=torch.float64)
+
+
+def _curve_error(clean: torch.Tensor, estimated: Darkening, true: Darkening) -> float:
+    ours = torch.quantile(darken(clean, estimated.alpha, estimated.gamma).flatten().double(), CURVE_LEVELS)
+    theirs = darken(clean, true.alpha, true.gamma).flatten().double()
+    return float((ours - torch.quantile(theirs, CURVE_LEVELS)).abs().mean() / theirs.mean())
+
+
+def confidence_table(data: Path, draws: int = 4, seed: int = 0) -> None:
+    """Tone-curve error of the darkening estimate by confidence bin, on held-out Kodak images."""
+    generator = torch.Generator().manual_seed(seed)
+    rows = []
+    for path in sorted((data / "clean" / "images" / "kodak24").glob("*.png")):
+        clean = load_reference(path)[0]
+        for _ in range(draws):
+            alpha = float(torch.empty(()).uniform_(*ALPHA_RANGE, generator=generator))
+            gamma = float(torch.empty(()).uniform_(*GAMMA_RANGE, generator=generator))
+            values = random_noise_values(generator=generator, noise_model="paper")
+            noisy = add_noise(darken(clean, alpha, gamma)[None], values, generator=generator)[0]
+            try:
+                found = estimate_darkening((noisy * 255).round() / 255)
+            except DarksynthError:
+                continue
+            rows.append((found.confidence, _curve_error(clean, found.darkening, Darkening(alpha, gamma))))
+    table = np.asarray(rows)
+    print(f"held-out kodak24: {len(table)} estimates; tone-curve error by confidence")
+    for low, high in ((0.0, 0.1), (0.1, 0.2), (0.2, 0.3), (0.3, 0.5), (0.5, 1.01)):
+        chosen = table[(table[:, 0] >= low) & (table[:, 0] < high), 1]
+        if chosen.size:
+            print(
+                f"  [{low:.1f}, {min(high, 1.0):.1f}): n={chosen.size:3d} median {np.median(chosen):.3f} "
+                f"90th percentile {np.percentile(chosen, 90):.3f}"
+            )
+    for threshold in (0.05, 0.1, 0.15, 0.2, 0.3):
+        below = table[:, 0] < threshold
+        print(f"  threshold {threshold}: fires on {below.mean():.2f} of the estimates")
+
+
 def main() -> int:
     parser = argparse.ArgumentParser(description=__doc__)
     parser.add_argument("--data", type=Path, default=Path(__file__).resolve().parents[2] / "shared" / "data")
     parser.add_argument("--weights", type=Path, default=default_weights_path())
+    parser.add_argument("--confidence", action="store_true", help="the darkening confidence table instead")
     args = parser.parse_args()
+    torch.set_num_threads(1)
+    if args.confidence:
+        confidence_table(args.data)
+        return 0
     network = load_weights(args.weights)
     root = args.data / "real-lowlight"
     kinds: Counter[str] = Counter()

@@ -205,6 +205,22 @@ def test_a_fitted_value_on_a_bound_of_its_search_range_warns(tiny_model: Callabl
     assert result.profile.meta["darkening"]["gamma"]["source"].startswith("fit, clipped to the upper bound")
 
 
+def test_low_darkening_confidence_warns_and_says_why(tiny_model: Callable[..., DEN]) -> None:
+    model = tiny_model()
+    dark = estimate(_dark_scene(1, [0.05], gamma=0.3), model, source="dark.png")  # confidence 0.02
+    assert any(
+        w.startswith("dark.png: the darkening estimate is uncertain (confidence 0.02 < 0.1: 7 of 49 tone quantiles")
+        for w in dark.warnings
+    ), dark.warnings
+    # Confidence 0.18 (its gamma hit the upper bound, which warns by itself): above the threshold of 0.1.
+    between = estimate(_dark_scene(1, [0.2], gamma=1.5), model, source="between.png")
+    assert 0.1 < between.profile.meta["darkening"]["confidence"] < 0.2
+    assert not any("uncertain" in w for w in between.warnings)
+    assert any("sits on the upper bound" in w for w in between.warnings)
+    clear = estimate(_dark_scene(1, [0.15], gamma=0.6), model, source="clear.png")  # confidence 0.43
+    assert not any("uncertain" in w for w in clear.warnings)
+
+
 def test_bright_reference_warns_and_a_dark_one_does_not(tiny_model: Callable[..., DEN]) -> None:
     model = tiny_model()
     bright = estimate(_reference(1, 64, 64, mean=0.8), model, source="bright.png")
