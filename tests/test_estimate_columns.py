@@ -87,6 +87,10 @@ def test_estimate_sets_column_components_absent_without_stripes(srgb_model: DEN)
     assert columns["decision"] == "absent"
     assert columns["set_absent"] == list(COLUMN_NAMES)
     assert columns["ratio"] < COLUMN_RATIO
+    # What the network said is kept in the meta, next to the decision that overrode it.
+    assert columns["network_values"]["banding"][0] == pytest.approx(
+        float(result.per_crop["banding"].median()), abs=1e-5
+    )
     validate_profile(result.profile)
 
 

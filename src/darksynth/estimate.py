@@ -358,6 +358,7 @@ def _decide_columns(
     if not absent:
         return noise
     meta["columns"]["set_absent"] = names
+    meta["columns"]["network_values"] = {name: [round(float(v), 5) for v in noise[name].tolist()] for name in names}
     for name in names:
         ranges.pop(name, None)
     neutral = {p.name: p.neutral for c in noise_components() if c.structure == "column" for p in c.parameters}
