@@ -66,8 +66,8 @@ MEASURED_FRAMES = 4
 """Frames (evenly spread) on which the column presence and the profile's noise level are measured."""
 
 NOISE_FREE_STD = 0.5 / 255
-"""Below this noise std (half an 8-bit level) on the reference, a profile is nearly noise-free: after rounding
-to 8 bits, about 68% of the pixels keep their value."""
+"""Below this noise std (half an 8-bit level) on the reference, a profile is nearly noise-free: a pixel on an
+8-bit level rounds back to it in 68% of the draws (|n| < 0.5 level, one std)."""
 
 
 @dataclass(frozen=True)
