@@ -139,3 +139,26 @@ def test_tone_quantiles_pool_frames_and_channels() -> None:
     frames = torch.stack([torch.full((3, 8, 8), 0.2), torch.full((3, 8, 8), 0.6)])
     quantiles = tone_quantiles(frames)
     assert quantiles[0] == pytest.approx(0.2) and quantiles[-1] == pytest.approx(0.6)
+
+
+def _line(alpha: float, gamma: float) -> np.ndarray:
+    """Tone quantiles of the prior's average scene darkened exactly by alpha and gamma."""
+    return np.exp(np.log(alpha) + np.asarray(TONE_PRIOR_LOG_QUANTILES) / gamma)
+
+
+def test_bounds_hit_say_which_parameter_hit_which_bound() -> None:
+    brighter = fit_darkening(np.minimum(np.exp(np.asarray(TONE_PRIOR_LOG_QUANTILES) + 0.5), 0.96), use_prior=False)
+    assert brighter.bounds_hit == {"alpha": "upper"}
+    flat = fit_darkening(_line(0.3, 5.0), use_prior=False)  # gamma 5 lies above the search range [0.1, 2]
+    assert flat.darkening.gamma == 2.0 and flat.bounds_hit == {"gamma": "upper"}
+    inside = fit_darkening(_line(0.15, 0.6))
+    assert inside.bounds_hit == {} and not inside.clipped
+
+
+def test_prior_share_grows_as_the_tones_say_less() -> None:
+    wide = fit_darkening(_line(0.3, 1.0))  # all 49 quantiles usable
+    narrow = fit_darkening(_line(0.15, 0.6))  # the darkest 19 lie below the floor
+    for name in ("alpha", "gamma"):
+        assert 0.0 < wide.prior_share[name] < narrow.prior_share[name] < 1.0, (wide.prior_share, narrow.prior_share)
+    assert wide.prior_share["gamma"] < 0.2
+    assert fit_darkening(_line(0.3, 1.0), use_prior=False).prior_share == {}

@@ -16,12 +16,16 @@ from darksynth.noise.values import NoiseValues
 from darksynth.profile import validate_profile
 
 
-def _reference(frames: int, height: int, width: int, *, mean: float = 0.1, seed: int = 0) -> torch.Tensor:
-    """Dark frames with noise that grows from left to right, so that crops differ."""
+def _reference(
+    frames: int, height: int, width: int, *, mean: float = 0.1, seed: int = 0, banding: float = 0.0
+) -> torch.Tensor:
+    """Dark frames with noise that grows from left to right, so that crops differ, and with ``banding``, a
+    column offset of that std (so that the column components are measured present and kept)."""
     generator = torch.Generator().manual_seed(seed)
     strength = torch.linspace(0.005, 0.08, width)
     noise = torch.randn(frames, 3, height, width, generator=generator) * strength
-    return (mean + noise).clamp(0, 1)
+    columns = torch.randn(frames, 3, 1, width, generator=generator) * banding
+    return (mean + noise + columns).clamp(0, 1)
 
 
 def _profile_vector(result_noise: NoiseValues) -> np.ndarray:
@@ -32,7 +36,8 @@ def test_profile_is_the_median_over_crops_and_ranges_the_10th_to_90th_percentile
     tiny_model: Callable[..., DEN],
 ) -> None:
     # 1 frame of 48 x 240: side 48, a 1 x 5 grid, so an odd number of crops and an unambiguous median.
-    result = estimate(_reference(1, 48, 240), tiny_model(head_width=16))
+    result = estimate(_reference(1, 48, 240, banding=0.1), tiny_model(head_width=16))
+    assert result.profile.meta["columns"]["decision"] == "present"
     per_crop = result.per_crop.vector().numpy()
     assert per_crop.shape == (5, vector_size())
     assert result.profile.meta["crops"] == 5
@@ -49,7 +54,8 @@ def test_profile_is_the_median_over_crops_and_ranges_the_10th_to_90th_percentile
 
 def test_even_number_of_crops_gives_a_value_between_the_middle_two(tiny_model: Callable[..., DEN]) -> None:
     # 8 frames of 48 x 144: two windows of four frames times a 1 x 3 grid.
-    result = estimate(_reference(8, 48, 144), tiny_model())
+    result = estimate(_reference(8, 48, 144, banding=0.1), tiny_model())
+    assert result.profile.meta["columns"]["decision"] == "present"
     per_crop = np.sort(result.per_crop.vector().numpy(), axis=0)
     assert len(per_crop) == 6
     profile = _profile_vector(result.profile.noise)
@@ -106,7 +112,8 @@ def _rigged(model: DEN, normalised: torch.Tensor) -> DEN:
 
 def test_each_network_output_lands_in_its_named_profile_entry(tiny_model: Callable[..., DEN]) -> None:
     fractions = torch.tensor([0.1, 0.2, 0.3, 0.4, 0.5, 0.6, 0.7, 0.8])
-    result = estimate(_reference(1, 64, 64), _rigged(tiny_model(noise_model="paper", log_levels=False), fractions))
+    network = _rigged(tiny_model(noise_model="paper", log_levels=False), fractions)
+    result = estimate(_reference(1, 64, 64, banding=0.1), network)
     expected = {
         "shot": (0.1 * 0.2,),
         "read": (0.2 * 0.1,),
@@ -131,7 +138,7 @@ def test_srgb_model_outputs_land_in_their_profile_entries(tiny_model: Callable[.
     # v of the sRGB model: shot, read, gain (2), length, correlations (3), chroma length, quantization,
     # banding, temporal banding, periodic (3), compression.
     fractions = torch.linspace(0.05, 0.95, 16)
-    result = estimate(_reference(1, 64, 64), _rigged(tiny_model(log_levels=False), fractions))
+    result = estimate(_reference(1, 64, 64, banding=0.1), _rigged(tiny_model(log_levels=False), fractions))
     noise = result.profile.noise
     assert noise["shot"] == pytest.approx((0.05 * 0.2,), rel=1e-5)
     gain_low, gain_high = noise_parameter("channel_gain").training_range
@@ -158,12 +165,73 @@ def test_nearly_noise_free_estimate_warns(tiny_model: Callable[..., DEN]) -> Non
     assert not any("noise-free" in w for w in noisy.warnings)
 
 
+def test_noise_free_warning_reads_the_noise_the_profile_adds_on_this_reference(
+    tiny_model: Callable[..., DEN],
+) -> None:
+    # Paper model: shot, read, quantization, banding, temporal banding, periodic (3), linear in the fractions.
+    # Shot 0.002 and read 0.001, which the old rule (shot < 0.005 and read < 0.003) called noise-free, with
+    # quantization 0.0198 (std 0.0057, 1.5 levels of 8 bits): visibly noisy.
+    fractions = torch.tensor([0.01, 0.01, 0.99, 0.01, 0.01, 0.01, 0.01, 0.01])
+    network = _rigged(tiny_model(noise_model="paper", log_levels=False), fractions)
+    grainy = estimate(_reference(1, 64, 64), network, source="grainy.png")
+    assert not any("noise-free" in w for w in grainy.warnings)
+    assert grainy.profile.meta["noise_std_8bit"] == pytest.approx(0.0198 / 12**0.5 * 255, rel=0.05)
+    # Shot noise alone (0.2, the top of its range) adds nothing on black and 0.2 * sqrt(0.1) on a level of 0.1.
+    shot_only = _rigged(tiny_model(noise_model="paper", log_levels=False), torch.tensor([0.999] + [1e-6] * 7))
+    black = estimate(torch.zeros(1, 3, 64, 64), shot_only, source="black.png")
+    assert any(w.startswith("black.png: nearly noise-free; the profile adds noise of std 0.0") for w in black.warnings)
+    grey = estimate(torch.full((1, 3, 64, 64), 0.1), shot_only, source="grey.png")
+    assert not any("noise-free" in w for w in grey.warnings)
+    assert grey.profile.meta["noise_std_8bit"] == pytest.approx(0.2 * 0.1**0.5 * 255, rel=0.01)
+
+
+def test_darkening_meta_says_what_was_fitted_and_what_is_prior(tiny_model: Callable[..., DEN]) -> None:
+    result = estimate(_dark_scene(1, [0.15], gamma=0.6), tiny_model(), source="scene.png")
+    darkening = result.profile.meta["darkening"]
+    for name in ("alpha", "gamma"):
+        entry = darkening[name]
+        assert entry["value"] == pytest.approx(getattr(result.profile.darkening, name), abs=1e-4)
+        assert 0.0 < entry["prior_share"] < 1.0
+        expected = "mostly prior" if entry["prior_share"] > 0.5 else "fit to the reference's tones"
+        assert entry["source"].startswith(expected)
+    assert not any("bound" in w for w in result.warnings)
+    black = estimate(torch.zeros(1, 3, 64, 64), tiny_model())
+    assert black.profile.meta["darkening"]["gamma"]["source"].startswith("prior: apply draws it from the paper's")
+
+
+def test_a_fitted_value_on_a_bound_of_its_search_range_warns(tiny_model: Callable[..., DEN]) -> None:
+    # x ** (1 / 8): mid-tones far brighter than the search range's gamma of at most 2 allows.
+    result = estimate(_dark_scene(1, [0.3], gamma=8.0), tiny_model(), source="flat.png")
+    assert result.profile.darkening is not None and result.profile.darkening.gamma == 2.0
+    assert any(
+        w.startswith("flat.png: the fitted gamma sits on the upper bound 2 of its search range [0.1, 2]")
+        for w in result.warnings
+    ), result.warnings
+    assert result.profile.meta["darkening"]["gamma"]["source"].startswith("fit, clipped to the upper bound")
+
+
+def test_low_darkening_confidence_warns_and_says_why(tiny_model: Callable[..., DEN]) -> None:
+    model = tiny_model()
+    dark = estimate(_dark_scene(1, [0.05], gamma=0.3), model, source="dark.png")  # confidence 0.02
+    assert any(
+        w.startswith("dark.png: the darkening estimate is uncertain (confidence 0.02 < 0.1: 7 of 49 tone quantiles")
+        for w in dark.warnings
+    ), dark.warnings
+    # Confidence 0.18 (its gamma hit the upper bound, which warns by itself): above the threshold of 0.1.
+    between = estimate(_dark_scene(1, [0.2], gamma=1.5), model, source="between.png")
+    assert 0.1 < between.profile.meta["darkening"]["confidence"] < 0.2
+    assert not any("uncertain" in w for w in between.warnings)
+    assert any("sits on the upper bound" in w for w in between.warnings)
+    clear = estimate(_dark_scene(1, [0.15], gamma=0.6), model, source="clear.png")  # confidence 0.43
+    assert not any("uncertain" in w for w in clear.warnings)
+
+
 def test_bright_reference_warns_and_a_dark_one_does_not(tiny_model: Callable[..., DEN]) -> None:
     model = tiny_model()
     bright = estimate(_reference(1, 64, 64, mean=0.8), model, source="bright.png")
     assert any(w.startswith("bright.png: mean level 0.80 is bright") for w in bright.warnings)
     dark = estimate(_reference(1, 64, 64, mean=0.1), model, source="dark.png")
-    assert not any("bright" in w for w in dark.warnings)
+    assert not any("is bright for a low-light reference" in w for w in dark.warnings)
 
 
 def test_single_frame_adds_a_note_and_clips_do_not(tiny_model: Callable[..., DEN]) -> None:
@@ -175,6 +243,24 @@ def test_single_frame_adds_a_note_and_clips_do_not(tiny_model: Callable[..., DEN
     clip = estimate(_reference(5, 64, 64), model)
     assert "note" not in clip.profile.meta
     assert clip.profile.meta["frames"] == 5
+
+
+def test_column_components_are_set_absent_without_a_column_pattern(tiny_model: Callable[..., DEN]) -> None:
+    fractions = torch.full((8,), 0.5)
+    network = _rigged(tiny_model(noise_model="paper", log_levels=False), fractions)
+    plain = estimate(_reference(1, 64, 128), network)
+    columns = plain.profile.meta["columns"]
+    assert columns["decision"] == "absent" and columns["ratio"] < 2.0
+    names = ("banding", "temporal_banding", "periodic")
+    assert columns["set_absent"] == list(names)
+    for name in names:
+        assert float(plain.profile.noise[name].abs().max()) == 0.0 and name not in plain.profile.ranges
+    assert plain.profile.noise.scalar("read") == pytest.approx(0.05)  # the rest is the network's
+    striped = estimate(_reference(1, 64, 128, banding=0.02), network)
+    assert striped.profile.meta["columns"]["decision"] == "present"
+    assert striped.profile.noise.scalar("banding") == pytest.approx(0.015)
+    assert "banding" in striped.profile.ranges
+    validate_profile(plain.profile)
 
 
 def test_batch_size_does_not_change_the_estimate(tiny_model: Callable[..., DEN]) -> None:

@@ -46,7 +46,8 @@ def test_the_shipped_srgb_model_estimates_every_parameter(model: DEN) -> None:
     # paper's model), so its entries cannot show they were estimated: the per-crop values and the ranges, written
     # only for what the network predicts, can.
     assert model.noise_model == "srgb"
-    result = estimate(_reference({"read": (0.02,)}, 1, 0), model)
+    # Banding so that the column components are measured present (without it they are set absent).
+    result = estimate(_reference({"read": (0.02,), "banding": (0.01,)}, 1, 0), model)
     predicted = model_parameters("srgb", model.config.table_version)
     assert set(result.profile.ranges) == {p.name for p in predicted}
     # Newer parameters than the network's table stay neutral, without a range.

@@ -20,7 +20,7 @@ from __future__ import annotations
 
 import itertools
 import math
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 
 import numpy as np
 import torch
@@ -103,6 +103,12 @@ class DarkeningEstimate:
             tone distribution, darkened); above about 0.3 the content is far from an average natural image.
         noise_floor: the level below which quantiles were left out, on the [0, 1] scale.
         clipped: alpha or gamma hit a bound.
+        bounds_hit: for each of ``alpha`` and ``gamma`` whose fitted value lay outside its search range
+            (:data:`ALPHA_BOUNDS`, :data:`GAMMA_BOUNDS`) and was clipped to it, ``"lower"`` or ``"upper"``.
+        prior_share: for ``alpha`` and ``gamma``, the share of the estimate's precision that comes from the prior
+            on the paper's ranges rather than from the reference's tones, in [0, 1] (0: the tones alone determine
+            it; 1: the reference says nothing about it and the value is the paper's mid-range). Empty without
+            the prior (``use_prior=False``).
     """
 
     darkening: Darkening
@@ -110,6 +116,8 @@ class DarkeningEstimate:
     fit_rms: float
     noise_floor: float
     clipped: bool
+    bounds_hit: dict[str, str] = field(default_factory=dict)
+    prior_share: dict[str, float] = field(default_factory=dict)
 
     @property
     def confidence(self) -> float:
@@ -199,12 +207,16 @@ PAPER_PRIOR: tuple[float, float, float, float] = _paper_prior()
 
 def _fit_line(
     x: np.ndarray, y: np.ndarray, spread: np.ndarray, *, use_prior: bool, iterations: int = 30
-) -> tuple[float, float]:
-    """Intercept log alpha and slope 1 / gamma of y = a + b x.
+) -> tuple[float, float, tuple[float, float] | None]:
+    """Intercept log alpha and slope 1 / gamma of y = a + b x, and the prior's share of each one's precision.
 
     Each point is weighed by 1 / (b spread)^2 (a scene's log quantile departs from the prior's by about
     ``spread``, scaled by the exponent), Huber-downweighted where its residual is an outlier, and the whole
     data term counts as :data:`EFFECTIVE_QUANTILES` values against the paper's prior on (a, b).
+
+    The prior's share of a parameter is its prior precision times its variance under data and prior together,
+    (1 / std^2) * [(D + P)^-1]_ii with D and P the data's and the prior's precision matrices: 1 when the data
+    say nothing about it, towards 0 as they determine it (None without the prior).
     """
     mean_a, std_a, mean_b, std_b = PAPER_PRIOR
     huber = np.ones_like(x)
@@ -225,7 +237,13 @@ def _fit_line(
         intercept, slope = float(new_intercept), float(new_slope)
         if done:
             break
-    return intercept, slope
+    if not use_prior:
+        return intercept, slope, None
+    data = rows[0].T @ rows[0]
+    prior = np.diag([1.0 / std_a**2, 1.0 / std_b**2])
+    covariance = np.linalg.inv(data + prior)
+    share_a, share_b = (float(np.clip(prior[i, i] * covariance[i, i], 0.0, 1.0)) for i in range(2))
+    return intercept, slope, (share_a, share_b)
 
 
 def fit_darkening(
@@ -269,12 +287,19 @@ def fit_darkening(
             f"{source}: too flat to estimate its darkening: its usable tone quantiles span a factor of only "
             f"{math.exp(float(np.ptp(y))):.3f} (at least {math.exp(MIN_LOG_SPAN):.3f} is needed)"
         )
-    log_alpha, exponent = _fit_line(x, y, np.asarray(spread, dtype=np.float64)[usable], use_prior=use_prior)
+    log_alpha, exponent, shares = _fit_line(x, y, np.asarray(spread, dtype=np.float64)[usable], use_prior=use_prior)
     gamma = 1.0 / exponent if exponent > 0 else math.inf
     alpha = math.exp(log_alpha)
     clipped_alpha = min(max(alpha, ALPHA_BOUNDS[0]), ALPHA_BOUNDS[1])
     clipped_gamma = min(max(gamma, GAMMA_BOUNDS[0]), GAMMA_BOUNDS[1])
     clipped = clipped_alpha != alpha or clipped_gamma != gamma
+    bounds_hit = {
+        name: "lower" if value < low else "upper"
+        for name, value, (low, high) in (("alpha", alpha, ALPHA_BOUNDS), ("gamma", gamma, GAMMA_BOUNDS))
+        if not low <= value <= high
+    }
+    # The share belongs to 1 / gamma, which the fit works in; it is the same share for gamma.
+    prior_share = {"alpha": shares[0], "gamma": shares[1]} if shares is not None else {}
     residual = y - (math.log(clipped_alpha) + x / clipped_gamma)
     return DarkeningEstimate(
         darkening=Darkening(alpha=clipped_alpha, gamma=clipped_gamma),
@@ -282,6 +307,8 @@ def fit_darkening(
         fit_rms=float(np.sqrt(np.mean(residual**2))),
         noise_floor=floor,
         clipped=clipped,
+        bounds_hit=bounds_hit,
+        prior_share=prior_share,
     )
 
 
