@@ -280,8 +280,8 @@ def test_markdown_tables_bold_best_blind_label_oracles_and_format_intervals(tmp_
         "correlation R-B",
     ]
     assert list(channels)[2:] == ["real", "den", "awgn", "pg-oracle (oracle)"]
-    assert channels["real"] == ["1 σ 5.1", "1 σ 5.1", "1 σ 5.1", "0.3", "0.25", "0.2"]
-    assert channels["den"] == ["0.5 σ 2.55", "0.55 σ 2.81", "0.45 σ 2.3", "0.1", "0.2", "-0.05"]
+    assert channels["real"] == ["1 (σ 5.1)", "1 (σ 5.1)", "1 (σ 5.1)", "0.3", "0.25", "0.2"]
+    assert channels["den"] == ["0.5 (σ 2.55)", "0.55 (σ 2.81)", "0.45 (σ 2.3)", "0.1", "0.2", "-0.05"]
     assert "**" not in " ".join(" ".join(row) for row in channels.values())  # nothing is ranked here
     assert "### sidd: noise level and channel correlation" in text  # methods only: no real entry in that set
 
@@ -290,6 +290,7 @@ def test_markdown_tables_bold_best_blind_label_oracles_and_format_intervals(tmp_
     assert cameras["den"] == ["**0.04** [0.036, 0.044]", "**0.07** [0.063, 0.077]"]
     assert cameras["awgn"] == ["0.3 [0.27, 0.33]", "—"]
     assert "### sidd per camera: KLD sRGB [95% CI]" in text
+    assert "per camera: AKLD" not in text  # no camera has it (results of an older run): no empty table
 
     downstream = table_rows(text, "### polyu: denoising")
     assert list(downstream)[2:] == ["den", "awgn", "pg-oracle (oracle)", "noisy input"]
@@ -417,9 +418,9 @@ def test_html_structure(report: Path) -> None:
     channels = polyu.find("table", class_="channels")
     assert "Level ratio" in channels.find("caption").text()
     real = channels.find("tr", class_="reference", data_method="real")
-    assert [td.text() for td in real.find_all("td")] == ["1σ 5.1", "1σ 5.1", "1σ 5.1", "0.3", "0.25", "0.2"]
+    assert [td.text() for td in real.find_all("td")] == ["1(σ 5.1)", "1(σ 5.1)", "1(σ 5.1)", "0.3", "0.25", "0.2"]
     den_channels = channels.find("tr", data_method="den")
-    assert den_channels.find("td", data_metric="level_ratio_g").text() == "0.55σ 2.81"
+    assert den_channels.find("td", data_metric="level_ratio_g").text() == "0.55(σ 2.81)"
     assert den_channels.find("td", data_metric="correlation_rb").text() == "-0.05"
     assert not channels.find_all("td", class_="best")
     assert polyu.find("figure", class_="radar").find("img").attrs["alt"].startswith("Radar chart for polyu")

@@ -74,7 +74,7 @@ def test_parse_tolerates_missing_and_odd_parts() -> None:
                     "pairs": "many",
                     "methods": {
                         "den": {"kld": math.nan, "kld_ci95": [0.1, math.nan], "fid": "12", "kid": True},
-                        "x-oracle": {"kld": 1, "oracle": 0},
+                        "x-oracle": {"kld": 1, "oracle": 0, "level_ratio": "high", "noise_std": {"r": "a", "g": 0.01}},
                         "weird": "not a mapping",
                     },
                 },
@@ -92,6 +92,10 @@ def test_parse_tolerates_missing_and_odd_parts() -> None:
     assert results.sets["s"].methods["x-oracle"].kld == 1.0
     assert results.sets["s"].methods["weird"] == MethodScores()
     assert results.sets["s"].methods["den"].channels is None
+    channels = results.sets["s"].methods["x-oracle"].channels
+    assert channels == ChannelStatistics(
+        noise_std={"r": None, "g": 0.01, "b": None}, level_ratio={}, correlation={"rg": None, "gb": None, "rb": None}
+    )
     assert results.sets["s"].pairs is None and results.sets["broken"].methods == {}
     assert results.oracles == frozenset()  # x-oracle says it is not one
     assert results.downstream is None

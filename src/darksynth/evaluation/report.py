@@ -291,7 +291,7 @@ class _Layout:
             for channel in CHANNELS:
                 ratio = 1.0 if is_real else statistics.level_ratio.get(channel)
                 std = statistics.noise_std.get(channel)
-                extra = f"σ {_num(std * 255.0, 3)}" if std is not None and math.isfinite(std) else ""
+                extra = f"(σ {_num(std * 255.0, 3)})" if std is not None and math.isfinite(std) else ""
                 cells.append(_Cell(f"level_ratio_{channel}", _num(ratio, 3), extra, False))
             for pair in CHANNEL_PAIRS:
                 cells.append(_Cell(f"correlation_{pair}", _num(statistics.correlation.get(pair), 3), "", False))
@@ -301,7 +301,8 @@ class _Layout:
         return _Table("channels", caption, headers, rows, {"set": set_name}, set_name)
 
     def camera_tables(self, set_name: str) -> list[_Table]:
-        """One table per KL divergence: a column per camera (its pair count in the header), a row per method."""
+        """One table per per-pair metric that has values: a column per camera (its pair count in the header), a row
+        per method."""
         methods = {name: row for name, row in self.results.sets[set_name].methods.items() if row.per_camera}
         counts: dict[str, list[int]] = {}
         for row in methods.values():
@@ -322,6 +323,10 @@ class _Layout:
             headers.append(_Header(camera, title, literal=False))
         tables = []
         for metric in CAMERA_METRICS:
+            if not any(
+                scores.value(metric) is not None for row in methods.values() for scores in row.per_camera.values()
+            ):
+                continue  # results written before the metric existed
             best = best_per_camera(self.results, set_name, metric)
             rows = []
             for name in _ordered(methods, self.order):
