@@ -1,4 +1,4 @@
-"""Noise-distribution metrics: histogram KL divergences, FID, KID and the t confidence interval."""
+"""Noise-distribution metrics: histogram KL divergences, AKLD, channel statistics, FID, KID and the t interval."""
 
 from __future__ import annotations
 
@@ -9,14 +9,23 @@ import pytest
 import torch
 
 from darksynth.evaluation.metrics import (
+    AKLD_WINDOW_SIGMA,
+    NAFLOW_EPS,
     _trace_sqrt_product_factors,
     _trace_sqrt_product_sqrtm,
+    average_kl_divergence,
+    channel_correlations,
+    channel_moments,
     frechet_distance,
     kernel_inception_distance,
+    kl_divergence_naflow,
     kl_divergence_noise_flow,
     kl_divergence_srgb,
+    local_noise_variance,
     mean_and_interval,
+    naflow_histogram,
     noise_flow_histogram,
+    pooled_std,
     srgb_histogram,
 )
 
@@ -243,3 +252,111 @@ def test_kid_default_subset_size_is_bounded_by_the_smaller_set() -> None:
     assert math.isfinite(mean)
     with pytest.raises(ValueError, match="subset_size"):
         kernel_inception_distance(a, b, subset_size=13)
+
+
+# --- NAFlow-recipe KL ------------------------------------------------------------------------------------------
+
+NAFLOW_BIN = 2.0 / 256
+
+
+def _naflow_centre(index: int) -> float:
+    """Centre of the NAFlow bin ``index`` (0..255)."""
+    return -1.0 + (index + 0.5) * NAFLOW_BIN
+
+
+def test_naflow_kl_of_identical_samples_is_zero_and_of_independent_same_distribution_near_zero() -> None:
+    rng = np.random.default_rng(0)
+    real = rng.normal(0.0, 0.03, size=(200, 300, 3))
+    assert kl_divergence_naflow(real, real) == 0.0
+    assert kl_divergence_naflow(real, rng.normal(0.0, 0.03, size=(200, 300, 3))) < 1e-3
+    assert kl_divergence_naflow(real, rng.normal(0.0, 0.045, size=(200, 300, 3))) > 0.05
+
+
+def test_naflow_kl_matches_a_hand_computed_value() -> None:
+    # p = (1/2, 1/2) and q = (1/4, 3/4) on two neighbouring bins; the epsilon shifts the value by ~1e-9 only.
+    real = np.array([_naflow_centre(130)] * 2 + [_naflow_centre(131)] * 2)
+    synthetic = np.array([_naflow_centre(130)] + [_naflow_centre(131)] * 3)
+    expected = 0.5 * math.log(0.5 / 0.25) + 0.5 * math.log(0.5 / 0.75)
+    assert kl_divergence_naflow(real, synthetic) == pytest.approx(expected, rel=1e-6)
+    histogram = naflow_histogram(synthetic)
+    assert histogram.shape == (256,) and histogram.sum() == pytest.approx(1.0)
+    assert histogram[131] == pytest.approx(0.75, rel=1e-6) and histogram[0] == pytest.approx(NAFLOW_EPS, rel=1e-6)
+
+
+def test_naflow_kl_counts_mass_the_synthetic_sample_leaves_out_where_noise_flow_ignores_it() -> None:
+    # Half the real mass sits in a bin the synthetic sample never fills: Noise Flow drops that bin, NAFlow's
+    # epsilon makes it cost 1/2 log(1/2 / eps).
+    real = np.array([_naflow_centre(128), _naflow_centre(140)])
+    synthetic = np.array([_naflow_centre(128)] * 2)
+    value = kl_divergence_naflow(real, synthetic)
+    assert math.isfinite(value)
+    assert value == pytest.approx(0.5 * math.log(0.5) + 0.5 * math.log(0.5 / NAFLOW_EPS), rel=1e-6)
+    assert kl_divergence_noise_flow(real, synthetic) < 0.0  # only the shared bin: 1/2 log(1/2 / 1)
+
+
+def test_naflow_histogram_covers_the_whole_range_of_unit_scale_noise() -> None:
+    histogram = naflow_histogram(np.array([-1.0, 1.0, 0.999, -0.5]))
+    assert histogram[0] == pytest.approx(0.25, rel=1e-6) and histogram[-1] == pytest.approx(0.5, rel=1e-6)
+    assert histogram[64] == pytest.approx(0.25, rel=1e-6)
+
+
+# --- AKLD -------------------------------------------------------------------------------------------------------
+
+
+def test_local_variance_window_is_normalised_and_has_danets_width() -> None:
+    assert abs(AKLD_WINDOW_SIGMA - 1.4) < 1e-12
+    constant = torch.full((3, 20, 24), 0.05)
+    assert torch.allclose(local_noise_variance(constant), torch.full((3, 20, 24), 0.0025, dtype=torch.float64))
+    impulse = torch.zeros(1, 15, 15)
+    impulse[0, 7, 7] = 1.0
+    spread = local_noise_variance(impulse)[0]
+    # The centre weight of a normalised 7-tap Gaussian of sigma 1.4, squared (separable window).
+    taps = np.exp(-(np.arange(-3, 4) ** 2) / (2 * 1.4**2))
+    assert float(spread[7, 7]) == pytest.approx((taps[3] / taps.sum()) ** 2, rel=1e-9)
+    assert float(spread.sum()) == pytest.approx(1.0, rel=1e-7)  # plus the variance floor on every pixel
+
+
+def test_akld_of_identical_noise_is_zero() -> None:
+    noise = torch.randn(3, 64, 64, generator=torch.Generator().manual_seed(0)) * 0.03
+    assert average_kl_divergence(noise, noise) == 0.0
+
+
+def test_akld_of_constant_sigma_fields_matches_the_gaussian_closed_form() -> None:
+    generator = torch.Generator().manual_seed(0)
+    real = torch.randn(3, 256, 256, generator=generator) * 0.02
+    synthetic = torch.randn(3, 256, 256, generator=generator) * 0.04
+    # Local variances from a 7x7 window (about 25 effective samples) scatter; E[1/var] then exceeds 1/sigma^2
+    # by about 8%, so the estimate sits ~0.01 above the closed form log 2 + 1/8 - 1/2 = 0.318.
+    assert average_kl_divergence(real, synthetic) == pytest.approx(_gaussian_kl(0.02, 0.04), abs=0.02)
+    # The direction is KL(real || synthetic): the other one is log(1/2) + 2 - 1/2 = 0.81 and more.
+    assert average_kl_divergence(synthetic, real) > 0.75
+
+
+def test_akld_refuses_maps_of_different_shapes() -> None:
+    with pytest.raises(ValueError, match="differ in shape"):
+        average_kl_divergence(torch.zeros(3, 16, 16), torch.zeros(3, 16, 17))
+    with pytest.raises(ValueError, match=r"\(C, H, W\)"):
+        average_kl_divergence(torch.zeros(16, 16), torch.zeros(16, 16))
+
+
+# --- Channel statistics -----------------------------------------------------------------------------------------
+
+
+def test_pooled_std_of_moments_summed_over_maps_is_the_std_of_all_values() -> None:
+    rng = np.random.default_rng(0)
+    first, second = rng.normal(0.01, 0.02, (3, 30, 40)), rng.normal(-0.01, 0.05, (3, 20, 10))
+    pooled = pooled_std(channel_moments(first) + channel_moments(second))
+    every = np.concatenate([first.reshape(3, -1), second.reshape(3, -1)], axis=1)
+    np.testing.assert_allclose(pooled, every.std(axis=1), rtol=1e-10)
+
+
+def test_channel_correlations_are_near_zero_for_independent_channels_and_one_for_shared_noise() -> None:
+    generator = torch.Generator().manual_seed(0)
+    independent = channel_correlations(torch.randn(3, 128, 128, generator=generator))
+    assert list(independent) == ["rg", "gb", "rb"]
+    assert all(abs(value) < 0.03 for value in independent.values())
+    shared = torch.randn(1, 128, 128, generator=generator)
+    mixed = torch.cat([shared, 0.5 * shared, -shared])
+    assert channel_correlations(mixed) == pytest.approx({"rg": 1.0, "gb": -1.0, "rb": -1.0})
+    flat = channel_correlations(torch.cat([shared, torch.zeros(1, 128, 128), shared]))
+    assert math.isnan(flat["rg"]) and flat["rb"] == pytest.approx(1.0)

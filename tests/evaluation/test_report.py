@@ -34,13 +34,22 @@ CROP = (slice(16, 80), slice(32, 96))  # 64x64 out of a 96x128 "whole image"
 
 
 def _entry(
-    kld: float, kld_srgb: float, fid: float | None, kid: float | None, cameras: dict[str, Any]
+    kld: float, kld_srgb: float, fid: float | None, kid: float | None, cameras: dict[str, Any], level: float = 1.0
 ) -> dict[str, Any]:
+    """The NAFlow KLD is twice the Noise Flow one and the AKLD that plus 0.1; ``level`` is the red level ratio."""
+    ratio = {"r": level, "g": 1.1 * level, "b": 0.9 * level}
     return {
         "kld": kld,
         "kld_ci95": [0.8 * kld, 1.2 * kld],
         "kld_srgb": kld_srgb,
         "kld_srgb_ci95": [0.8 * kld_srgb, 1.2 * kld_srgb],
+        "kld_naflow": 2 * kld,
+        "kld_naflow_ci95": [1.5 * kld, 2.5 * kld],
+        "akld": kld + 0.1,
+        "akld_ci95": [kld, kld + 0.2],
+        "noise_std": {channel: 0.02 * value for channel, value in ratio.items()},
+        "level_ratio": ratio,
+        "channel_correlation": {"rg": 0.1, "gb": 0.2, "rb": -0.05},
         "fid": fid,
         "kid": kid,
         "kid_std": None if kid is None else 0.001,
@@ -62,6 +71,8 @@ def make_results() -> dict[str, Any]:
         "metrics": {
             "kld": "KL(real || synthetic), Noise Flow recipe",
             "kld_srgb": "KL(real || synthetic), sRGB recipe",
+            "kld_naflow": "KL(real || synthetic), NAFlow recipe",
+            "akld": "average KL divergence of local Gaussians",
             "fid": "Frechet Inception distance",
             "kid": "Kernel Inception distance",
         },
@@ -75,8 +86,12 @@ def make_results() -> dict[str, Any]:
         "sets": {
             "polyu": {
                 "pairs": 12,
+                "real": {
+                    "noise_std": {"r": 0.02, "g": 0.02, "b": 0.02},
+                    "channel_correlation": {"rg": 0.3, "gb": 0.25, "rb": 0.2},
+                },
                 "methods": {
-                    "den": _entry(0.05, 0.09, 12.5, 0.004, polyu_cameras),
+                    "den": _entry(0.05, 0.09, 12.5, 0.004, polyu_cameras, level=0.5),
                     "awgn": _entry(0.2, 0.15, 30.0, 0.02, {"Canon5D2": (8, 0.3, 0.2)}),
                     "pg-oracle": _entry(0.01, 0.03, 5.0, -0.001, {"Canon5D2": (8, 0.005, 0.01)}),
                 },
@@ -229,9 +244,23 @@ def test_markdown_tables_bold_best_blind_label_oracles_and_format_intervals(tmp_
 
     polyu = table_rows(text, "## polyu (12 pairs)")
     assert list(polyu) == ["method", ":--", "den", "awgn", "pg-oracle (oracle)"]
-    assert polyu["method"] == ["KLD [95% CI]", "KLD sRGB [95% CI]", "FID", "KID ± std"]
+    assert polyu["method"] == [
+        "KLD [95% CI]",
+        "KLD sRGB [95% CI]",
+        "KLD NAFlow [95% CI]",
+        "AKLD [95% CI]",
+        "FID",
+        "KID ± std",
+    ]
     # The oracle is lowest everywhere, yet the best *blind* method is the one in bold.
-    assert polyu["den"] == ["**0.05** [0.04, 0.06]", "**0.09** [0.072, 0.108]", "**12.5**", "**0.004** ± 0.001"]
+    assert polyu["den"] == [
+        "**0.05** [0.04, 0.06]",
+        "**0.09** [0.072, 0.108]",
+        "**0.1** [0.075, 0.125]",
+        "**0.15** [0.05, 0.25]",
+        "**12.5**",
+        "**0.004** ± 0.001",
+    ]
     assert "**" not in " ".join(polyu["awgn"] + polyu["pg-oracle (oracle)"])
     assert polyu["pg-oracle (oracle)"][0] == "0.01 [0.008, 0.012]"
     assert "Not evaluated on this set: starlight (see Problems)." in text
@@ -239,13 +268,29 @@ def test_markdown_tables_bold_best_blind_label_oracles_and_format_intervals(tmp_
     sidd = table_rows(text, "## sidd (8 pairs)")
     assert sidd["awgn"][1].startswith("**0.25**")  # best blind sRGB KLD is awgn's, the best KLD den's
     assert sidd["den"][0].startswith("**0.12**")
-    assert sidd["starlight"][2:] == ["—", "—"]  # FID and KID not computed
+    assert sidd["starlight"][4:] == ["—", "—"]  # FID and KID not computed
+
+    channels = table_rows(text, "### polyu: noise level and channel correlation")
+    assert channels["method"] == [
+        "level ratio R",
+        "level ratio G",
+        "level ratio B",
+        "correlation R-G",
+        "correlation G-B",
+        "correlation R-B",
+    ]
+    assert list(channels)[2:] == ["real", "den", "awgn", "pg-oracle (oracle)"]
+    assert channels["real"] == ["1 (σ 5.1)", "1 (σ 5.1)", "1 (σ 5.1)", "0.3", "0.25", "0.2"]
+    assert channels["den"] == ["0.5 (σ 2.55)", "0.55 (σ 2.81)", "0.45 (σ 2.3)", "0.1", "0.2", "-0.05"]
+    assert "**" not in " ".join(" ".join(row) for row in channels.values())  # nothing is ranked here
+    assert "### sidd: noise level and channel correlation" in text  # methods only: no real entry in that set
 
     cameras = table_rows(text, "### polyu per camera: KLD [95% CI]")
     assert cameras["method"] == ["Canon5D2 (8 pairs)", "Sony\\_A7II (4 pairs)"]
     assert cameras["den"] == ["**0.04** [0.036, 0.044]", "**0.07** [0.063, 0.077]"]
     assert cameras["awgn"] == ["0.3 [0.27, 0.33]", "—"]
     assert "### sidd per camera: KLD sRGB [95% CI]" in text
+    assert "per camera: AKLD" not in text  # no camera has it (results of an older run): no empty table
 
     downstream = table_rows(text, "### polyu: denoising")
     assert list(downstream)[2:] == ["den", "awgn", "pg-oracle (oracle)", "noisy input"]
@@ -362,11 +407,22 @@ def test_html_structure(report: Path) -> None:
     assert [td.attrs["data-metric"] for td in rows["den"].find_all("td", class_="best")] == [
         "kld",
         "kld_srgb",
+        "kld_naflow",
+        "akld",
         "fid",
         "kid",
     ]
     assert not rows["pg-oracle"].find_all("td", class_="best")
     assert rows["den"].find("td", data_metric="kld").text() == "0.05[0.04, 0.06]"
+    assert rows["den"].find("td", data_metric="akld").text() == "0.15[0.05, 0.25]"
+    channels = polyu.find("table", class_="channels")
+    assert "Level ratio" in channels.find("caption").text()
+    real = channels.find("tr", class_="reference", data_method="real")
+    assert [td.text() for td in real.find_all("td")] == ["1(σ 5.1)", "1(σ 5.1)", "1(σ 5.1)", "0.3", "0.25", "0.2"]
+    den_channels = channels.find("tr", data_method="den")
+    assert den_channels.find("td", data_metric="level_ratio_g").text() == "0.55(σ 2.81)"
+    assert den_channels.find("td", data_metric="correlation_rb").text() == "-0.05"
+    assert not channels.find_all("td", class_="best")
     assert polyu.find("figure", class_="radar").find("img").attrs["alt"].startswith("Radar chart for polyu")
     assert "best / value" in polyu.find("figure", class_="radar").text()
     assert polyu.find_all("table", class_="per-camera")
@@ -390,7 +446,7 @@ def test_html_without_examples_downstream_or_inception_metrics() -> None:
     results["downstream"] = None
     for entry in results["sets"].values():
         for row in entry["methods"].values():
-            row.update(fid=None, kid=None, kid_std=None)
+            row.update(fid=None, kid=None, kid_std=None, kld_naflow=None, akld=None)
     dom = parse(render_html(results, []))
     assert not dom.find_all("img") and not dom.find_all("section", id="downstream")
     assert "needs three metrics" in dom.find("section", id="set-polyu").find("p", class_="radar-missing").text()

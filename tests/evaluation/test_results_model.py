@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import math
 
-from darksynth.evaluation.results_model import CameraScores, MethodScores, parse_results
+from darksynth.evaluation.results_model import CameraScores, ChannelStatistics, MethodScores, parse_results
 from tests.evaluation.test_report import make_results
 
 
@@ -23,6 +23,10 @@ def test_parse_keeps_the_runners_values() -> None:
         kld_ci95=(0.8 * 0.05, 1.2 * 0.05),
         kld_srgb=0.09,
         kld_srgb_ci95=(0.8 * 0.09, 1.2 * 0.09),
+        kld_naflow=0.1,
+        kld_naflow_ci95=(1.5 * 0.05, 2.5 * 0.05),
+        akld=0.05 + 0.1,
+        akld_ci95=(0.05, 0.05 + 0.2),
         fid=12.5,
         kid=0.004,
         kid_std=0.001,
@@ -31,7 +35,17 @@ def test_parse_keeps_the_runners_values() -> None:
             "Canon5D2": CameraScores(8, 0.04, (0.9 * 0.04, 1.1 * 0.04), 0.08, (0.08, 0.08)),
             "Sony_A7II": CameraScores(4, 0.07, (0.9 * 0.07, 1.1 * 0.07), 0.1, (0.1, 0.1)),
         },
+        channels=ChannelStatistics(
+            noise_std={"r": 0.02 * 0.5, "g": 0.02 * 1.1 * 0.5, "b": 0.02 * 0.9 * 0.5},
+            level_ratio={"r": 0.5, "g": 1.1 * 0.5, "b": 0.9 * 0.5},
+            correlation={"rg": 0.1, "gb": 0.2, "rb": -0.05},
+        ),
     )
+    real = results.sets["polyu"].real
+    assert real == ChannelStatistics(
+        noise_std={"r": 0.02, "g": 0.02, "b": 0.02}, level_ratio={}, correlation={"rg": 0.3, "gb": 0.25, "rb": 0.2}
+    )
+    assert results.sets["sidd"].real is None
     assert results.sets["sidd"].methods["starlight"].fid is None
 
 
@@ -60,7 +74,7 @@ def test_parse_tolerates_missing_and_odd_parts() -> None:
                     "pairs": "many",
                     "methods": {
                         "den": {"kld": math.nan, "kld_ci95": [0.1, math.nan], "fid": "12", "kid": True},
-                        "x-oracle": {"kld": 1, "oracle": 0},
+                        "x-oracle": {"kld": 1, "oracle": 0, "level_ratio": "high", "noise_std": {"r": "a", "g": 0.01}},
                         "weird": "not a mapping",
                     },
                 },
@@ -77,6 +91,11 @@ def test_parse_tolerates_missing_and_odd_parts() -> None:
     assert den.kld_ci95 is None and den.fid is None and den.kid is None
     assert results.sets["s"].methods["x-oracle"].kld == 1.0
     assert results.sets["s"].methods["weird"] == MethodScores()
+    assert results.sets["s"].methods["den"].channels is None
+    channels = results.sets["s"].methods["x-oracle"].channels
+    assert channels == ChannelStatistics(
+        noise_std={"r": None, "g": 0.01, "b": None}, level_ratio={}, correlation={"rg": None, "gb": None, "rb": None}
+    )
     assert results.sets["s"].pairs is None and results.sets["broken"].methods == {}
     assert results.oracles == frozenset()  # x-oracle says it is not one
     assert results.downstream is None

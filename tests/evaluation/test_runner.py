@@ -2,6 +2,11 @@
 
 from __future__ import annotations
 
+import pytest
+import torch
+
+from darksynth.evaluation import runner
+from darksynth.evaluation.methods import NoiseMethod
 from darksynth.evaluation.options import EvaluationOptions
 from darksynth.evaluation.runner import evaluate_pairs
 from tests.evaluation.conftest import MakeSet
@@ -35,3 +40,41 @@ def test_same_seed_same_results(make_pair_set: MakeSet) -> None:
     first = evaluate_pairs([root], options).results["sets"]
     second = evaluate_pairs([root], options).results["sets"]
     assert first == second
+
+
+def _scaled_real_noise(name: str, gain: float) -> NoiseMethod:
+    """An oracle that replays the pair's own real noise times ``gain``, on 8-bit levels."""
+
+    def synthesize(clean: torch.Tensor, noise: object, generator: torch.Generator) -> torch.Tensor:
+        assert isinstance(noise, torch.Tensor)
+        return ((clean + gain * noise) * 255.0).round().clamp(0, 255) / 255.0
+
+    return NoiseMethod(name, f"real noise x{gain}", lambda noisy, clean: noisy - clean, synthesize, oracle=True)
+
+
+def test_channel_statistics_of_copied_and_doubled_real_noise(
+    make_pair_set: MakeSet, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    methods = {"copy": _scaled_real_noise("copy", 1.0), "double": _scaled_real_noise("double", 2.0)}
+    monkeypatch.setattr(runner, "build_methods", lambda names, **kwargs: (methods, []))
+    root = make_pair_set("independent", count=4, sigma=8.0, size=96)
+    outcome = runner.evaluate_pairs([root], EvaluationOptions(methods=list(methods), inception=False))
+    report = outcome.results["sets"]["independent"]
+    real = report["real"]
+    # The set's noise is white Gaussian of 8 levels, drawn independently per channel.
+    for channel in "rgb":
+        assert real["noise_std"][channel] * 255.0 == pytest.approx(8.0, rel=0.05)
+    assert set(real["channel_correlation"]) == {"rg", "gb", "rb"}
+    assert all(abs(value) < 0.05 for value in real["channel_correlation"].values())
+    copy, double = report["methods"]["copy"], report["methods"]["double"]
+    assert copy["level_ratio"] == {"r": 1.0, "g": 1.0, "b": 1.0}
+    assert copy["channel_correlation"] == real["channel_correlation"]
+    assert copy["kld_naflow"] == 0.0 and copy["akld"] == 0.0 and copy["kld_naflow_ci95"] == [0.0, 0.0]
+    for channel in "rgb":
+        assert double["level_ratio"][channel] == pytest.approx(2.0, rel=0.02)
+    assert double["channel_correlation"] == pytest.approx(real["channel_correlation"], abs=0.01)
+    # Twice the std: KL(N(0, s^2) || N(0, 4 s^2)) = log 2 + 1/8 - 1/2 = 0.32, give or take the window's scatter.
+    assert double["akld"] == pytest.approx(0.32, abs=0.03)
+    assert double["kld_naflow"] > 0.2
+    assert set(double["per_camera"]["camA"]) >= {"kld_naflow", "kld_naflow_ci95", "akld", "akld_ci95"}
+    assert set(outcome.results["metrics"]) >= {"kld_naflow", "akld", "noise_std", "level_ratio", "channel_correlation"}

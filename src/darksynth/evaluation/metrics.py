@@ -7,6 +7,13 @@ Pure functions on numpy arrays or torch tensors; every result is a Python float.
   the noise-modelling literature.
 * :func:`kl_divergence_srgb` follows the sRGB recipe of Kousha, Maleky, Brown and Brubaker, "Modeling sRGB
   Camera Noise with Normalizing Flows", CVPR 2022.
+* :func:`kl_divergence_naflow` is the wide-range histogram KL reported on SIDD by NAFlow (Kim, Lee and Cho,
+  "sRGB Real Noise Modeling via Noise-Aware Sampling with Normalizing Flows", ICLR 2024) and the papers it
+  compares with (NeCA, PNGAN...).
+* :func:`average_kl_divergence` is the AKLD of Yue, Zhao, Zhang, Meng and Zhang, "Dual Adversarial Network: Toward
+  Real-world Noise Removal and Noise Generation" (DANet), ECCV 2020.
+* :func:`channel_moments` and :func:`channel_correlations` give the per-channel noise level and the cross-channel
+  correlation of a noise map.
 * :func:`frechet_distance` is the FID formula of Heusel et al., "GANs Trained by a Two Time-Scale Update Rule
   Converge to a Local Nash Equilibrium", NeurIPS 2017.
 * :func:`kernel_inception_distance` is the KID of Bińkowski, Sutherland, Arbel and Gretton, "Demystifying MMD
@@ -37,6 +44,31 @@ NOISE_FLOW_BINS = 64
 
 SRGB_BIN_EDGES = np.arange(-260.0, 261.0, 4.0)
 """Kousha et al. 2022: bins of width 4 in 8-bit units from -260 to 260 (130 bins)."""
+
+NAFLOW_LIMIT = 1.0
+"""The NAFlow-recipe histogram covers the whole possible range of [0, 1]-scale noise, [-1, 1]."""
+
+NAFLOW_BINS = 256
+"""Bins of width 2 / 256 (about half an 8-bit level) between -1 and 1."""
+
+NAFLOW_EPS = 1e-10
+"""Added to every bin probability of both histograms (then renormalised) so that empty bins stay finite."""
+
+AKLD_WINDOW = 7
+"""Side of DANet's Gaussian window for the local noise variance."""
+
+AKLD_WINDOW_SIGMA = 0.3 * ((AKLD_WINDOW - 1) * 0.5 - 1.0) + 0.8
+"""Standard deviation of that window, 1.4 pixels: DANet builds it with ``cv2.getGaussianKernel(7, -1)``, and OpenCV
+computes a non-positive sigma as 0.3 ((ksize - 1) / 2 - 1) + 0.8."""
+
+AKLD_VARIANCE_FLOOR = 1e-10
+"""Local variances are clamped to at least this (as DANet): a window of exactly zero noise stays finite."""
+
+AKLD_RATIO_RANGE = (0.1, 10.0)
+"""The ratio of the two local variances is clamped to this range (as DANet), bounding one pixel's divergence."""
+
+CHANNEL_PAIRS = ("rg", "gb", "rb")
+"""The channel pairs of :func:`channel_correlations`, in its order."""
 
 KID_MAX_SUBSET = 1000
 """KID subsets hold at most this many vectors from each set (Bińkowski et al. 2018 used 1000)."""
@@ -126,6 +158,147 @@ def kl_divergence_srgb(real: ArrayLike, synthetic: ArrayLike) -> float:
     divergence is finite even where the synthetic sample leaves bins empty. Result in nats.
     """
     return _kl(srgb_histogram(real), srgb_histogram(synthetic))
+
+
+def naflow_histogram(noise: ArrayLike) -> np.ndarray[Any, np.dtype[np.float64]]:
+    """The 256-bin probability histogram of the NAFlow recipe, for [0, 1]-scale noise of any shape.
+
+    The bins split [-1, 1] into 256 bins of width 2 / 256 (each closed on the left, the last also on the right, as
+    ``numpy.histogram``); [0, 1]-scale noise can never leave that range. :data:`NAFLOW_EPS` is added to every
+    probability and the histogram renormalised.
+    """
+    values = _flat(noise)
+    counts, _ = np.histogram(values, bins=NAFLOW_BINS, range=(-NAFLOW_LIMIT, NAFLOW_LIMIT))
+    smoothed = counts.astype(np.float64) / values.size + NAFLOW_EPS
+    probabilities: np.ndarray[Any, np.dtype[np.float64]] = smoothed / smoothed.sum()
+    return probabilities
+
+
+def kl_divergence_naflow(real: ArrayLike, synthetic: ArrayLike) -> float:
+    """KL(real || synthetic) between noise histograms, by the recipe reported on SIDD by NAFlow, NeCA and PNGAN.
+
+    Noise is on the [0, 1] scale (noisy - clean). Both samples are binned into 256 bins of width 2 / 256 over
+    [-1, 1], normalised to probabilities, and a small epsilon (:data:`NAFLOW_EPS`) is added to every bin of both
+    histograms before renormalising, so bins that only one sample fills count (sum p log(p / q) over all bins, in
+    nats) and the value is never negative. Identical samples give exactly 0.
+
+    How it differs from :func:`kl_divergence_noise_flow`: Noise Flow's bins are 8 times finer (0.2 / 64) but only
+    cover [-0.1, 0.1], everything beyond going to two overflow bins, and it drops the bins where either histogram
+    is empty. Here the bins are about half an 8-bit level wide, the tails are resolved up to the full range, and
+    mass one sample puts where the other has none is penalised (by up to log(1 / eps) per unit of mass) instead
+    of ignored; on 8-bit noise both recipes see whole levels, so the finer Noise Flow bins alternate between
+    full and empty.
+    """
+    return _kl(naflow_histogram(real), naflow_histogram(synthetic))
+
+
+def _noise_tensor(noise: ArrayLike, name: str) -> torch.Tensor:
+    tensor = noise.detach().cpu() if isinstance(noise, torch.Tensor) else torch.from_numpy(np.asarray(noise))
+    tensor = tensor.to(torch.float64)
+    if tensor.ndim != 3:
+        raise ValueError(f"{name} must be a (C, H, W) noise map, got shape {tuple(tensor.shape)}")
+    if torch.isnan(tensor).any():
+        raise ValueError(f"{name} contains NaN")
+    return tensor
+
+
+def local_noise_variance(noise: ArrayLike) -> torch.Tensor:
+    """Per pixel and channel, the Gaussian-weighted mean of the squared noise in a 7 x 7 window (DANet).
+
+    Args:
+        noise: ``(C, H, W)`` noise (noisy - clean), [0, 1] scale.
+
+    Returns:
+        ``(C, H, W)`` float64 local variances, at least :data:`AKLD_VARIANCE_FLOOR`. The window is the separable
+        Gaussian of side :data:`AKLD_WINDOW` and standard deviation :data:`AKLD_WINDOW_SIGMA`, normalised to sum
+        1; the borders are reflected, as in DANet's ``gaussblur``.
+    """
+    tensor = _noise_tensor(noise, "noise")
+    if min(tensor.shape[-2:]) <= AKLD_WINDOW // 2:
+        raise ValueError(f"noise must be more than {AKLD_WINDOW // 2} pixels on each side, got {tuple(tensor.shape)}")
+    offsets = torch.arange(AKLD_WINDOW, dtype=torch.float64) - (AKLD_WINDOW - 1) / 2
+    weights = torch.exp(-(offsets**2) / (2 * AKLD_WINDOW_SIGMA**2))
+    weights = weights / weights.sum()
+    channels = tensor.shape[0]
+    pad = AKLD_WINDOW // 2
+    squared = torch.nn.functional.pad((tensor**2).unsqueeze(0), (pad, pad, pad, pad), mode="reflect")
+    rows = torch.nn.functional.conv2d(squared, weights.view(1, 1, -1, 1).repeat(channels, 1, 1, 1), groups=channels)
+    local = torch.nn.functional.conv2d(rows, weights.view(1, 1, 1, -1).repeat(channels, 1, 1, 1), groups=channels)
+    return local.squeeze(0).clamp_min(AKLD_VARIANCE_FLOOR)
+
+
+def average_kl_divergence(real: ArrayLike, synthetic: ArrayLike) -> float:
+    """AKLD (Yue et al. 2020, DANet): the mean over pixels and channels of a KL divergence of local Gaussians.
+
+    Each noise map's local variance s² is taken with :func:`local_noise_variance` (7 x 7 Gaussian window of
+    standard deviation 1.4 over the squared noise), and per pixel and channel
+
+        KL(N(0, s_real²) || N(0, s_syn²)) = log(s_syn / s_real) + s_real² / (2 s_syn²) - 1/2,
+
+    with the variance ratio s_real² / s_syn² clamped to [0.1, 10] as in DANet's code. The direction is the one of
+    the histogram divergences here (real first); DANet's code takes KL(synthetic || real). 0 for identical noise.
+
+    Args:
+        real, synthetic: ``(C, H, W)`` noise maps of the same shape, [0, 1] scale.
+
+    Returns:
+        The mean divergence in nats.
+    """
+    real_variance = local_noise_variance(real)
+    synthetic_variance = local_noise_variance(synthetic)
+    if real_variance.shape != synthetic_variance.shape:
+        shapes = f"{tuple(real_variance.shape)} and {tuple(synthetic_variance.shape)}"
+        raise ValueError(f"real and synthetic noise maps differ in shape: {shapes}")
+    ratio = (real_variance / synthetic_variance).clamp(*AKLD_RATIO_RANGE)
+    return float((0.5 * (ratio - 1.0 - torch.log(ratio))).mean())
+
+
+def channel_moments(noise: ArrayLike) -> np.ndarray[Any, np.dtype[np.float64]]:
+    """Per channel, the count, sum and sum of squares of a noise map: pooled over pairs, they give a pooled std.
+
+    Args:
+        noise: ``(C, H, W)`` noise map.
+
+    Returns:
+        ``(C, 3)`` float64: count, sum, sum of squares.
+    """
+    tensor = _noise_tensor(noise, "noise")
+    tensor = tensor.reshape(tensor.shape[0], -1)
+    count = torch.full((tensor.shape[0],), float(tensor.shape[1]), dtype=torch.float64)
+    return torch.stack((count, tensor.sum(dim=1), (tensor**2).sum(dim=1)), dim=1).numpy()
+
+
+def pooled_std(moments: np.ndarray[Any, np.dtype[np.float64]]) -> np.ndarray[Any, np.dtype[np.float64]]:
+    """Per channel, the (population) standard deviation of all values behind summed :func:`channel_moments`."""
+    count, total, squares = moments[:, 0], moments[:, 1], moments[:, 2]
+    mean = total / count
+    std: np.ndarray[Any, np.dtype[np.float64]] = np.sqrt(np.maximum(squares / count - mean**2, 0.0))
+    return std
+
+
+def channel_correlations(noise: ArrayLike) -> dict[str, float]:
+    """Pearson correlation of the noise between the channels of an RGB noise map, over its pixels.
+
+    Args:
+        noise: ``(3, H, W)`` noise map (R, G, B).
+
+    Returns:
+        ``"rg"``, ``"gb"``, ``"rb"`` -> the correlation coefficient; NaN where a channel is constant.
+    """
+    tensor = _noise_tensor(noise, "noise")
+    if tensor.shape[0] != 3:
+        raise ValueError(f"channel correlations need an RGB (3, H, W) noise map, got shape {tuple(tensor.shape)}")
+    centred = tensor.reshape(3, -1)
+    centred = centred - centred.mean(dim=1, keepdim=True)
+    norms = torch.sqrt((centred**2).sum(dim=1))
+    indices = {"rg": (0, 1), "gb": (1, 2), "rb": (0, 2)}
+    correlations = {}
+    for pair in CHANNEL_PAIRS:
+        first, second = indices[pair]
+        denominator = float(norms[first] * norms[second])
+        numerator = float((centred[first] * centred[second]).sum())
+        correlations[pair] = numerator / denominator if denominator > 0 else math.nan
+    return correlations
 
 
 def mean_and_interval(values: Sequence[float] | ArrayLike, confidence: float = 0.95) -> tuple[float, float, float]:

@@ -26,7 +26,10 @@ from PIL import Image as PILImage
 from darksynth.errors import DarksynthError
 from darksynth.evaluation.results_model import (
     CAMERA_METRICS,
+    CHANNEL_PAIRS,
+    CHANNELS,
     SET_METRICS,
+    ChannelStatistics,
     EvaluationResults,
     Interval,
     parse_results,
@@ -62,10 +65,30 @@ MIN_CROP_DISPLAY = 160
 
 MISSING = "—"
 
-SET_TITLES = {"kld": "KLD", "kld_srgb": "KLD sRGB", "fid": "FID", "kid": "KID"}
-SET_HEADERS = {"kld": "KLD [95% CI]", "kld_srgb": "KLD sRGB [95% CI]", "fid": "FID", "kid": "KID ± std"}
+SET_TITLES = {
+    "kld": "KLD",
+    "kld_srgb": "KLD sRGB",
+    "kld_naflow": "KLD NAFlow",
+    "akld": "AKLD",
+    "fid": "FID",
+    "kid": "KID",
+}
+SET_HEADERS = {
+    "kld": "KLD [95% CI]",
+    "kld_srgb": "KLD sRGB [95% CI]",
+    "kld_naflow": "KLD NAFlow [95% CI]",
+    "akld": "AKLD [95% CI]",
+    "fid": "FID",
+    "kid": "KID ± std",
+}
 DOWNSTREAM_HEADERS = {"psnr": "PSNR (dB)", "ssim": "SSIM", "pairs": "pairs"}
-RADAR_METRICS = ("kld", "kld_srgb", "fid", "kid")
+RADAR_METRICS = ("kld", "kld_srgb", "kld_naflow", "akld", "fid", "kid")
+CHANNEL_HEADERS = {
+    **{f"level_ratio_{c}": f"level ratio {c.upper()}" for c in CHANNELS},
+    **{f"correlation_{p}": f"correlation {p[0].upper()}-{p[1].upper()}" for p in CHANNEL_PAIRS},
+}
+REAL = "real"
+"""The reference row of the channel tables: the real noise."""
 
 LEGEND = (
     "Lower is better for every metric. Bold: the best blind method in each column; oracle methods, which are "
@@ -75,6 +98,11 @@ LEGEND = (
 DOWNSTREAM_LEGEND = (
     "PSNR and SSIM of a denoiser trained on each method's synthetic noise, on the real pairs; the noisy input row "
     "is the unprocessed noisy image. Higher is better. Bold: the best blind method in each column."
+)
+CHANNEL_LEGEND = (
+    "Level ratio: the method's noise standard deviation per channel, pooled over the set's pairs, divided by the "
+    "real noise's on the same pairs (1 is the right level; σ: the std in 8-bit levels). Correlation: the mean over "
+    "pairs of the correlation coefficient of the noise between two channels. The real row is the reference."
 )
 HEADLINE_TITLE = "Headline: does den have a lower kld than awgn and pg?"
 BEYOND_TITLE = "Beyond the paper: den against every blind method, the oracle and the paper's model"
@@ -244,8 +272,37 @@ class _Layout:
         caption = f"{set_name}: real vs synthetic noise. {LEGEND}"
         return _Table("metrics", caption, headers, rows, {})
 
+    def channel_table(self, set_name: str) -> _Table | None:
+        """Per channel level ratio (σ in 8-bit levels beside it) and channel correlations: the real row, then the
+        methods. None when nothing has channel statistics."""
+        entry = self.results.sets[set_name]
+        sources: list[tuple[_Method, ChannelStatistics, bool]] = []
+        if entry.real is not None:
+            sources.append((_Method(REAL, False, True, "#888888"), entry.real, True))
+        for name in _ordered(entry.methods, self.order):
+            channels = entry.methods[name].channels
+            if channels is not None:
+                sources.append((self.method(name), channels, False))
+        if not sources:
+            return None
+        rows = []
+        for method, statistics, is_real in sources:
+            cells = []
+            for channel in CHANNELS:
+                ratio = 1.0 if is_real else statistics.level_ratio.get(channel)
+                std = statistics.noise_std.get(channel)
+                extra = f"(σ {_num(std * 255.0, 3)})" if std is not None and math.isfinite(std) else ""
+                cells.append(_Cell(f"level_ratio_{channel}", _num(ratio, 3), extra, False))
+            for pair in CHANNEL_PAIRS:
+                cells.append(_Cell(f"correlation_{pair}", _num(statistics.correlation.get(pair), 3), "", False))
+            rows.append(_Row(method, cells))
+        headers = [_Header(key, title) for key, title in CHANNEL_HEADERS.items()]
+        caption = f"{set_name}: noise level and channel correlation. {CHANNEL_LEGEND}"
+        return _Table("channels", caption, headers, rows, {"set": set_name}, set_name)
+
     def camera_tables(self, set_name: str) -> list[_Table]:
-        """One table per KL divergence: a column per camera (its pair count in the header), a row per method."""
+        """One table per per-pair metric that has values: a column per camera (its pair count in the header), a row
+        per method."""
         methods = {name: row for name, row in self.results.sets[set_name].methods.items() if row.per_camera}
         counts: dict[str, list[int]] = {}
         for row in methods.values():
@@ -266,6 +323,10 @@ class _Layout:
             headers.append(_Header(camera, title, literal=False))
         tables = []
         for metric in CAMERA_METRICS:
+            if not any(
+                scores.value(metric) is not None for row in methods.values() for scores in row.per_camera.values()
+            ):
+                continue  # results written before the metric existed
             best = best_per_camera(self.results, set_name, metric)
             rows = []
             for name in _ordered(methods, self.order):
@@ -344,6 +405,7 @@ def _common(results: EvaluationResults) -> dict[str, Any]:
         "results": results,
         "legend": LEGEND,
         "downstream_legend": DOWNSTREAM_LEGEND,
+        "channel_legend": CHANNEL_LEGEND,
         "headline_title": HEADLINE_TITLE,
         "beyond_title": BEYOND_TITLE,
         "headlines": headline_lines(results),
@@ -365,6 +427,7 @@ def render_markdown(results: EvaluationResults | Mapping[str, Any]) -> str:
             "name": name,
             "entry": entry,
             "table": layout.set_table(name),
+            "channels": layout.channel_table(name),
             "missing": typed.not_evaluated(name),
             "cameras": layout.camera_tables(name),
         }
@@ -381,9 +444,10 @@ def render_markdown(results: EvaluationResults | Mapping[str, Any]) -> str:
 def write_markdown(results: Mapping[str, Any], path: Path) -> None:
     """Write the Markdown summary of ``darksynth evaluate``, atomically.
 
-    Per set: a table of the methods (oracle ones labelled) with KLD and sRGB KLD and their 95% intervals, FID and
-    KID ± std, the best blind value of each column in bold; per-camera KLD tables; then the downstream denoising
-    table if any, the problems, the methods, metric recipes, provenance and the command.
+    Per set: a table of the methods (oracle ones labelled) with the KLD (Noise Flow, sRGB and NAFlow recipes) and
+    the AKLD with their 95% intervals, FID and KID ± std, the best blind value of each column in bold; a table of
+    the noise level ratio per channel and the channel correlations, real row first; per-camera tables; then the
+    downstream denoising table if any, the problems, the methods, metric recipes, provenance and the command.
 
     Args:
         results: The runner's document: ``command``, ``provenance``, ``metrics``, ``methods``, ``problems``,
@@ -553,6 +617,7 @@ class _HtmlPage:
                     "id": self.set_ids[name],
                     "entry": entry,
                     "table": self.layout.set_table(name),
+                    "channels": self.layout.channel_table(name),
                     "missing": results.not_evaluated(name),
                     "radar": self.radar(name),
                     "cameras": self.layout.camera_tables(name),
@@ -584,7 +649,8 @@ def write_html_report(results: Mapping[str, Any], examples: Sequence[ReportExamp
     """Write one self-contained HTML page of ``darksynth evaluate`` results, atomically.
 
     The page shows the command and provenance; the methods; per set the metrics table (oracle methods labelled,
-    best blind values bold), a radar chart of the normalised metrics, per-camera KLD tables and the examples (for
+    best blind values bold), the channel table (level ratio, channel correlations, real row first), a radar chart
+    of the normalised metrics, per-camera tables and the examples (for
     each: clean, real noisy and synthetic noisy crops with their amplified noise, noise histograms and noise power
     spectra, real vs each method); the downstream denoising tables if any; the problems; the metric recipes.
     Everything is inline: it opens offline and its Content-Security-Policy forbids fetching anything.

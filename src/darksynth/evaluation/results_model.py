@@ -18,10 +18,13 @@ from typing import Any
 
 __all__ = [
     "CAMERA_METRICS",
+    "CHANNELS",
+    "CHANNEL_PAIRS",
     "DOWNSTREAM_METRICS",
     "NOISY_INPUT",
     "SET_METRICS",
     "CameraScores",
+    "ChannelStatistics",
     "Downstream",
     "DownstreamScores",
     "EvaluationResults",
@@ -38,10 +41,14 @@ Interval = tuple[float, float]
 NOISY_INPUT = "noisy input"
 """The downstream reference row: the unprocessed real noisy images."""
 
-SET_METRICS = ("kld", "kld_srgb", "fid", "kid")
+SET_METRICS = ("kld", "kld_srgb", "kld_naflow", "akld", "fid", "kid")
 """Per set and method, all lower-is-better."""
-CAMERA_METRICS = ("kld", "kld_srgb")
+INTERVAL_METRICS = ("kld", "kld_srgb", "kld_naflow", "akld")
+"""The per-pair metrics: each has a 95% interval."""
+CAMERA_METRICS = INTERVAL_METRICS
 """Per camera and method."""
+CHANNELS = ("r", "g", "b")
+CHANNEL_PAIRS = ("rg", "gb", "rb")
 DOWNSTREAM_METRICS = ("psnr", "ssim", "pairs")
 """Per set and downstream row: PSNR and SSIM are higher-is-better, pairs is a count."""
 
@@ -91,22 +98,36 @@ def _flag(value: Mapping[str, Any]) -> bool | None:
     return bool(value["oracle"]) if "oracle" in value else None
 
 
+def _numbers(value: object, keys: tuple[str, ...]) -> dict[str, float | None]:
+    entry = _mapping(value)
+    return {key: _number(entry.get(key)) for key in keys}
+
+
 @dataclass(frozen=True)
 class CameraScores:
-    """One method's histogram KL divergences over the pairs of one camera."""
+    """One method's per-pair divergences over the pairs of one camera (see :data:`CAMERA_METRICS`)."""
 
     pairs: int | None
     kld: float | None
     kld_ci95: Interval | None
     kld_srgb: float | None
     kld_srgb_ci95: Interval | None
+    kld_naflow: float | None = None
+    kld_naflow_ci95: Interval | None = None
+    akld: float | None = None
+    akld_ci95: Interval | None = None
 
     def value(self, metric: str) -> float | None:
-        """``"kld"`` or ``"kld_srgb"``."""
-        return {"kld": self.kld, "kld_srgb": self.kld_srgb}[metric]
+        """One of :data:`CAMERA_METRICS`."""
+        return {"kld": self.kld, "kld_srgb": self.kld_srgb, "kld_naflow": self.kld_naflow, "akld": self.akld}[metric]
 
     def interval(self, metric: str) -> Interval | None:
-        return {"kld": self.kld_ci95, "kld_srgb": self.kld_srgb_ci95}[metric]
+        return {
+            "kld": self.kld_ci95,
+            "kld_srgb": self.kld_srgb_ci95,
+            "kld_naflow": self.kld_naflow_ci95,
+            "akld": self.akld_ci95,
+        }[metric]
 
     @classmethod
     def parse(cls, document: object) -> CameraScores:
@@ -117,6 +138,39 @@ class CameraScores:
             kld_ci95=_interval(entry.get("kld_ci95")),
             kld_srgb=_number(entry.get("kld_srgb")),
             kld_srgb_ci95=_interval(entry.get("kld_srgb_ci95")),
+            kld_naflow=_number(entry.get("kld_naflow")),
+            kld_naflow_ci95=_interval(entry.get("kld_naflow_ci95")),
+            akld=_number(entry.get("akld")),
+            akld_ci95=_interval(entry.get("akld_ci95")),
+        )
+
+
+@dataclass(frozen=True)
+class ChannelStatistics:
+    """Per channel level and cross-channel correlation of one noise source over a set; None: not computed.
+
+    Attributes:
+        noise_std: ``"r"``, ``"g"``, ``"b"`` -> the noise's standard deviation pooled over the pairs, [0, 1] scale.
+        level_ratio: ``"r"``, ``"g"``, ``"b"`` -> a method's pooled std over the real one's on the same pairs (1:
+            the right level); empty for the real noise itself.
+        correlation: ``"rg"``, ``"gb"``, ``"rb"`` -> the mean over pairs of the noise's correlation coefficient
+            between the two channels.
+    """
+
+    noise_std: Mapping[str, float | None]
+    level_ratio: Mapping[str, float | None]
+    correlation: Mapping[str, float | None]
+
+    @classmethod
+    def parse(cls, document: Mapping[str, Any]) -> ChannelStatistics | None:
+        """None when ``document`` (a set's ``real`` entry, or a method's) holds none of the three."""
+        if not any(key in document for key in ("noise_std", "level_ratio", "channel_correlation")):
+            return None
+        ratio = document.get("level_ratio")
+        return cls(
+            noise_std=_numbers(document.get("noise_std"), CHANNELS),
+            level_ratio=_numbers(ratio, CHANNELS) if isinstance(ratio, Mapping) else {},
+            correlation=_numbers(document.get("channel_correlation"), CHANNEL_PAIRS),
         )
 
 
@@ -125,30 +179,39 @@ class MethodScores:
     """One method's metrics on one set (lower is better for all of them); None: not computed.
 
     Attributes:
-        kld, kld_srgb: Mean histogram KL divergence over the pairs (Noise Flow and sRGB recipes).
-        kld_ci95, kld_srgb_ci95: Their 95% confidence intervals.
+        kld, kld_srgb, kld_naflow: Mean histogram KL divergence over the pairs (Noise Flow, sRGB and NAFlow recipes).
+        akld: Mean average KL divergence of local Gaussians over the pairs (DANet).
+        kld_ci95, kld_srgb_ci95, kld_naflow_ci95, akld_ci95: Their 95% confidence intervals.
         fid, kid: Inception distances between the real and the synthetic noise maps; KID can be slightly negative.
         kid_std: KID's standard deviation over subsets.
         oracle: The runner's flag (the method uses the clean image), if it wrote one.
-        per_camera: camera name -> the KL divergences over that camera's pairs.
+        per_camera: camera name -> the per-pair divergences over that camera's pairs.
+        channels: The synthetic noise's level per channel, its ratio to the real one's, and its channel correlations.
     """
 
     kld: float | None = None
     kld_ci95: Interval | None = None
     kld_srgb: float | None = None
     kld_srgb_ci95: Interval | None = None
+    kld_naflow: float | None = None
+    kld_naflow_ci95: Interval | None = None
+    akld: float | None = None
+    akld_ci95: Interval | None = None
     fid: float | None = None
     kid: float | None = None
     kid_std: float | None = None
     oracle: bool | None = None
     per_camera: Mapping[str, CameraScores] = field(default_factory=dict)
+    channels: ChannelStatistics | None = None
 
     def value(self, metric: str) -> float | None:
         """One of :data:`SET_METRICS`."""
-        return {"kld": self.kld, "kld_srgb": self.kld_srgb, "fid": self.fid, "kid": self.kid}[metric]
+        values = {"kld": self.kld, "kld_srgb": self.kld_srgb, "kld_naflow": self.kld_naflow, "akld": self.akld}
+        return {**values, "fid": self.fid, "kid": self.kid}[metric]
 
     def interval(self, metric: str) -> Interval | None:
-        return {"kld": self.kld_ci95, "kld_srgb": self.kld_srgb_ci95}.get(metric)
+        intervals = {"kld": self.kld_ci95, "kld_srgb": self.kld_srgb_ci95, "kld_naflow": self.kld_naflow_ci95}
+        return {**intervals, "akld": self.akld_ci95}.get(metric)
 
     @classmethod
     def parse(cls, document: object) -> MethodScores:
@@ -158,26 +221,33 @@ class MethodScores:
             kld_ci95=_interval(entry.get("kld_ci95")),
             kld_srgb=_number(entry.get("kld_srgb")),
             kld_srgb_ci95=_interval(entry.get("kld_srgb_ci95")),
+            kld_naflow=_number(entry.get("kld_naflow")),
+            kld_naflow_ci95=_interval(entry.get("kld_naflow_ci95")),
+            akld=_number(entry.get("akld")),
+            akld_ci95=_interval(entry.get("akld_ci95")),
             fid=_number(entry.get("fid")),
             kid=_number(entry.get("kid")),
             kid_std=_number(entry.get("kid_std")),
             oracle=_flag(entry),
             per_camera={name: CameraScores.parse(c) for name, c in _mapping(entry.get("per_camera")).items()},
+            channels=ChannelStatistics.parse(entry),
         )
 
 
 @dataclass(frozen=True)
 class SetResults:
-    """One set of real pairs: how many pairs were evaluated and each method's metrics."""
+    """One set of real pairs: how many pairs were evaluated, each method's metrics, the real noise's channels."""
 
     pairs: int | None
     methods: Mapping[str, MethodScores]
+    real: ChannelStatistics | None = None
 
     @classmethod
     def parse(cls, document: object) -> SetResults:
         entry = _mapping(document)
         methods = {name: MethodScores.parse(row) for name, row in _mapping(entry.get("methods")).items()}
-        return cls(pairs=_count(entry.get("pairs")), methods=methods)
+        real = ChannelStatistics.parse(_mapping(entry.get("real")))
+        return cls(pairs=_count(entry.get("pairs")), methods=methods, real=real)
 
 
 @dataclass(frozen=True)

@@ -1,9 +1,10 @@
 """`darksynth evaluate`: every method on every real pair, metrics per pair, per camera and per set.
 
 For each pair the real noise map is noisy - clean; each method makes a synthetic noisy image from the clean
-one (8-bit, like the real one) and its noise map is synthetic - clean. Histogram KL divergences are computed
-per pair and summarised by their mean and a 95% interval; FID and KID compare, per set, the Inception
-features of crops of all real noise maps with those of all of a method's maps.
+one (8-bit, like the real one) and its noise map is synthetic - clean. Histogram KL divergences and the AKLD are
+computed per pair and summarised by their mean and a 95% interval; the noise level per channel is pooled over a
+set's pairs (and divided by the real one's) and the channel correlations averaged over them; FID and KID compare,
+per set, the Inception features of crops of all real noise maps with those of all of a method's maps.
 """
 
 from __future__ import annotations
@@ -20,11 +21,17 @@ import torch
 from darksynth.errors import DarksynthError
 from darksynth.evaluation.methods import NoiseMethod, build_methods
 from darksynth.evaluation.metrics import (
+    CHANNEL_PAIRS,
+    average_kl_divergence,
+    channel_correlations,
+    channel_moments,
     frechet_distance,
     kernel_inception_distance,
+    kl_divergence_naflow,
     kl_divergence_noise_flow,
     kl_divergence_srgb,
     mean_and_interval,
+    pooled_std,
 )
 from darksynth.evaluation.options import EvaluationOptions
 from darksynth.evaluation.pairs import LoadedPair, PairSet, list_pair_sets, load_pair
@@ -36,6 +43,18 @@ METRIC_DESCRIPTIONS = {
     "64 bins of width 0.2/64 over [-0.1, 0.1] plus an overflow bin each side, summed where both are non-zero",
     "kld_srgb": "KL(real || synthetic), sRGB recipe of Kousha et al. 2022: 8-bit units, bins of width 4 over "
     "[-260, 260], add-one smoothing",
+    "kld_naflow": "KL(real || synthetic) of noise histograms, recipe reported on SIDD by NAFlow, NeCA and PNGAN: "
+    "[0, 1] scale, 256 bins of width 2/256 over [-1, 1], 1e-10 added to every bin probability of both histograms "
+    "(then renormalised), summed over all bins",
+    "akld": "Average KL divergence (Yue et al. 2020, DANet): local noise variance = 7x7 Gaussian window (sigma 1.4) "
+    "over the squared noise, per pixel and channel KL(N(0, var_real) || N(0, var_synthetic)) with the variance "
+    "ratio clamped to [0.1, 10], averaged over pixels",
+    "noise_std": "Per channel (r, g, b), the standard deviation of the noise pooled over all the set's pairs, "
+    "[0, 1] scale; for a method, over the pairs it was evaluated on",
+    "level_ratio": "Per channel (r, g, b), the method's pooled noise std divided by the real noise's over the same "
+    "pairs: 1 is the right level, 2 twice too much noise",
+    "channel_correlation": "Mean over pairs of the Pearson correlation of the noise between channels (rg, gb, rb); "
+    "the set's real entry holds the real noise's",
     "fid": "Frechet distance between InceptionV3 pool features of crops of the real and of the synthetic noise maps",
     "kid": "Kernel Inception distance (unbiased MMD^2, cubic polynomial kernel) on the same features",
 }
@@ -59,9 +78,68 @@ def _summary(values: list[float]) -> tuple[float, list[float]]:
     return float(mean), [float(low), float(high)]
 
 
+PAIR_METRICS = ("kld", "kld_srgb", "kld_naflow", "akld")
+"""Computed per pair, summarised per set and per camera by their mean and 95% interval."""
+
+CHANNELS = ("r", "g", "b")
+
+
+def _pair_metrics(real: torch.Tensor, synthetic: torch.Tensor) -> dict[str, float]:
+    real_values, synthetic_values = real.numpy(), synthetic.numpy()
+    return {
+        "kld": kl_divergence_noise_flow(real_values, synthetic_values),
+        "kld_srgb": kl_divergence_srgb(real_values, synthetic_values),
+        "kld_naflow": kl_divergence_naflow(real_values, synthetic_values),
+        "akld": average_kl_divergence(real, synthetic),
+    }
+
+
+def _optional(value: float) -> float | None:
+    """JSON has no NaN: a value that could not be computed is null."""
+    return float(value) if np.isfinite(value) else None
+
+
+class _ChannelStatistics:
+    """Pooled per-channel moments and per-pair channel correlations of one noise source over a set."""
+
+    def __init__(self) -> None:
+        self.moments = np.zeros((len(CHANNELS), 3))
+        self.correlations: list[dict[str, float]] = []
+
+    def add(self, noise: torch.Tensor) -> None:
+        if noise.shape[0] != len(CHANNELS):
+            return
+        self.moments += channel_moments(noise)
+        self.correlations.append(channel_correlations(noise))
+
+    def std(self) -> np.ndarray:
+        return pooled_std(self.moments)
+
+    def summary(self, reference: _ChannelStatistics | None = None) -> dict[str, Any]:
+        """``noise_std`` and ``channel_correlation``; with a reference, also ``level_ratio`` (std / its std)."""
+        if not self.correlations:
+            return {}
+        std = self.std()
+        correlation = {}
+        for pair in CHANNEL_PAIRS:
+            values = np.array([row[pair] for row in self.correlations])
+            finite = values[np.isfinite(values)]
+            correlation[pair] = float(finite.mean()) if finite.size else None
+        summary: dict[str, Any] = {
+            "noise_std": {channel: _optional(value) for channel, value in zip(CHANNELS, std, strict=True)},
+            "channel_correlation": correlation,
+        }
+        if reference is not None:
+            reference_std = reference.std()
+            with np.errstate(divide="ignore", invalid="ignore"):
+                ratio = std / reference_std
+            summary["level_ratio"] = {channel: _optional(value) for channel, value in zip(CHANNELS, ratio, strict=True)}
+        return summary
+
+
 def _kl_summary(rows: list[dict[str, float]]) -> dict[str, Any]:
     summary: dict[str, Any] = {}
-    for metric in ("kld", "kld_srgb"):
+    for metric in PAIR_METRICS:
         mean, interval = _summary([row[metric] for row in rows])
         summary[metric] = mean
         summary[f"{metric}_ci95"] = interval
@@ -125,6 +203,9 @@ def _evaluate_set(
     progress: Progress,
 ) -> tuple[dict[str, Any], list[ReportExample]]:
     rows: dict[str, list[tuple[str, dict[str, float]]]] = {name: [] for name in methods}
+    real_channels = _ChannelStatistics()
+    # Per method, the real noise of the pairs that method was evaluated on and its own noise.
+    channels = {name: (_ChannelStatistics(), _ChannelStatistics()) for name in methods}
     examples: list[ReportExample] = []
     evaluated = 0
     # Inception features cost ~0.1 s a tile on this CPU: a fixed budget per set keeps the run short.
@@ -138,6 +219,7 @@ def _evaluate_set(
             continue
         evaluated += 1
         real = loaded.noise
+        real_channels.add(real)
         if features is not None:
             features.add("real", real, crops_per_pair)
         keep_example = len(examples) < options.examples_per_set
@@ -152,15 +234,9 @@ def _evaluate_set(
                 problems.append(f"{pair.noisy_path}: {name}: {error}")
                 continue
             noise = synthetic - loaded.clean
-            rows[name].append(
-                (
-                    pair.camera,
-                    {
-                        "kld": kl_divergence_noise_flow(real.numpy(), noise.numpy()),
-                        "kld_srgb": kl_divergence_srgb(real.numpy(), noise.numpy()),
-                    },
-                )
-            )
+            rows[name].append((pair.camera, _pair_metrics(real, noise)))
+            channels[name][0].add(real)
+            channels[name][1].add(noise)
             if features is not None:
                 features.add(name, noise, crops_per_pair)
             if keep_example:
@@ -176,12 +252,14 @@ def _evaluate_set(
                     noise=noise_maps,
                 )
             )
-    report: dict[str, Any] = {"pairs": evaluated, "methods": {}}
+    report: dict[str, Any] = {"pairs": evaluated, "real": real_channels.summary(), "methods": {}}
     for name, method_rows in rows.items():
         if not method_rows:
             continue
         entry = _kl_summary([row for _, row in method_rows])
         entry.update(features.distances(name) if features is not None else {"fid": None, "kid": None, "kid_std": None})
+        real_on_these, synthetic_channels = channels[name]
+        entry.update(synthetic_channels.summary(reference=real_on_these))
         entry["oracle"] = methods[name].oracle
         cameras: dict[str, list[dict[str, float]]] = {}
         for camera, row in method_rows:

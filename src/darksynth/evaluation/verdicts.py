@@ -56,7 +56,7 @@ def best_methods(
 
 
 def best_per_metric(results: EvaluationResults, set_name: str) -> dict[str, frozenset[str]]:
-    """Per metric of a set (KLD, sRGB KLD, FID, KID; lower is better), the best blind methods (oracles excluded)."""
+    """Per metric of a set (the KLDs, AKLD, FID, KID; lower is better), the best blind methods (oracles excluded)."""
     methods = results.sets[set_name].methods
     return {
         metric: best_methods({name: row.value(metric) for name, row in methods.items()}, excluded=results.oracles)
@@ -65,7 +65,7 @@ def best_per_metric(results: EvaluationResults, set_name: str) -> dict[str, froz
 
 
 def best_per_camera(results: EvaluationResults, set_name: str, metric: str) -> dict[str, frozenset[str]]:
-    """Per camera of a set, the best blind methods on ``metric`` (``"kld"`` or ``"kld_srgb"``)."""
+    """Per camera of a set, the best blind methods on ``metric`` (one of :data:`CAMERA_METRICS`)."""
     if metric not in CAMERA_METRICS:
         raise ValueError(f"per-camera metric must be one of {', '.join(CAMERA_METRICS)}, got {metric!r}")
     methods = results.sets[set_name].methods
