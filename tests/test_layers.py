@@ -8,7 +8,7 @@ sibling of its own layer):
 2. ``noise``: the components, their table, the carrier of values, the composer;
 3. ``profile``, ``darkening_estimate``;
 4. ``synthesize``, ``models``;
-5. ``apply``, ``estimate``, ``training``, ``transforms``;
+5. ``apply``, ``estimate``, ``refine``, ``training``, ``transforms``;
 6. ``baselines``, ``datasets``;
 7. ``evaluation``, ``demo``;
 8. ``cli``, the package ``__init__``; 9. ``__main__``, which only calls the cli.
@@ -39,6 +39,7 @@ LAYERS: dict[str, int] = {
     "models": 4,
     "apply": 5,
     "estimate": 5,
+    "refine": 5,
     "training": 5,
     "transforms": 5,
     "baselines": 6,

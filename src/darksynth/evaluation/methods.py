@@ -206,6 +206,8 @@ METHOD_NAMES: tuple[str, ...] = (
     *DEFAULT_METHODS,
     # Clean-aided ablations of the extended sRGB noise model (docs/srgb-noise.md), run by name only.
     *_SRGB_ORACLES,
+    # The DEN refined on the reference by analysis by synthesis (docs/refine.md), run by name only.
+    "den-refined",
 )
 
 
@@ -254,6 +256,10 @@ def build_method(name: str, *, weights: dict[str, Path] | None = None, device: s
         return _starlight_method(device)
     if name in _SRGB_ORACLES:
         return _srgb_method(name)
+    if name == "den-refined":
+        from darksynth.evaluation.refined import refined_den_method
+
+        return refined_den_method(name, DENChoice(weights.get(name)).path(), device)
     raise MethodUnavailableError(f"{name}: unknown method (known: {', '.join(METHOD_NAMES)})")
 
 

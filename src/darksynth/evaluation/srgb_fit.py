@@ -7,7 +7,7 @@ through the one composer, :func:`darksynth.noise.simulate.add_noise`. From one r
 float64 (3, H, W) on the [0, 1] scale:
 
 1. the per-channel Poisson-Gaussian law var = a_c x + b_c of noisy - clean against clean
-   (:func:`~darksynth.evaluation.classical.oracle_poisson_gaussian`). Green's law gives shot = sqrt(a_g) and
+   (:func:`~darksynth.noise.fit.oracle_poisson_gaussian`). Green's law gives shot = sqrt(a_g) and
    read = sqrt(b_g); red's (blue's) gain is the square root of the ratio of its law's mean variance to
    green's law's over its own levels, so each channel keeps its mean noise level. The table's model has one
    law shape for all channels: a_c / b_c can no longer differ between channels;
@@ -24,39 +24,39 @@ float64 (3, H, W) on the [0, 1] scale:
    sets need no special case. A quality q is the compression c = 1 - q / 100.
 
 Every value is clipped to its parameter's bounds in the table (:class:`~darksynth.noise.components.Parameter`).
+The pure statistics (steps 1-3) live in :mod:`darksynth.noise.fit`, shared with the blind refinement
+(:mod:`darksynth.refine`).
 """
 
 from __future__ import annotations
 
 import math
-from collections.abc import Sequence
 from dataclasses import dataclass
-from functools import lru_cache
 
 import numpy as np
 import torch
 
-from darksynth.evaluation.classical import PoissonGaussian, oracle_poisson_gaussian
-from darksynth.noise.components import noise_parameter
 from darksynth.noise.correlated import kernel_autocorrelation
+from darksynth.noise.fit import (
+    autocorrelation,
+    channel_correlations,
+    clipped,
+    fit_correlation_length,
+    lag1_correlation,
+    length_for_lag1,
+    normalised_noise,
+    oracle_poisson_gaussian,
+    values_of_law,
+)
 from darksynth.noise.simulate import add_noise
 from darksynth.noise.values import NoiseValues
 from darksynth.tensors import to_8bit_levels
-
-MAX_LAG = 3
-"""Autocorrelation lags (pixels) the correlation length is fitted on."""
-
-LENGTH_GRID = tuple(round(0.02 * i, 2) for i in range(0, 201))
-"""Candidate correlation lengths, 0 to 4 pixels."""
 
 JPEG_CANDIDATES: tuple[int | None, ...] = (None, 60, 70, 80, 90, 95)
 """Candidate JPEG qualities of the search (None: no compression)."""
 
 SEARCH_CROP = 256
 """Side of the central crop the JPEG search synthesises on (aligned to the 16-pixel JPEG grid)."""
-
-CHANNEL_PAIRS = ((0, 1), (1, 2), (0, 2))
-"""The channel pairs of ``channel_correlation``, in the table's order: red-green, green-blue, red-blue."""
 
 
 @dataclass(frozen=True)
@@ -90,14 +90,9 @@ WHITE = OracleComponents(spatial=False, chromatic=False, jpeg=False)
 """The per-channel heteroscedastic law alone: white, uncorrelated, uncompressed noise."""
 
 
-def _clipped(name: str, value: float) -> float:
-    parameter = noise_parameter(name)
-    return min(parameter.maximum, max(parameter.minimum, value))
-
-
 def compression_of_quality(quality: int | None) -> float:
     """The compression strength c = 1 - q / 100 of a JPEG quality q (0 for none), within the table's bounds."""
-    return 0.0 if quality is None else _clipped("compression", 1.0 - quality / 100.0)
+    return 0.0 if quality is None else clipped("compression", 1.0 - quality / 100.0)
 
 
 def synthesize_image(clean: torch.Tensor, values: NoiseValues, generator: torch.Generator) -> torch.Tensor:
@@ -114,64 +109,6 @@ def synthesize_image(clean: torch.Tensor, values: NoiseValues, generator: torch.
     return to_8bit_levels(add_noise(clean[None], values, generator=generator)[0])
 
 
-def model_std(clean: torch.Tensor, values: NoiseValues) -> torch.Tensor:
-    """The model's per-pixel noise std g_c sqrt(shot^2 x + read^2) for a clean image (3, H, W), gains
-    g = (red, 1, blue)."""
-    shot, read = values.scalar("shot"), values.scalar("read")
-    red, blue = (float(g) for g in values["channel_gain"].tolist())
-    gains = torch.tensor([red, 1.0, blue], dtype=clean.dtype, device=clean.device).view(3, 1, 1)
-    return gains * (shot**2 * clean.clamp_min(0.0) + read**2).sqrt()
-
-
-def values_of_law(law: PoissonGaussian, clean: torch.Tensor) -> NoiseValues:
-    """Green's shot and read and red's and blue's gains from a per-channel law var = a_c x + b_c.
-
-    The gain of a channel c is sqrt(mean(a_c x_c + b_c) / mean(a_g x_c + b_g)) over the channel's clean levels
-    x_c: with it, the model's mean noise variance on that channel equals the law's.
-    """
-    green_a, green_b = law.a[1], law.b[1]
-    gains = []
-    for channel in (0, 2):
-        level = float(clean[channel].clamp_min(0.0).mean())
-        own = law.a[channel] * level + law.b[channel]
-        green = green_a * level + green_b
-        gains.append(_clipped("channel_gain", math.sqrt(own / green)) if green > 0.0 else 1.0)
-    return NoiseValues.from_values(
-        {
-            "shot": _clipped("shot", math.sqrt(green_a)),
-            "read": _clipped("read", math.sqrt(green_b)),
-            "channel_gain": gains,
-        }
-    )
-
-
-def normalised_noise(noisy: torch.Tensor, clean: torch.Tensor, values: NoiseValues) -> torch.Tensor:
-    """(noisy - clean) / s(clean), per channel mean removed: unit-variance noise where the model is right."""
-    unit = (noisy - clean) / model_std(clean, values).clamp_min(1e-4)
-    return unit - unit.mean(dim=(-2, -1), keepdim=True)
-
-
-def autocorrelation(unit: torch.Tensor, max_lag: int = MAX_LAG) -> tuple[list[float], list[float]]:
-    """Autocorrelation of a (C, H, W) zero-mean noise map at lags 1..max_lag along x and along y."""
-    energy = float(unit.square().mean())
-    along_x = [float((unit[..., :, :-d] * unit[..., :, d:]).mean()) / energy for d in range(1, max_lag + 1)]
-    along_y = [float((unit[..., :-d, :] * unit[..., d:, :]).mean()) / energy for d in range(1, max_lag + 1)]
-    return along_x, along_y
-
-
-@lru_cache(maxsize=1)
-def _theory_table() -> np.ndarray[tuple[int, int], np.dtype[np.float64]]:
-    return np.array([[kernel_autocorrelation(length, d) for d in range(1, MAX_LAG + 1)] for length in LENGTH_GRID])
-
-
-def fit_correlation_length(correlations: Sequence[Sequence[float]]) -> float:
-    """The kernel length whose theoretical autocorrelation at lags 1..MAX_LAG is closest (least squares summed
-    over the given directions, e.g. x and y: the table's length is isotropic)."""
-    theory = _theory_table()
-    error = sum(np.square(theory - np.asarray(list(lags)[:MAX_LAG])[None, :]).sum(axis=1) for lags in correlations)
-    return _clipped("correlation_length", float(LENGTH_GRID[int(np.argmin(error))]))
-
-
 def principal_noise(unit: torch.Tensor, values: NoiseValues) -> tuple[torch.Tensor, torch.Tensor]:
     """The noise on the principal components of its channel covariance: the main (brightness-like) one
     (1, H, W) and the other two (colour, 2, H, W), as the table's ``chroma_length`` draws them.
@@ -184,12 +121,6 @@ def principal_noise(unit: torch.Tensor, values: NoiseValues) -> tuple[torch.Tens
     _, vectors = torch.linalg.eigh(torch.cov(noise.reshape(3, -1)))
     components = torch.einsum("ji,jhw->ihw", vectors, noise)
     return components[2:], components[:2]
-
-
-def channel_correlations(unit: torch.Tensor) -> list[float]:
-    """Correlation coefficients of red-green, green-blue and red-blue noise in a (3, H, W) map."""
-    matrix = torch.corrcoef(unit.reshape(unit.shape[0], -1))
-    return [_clipped("channel_correlation", float(matrix[i, j])) for i, j in CHANNEL_PAIRS]
 
 
 def _histogram_kl(real: torch.Tensor, synthetic: torch.Tensor) -> float:
@@ -218,18 +149,6 @@ def _central_crop(image: torch.Tensor, size: int) -> torch.Tensor:
     return image[..., top : top + size, left : left + size]
 
 
-def _lag1(noise: torch.Tensor) -> float:
-    """Lag-1 autocorrelation along x and y together."""
-    centred = noise - noise.mean(dim=(-2, -1), keepdim=True)
-    along_x, along_y = autocorrelation(centred, 1)
-    return 0.5 * (along_x[0] + along_y[0])
-
-
-def _length_for_lag1(correlation: float) -> float:
-    index = int(np.argmin(np.abs(_theory_table()[:, 0] - correlation)))
-    return _clipped("correlation_length", float(LENGTH_GRID[index]))
-
-
 def correct_levels(
     values: NoiseValues, real: torch.Tensor, clean: torch.Tensor, seed: int, *, spatial: bool
 ) -> tuple[NoiseValues, float]:
@@ -252,17 +171,19 @@ def correct_levels(
     # Green's ratio scales shot and read; red's and blue's gains are relative to green.
     red, blue = (float(g) for g in values["channel_gain"].tolist())
     corrected = values.replace(
-        shot=_clipped("shot", values.scalar("shot") * ratio[1]),
-        read=_clipped("read", values.scalar("read") * ratio[1]),
+        shot=clipped("shot", values.scalar("shot") * ratio[1]),
+        read=clipped("read", values.scalar("read") * ratio[1]),
         channel_gain=[
-            _clipped("channel_gain", red * ratio[0] / ratio[1]),
-            _clipped("channel_gain", blue * ratio[2] / ratio[1]),
+            clipped("channel_gain", red * ratio[0] / ratio[1]),
+            clipped("channel_gain", blue * ratio[2] / ratio[1]),
         ],
     )
     if spatial:
         length = values.scalar("correlation_length")
-        wanted = min(0.99, max(0.0, kernel_autocorrelation(length, 1) + _lag1(real) - _lag1(synthetic)))
-        corrected = corrected.replace(correlation_length=_length_for_lag1(wanted))
+        wanted = min(
+            0.99, max(0.0, kernel_autocorrelation(length, 1) + lag1_correlation(real) - lag1_correlation(synthetic))
+        )
+        corrected = corrected.replace(correlation_length=length_for_lag1(wanted))
     synthetic = synthesize_image(clean, corrected, torch.Generator().manual_seed(seed)) - clean
     return corrected, _structure_score(real, synthetic)
 
@@ -296,7 +217,7 @@ def fit_srgb_noise(
         brightness, colour = principal_noise(unit, values)
         length = fit_correlation_length(autocorrelation(brightness))
         colour_length = fit_correlation_length(autocorrelation(colour))
-        chroma = _clipped("chroma_length", math.sqrt(max(colour_length**2 - length**2, 0.0)))
+        chroma = clipped("chroma_length", math.sqrt(max(colour_length**2 - length**2, 0.0)))
         values = values.replace(correlation_length=length, chroma_length=chroma)
     if not components.jpeg:
         return values

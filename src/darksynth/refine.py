@@ -1,0 +1,475 @@
+"""Test-time refinement of a noise estimate on the reference itself: analysis by synthesis.
+
+A blind estimate (the DEN's) is corrected so that the simulator, run on a denoised copy of the reference,
+reproduces the reference's own residual statistics measured through the same operator (indirect inference,
+Gourieroux, Monfort and Renault 1993). With ``x_hat = D(y)`` the denoised reference and ``s(.)`` the
+statistics of the residual ``z - D(z)`` of an image z:
+
+1. ``s(y)`` is measured once on the reference: the residual's variance per channel and per level of x_hat
+   (on the smoothest half of the pixels, where D removes noise and little else), its lag-1 autocorrelation,
+   its red-green, green-blue and red-blue correlations, and the variance of its column means;
+2. for the current values v, ``y_s = add_noise(x_hat, v)`` on 8-bit levels, and ``s(y_s)`` is measured with
+   the same mask and level bins;
+3. each parameter moves by the gap between the two: the correlation length so that the theoretical lag-1
+   autocorrelation of the detail of noise of that length changes by the gap; the per-bin variances scale by
+   s(y) / s(y_s) (less what the length's change does to the detail's variance, in theory) and the table's law
+   (green's shot and read, red's and blue's gains) is refitted to them; the channel correlations
+   by theirs; the column components (banding, temporal banding, periodic) are scaled together to close the
+   gap in column-mean variance. Everything is clipped to the table's bounds; quantization keeps its initial
+   value;
+4. steps 2-3 run for each of a few compression strengths (:data:`COMPRESSION_CANDIDATES`), and the strength
+   whose refined simulation's residual structure (scale ratios, autocorrelation, channel correlations) is
+   closest to the reference's wins.
+
+What D does to the noise (it removes part of it, more of correlated noise, and leaves texture) is the same for
+y and y_s, so it cancels instead of biasing the estimate; what remains is the difference between D(y) and the
+true clean image, small on the smooth pixels the statistics read. The synthetic noise has a fixed seed in
+every iteration (common random numbers), so the refinement is deterministic and its steps are not noise.
+
+``D`` is a Gaussian filter: cheap on a CPU and with no training; the DEN's decoder output was the other
+candidate (docs/refine.md compares them on synthetic references).
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+from functools import lru_cache
+
+import numpy as np
+import torch
+import torch.nn.functional as F
+
+from darksynth.models.den import DEN, DENOutput
+from darksynth.noise.components import noise_parameter
+from darksynth.noise.correlated import gaussian_kernel1d, kernel_autocorrelation
+from darksynth.noise.fit import (
+    LENGTH_GRID,
+    PoissonGaussian,
+    autocorrelation,
+    channel_correlations,
+    clipped,
+    fit_correlation_length,
+    normalised_noise,
+    oracle_poisson_gaussian,
+    values_of_law,
+    weighted_line,
+)
+from darksynth.noise.simulate import add_noise
+from darksynth.noise.values import NoiseValues
+from darksynth.tensors import to_8bit_levels
+
+DENOISE_SIGMA = 3.0
+"""Std (pixels) of the Gaussian denoiser, chosen on a synthetic reference (tests/test_refine.py's scene, noise of
+length 1.2 px): the noise D leaves in x_hat reappears in every simulation, and a wider filter leaves less
+(level error -31% at 1 px, -12% at 2 px, -6% at 3 px); the texture a wider filter removes is kept out of the
+statistics by the smooth-pixel mask."""
+
+ANALYSIS_SIDE = 256
+"""Side of the central crop the statistics are measured on: about 20 000 smooth pixels, a few per cent of
+precision on each bin's variance; the cost of a step grows with the area."""
+
+ANALYSIS_FRAMES = 4
+"""Frames of a clip the statistics pool (the first ones)."""
+
+SMOOTH_SHARE = 0.3
+"""Share of pixels of each level, the least textured, whose detail the level and correlation statistics read."""
+
+LEVEL_BINS = 8
+"""Bins of x_hat's level for the per-channel residual variance."""
+
+ITERATIONS = 2
+"""Refinement steps for each compression candidate; each simulates and measures the reference's crop once."""
+
+FINAL_ITERATIONS = 1
+"""Further steps for the chosen compression candidate."""
+
+COMPRESSION_CANDIDATES = (0.0, 0.1, 0.25, 0.4)
+"""Compression strengths tried (none, JPEG quality 90, 75, 60); the refined values of each are simulated once
+more and the one whose residual structure is closest to the reference's wins. The DEN's own strength is not
+among them: it is never exactly 0, and any strength above 0 means JPEG with 4:2:0 chroma subsampling, which
+removes most colour from fine noise."""
+
+COLUMN_PARAMETERS = ("banding", "temporal_banding", "periodic")
+"""The column components, scaled together: their column-mean variances add up."""
+
+
+@dataclass(frozen=True)
+class ResidualStatistics:
+    """What the refinement matches: statistics of the residual z - D(z) of an image z.
+
+    Attributes:
+        variance: residual variance per channel and level bin (3, LEVEL_BINS), smooth pixels only.
+        lag1: lag-1 autocorrelation along x and y of the normalised residual, smooth pixels only.
+        correlations: red-green, green-blue and red-blue correlation of the residual, smooth pixels only.
+        column_variance: variance over columns of the residual's column means, averaged over channels and frames.
+        scale_ratio: per channel (3,), the variance of the diagonal detail of the 2x2-averaged image over that of
+            the image itself, smooth pixels only: how the noise's energy spreads over scales, which compression
+            (and spatial correlation) changes.
+    """
+
+    variance: torch.Tensor
+    lag1: float
+    correlations: tuple[float, float, float]
+    column_variance: float
+    scale_ratio: torch.Tensor
+
+    def distance(self, other: ResidualStatistics) -> float:
+        """How far the structure of two residuals is apart (levels aside, which the steps match): squared
+        differences of the log scale ratios, the lag-1 autocorrelation and the channel correlations."""
+        scales = float(
+            (self.scale_ratio.clamp_min(1e-12).log() - other.scale_ratio.clamp_min(1e-12).log()).square().sum()
+        )
+        pairs = sum((a - b) ** 2 for a, b in zip(self.correlations, other.correlations, strict=True))
+        return scales + (self.lag1 - other.lag1) ** 2 + pairs
+
+
+@dataclass(frozen=True)
+class Analysis:
+    """The reference as the refinement reads it: a crop, its denoised copy, the smooth mask and level bins.
+
+    Attributes:
+        noisy: the reference's crop (T, 3, H, W) in [0, 1].
+        denoised: D(noisy), the stand-in for the clean image.
+        smooth: the pixels the level and correlation statistics read (T, 1, H, W), bool.
+        bins: level bin of every pixel and channel (T, 3, H, W), by the quantiles of ``denoised`` on ``smooth``.
+        levels: mean denoised level of every channel and bin (3, LEVEL_BINS).
+        scale: per-pixel std the residual is divided by before its correlations are measured (T, 3, H, W).
+    """
+
+    noisy: torch.Tensor
+    denoised: torch.Tensor
+    smooth: torch.Tensor
+    bins: torch.Tensor
+    levels: torch.Tensor
+    scale: torch.Tensor
+
+
+def gaussian_denoise(frames: torch.Tensor, sigma: float = DENOISE_SIGMA) -> torch.Tensor:
+    """A Gaussian filter of std ``sigma`` pixels over frames (..., H, W), reflected at the borders."""
+    kernel = gaussian_kernel1d(sigma, dtype=frames.dtype, device=frames.device)
+    radius = kernel.numel() // 2
+    shape = frames.shape
+    flat = frames.reshape(-1, 1, shape[-2], shape[-1])
+    flat = F.conv2d(F.pad(flat, (radius, radius, 0, 0), mode="reflect"), kernel.view(1, 1, 1, -1))
+    flat = F.conv2d(F.pad(flat, (0, 0, radius, radius), mode="reflect"), kernel.view(1, 1, -1, 1))
+    return flat.reshape(shape)
+
+
+def _as_frames(reference: torch.Tensor) -> torch.Tensor:
+    if reference.dim() == 3:
+        reference = reference[None]
+    if reference.dim() != 4 or reference.shape[1] != 3:
+        raise ValueError(f"a reference must be an image (3, H, W) or frames (T, 3, H, W), got {tuple(reference.shape)}")
+    return reference
+
+
+def _central_crop(frames: torch.Tensor, side: int) -> torch.Tensor:
+    # Corners on the 16-pixel grid keep JPEG blocks and the 4-column periodic phase where the reference has them.
+    height, width = frames.shape[-2:]
+    top = max(0, (height - side) // 2) // 16 * 16
+    left = max(0, (width - side) // 2) // 16 * 16
+    return frames[..., top : top + side, left : left + side]
+
+
+def _local_mean(frames: torch.Tensor) -> torch.Tensor:
+    flat = frames.reshape(-1, 1, *frames.shape[-2:])
+    return F.avg_pool2d(flat, 15, stride=1, padding=7, count_include_pad=False).reshape(frames.shape)
+
+
+def _smooth_pixels(denoised: torch.Tensor) -> torch.Tensor:
+    """The SMOOTH_SHARE least textured pixels of each level of the denoised image (T, 1, H, W), bool.
+
+    Texture is told by the local energy of the denoised image's horizontal and vertical details. It is read on
+    the denoised image, not the noisy one: the fine noise the statistics measure has little left there, so the
+    choice does not pick pixels where the reference's noise happens to be low (which the simulations, drawn
+    afresh, would not share).
+    """
+    grey = denoised.sum(dim=1, keepdim=True)
+    horizontal = 0.5 * (grey[..., :-1, :-1] + grey[..., 1:, :-1] - grey[..., :-1, 1:] - grey[..., 1:, 1:])
+    vertical = 0.5 * (grey[..., :-1, :-1] + grey[..., :-1, 1:] - grey[..., 1:, :-1] - grey[..., 1:, 1:])
+    energy = F.pad(_local_mean(horizontal.square() + vertical.square()), (0, 1, 0, 1), mode="replicate")
+    level = denoised.mean(dim=1, keepdim=True)
+    edges = torch.quantile(_sample(level), torch.linspace(0, 1, LEVEL_BINS + 1, dtype=level.dtype)[1:-1])
+    index = torch.bucketize(level, edges)
+    smooth = torch.zeros_like(level, dtype=torch.bool)
+    for bin_index in range(LEVEL_BINS):
+        inside = index == bin_index
+        if bool(inside.any()):
+            smooth |= inside & (energy <= torch.quantile(_sample(energy[inside]), SMOOTH_SHARE))
+    return smooth
+
+
+def _sample(values: torch.Tensor) -> torch.Tensor:
+    # torch.quantile refuses inputs above 16 million values; a regular subsample keeps it cheap as well.
+    flat = values.flatten()
+    return flat[:: max(1, flat.numel() // 200_000)]
+
+
+def analysis_crop(reference: torch.Tensor) -> torch.Tensor:
+    """The part of a reference image (3, H, W) or frames (T, 3, H, W) the refinement reads: the first
+    ANALYSIS_FRAMES frames, a central crop of ANALYSIS_SIDE, float32 (T', 3, H', W')."""
+    # float32: the statistics are sums over at most a million pixels, well within its precision, at half the cost.
+    return _central_crop(_as_frames(reference)[:ANALYSIS_FRAMES], ANALYSIS_SIDE).to(torch.float32)
+
+
+def analyse(reference: torch.Tensor, *, denoised: torch.Tensor | None = None, sigma: float = DENOISE_SIGMA) -> Analysis:
+    """Crop, denoise and bin a reference image (3, H, W) or frames (T, 3, H, W) in [0, 1].
+
+    Args:
+        reference: the noisy reference.
+        denoised: its denoised crop (:func:`analysis_crop`'s shape), e.g. the DEN's dark clean output; a
+            Gaussian filter of std ``sigma`` pixels when not given.
+    """
+    noisy = analysis_crop(reference)
+    if min(noisy.shape[-2:]) < 8 * sigma:
+        raise ValueError(f"a reference of {noisy.shape[-1]}x{noisy.shape[-2]} is too small to refine on")
+    if denoised is None:
+        denoised = gaussian_denoise(noisy, sigma)
+    elif denoised.shape != noisy.shape:
+        raise ValueError(f"the denoised crop must be shaped {tuple(noisy.shape)}, got {tuple(denoised.shape)}")
+    denoised = denoised.to(noisy.dtype).clamp(0.0, 1.0)
+    smooth = _smooth_pixels(denoised)
+    bins = torch.zeros_like(noisy, dtype=torch.long)
+    levels = torch.zeros(3, LEVEL_BINS, dtype=torch.float64)
+    for channel in range(3):
+        plane = denoised[:, channel : channel + 1].contiguous()
+        chosen = plane[smooth]
+        edges = torch.quantile(chosen, torch.linspace(0, 1, LEVEL_BINS + 1, dtype=chosen.dtype)[1:-1])
+        index = torch.bucketize(plane, edges)
+        bins[:, channel : channel + 1] = index
+        counts = torch.bincount(index[smooth], minlength=LEVEL_BINS).to(torch.float64)
+        sums = torch.bincount(index[smooth], weights=chosen.double(), minlength=LEVEL_BINS)
+        levels[channel] = torch.where(counts > 0, sums / counts.clamp_min(1.0), chosen.double().mean())
+    # The correlations are read on the residual divided by a smooth std map, fixed from the reference, so that
+    # bright and dark pixels weigh alike in the reference and in every simulation.
+    band = F.pad(detail(noisy), (0, 1, 0, 1), mode="replicate")
+    local = _local_mean(band.square()).clamp_min(1e-10).sqrt()
+    return Analysis(noisy=noisy, denoised=denoised, smooth=smooth, bins=bins, levels=levels, scale=local)
+
+
+def detail(frames: torch.Tensor) -> torch.Tensor:
+    """The finest diagonal detail of frames (..., H, W): (a - b - c + d) / 2 over every 2x2 neighbourhood, a
+    copy of white noise's variance that flat or linear content does not reach (Donoho 1995's band), shaped
+    (..., H - 1, W - 1)."""
+    return 0.5 * (frames[..., :-1, :-1] - frames[..., :-1, 1:] - frames[..., 1:, :-1] + frames[..., 1:, 1:])
+
+
+def residual_statistics(image: torch.Tensor, analysis: Analysis) -> ResidualStatistics:
+    """The statistics of the finest detail of frames shaped like ``analysis.noisy``."""
+    band = detail(image)
+    smooth = analysis.smooth[..., :-1, :-1].expand_as(band)
+    index = analysis.bins[..., :-1, :-1] + LEVEL_BINS * torch.arange(3).view(1, 3, 1, 1)
+    weight = smooth.to(band.dtype)
+    counts = torch.zeros(3 * LEVEL_BINS, dtype=band.dtype).scatter_add_(0, index.flatten(), weight.flatten())
+    sums = torch.zeros_like(counts).scatter_add_(0, index.flatten(), (band * weight).flatten())
+    squares = torch.zeros_like(counts).scatter_add_(0, index.flatten(), (band.square() * weight).flatten())
+    mean = sums / counts.clamp_min(1.0)
+    variance = ((squares / counts.clamp_min(1.0) - mean.square()) * (counts > 1)).reshape(3, LEVEL_BINS).double()
+    unit = band / analysis.scale[..., :-1, :-1]
+    unit = (unit - (unit * weight).sum() / weight.sum()) * weight
+    energy = float(unit.square().sum() / weight.sum())
+    pairs_x = weight[..., :, 1:] * weight[..., :, :-1]
+    pairs_y = weight[..., 1:, :] * weight[..., :-1, :]
+    along_x = float((unit[..., :, 1:] * unit[..., :, :-1]).sum() / pairs_x.sum().clamp_min(1.0))
+    along_y = float((unit[..., 1:, :] * unit[..., :-1, :]).sum() / pairs_y.sum().clamp_min(1.0))
+    lag1 = 0.5 * (along_x + along_y) / max(energy, 1e-20)
+    channels = unit.transpose(0, 1).reshape(3, -1)
+    gram = channels @ channels.T
+    norms = gram.diagonal().clamp_min(1e-20).sqrt()
+    matrix = gram / (norms[:, None] * norms[None, :])
+    correlations = (float(matrix[0, 1]), float(matrix[1, 2]), float(matrix[0, 2]))
+    # Column means of the vertical-pass residual: the diagonal band would cancel a pattern constant down columns.
+    columns = image - 0.5 * (image.roll(1, dims=-1) + image.roll(-1, dims=-1))
+    column_variance = float(columns.mean(dim=-2)[..., 1:-1].var(dim=-1).mean())
+    return ResidualStatistics(
+        variance=variance,
+        lag1=lag1,
+        correlations=correlations,
+        column_variance=column_variance,
+        scale_ratio=_scale_ratio(image, analysis.smooth).double(),
+    )
+
+
+def _scale_ratio(image: torch.Tensor, smooth: torch.Tensor) -> torch.Tensor:
+    fine = detail(image)
+    fine_mask = smooth[..., :-1, :-1].to(image.dtype)
+    coarse_image = F.avg_pool2d(image, 2)
+    coarse = detail(coarse_image)
+    coarse_smooth = F.avg_pool2d(smooth.to(image.dtype), 2) == 1.0
+    coarse_mask = coarse_smooth[..., :-1, :-1].to(image.dtype)
+
+    def variance(band: torch.Tensor, mask: torch.Tensor) -> torch.Tensor:
+        count = mask.sum(dim=(0, 2, 3)).clamp_min(1.0)
+        mean = (band * mask).sum(dim=(0, 2, 3)) / count
+        return (band.square() * mask).sum(dim=(0, 2, 3)) / count - mean.square()
+
+    return variance(coarse, coarse_mask) / variance(fine, fine_mask).clamp_min(1e-20)
+
+
+@lru_cache(maxsize=1)
+def _detail_theory() -> tuple[
+    np.ndarray[tuple[int], np.dtype[np.float64]], np.ndarray[tuple[int], np.dtype[np.float64]]
+]:
+    """For every length of LENGTH_GRID, the lag-1 autocorrelation and the variance (relative to the noise's)
+    of the diagonal detail of noise filtered by the table's Gaussian kernel of that length.
+
+    The kernel's autocorrelation r(d) is separable, so is the detail's: a first difference along x and along y
+    has autocovariance 2 r(d) - r(d - 1) - r(d + 1), which gives lag 1 as (2 r1 - 1 - r2) / (2 - 2 r1) and a
+    variance of (1 - r1)^2 for the detail's factor 1/2.
+    """
+    r1 = np.array([kernel_autocorrelation(length, 1) for length in LENGTH_GRID])
+    r2 = np.array([kernel_autocorrelation(length, 2) for length in LENGTH_GRID])
+    return (2.0 * r1 - 1.0 - r2) / np.maximum(2.0 - 2.0 * r1, 1e-12), np.square(1.0 - r1)
+
+
+def _length_index(length: float) -> int:
+    return int(np.argmin(np.abs(np.asarray(LENGTH_GRID) - length)))
+
+
+def simulate(analysis: Analysis, values: NoiseValues, *, seed: int) -> torch.Tensor:
+    """The denoised reference through the composer: add_noise(x_hat, v) as one clip, on 8-bit levels."""
+    generator = torch.Generator().manual_seed(seed)
+    return to_8bit_levels(add_noise(analysis.denoised, values, generator=generator))
+
+
+def _floored(values: NoiseValues) -> NoiseValues:
+    # A level of zero would draw no noise, and a ratio of residual variances could never move it.
+    shot = max(values.scalar("shot"), noise_parameter("shot").log_floor or 0.0)
+    read = max(values.scalar("read"), noise_parameter("read").log_floor or 0.0)
+    return values.replace(shot=shot, read=read)
+
+
+def _model_variance(values: NoiseValues, levels: torch.Tensor) -> torch.Tensor:
+    red, blue = (float(g) for g in values["channel_gain"].tolist())
+    gains = torch.tensor([red, 1.0, blue], dtype=levels.dtype).view(3, 1)
+    return gains.square() * (values.scalar("shot") ** 2 * levels.clamp_min(0.0) + values.scalar("read") ** 2)
+
+
+def _refit_levels(values: NoiseValues, levels: torch.Tensor, target: torch.Tensor, clean: torch.Tensor) -> NoiseValues:
+    a_values, b_values = [], []
+    for channel in range(3):
+        variance = target[channel].numpy()
+        weights = 1.0 / np.maximum(variance, 1e-12)
+        a, b = weighted_line(levels[channel].numpy(), variance, weights)
+        a_values.append(a)
+        b_values.append(b)
+    law = PoissonGaussian(a=(a_values[0], a_values[1], a_values[2]), b=(b_values[0], b_values[1], b_values[2]))
+    fitted = values_of_law(law, clean)
+    return values.replace(shot=fitted["shot"], read=fitted["read"], channel_gain=fitted["channel_gain"])
+
+
+def refine_step(
+    values: NoiseValues, analysis: Analysis, reference: ResidualStatistics, *, seed: int = 0
+) -> tuple[NoiseValues, ResidualStatistics]:
+    """One step: simulate with ``values``, measure, move every refined parameter by the gap to the reference.
+
+    Returns:
+        The moved values and the statistics of the simulation with ``values`` (before the move).
+    """
+    values = _floored(values)
+    simulated = residual_statistics(simulate(analysis, values, seed=seed), analysis)
+    # The length moves first, on the detail's theory, so that the levels can discount what the new length
+    # changes of the detail's variance: one step then moves the two without their gaps feeding each other.
+    theory_lag1, theory_gain = _detail_theory()
+    old = _length_index(values.scalar("correlation_length"))
+    wanted = theory_lag1[old] + reference.lag1 - simulated.lag1
+    new = int(np.argmin(np.abs(theory_lag1 - wanted)))
+    length = clipped("correlation_length", float(LENGTH_GRID[new]))
+    ratio = reference.variance / simulated.variance.clamp_min(1e-12)
+    valid = (reference.variance > 0) & (simulated.variance > 0)
+    ratio = torch.where(valid, ratio, torch.ones_like(ratio)) * float(theory_gain[old] / theory_gain[new])
+    target = _model_variance(values, analysis.levels) * ratio
+    refined = _refit_levels(values, analysis.levels, target, analysis.denoised[0])
+    refined = refined.replace(correlation_length=length)
+    pairs = [
+        clipped("channel_correlation", float(value) + real - synthetic)
+        for value, real, synthetic in zip(
+            values["channel_correlation"].tolist(), reference.correlations, simulated.correlations, strict=True
+        )
+    ]
+    refined = refined.replace(channel_correlation=pairs)
+    column = sum(float(values[name].square().sum()) for name in COLUMN_PARAMETERS)
+    if column > 0.0:
+        wanted_column = max(0.0, column + reference.column_variance - simulated.column_variance)
+        scale = math.sqrt(wanted_column / column)
+        refined = refined.replace(
+            **{name: [clipped(name, float(v) * scale) for v in values[name].tolist()] for name in COLUMN_PARAMETERS}
+        )
+    return refined, simulated
+
+
+def refine_profile(
+    reference: torch.Tensor,
+    initial: NoiseValues,
+    *,
+    iterations: int = ITERATIONS,
+    final_iterations: int = FINAL_ITERATIONS,
+    seed: int = 0,
+    denoised: torch.Tensor | None = None,
+    sigma: float = DENOISE_SIGMA,
+) -> NoiseValues:
+    """Refine a blind noise estimate so that the simulator reproduces the reference's residual statistics.
+
+    Args:
+        reference: the real noisy reference, an image (3, H, W) or frames (T, 3, H, W) in [0, 1], as read
+            by :func:`darksynth.estimate.load_reference`.
+        initial: unbatched noise values to start from, e.g. ``estimate(...).profile.noise`` or :func:`plain_fit`.
+        iterations: refinement steps for each compression candidate (at least 1).
+        final_iterations: further steps for the chosen candidate.
+        seed: seed of the synthetic noise (the same in every step).
+        denoised: the denoised :func:`analysis_crop` of the reference (e.g. :func:`den_denoise`); the Gaussian
+            filter when not given.
+        sigma: std in pixels of the Gaussian denoiser.
+
+    Returns:
+        Unbatched noise values (float64): shot, read, channel gains, correlation length, channel correlations
+        and the column components refined, compression chosen among :data:`COMPRESSION_CANDIDATES`;
+        quantization as in ``initial``.
+
+    References:
+        Gourieroux, Monfort and Renault 1993, Indirect inference.
+    """
+    if iterations < 1:
+        raise ValueError(f"refine_profile needs at least one iteration per candidate, got {iterations}")
+    if initial.batch_shape:
+        raise ValueError(f"refine_profile needs unbatched values, got batch {initial.batch_shape}")
+    analysis = analyse(reference, denoised=denoised, sigma=sigma)
+    target = residual_statistics(analysis.noisy, analysis)
+    best, best_distance = initial, math.inf
+    for compression in COMPRESSION_CANDIDATES:
+        values = initial.to("cpu", torch.float64).replace(compression=compression)
+        for _ in range(iterations):
+            values, simulated = refine_step(values, analysis, target, seed=seed)
+        # Scored by the simulation of the last step's input, which is one step behind but costs nothing more.
+        distance = target.distance(simulated)
+        if distance < best_distance:
+            best, best_distance = values, distance
+    for _ in range(final_iterations):
+        best, _ = refine_step(best, analysis, target, seed=seed)
+    return best
+
+
+@torch.no_grad()
+def den_denoise(network: DEN, frames: torch.Tensor) -> torch.Tensor:
+    """The dark clean frames a v3 DEN's decoder reconstructs from noisy frames (T, 3, H, W), as one clip."""
+    if network.config.variant != "v3":
+        raise ValueError(f"only a v3 DEN has a decoder, this one is {network.config.variant}")
+    parameter = next(network.parameters())
+    output: DENOutput = network.eval()(frames.to(device=parameter.device, dtype=parameter.dtype)[None])
+    if output.dark is None:
+        raise ValueError("the DEN returned no dark clean clip")
+    return output.dark[0].to(device=frames.device, dtype=frames.dtype)
+
+
+def plain_fit(reference: torch.Tensor, *, sigma: float = DENOISE_SIGMA) -> NoiseValues:
+    """The clean-aided fit with the denoised reference as the clean image, uncorrected: biased by what the
+    denoiser removes of the noise and leaves of the content (the refinement's control and a starting point)."""
+    frame = _central_crop(_as_frames(reference)[0], ANALYSIS_SIDE).to(torch.float64)
+    denoised = gaussian_denoise(frame, sigma)
+    values = values_of_law(oracle_poisson_gaussian(frame, denoised), denoised)
+    unit = normalised_noise(frame, denoised, values)
+    return values.replace(
+        correlation_length=fit_correlation_length(autocorrelation(unit)),
+        channel_correlation=channel_correlations(unit),
+    )
