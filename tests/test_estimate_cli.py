@@ -6,10 +6,13 @@ import json
 from collections.abc import Callable
 from pathlib import Path
 
+import numpy as np
 import pytest
+import torch
 from safetensors.torch import save_file
 
 from darksynth.models.den import DEN, DENConfig
+from darksynth.noise.level import mean_noise_variance
 from darksynth.profile import load_profile, parse_profile
 from darksynth.training.weights import save_weights
 from tests.clean_images import smooth_rgb, write_png
@@ -169,3 +172,21 @@ def test_unknown_variant_is_one_error_line(dark_image: Path) -> None:
     code, _, stderr = run_cli("estimate", dark_image, "--variant", "v1")
     assert code == 1
     assert stderr.strip() == "darksynth: error: --variant must be v2 or v3, got 'v1'"
+
+
+def test_refine_brings_the_shipped_networks_level_to_the_reference(tmp_path: Path) -> None:
+    """--refine runs the analysis by synthesis after the network and says so in the profile's meta."""
+    clean = smooth_rgb(160, 160).astype(float) / 4
+    noisy = clean + np.random.default_rng(0).normal(0, 6, clean.shape)
+    path = write_png(tmp_path / "noisy.png", np.clip(noisy, 0, 255).round().astype(np.uint8))
+    reference = torch.from_numpy(clean / 255).permute(2, 0, 1)[None, None]
+    levels = {}
+    for flags in ((), ("--refine",)):
+        code, stdout, stderr = run_cli("estimate", path, *flags)
+        assert code == 0, stderr
+        profile = parse_profile(json.loads(stdout))
+        assert ("refined" in profile.meta) == bool(flags)
+        batched = profile.noise.map(lambda t: t[None])
+        levels[flags] = float(mean_noise_variance(batched, reference).sqrt()) * 255
+    # White noise of std 6 levels: the refined profile adds noise of that std within 15%.
+    assert abs(levels[("--refine",)] / 6 - 1) < 0.15, levels

@@ -8,8 +8,8 @@ sibling of its own layer):
 2. ``noise``: the components, their table, the carrier of values, the composer;
 3. ``profile``, ``darkening_estimate``;
 4. ``synthesize``, ``models``;
-5. ``apply``, ``estimate``, ``refine``, ``training``, ``transforms``;
-6. ``baselines``, ``datasets``;
+5. ``apply``, ``refine``, ``training``, ``transforms``;
+6. ``baselines``, ``datasets``, ``estimate`` (it may refine);
 7. ``evaluation``, ``demo``;
 8. ``cli``, the package ``__init__``; 9. ``__main__``, which only calls the cli.
 
@@ -38,7 +38,7 @@ LAYERS: dict[str, int] = {
     "synthesize": 4,
     "models": 4,
     "apply": 5,
-    "estimate": 5,
+    "estimate": 6,
     "refine": 5,
     "training": 5,
     "transforms": 5,

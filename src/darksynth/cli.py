@@ -403,6 +403,14 @@ def estimate_command(
         ),
     ] = default_of(DENChoice, "noise_model"),
     device: Annotated[str, typer.Option(help="torch device.")] = default_of(EstimateOptions, "device"),
+    refine: Annotated[
+        bool,
+        typer.Option(
+            "--refine",
+            help="Refine the network's noise on the reference itself by analysis by synthesis (slower, 5-10 s; "
+            "closer levels on the real pairs, see docs/refine.md).",
+        ),
+    ] = default_of(EstimateOptions, "refine"),
 ) -> None:
     """Estimate a noise profile from one real low-light reference, zero-shot."""
     import json
@@ -417,7 +425,7 @@ def estimate_command(
             noise_model=checked_choice("--model", model, NOISE_MODELS),
             variant=checked_choice("--variant", variant, VARIANTS),
         )
-        options = EstimateOptions(clip=clip, device=device)
+        options = EstimateOptions(clip=clip, device=device, refine=refine)
         network = load_weights(choice.path(), device=options.device)
         result = estimate_file(reference, network, options)
     except DarksynthError as error:
