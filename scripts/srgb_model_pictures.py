@@ -10,13 +10,15 @@ Two PNG files, both made only from permissively licensed material, so both may b
   parameter. Synthetic only.
 - ``lol-real-vs-synthetic.png``: per LOL image (MIT licence; real dark photographs without a clean image),
   a crop of the real image | the ``srgb`` DEN's estimate from that image applied to a clean Set8 frame (MIT) |
-  the same with the paper's DEN. The three are brightened by the same factor (BRIGHTEN) so the noise shows
+  the same refined on the reference (``estimate --refine``) | the same with the paper's DEN. All are
+  brightened by the same factor (BRIGHTEN) so the noise shows
   as it does when a dark image is viewed brightened; the scenes differ, the noise's look is what to compare.
 """
 
 from __future__ import annotations
 
 import argparse
+from dataclasses import replace
 from pathlib import Path
 
 import matplotlib
@@ -31,6 +33,7 @@ from darksynth.io.images import read_image
 from darksynth.noise.simulate import add_noise
 from darksynth.noise.values import NoiseValues
 from darksynth.profile import Profile
+from darksynth.refine import refine_profile
 from darksynth.synthesize import synthesize
 from darksynth.training.weights import default_weights_path, load_weights
 
@@ -76,9 +79,14 @@ def lol_rows(data: Path) -> list[list[tuple[str, np.ndarray]]]:
         row = [(f"real LOL {name}", _crop(np.clip(real * BRIGHTEN, 0, 1)))]
         for model_name, model in models.items():
             profile: Profile = estimate(reference, model).profile
-            result = synthesize(clean, profile, generator=torch.Generator().manual_seed(0))
-            image = np.asarray(result.image, dtype=np.float64) / 255.0
-            row.append((f"{model_name} DEN on a clean frame", _crop(np.clip(image * BRIGHTEN, 0, 1))))
+            variants = [(f"{model_name} DEN", profile)]
+            if model_name == "srgb":
+                refined = replace(profile, noise=refine_profile(reference, profile.noise))
+                variants.append(("srgb DEN + refine", refined))
+            for title, chosen in variants:
+                result = synthesize(clean, chosen, generator=torch.Generator().manual_seed(0))
+                image = np.asarray(result.image, dtype=np.float64) / 255.0
+                row.append((f"{title} on a clean frame", _crop(np.clip(image * BRIGHTEN, 0, 1))))
         rows.append(row)
     return rows
 
