@@ -24,6 +24,7 @@ from darksynth.evaluation.classical import (
     oracle_poisson_gaussian,
 )
 from darksynth.evaluation.srgb_fit import OracleComponents
+from darksynth.models.den import DEN
 from darksynth.noise.simulate import add_noise
 from darksynth.noise.values import NoiseValues
 from darksynth.tensors import to_8bit_levels
@@ -80,16 +81,22 @@ def _poisson_gaussian_method(name: str, summary: str, fit: Fit, *, oracle: bool 
     )
 
 
-def _den_method(name: str, weights: Path, device: str) -> NoiseMethod:
-    from darksynth.estimate import estimate
+def load_den_weights(name: str, weights: Path, device: str) -> DEN:
+    """The DEN a method called ``name`` runs, or MethodUnavailableError naming the method and the file."""
     from darksynth.training.weights import load_weights
 
     if not weights.is_file():
         raise MethodUnavailableError(f"{name}: no trained weights at {weights}")
     try:
-        model = load_weights(weights, device=device)
+        return load_weights(weights, device=device)
     except DarksynthError as error:
         raise MethodUnavailableError(f"{name}: {error}") from None
+
+
+def _den_method(name: str, weights: Path, device: str) -> NoiseMethod:
+    from darksynth.estimate import estimate
+
+    model = load_den_weights(name, weights, device)
 
     def fit(noisy: torch.Tensor, clean: torch.Tensor) -> NoiseValues:
         return estimate(noisy.to(torch.float32)[None], model, device=device).profile.noise

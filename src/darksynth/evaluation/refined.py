@@ -11,8 +11,7 @@ from pathlib import Path
 
 import torch
 
-from darksynth.errors import DarksynthError
-from darksynth.evaluation.methods import MethodUnavailableError, NoiseMethod
+from darksynth.evaluation.methods import NoiseMethod, load_den_weights
 from darksynth.evaluation.srgb_fit import synthesize_image
 from darksynth.noise.values import NoiseValues
 from darksynth.refine import analysis_crop, den_denoise, refine_profile
@@ -29,14 +28,8 @@ def refined_den_method(name: str, weights: Path, device: str, *, decoder_denoise
         MethodUnavailableError: the weights do not exist or cannot be read.
     """
     from darksynth.estimate import estimate
-    from darksynth.training.weights import load_weights
 
-    if not weights.is_file():
-        raise MethodUnavailableError(f"{name}: no trained weights at {weights}")
-    try:
-        network = load_weights(weights, device=device)
-    except DarksynthError as error:
-        raise MethodUnavailableError(f"{name}: {error}") from None
+    network = load_den_weights(name, weights, device)
 
     def fit(noisy: torch.Tensor, clean: torch.Tensor) -> NoiseValues:
         reference = noisy.to(torch.float32)[None]
