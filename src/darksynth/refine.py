@@ -47,6 +47,7 @@ from darksynth.noise.fit import (
     LENGTH_GRID,
     PoissonGaussian,
     autocorrelation,
+    central_crop,
     channel_correlations,
     clipped,
     fit_correlation_length,
@@ -164,14 +165,6 @@ def _as_frames(reference: torch.Tensor) -> torch.Tensor:
     return reference
 
 
-def _central_crop(frames: torch.Tensor, side: int) -> torch.Tensor:
-    # Corners on the 16-pixel grid keep JPEG blocks and the 4-column periodic phase where the reference has them.
-    height, width = frames.shape[-2:]
-    top = max(0, (height - side) // 2) // 16 * 16
-    left = max(0, (width - side) // 2) // 16 * 16
-    return frames[..., top : top + side, left : left + side]
-
-
 def _local_mean(frames: torch.Tensor) -> torch.Tensor:
     flat = frames.reshape(-1, 1, *frames.shape[-2:])
     return F.avg_pool2d(flat, 15, stride=1, padding=7, count_include_pad=False).reshape(frames.shape)
@@ -210,7 +203,7 @@ def analysis_crop(reference: torch.Tensor) -> torch.Tensor:
     """The part of a reference image (3, H, W) or frames (T, 3, H, W) the refinement reads: the first
     ANALYSIS_FRAMES frames, a central crop of ANALYSIS_SIDE, float32 (T', 3, H', W')."""
     # float32: the statistics are sums over at most a million pixels, well within its precision, at half the cost.
-    return _central_crop(_as_frames(reference)[:ANALYSIS_FRAMES], ANALYSIS_SIDE).to(torch.float32)
+    return central_crop(_as_frames(reference)[:ANALYSIS_FRAMES], ANALYSIS_SIDE).to(torch.float32)
 
 
 def analyse(reference: torch.Tensor, *, denoised: torch.Tensor | None = None, sigma: float = DENOISE_SIGMA) -> Analysis:
@@ -465,7 +458,7 @@ def den_denoise(network: DEN, frames: torch.Tensor) -> torch.Tensor:
 def plain_fit(reference: torch.Tensor, *, sigma: float = DENOISE_SIGMA) -> NoiseValues:
     """The clean-aided fit with the denoised reference as the clean image, uncorrected: biased by what the
     denoiser removes of the noise and leaves of the content (the refinement's control and a starting point)."""
-    frame = _central_crop(_as_frames(reference)[0], ANALYSIS_SIDE).to(torch.float64)
+    frame = central_crop(_as_frames(reference)[0], ANALYSIS_SIDE).to(torch.float64)
     denoised = gaussian_denoise(frame, sigma)
     values = values_of_law(oracle_poisson_gaussian(frame, denoised), denoised)
     unit = normalised_noise(frame, denoised, values)

@@ -39,6 +39,7 @@ import torch
 from darksynth.noise.correlated import kernel_autocorrelation
 from darksynth.noise.fit import (
     autocorrelation,
+    central_crop,
     channel_correlations,
     clipped,
     fit_correlation_length,
@@ -142,13 +143,6 @@ def _structure_score(real: torch.Tensor, synthetic: torch.Tensor) -> float:
     return score
 
 
-def _central_crop(image: torch.Tensor, size: int) -> torch.Tensor:
-    height, width = image.shape[-2:]
-    top = max(0, (height - size) // 2) // 16 * 16
-    left = max(0, (width - size) // 2) // 16 * 16
-    return image[..., top : top + size, left : left + size]
-
-
 def correct_levels(
     values: NoiseValues, real: torch.Tensor, clean: torch.Tensor, seed: int, *, spatial: bool
 ) -> tuple[NoiseValues, float]:
@@ -221,8 +215,8 @@ def fit_srgb_noise(
         values = values.replace(correlation_length=length, chroma_length=chroma)
     if not components.jpeg:
         return values
-    real = _central_crop(noisy - clean, SEARCH_CROP)
-    clean_crop = _central_crop(clean, SEARCH_CROP)
+    real = central_crop(noisy - clean, SEARCH_CROP)
+    clean_crop = central_crop(clean, SEARCH_CROP)
     best, best_score = values, math.inf
     for quality in components.candidates:
         candidate = values.replace(compression=compression_of_quality(quality))

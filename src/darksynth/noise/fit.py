@@ -83,6 +83,15 @@ def oracle_poisson_gaussian(noisy: torch.Tensor, clean: torch.Tensor) -> Poisson
     return PoissonGaussian(a=(a_values[0], a_values[1], a_values[2]), b=(b_values[0], b_values[1], b_values[2]))
 
 
+def central_crop(image: torch.Tensor, side: int) -> torch.Tensor:
+    """The central ``side`` x ``side`` crop of (..., H, W), its corner on the 16-pixel grid: JPEG blocks and the
+    4-column phase of periodic noise stay where the image has them."""
+    height, width = image.shape[-2:]
+    top = max(0, (height - side) // 2) // 16 * 16
+    left = max(0, (width - side) // 2) // 16 * 16
+    return image[..., top : top + side, left : left + side]
+
+
 def clipped(name: str, value: float) -> float:
     """A value of the parameter ``name`` clipped to its bounds in the table."""
     parameter = noise_parameter(name)
