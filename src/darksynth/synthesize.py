@@ -120,11 +120,9 @@ class ClipSynthesizer:
         self._values = parameters.noise.to(self.device, torch.float32)
         self._held: dict[str, torch.Tensor] = {}
         self._kernel: PixelKernel = compiled_pixel_kernel() if compile else pixel_kernel_8bit
-        self._fusable = self._values.covered_by(FAST_PATH)
-        if not self._fusable:
-            uncovered = [
-                p.name for p in noise_parameters() if FAST_PATH not in p.fast_paths and not self._values.is_neutral(p)
-            ]
+        uncovered = self._values.uncovered_by(FAST_PATH)
+        self._fusable = not uncovered
+        if uncovered:
             logger.debug("8-bit frames take the general composer: %s not covered by %s", uncovered, FAST_PATH)
         self._scalars: tuple[torch.Tensor, ...] | None = None
 

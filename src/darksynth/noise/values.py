@@ -227,7 +227,11 @@ class NoiseValues(Mapping[str, torch.Tensor]):
         """Whether none of the component's shape parameters is set: what it draws is the paper's white noise."""
         return all(self.is_neutral(p) for p in component.parameters if p.role == "shape")
 
+    def uncovered_by(self, fast_path: str) -> list[str]:
+        """The set parameters that a fast path declared in the table (:attr:`Parameter.fast_paths`) does not
+        draw; empty when it draws these values with the general composer's law."""
+        return [p.name for p in table.noise_parameters() if fast_path not in p.fast_paths and not self.is_neutral(p)]
+
     def covered_by(self, fast_path: str) -> bool:
-        """Whether a fast path declared in the table (:attr:`Parameter.fast_paths`) draws these values exactly
-        as the general composer's law: every parameter it does not cover is neutral."""
-        return all(fast_path in p.fast_paths or self.is_neutral(p) for p in table.noise_parameters())
+        """Whether the fast path draws these values: every parameter it does not cover is neutral."""
+        return not self.uncovered_by(fast_path)
