@@ -102,6 +102,11 @@ class ColumnPresence:
         return self.ratio >= COLUMN_RATIO
 
 
+def spread_frames(total: int, count: int) -> list[int]:
+    """Indices of up to ``count`` frames evenly spread over ``total`` (first and last included)."""
+    return np.unique(np.linspace(0, total - 1, count).round().astype(int)).tolist()  # type: ignore[no-any-return]
+
+
 def _highpassed_spread(means: torch.Tensor) -> float:
     """Robust std of the second difference along the last axis (cancels content changing linearly along it)."""
     highpass = (means[..., 1:-1] - 0.5 * (means[..., :-2] + means[..., 2:])).flatten()
@@ -298,7 +303,7 @@ def estimate(
         "aggregate": "median over crops; ranges are the 10th-90th percentiles",
     }
     # A few frames spread over the clip measure the columns and the level: the whole 1080p clip took 1.5 s more.
-    measured = np.unique(np.linspace(0, reference.shape[0] - 1, MEASURED_FRAMES).round().astype(int)).tolist()
+    measured = spread_frames(reference.shape[0], MEASURED_FRAMES)
     noise = _decide_columns(reference, measured, noise, ranges, meta)
     warnings = []
     level = float(reference.mean())
@@ -427,7 +432,7 @@ def _estimate_darkening(
     """
     # The tone distribution is read on a few frames spread over the clip: more frames of one scene add time,
     # not information (all 16 frames of a 1080p clip took 6 s more).
-    frames = reference[np.unique(np.linspace(0, reference.shape[0] - 1, DARKENING_FRAMES).round().astype(int))]
+    frames = reference[spread_frames(reference.shape[0], DARKENING_FRAMES)]
     try:
         found = estimate_darkening(frames, source=source)
     except DarksynthError as error:
