@@ -98,6 +98,15 @@ def _flag(value: Mapping[str, Any]) -> bool | None:
     return bool(value["oracle"]) if "oracle" in value else None
 
 
+def _divergences(entry: Mapping[str, Any]) -> dict[str, Any]:
+    """Each of :data:`INTERVAL_METRICS` and its ``_ci95`` interval, as the keyword arguments of a scores class."""
+    parsed: dict[str, Any] = {}
+    for metric in INTERVAL_METRICS:
+        parsed[metric] = _number(entry.get(metric))
+        parsed[f"{metric}_ci95"] = _interval(entry.get(f"{metric}_ci95"))
+    return parsed
+
+
 def _numbers(value: object, keys: tuple[str, ...]) -> dict[str, float | None]:
     entry = _mapping(value)
     return {key: _number(entry.get(key)) for key in keys}
@@ -119,30 +128,19 @@ class CameraScores:
 
     def value(self, metric: str) -> float | None:
         """One of :data:`CAMERA_METRICS`."""
-        return {"kld": self.kld, "kld_srgb": self.kld_srgb, "kld_naflow": self.kld_naflow, "akld": self.akld}[metric]
+        if metric not in CAMERA_METRICS:
+            raise KeyError(metric)
+        return getattr(self, metric)  # type: ignore[no-any-return]
 
     def interval(self, metric: str) -> Interval | None:
-        return {
-            "kld": self.kld_ci95,
-            "kld_srgb": self.kld_srgb_ci95,
-            "kld_naflow": self.kld_naflow_ci95,
-            "akld": self.akld_ci95,
-        }[metric]
+        if metric not in CAMERA_METRICS:
+            raise KeyError(metric)
+        return getattr(self, f"{metric}_ci95")  # type: ignore[no-any-return]
 
     @classmethod
     def parse(cls, document: object) -> CameraScores:
         entry = _mapping(document)
-        return cls(
-            pairs=_count(entry.get("pairs")),
-            kld=_number(entry.get("kld")),
-            kld_ci95=_interval(entry.get("kld_ci95")),
-            kld_srgb=_number(entry.get("kld_srgb")),
-            kld_srgb_ci95=_interval(entry.get("kld_srgb_ci95")),
-            kld_naflow=_number(entry.get("kld_naflow")),
-            kld_naflow_ci95=_interval(entry.get("kld_naflow_ci95")),
-            akld=_number(entry.get("akld")),
-            akld_ci95=_interval(entry.get("akld_ci95")),
-        )
+        return cls(pairs=_count(entry.get("pairs")), **_divergences(entry))
 
 
 @dataclass(frozen=True)
@@ -206,25 +204,19 @@ class MethodScores:
 
     def value(self, metric: str) -> float | None:
         """One of :data:`SET_METRICS`."""
-        values = {"kld": self.kld, "kld_srgb": self.kld_srgb, "kld_naflow": self.kld_naflow, "akld": self.akld}
-        return {**values, "fid": self.fid, "kid": self.kid}[metric]
+        if metric not in SET_METRICS:
+            raise KeyError(metric)
+        return getattr(self, metric)  # type: ignore[no-any-return]
 
     def interval(self, metric: str) -> Interval | None:
-        intervals = {"kld": self.kld_ci95, "kld_srgb": self.kld_srgb_ci95, "kld_naflow": self.kld_naflow_ci95}
-        return {**intervals, "akld": self.akld_ci95}.get(metric)
+        """The interval of one of :data:`INTERVAL_METRICS`; None for the others (FID, KID)."""
+        return getattr(self, f"{metric}_ci95") if metric in INTERVAL_METRICS else None
 
     @classmethod
     def parse(cls, document: object) -> MethodScores:
         entry = _mapping(document)
         return cls(
-            kld=_number(entry.get("kld")),
-            kld_ci95=_interval(entry.get("kld_ci95")),
-            kld_srgb=_number(entry.get("kld_srgb")),
-            kld_srgb_ci95=_interval(entry.get("kld_srgb_ci95")),
-            kld_naflow=_number(entry.get("kld_naflow")),
-            kld_naflow_ci95=_interval(entry.get("kld_naflow_ci95")),
-            akld=_number(entry.get("akld")),
-            akld_ci95=_interval(entry.get("akld_ci95")),
+            **_divergences(entry),
             fid=_number(entry.get("fid")),
             kid=_number(entry.get("kid")),
             kid_std=_number(entry.get("kid_std")),
