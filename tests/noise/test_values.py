@@ -11,6 +11,7 @@ from darksynth.noise.components import (
     noise_components,
     noise_parameter_names,
     noise_parameters,
+    shapes_neutral,
     vector_size,
 )
 from darksynth.noise.sampling import random_noise_values
@@ -63,8 +64,8 @@ def test_activity_follows_amplitudes_and_shapes() -> None:
     shaped = white.replace(correlation_length=1.0)
     component = noise_components()[0]
     assert component.name == "heteroscedastic"
-    assert white.is_active(component) and white.shapes_neutral(component)
-    assert not shaped.shapes_neutral(component)
+    assert white.is_active(component) and shapes_neutral(component.parameters, white)
+    assert not shapes_neutral(component.parameters, shaped)
     assert not NoiseValues.neutral().is_active(component)
     # Shape parameters alone draw nothing.
     assert not NoiseValues.from_values({"correlation_length": 1.0}).is_active(component)

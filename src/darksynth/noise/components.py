@@ -119,7 +119,8 @@ class NoiseComponent:
     """True when one draw is held over all frames of a clip: a frame-by-frame stream draws it once."""
 
 
-def _shapes_neutral(parameters: tuple[Parameter, ...], values: Mapping[str, torch.Tensor]) -> bool:
+def shapes_neutral(parameters: tuple[Parameter, ...], values: Mapping[str, torch.Tensor]) -> bool:
+    """Whether none of ``parameters``' shape parameters is set: what they shape is the paper's white noise."""
     return all(bool((values[p.name] == p.neutral).all()) for p in parameters if p.role == "shape")
 
 
@@ -198,7 +199,7 @@ def _draw_heteroscedastic(
     signal: torch.Tensor, values: Mapping[str, torch.Tensor], generator: torch.Generator | None
 ) -> torch.Tensor:
     shot, read = values["shot"][..., 0], values["read"][..., 0]
-    if _shapes_neutral(_HETEROSCEDASTIC_PARAMETERS, values):
+    if shapes_neutral(_HETEROSCEDASTIC_PARAMETERS, values):
         return heteroscedastic_noise(signal, shot, read, generator=generator)
     # A single frame (C, H, W), as streaming passes it, is a clip of one frame.
     shape = signal.shape if signal.dim() >= 4 else (1, *signal.shape)

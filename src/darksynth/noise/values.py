@@ -223,10 +223,6 @@ class NoiseValues(Mapping[str, torch.Tensor]):
         """Whether the component draws anything: one of its amplitude parameters is not neutral in some clip."""
         return any(not self.is_neutral(p) for p in component.parameters if p.role == "amplitude")
 
-    def shapes_neutral(self, component: NoiseComponent) -> bool:
-        """Whether none of the component's shape parameters is set: what it draws is the paper's white noise."""
-        return all(self.is_neutral(p) for p in component.parameters if p.role == "shape")
-
     def uncovered_by(self, fast_path: str) -> list[str]:
         """The set parameters that a fast path declared in the table (:attr:`Parameter.fast_paths`) does not
         draw; empty when it draws these values with the general composer's law."""
