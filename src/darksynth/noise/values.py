@@ -31,7 +31,7 @@ class NoiseValues(Mapping[str, torch.Tensor]):
     or :meth:`from_vector`; every entry has the same batch shape, dtype and device.
     """
 
-    __slots__ = ("_tensors",)
+    __slots__ = ("_neutral", "_tensors")
 
     def __init__(self, tensors: Mapping[str, torch.Tensor]) -> None:
         parameters = table.noise_parameters()
@@ -49,6 +49,10 @@ class NoiseValues(Mapping[str, torch.Tensor]):
                     f"noise value {parameter.name} must be shaped {(*batch, parameter.size)}, got {tuple(tensor.shape)}"
                 )
         self._tensors = {name: tensors[name] for name in names}
+        # Which parameters are neutral, asked by the composer at every frame of a stream: computed once (the
+        # values are never changed in place; a change makes new values), so a stream on CUDA does not wait for
+        # the device at each frame.
+        self._neutral: dict[str, bool] = {}
 
     # --- construction ---------------------------------------------------------------------------------------
 
@@ -170,8 +174,11 @@ class NoiseValues(Mapping[str, torch.Tensor]):
         return next(iter(self._tensors.values())).dtype
 
     def to(self, device: torch.device | str | None = None, dtype: torch.dtype | None = None) -> NoiseValues:
-        """The same values on another device or in another dtype."""
-        return NoiseValues({name: t.to(device=device, dtype=dtype) for name, t in self._tensors.items()})
+        """The same values on another device or in another dtype (these very values when nothing changes)."""
+        moved = {name: t.to(device=device, dtype=dtype) for name, t in self._tensors.items()}
+        if all(moved[name] is t for name, t in self._tensors.items()):
+            return self
+        return NoiseValues(moved)
 
     def replace(self, **values: torch.Tensor | float | Sequence[float]) -> NoiseValues:
         """A copy with some parameters set to other values (broadcast to the batch)."""
@@ -217,7 +224,9 @@ class NoiseValues(Mapping[str, torch.Tensor]):
 
     def is_neutral(self, parameter: Parameter) -> bool:
         """Whether the parameter is at its neutral value in every clip."""
-        return bool((self._tensors[parameter.name] == parameter.neutral).all())
+        if parameter.name not in self._neutral:
+            self._neutral[parameter.name] = bool((self._tensors[parameter.name] == parameter.neutral).all())
+        return self._neutral[parameter.name]
 
     def is_active(self, component: NoiseComponent) -> bool:
         """Whether the component draws anything: one of its amplitude parameters is not neutral in some clip."""
