@@ -433,3 +433,11 @@ def test_bad_jpeg_quality() -> None:
 def test_image_validates_its_arrays(kwargs: dict[str, object], message: str) -> None:
     with pytest.raises(ValueError, match=message):
         Image(**kwargs)  # type: ignore[arg-type]
+
+
+def test_a_str_path_reads_like_a_path(tmp_path: Path) -> None:
+    """A str path was passed on to Pillow as it was and reported as a corrupt image."""
+    pixels = _random((6, 4, 3))
+    path = tmp_path / "str.png"
+    write_image(path, Image(pixels=pixels, bit_depth=8))
+    np.testing.assert_array_equal(read_image(str(path)).pixels, pixels)

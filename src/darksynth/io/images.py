@@ -88,7 +88,7 @@ class Image:
                 raise ValueError(f"alpha must have the dtype of pixels ({expected.__name__}), got {self.alpha.dtype}")
 
 
-def read_image(path: Path) -> Image:
+def read_image(path: str | Path) -> Image:
     """Read an image file as an upright array of 8- or 16-bit samples.
 
     Grey stays one channel and RGB three; an alpha channel (RGBA, LA, transparent palette or colour-key
@@ -112,6 +112,8 @@ def read_image(path: Path) -> Image:
     Raises:
         InputFileError: If the file is missing, not an image, corrupt, truncated or of an unsupported kind.
     """
+    # A str path used to reach Pillow's opener as it was and fail there as "corrupt or truncated image".
+    path = Path(path)
     try:
         with warnings.catch_warnings():
             warnings.simplefilter("ignore", PIL.Image.DecompressionBombWarning)
