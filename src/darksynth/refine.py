@@ -91,6 +91,16 @@ more and the one whose residual structure is closest to the reference's wins. Th
 among them: it is never exactly 0, and any strength above 0 means JPEG with 4:2:0 chroma subsampling, which
 removes most colour from fine noise."""
 
+LEVEL_BAND_SIGMA = 0.0
+"""The level is read on the residual z - G(z), G a Gaussian of this std (pixels); 0: on the finest detail."""
+
+MAX_STEP_RATIO = 4.0
+"""Most a step may scale a level bin's variance by (or divide it by): a simulation far off in structure (a
+length at a bound, a wrong compression) must not throw the level out of range in one step."""
+
+MAX_LENGTH_STEP = 0.75
+"""Most a step may move a kernel length (pixels)."""
+
 COLUMN_PARAMETERS = ("banding", "temporal_banding", "periodic")
 """The column components, scaled together: their column-mean variances add up."""
 
@@ -107,6 +117,10 @@ class ResidualStatistics:
         scale_ratio: per channel (3,), the variance of the diagonal detail of the 2x2-averaged image over that of
             the image itself, smooth pixels only: how the noise's energy spreads over scales, which compression
             (and spatial correlation) changes.
+        luma_scale_ratio: the same ratio for the brightness of the image (the mean of its channels).
+        colour_scale_ratio: the same ratio for its two opponent colour components (pooled): real colour noise
+            is coarser than its brightness noise (in-camera chroma denoising, 4:2:0), which only these two
+            ratios tell apart.
     """
 
     variance: torch.Tensor
@@ -114,6 +128,8 @@ class ResidualStatistics:
     correlations: tuple[float, float, float]
     column_variance: float
     scale_ratio: torch.Tensor
+    luma_scale_ratio: float
+    colour_scale_ratio: float
 
     def distance(self, other: ResidualStatistics) -> float:
         """How far the structure of two residuals is apart (levels aside, which the steps match): squared
@@ -122,7 +138,11 @@ class ResidualStatistics:
             (self.scale_ratio.clamp_min(1e-12).log() - other.scale_ratio.clamp_min(1e-12).log()).square().sum()
         )
         pairs = sum((a - b) ** 2 for a, b in zip(self.correlations, other.correlations, strict=True))
-        return scales + (self.lag1 - other.lag1) ** 2 + pairs
+        opponents = (math.log(max(self.luma_scale_ratio, 1e-12)) - math.log(max(other.luma_scale_ratio, 1e-12))) ** 2
+        opponents += (
+            math.log(max(self.colour_scale_ratio, 1e-12)) - math.log(max(other.colour_scale_ratio, 1e-12))
+        ) ** 2
+        return scales + opponents + (self.lag1 - other.lag1) ** 2 + pairs
 
 
 @dataclass(frozen=True)
@@ -251,14 +271,8 @@ def detail(frames: torch.Tensor) -> torch.Tensor:
 def residual_statistics(image: torch.Tensor, analysis: Analysis) -> ResidualStatistics:
     """The statistics of the finest detail of frames shaped like ``analysis.noisy``."""
     band = detail(image)
-    smooth = analysis.smooth[..., :-1, :-1].expand_as(band)
-    index = analysis.bins[..., :-1, :-1] + LEVEL_BINS * torch.arange(3).view(1, 3, 1, 1)
-    weight = smooth.to(band.dtype)
-    counts = torch.zeros(3 * LEVEL_BINS, dtype=band.dtype).scatter_add_(0, index.flatten(), weight.flatten())
-    sums = torch.zeros_like(counts).scatter_add_(0, index.flatten(), (band * weight).flatten())
-    squares = torch.zeros_like(counts).scatter_add_(0, index.flatten(), (band.square() * weight).flatten())
-    mean = sums / counts.clamp_min(1.0)
-    variance = ((squares / counts.clamp_min(1.0) - mean.square()) * (counts > 1)).reshape(3, LEVEL_BINS).double()
+    weight = analysis.smooth[..., :-1, :-1].expand_as(band).to(band.dtype)
+    variance = level_variance(image, analysis)
     unit = band / analysis.scale[..., :-1, :-1]
     unit = (unit - (unit * weight).sum() / weight.sum()) * weight
     energy = float(unit.square().sum() / weight.sum())
@@ -281,7 +295,32 @@ def residual_statistics(image: torch.Tensor, analysis: Analysis) -> ResidualStat
         correlations=correlations,
         column_variance=column_variance,
         scale_ratio=_scale_ratio(image, analysis.smooth).double(),
+        luma_scale_ratio=_pooled_scale_ratio(_project(image, _LUMA), analysis.smooth),
+        colour_scale_ratio=_pooled_scale_ratio(_project(image, _COLOUR), analysis.smooth),
     )
+
+
+_LUMA = torch.full((1, 3, 1, 1), 1.0 / math.sqrt(3.0))
+_COLOUR = torch.tensor([[1.0, 0.0, -1.0], [1.0, -2.0, 1.0]])
+_COLOUR = (_COLOUR / _COLOUR.norm(dim=1, keepdim=True)).view(2, 3, 1, 1)
+"""An orthonormal opponent basis: brightness (R + G + B) / sqrt 3 and the colour differences (R - B) / sqrt 2 and
+(R - 2G + B) / sqrt 6. Fixed rather than the noise's principal axes, which the residual's texture would tilt."""
+
+
+def level_variance(image: torch.Tensor, analysis: Analysis) -> torch.Tensor:
+    """The variance of the level band of frames shaped like ``analysis.noisy`` per channel and level bin
+    (3, LEVEL_BINS), float64, smooth pixels only; 0 where a bin holds fewer than two pixels."""
+    if LEVEL_BAND_SIGMA == 0.0:
+        band = detail(image)
+    else:
+        band = (image - gaussian_denoise(image, LEVEL_BAND_SIGMA))[..., :-1, :-1]
+    weight = analysis.smooth[..., :-1, :-1].expand_as(band).to(band.dtype)
+    index = analysis.bins[..., :-1, :-1] + LEVEL_BINS * torch.arange(3).view(1, 3, 1, 1)
+    counts = torch.zeros(3 * LEVEL_BINS, dtype=band.dtype).scatter_add_(0, index.flatten(), weight.flatten())
+    sums = torch.zeros_like(counts).scatter_add_(0, index.flatten(), (band * weight).flatten())
+    squares = torch.zeros_like(counts).scatter_add_(0, index.flatten(), (band.square() * weight).flatten())
+    mean = sums / counts.clamp_min(1.0)
+    return ((squares / counts.clamp_min(1.0) - mean.square()) * (counts > 1)).reshape(3, LEVEL_BINS).double()
 
 
 def _scale_ratio(image: torch.Tensor, smooth: torch.Tensor) -> torch.Tensor:
@@ -298,6 +337,50 @@ def _scale_ratio(image: torch.Tensor, smooth: torch.Tensor) -> torch.Tensor:
         return (band.square() * mask).sum(dim=(0, 2, 3)) / count - mean.square()
 
     return variance(coarse, coarse_mask) / variance(fine, fine_mask).clamp_min(1e-20)
+
+
+def _project(image: torch.Tensor, basis: torch.Tensor) -> torch.Tensor:
+    """Frames (T, 3, H, W) on the components of ``basis`` (K, 3, 1, 1): (T, K, H, W)."""
+    return (image[:, None] * basis.to(image.dtype)).sum(dim=2)
+
+
+def _pooled_scale_ratio(components: torch.Tensor, smooth: torch.Tensor) -> float:
+    """:func:`_scale_ratio` of frames (T, K, H, W) with the K components' variances pooled."""
+    fine = detail(components)
+    fine_mask = smooth[..., :-1, :-1].to(components.dtype)
+    coarse = detail(F.avg_pool2d(components, 2))
+    coarse_mask = (F.avg_pool2d(smooth.to(components.dtype), 2) == 1.0)[..., :-1, :-1].to(components.dtype)
+
+    def energy(band: torch.Tensor, mask: torch.Tensor) -> float:
+        count = float(mask.sum()) * band.shape[1]
+        return float((band.square() * mask).sum()) / max(count, 1.0)
+
+    return energy(coarse, coarse_mask) / max(energy(fine, fine_mask), 1e-20)
+
+
+@lru_cache(maxsize=1)
+def _scale_theory() -> np.ndarray[tuple[int], np.dtype[np.float64]]:
+    """For every length of LENGTH_GRID, :func:`_pooled_scale_ratio` of noise filtered by the table's Gaussian
+    kernel of that length, in theory: 1/4 for white noise, rising with the length.
+
+    Separable again: along each axis the fine detail is the difference ``[1, -1]`` and the coarse one, after
+    the 2x2 average, ``[1, 1, -1, -1] / 2``; a filter h applied to noise of autocorrelation r has the variance
+    ``sum_ij h_i h_j r(|i - j|)``, and the 2-D ratio is the square of the 1-D one.
+    """
+    fine = np.array([1.0, -1.0])
+    coarse = np.array([1.0, 1.0, -1.0, -1.0]) / 2.0
+    ratios = []
+    for length in LENGTH_GRID:
+        r = np.array([kernel_autocorrelation(length, lag) for lag in range(4)])
+        ratios.append((_filtered_variance(coarse, r) / max(_filtered_variance(fine, r), 1e-20)) ** 2)
+    return np.array(ratios)
+
+
+def _filtered_variance(
+    h: np.ndarray[tuple[int], np.dtype[np.float64]], r: np.ndarray[tuple[int], np.dtype[np.float64]]
+) -> float:
+    lags = np.abs(np.subtract.outer(np.arange(h.size), np.arange(h.size)))
+    return float(h @ r[lags] @ h)
 
 
 @lru_cache(maxsize=1)
@@ -342,14 +425,37 @@ def _model_variance(values: NoiseValues, levels: torch.Tensor) -> torch.Tensor:
 def _refit_levels(values: NoiseValues, levels: torch.Tensor, target: torch.Tensor, clean: torch.Tensor) -> NoiseValues:
     a_values, b_values = [], []
     for channel in range(3):
+        level = levels[channel].numpy()
         variance = target[channel].numpy()
         weights = 1.0 / np.maximum(variance, 1e-12)
-        a, b = weighted_line(levels[channel].numpy(), variance, weights)
-        a_values.append(a)
-        b_values.append(b)
+        a, b = weighted_line(level, variance, weights)
+        # The 1/variance weights follow the quiet bins, and sRGB noise (after the tone curve) often does not
+        # rise with the level as the law does: the line is rescaled so that its mean over the bins is the
+        # target's, the total the histogram of the noise sees (as the oracle's level correction does).
+        fitted = np.maximum(a * level + b, 0.0).mean()
+        scale = float(variance.mean() / fitted) if fitted > 0.0 else 1.0
+        a_values.append(a * scale)
+        b_values.append(b * scale)
     law = PoissonGaussian(a=(a_values[0], a_values[1], a_values[2]), b=(b_values[0], b_values[1], b_values[2]))
     fitted = values_of_law(law, clean)
     return values.replace(shot=fitted["shot"], read=fitted["read"], channel_gain=fitted["channel_gain"])
+
+
+def _moved_length(length: float, reference_ratio: float, simulated_ratio: float) -> float:
+    """The kernel length whose theoretical scale ratio differs from ``length``'s as the reference's from the
+    simulation's (in logs), moved by at most MAX_LENGTH_STEP pixels."""
+    theory = np.log(_scale_theory())
+    gap = math.log(max(reference_ratio, 1e-12)) - math.log(max(simulated_ratio, 1e-12))
+    wanted = theory[_length_index(length)] + gap
+    moved = float(LENGTH_GRID[int(np.argmin(np.abs(theory - wanted)))])
+    return min(max(moved, length - MAX_LENGTH_STEP), length + MAX_LENGTH_STEP)
+
+
+def _detail_variance(length: float, colour_length: float, colour_share: float) -> float:
+    """The finest detail's variance, relative to the noise's, of noise whose brightness part has the kernel
+    length ``length`` and whose colour part (``colour_share`` of the variance) ``colour_length``."""
+    _, gain = _detail_theory()
+    return float((1.0 - colour_share) * gain[_length_index(length)] + colour_share * gain[_length_index(colour_length)])
 
 
 def refine_step(
@@ -361,20 +467,35 @@ def refine_step(
         The moved values and the statistics of the simulation with ``values`` (before the move).
     """
     values = _floored(values)
-    simulated = residual_statistics(simulate(analysis, values, seed=seed), analysis)
-    # The length moves first, on the detail's theory, so that the levels can discount what the new length
-    # changes of the detail's variance: one step then moves the two without their gaps feeding each other.
-    theory_lag1, theory_gain = _detail_theory()
-    old = _length_index(values.scalar("correlation_length"))
-    wanted = theory_lag1[old] + reference.lag1 - simulated.lag1
-    new = int(np.argmin(np.abs(theory_lag1 - wanted)))
-    length = clipped("correlation_length", float(LENGTH_GRID[new]))
-    ratio = reference.variance / simulated.variance.clamp_min(1e-12)
-    valid = (reference.variance > 0) & (simulated.variance > 0)
-    ratio = torch.where(valid, ratio, torch.ones_like(ratio)) * float(theory_gain[old] / theory_gain[new])
+    simulation = simulate(analysis, values, seed=seed)
+    simulated = residual_statistics(simulation, analysis)
+    # What of the simulation's level band is its own noise: the rest is content of x_hat, which the reference
+    # shares (or, where D removed it, holds more of); the gap is added to the noise, not multiplied into it.
+    own = level_variance(simulation - analysis.denoised, analysis)
+    # The lengths move first, on theory, so that the levels can discount what the new lengths change of the
+    # detail's variance: one step then moves them without their gaps feeding each other. The brightness part
+    # of the noise has the kernel length l, its colour part sqrt(l^2 + e^2) (e the chroma length).
+    length_old = values.scalar("correlation_length")
+    chroma_old = values.scalar("chroma_length")
+    colour_old = math.hypot(length_old, chroma_old)
+    moved = _moved_length(length_old, reference.luma_scale_ratio, simulated.luma_scale_ratio)
+    length = clipped("correlation_length", moved)
+    colour = max(_moved_length(colour_old, reference.colour_scale_ratio, simulated.colour_scale_ratio), length)
+    chroma = clipped("chroma_length", math.sqrt(max(colour**2 - length**2, 0.0)))
+    colour = math.hypot(length, chroma)
+    correlation = sum(float(c) for c in values["channel_correlation"].tolist()) / 3.0
+    colour_share = min(max(2.0 * (1.0 - correlation) / 3.0, 0.0), 1.0)
+    discount = _detail_variance(length_old, colour_old, colour_share) / _detail_variance(length, colour, colour_share)
+    if LEVEL_BAND_SIGMA > 0.0:
+        discount = 1.0
+    wanted = own + reference.variance - simulated.variance
+    ratio = wanted / own.clamp_min(1e-12)
+    valid = (reference.variance > 0) & (own > 0)
+    ratio = torch.where(valid, ratio, torch.ones_like(ratio)).clamp(1.0 / MAX_STEP_RATIO, MAX_STEP_RATIO)
+    ratio = ratio * min(max(discount, 1.0 / MAX_STEP_RATIO), MAX_STEP_RATIO)
     target = _model_variance(values, analysis.levels) * ratio
     refined = _refit_levels(values, analysis.levels, target, analysis.denoised[0])
-    refined = refined.replace(correlation_length=length)
+    refined = refined.replace(correlation_length=length, chroma_length=chroma)
     pairs = [
         clipped("channel_correlation", float(value) + real - synthetic)
         for value, real, synthetic in zip(
