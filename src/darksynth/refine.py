@@ -10,11 +10,12 @@ statistics of the residual ``z - D(z)`` of an image z:
    its red-green, green-blue and red-blue correlations, and the variance of its column means;
 2. for the current values v, ``y_s = add_noise(x_hat, v)`` on 8-bit levels, and ``s(y_s)`` is measured with
    the same mask and level bins;
-3. each parameter moves by the gap between the two: the correlation length so that the theoretical lag-1
-   autocorrelation of the detail of noise of that length changes by the gap; the per-bin variances scale by
-   s(y) / s(y_s) (less what the length's change does to the detail's variance, in theory) and the table's law
-   (green's shot and read, red's and blue's gains) is refitted to them; the channel correlations
-   by theirs; the column components (banding, temporal banding, periodic) are scaled together to close the
+3. each parameter moves by the gap between the two: the correlation length so that the theoretical scale
+   ratio (half resolution over full) of the brightness detail changes by the gap, the chroma length likewise
+   on the opponent colour components' ratio; the per-bin noise variance by the added gap s(y) - s(y_s)
+   (less what the lengths' change does to the detail's variance, in theory) and the table's law (green's shot
+   and read, red's and blue's gains) is refitted to it; the channel correlations by theirs; the column
+   components (banding, temporal banding, periodic) are scaled together to close the
    gap in column-mean variance. Everything is clipped to the table's bounds; quantization keeps its initial
    value;
 4. steps 2-3 run for each of a few compression strengths (:data:`COMPRESSION_CANDIDATES`), and the strength
@@ -91,9 +92,6 @@ more and the one whose residual structure is closest to the reference's wins. Th
 among them: it is never exactly 0, and any strength above 0 means JPEG with 4:2:0 chroma subsampling, which
 removes most colour from fine noise."""
 
-LEVEL_BAND_SIGMA = 0.0
-"""The level is read on the residual z - G(z), G a Gaussian of this std (pixels); 0: on the finest detail."""
-
 MAX_STEP_RATIO = 4.0
 """Most a step may scale a level bin's variance by (or divide it by): a simulation far off in structure (a
 length at a bound, a wrong compression) must not throw the level out of range in one step."""
@@ -133,15 +131,14 @@ class ResidualStatistics:
 
     def distance(self, other: ResidualStatistics) -> float:
         """How far the structure of two residuals is apart (levels aside, which the steps match): squared
-        differences of the log scale ratios, the lag-1 autocorrelation and the channel correlations."""
+        differences of the log scale ratios (per channel, brightness and colour), the lag-1 autocorrelation and the
+        channel correlations."""
         scales = float(
             (self.scale_ratio.clamp_min(1e-12).log() - other.scale_ratio.clamp_min(1e-12).log()).square().sum()
         )
         pairs = sum((a - b) ** 2 for a, b in zip(self.correlations, other.correlations, strict=True))
-        opponents = (math.log(max(self.luma_scale_ratio, 1e-12)) - math.log(max(other.luma_scale_ratio, 1e-12))) ** 2
-        opponents += (
-            math.log(max(self.colour_scale_ratio, 1e-12)) - math.log(max(other.colour_scale_ratio, 1e-12))
-        ) ** 2
+        opponents = (_log(self.luma_scale_ratio) - _log(other.luma_scale_ratio)) ** 2
+        opponents += (_log(self.colour_scale_ratio) - _log(other.colour_scale_ratio)) ** 2
         return scales + opponents + (self.lag1 - other.lag1) ** 2 + pairs
 
 
@@ -310,10 +307,7 @@ _COLOUR = (_COLOUR / _COLOUR.norm(dim=1, keepdim=True)).view(2, 3, 1, 1)
 def level_variance(image: torch.Tensor, analysis: Analysis) -> torch.Tensor:
     """The variance of the level band of frames shaped like ``analysis.noisy`` per channel and level bin
     (3, LEVEL_BINS), float64, smooth pixels only; 0 where a bin holds fewer than two pixels."""
-    if LEVEL_BAND_SIGMA == 0.0:
-        band = detail(image)
-    else:
-        band = (image - gaussian_denoise(image, LEVEL_BAND_SIGMA))[..., :-1, :-1]
+    band = detail(image)
     weight = analysis.smooth[..., :-1, :-1].expand_as(band).to(band.dtype)
     index = analysis.bins[..., :-1, :-1] + LEVEL_BINS * torch.arange(3).view(1, 3, 1, 1)
     counts = torch.zeros(3 * LEVEL_BINS, dtype=band.dtype).scatter_add_(0, index.flatten(), weight.flatten())
@@ -323,13 +317,20 @@ def level_variance(image: torch.Tensor, analysis: Analysis) -> torch.Tensor:
     return ((squares / counts.clamp_min(1.0) - mean.square()) * (counts > 1)).reshape(3, LEVEL_BINS).double()
 
 
-def _scale_ratio(image: torch.Tensor, smooth: torch.Tensor) -> torch.Tensor:
+def _two_scale_details(
+    image: torch.Tensor, smooth: torch.Tensor
+) -> tuple[torch.Tensor, torch.Tensor, torch.Tensor, torch.Tensor]:
+    """The finest detail of frames (T, K, H, W) and of their 2x2 average, each with its smooth-pixel mask
+    (a coarse pixel counts when all four of its pixels are smooth): fine, fine_mask, coarse, coarse_mask."""
     fine = detail(image)
     fine_mask = smooth[..., :-1, :-1].to(image.dtype)
-    coarse_image = F.avg_pool2d(image, 2)
-    coarse = detail(coarse_image)
-    coarse_smooth = F.avg_pool2d(smooth.to(image.dtype), 2) == 1.0
-    coarse_mask = coarse_smooth[..., :-1, :-1].to(image.dtype)
+    coarse = detail(F.avg_pool2d(image, 2))
+    coarse_mask = (F.avg_pool2d(smooth.to(image.dtype), 2) == 1.0)[..., :-1, :-1].to(image.dtype)
+    return fine, fine_mask, coarse, coarse_mask
+
+
+def _scale_ratio(image: torch.Tensor, smooth: torch.Tensor) -> torch.Tensor:
+    fine, fine_mask, coarse, coarse_mask = _two_scale_details(image, smooth)
 
     def variance(band: torch.Tensor, mask: torch.Tensor) -> torch.Tensor:
         count = mask.sum(dim=(0, 2, 3)).clamp_min(1.0)
@@ -339,6 +340,11 @@ def _scale_ratio(image: torch.Tensor, smooth: torch.Tensor) -> torch.Tensor:
     return variance(coarse, coarse_mask) / variance(fine, fine_mask).clamp_min(1e-20)
 
 
+def _log(value: float) -> float:
+    """The log of a ratio of variances, floored: an empty band gives 0, not an error."""
+    return math.log(max(value, 1e-12))
+
+
 def _project(image: torch.Tensor, basis: torch.Tensor) -> torch.Tensor:
     """Frames (T, 3, H, W) on the components of ``basis`` (K, 3, 1, 1): (T, K, H, W)."""
     return (image[:, None] * basis.to(image.dtype)).sum(dim=2)
@@ -346,10 +352,7 @@ def _project(image: torch.Tensor, basis: torch.Tensor) -> torch.Tensor:
 
 def _pooled_scale_ratio(components: torch.Tensor, smooth: torch.Tensor) -> float:
     """:func:`_scale_ratio` of frames (T, K, H, W) with the K components' variances pooled."""
-    fine = detail(components)
-    fine_mask = smooth[..., :-1, :-1].to(components.dtype)
-    coarse = detail(F.avg_pool2d(components, 2))
-    coarse_mask = (F.avg_pool2d(smooth.to(components.dtype), 2) == 1.0)[..., :-1, :-1].to(components.dtype)
+    fine, fine_mask, coarse, coarse_mask = _two_scale_details(components, smooth)
 
     def energy(band: torch.Tensor, mask: torch.Tensor) -> float:
         count = float(mask.sum()) * band.shape[1]
@@ -384,19 +387,15 @@ def _filtered_variance(
 
 
 @lru_cache(maxsize=1)
-def _detail_theory() -> tuple[
-    np.ndarray[tuple[int], np.dtype[np.float64]], np.ndarray[tuple[int], np.dtype[np.float64]]
-]:
-    """For every length of LENGTH_GRID, the lag-1 autocorrelation and the variance (relative to the noise's)
-    of the diagonal detail of noise filtered by the table's Gaussian kernel of that length.
+def _detail_gain() -> np.ndarray[tuple[int], np.dtype[np.float64]]:
+    """For every length of LENGTH_GRID, the variance (relative to the noise's) of the diagonal detail of noise
+    filtered by the table's Gaussian kernel of that length.
 
     The kernel's autocorrelation r(d) is separable, so is the detail's: a first difference along x and along y
-    has autocovariance 2 r(d) - r(d - 1) - r(d + 1), which gives lag 1 as (2 r1 - 1 - r2) / (2 - 2 r1) and a
-    variance of (1 - r1)^2 for the detail's factor 1/2.
+    has the variance 2 - 2 r1, which gives (1 - r1)^2 for the detail's factor 1/2.
     """
     r1 = np.array([kernel_autocorrelation(length, 1) for length in LENGTH_GRID])
-    r2 = np.array([kernel_autocorrelation(length, 2) for length in LENGTH_GRID])
-    return (2.0 * r1 - 1.0 - r2) / np.maximum(2.0 - 2.0 * r1, 1e-12), np.square(1.0 - r1)
+    return np.square(1.0 - r1)
 
 
 def _length_index(length: float) -> int:
@@ -445,7 +444,7 @@ def _moved_length(length: float, reference_ratio: float, simulated_ratio: float)
     """The kernel length whose theoretical scale ratio differs from ``length``'s as the reference's from the
     simulation's (in logs), moved by at most MAX_LENGTH_STEP pixels."""
     theory = np.log(_scale_theory())
-    gap = math.log(max(reference_ratio, 1e-12)) - math.log(max(simulated_ratio, 1e-12))
+    gap = _log(reference_ratio) - _log(simulated_ratio)
     wanted = theory[_length_index(length)] + gap
     moved = float(LENGTH_GRID[int(np.argmin(np.abs(theory - wanted)))])
     return min(max(moved, length - MAX_LENGTH_STEP), length + MAX_LENGTH_STEP)
@@ -454,7 +453,7 @@ def _moved_length(length: float, reference_ratio: float, simulated_ratio: float)
 def _detail_variance(length: float, colour_length: float, colour_share: float) -> float:
     """The finest detail's variance, relative to the noise's, of noise whose brightness part has the kernel
     length ``length`` and whose colour part (``colour_share`` of the variance) ``colour_length``."""
-    _, gain = _detail_theory()
+    gain = _detail_gain()
     return float((1.0 - colour_share) * gain[_length_index(length)] + colour_share * gain[_length_index(colour_length)])
 
 
@@ -486,8 +485,6 @@ def refine_step(
     correlation = sum(float(c) for c in values["channel_correlation"].tolist()) / 3.0
     colour_share = min(max(2.0 * (1.0 - correlation) / 3.0, 0.0), 1.0)
     discount = _detail_variance(length_old, colour_old, colour_share) / _detail_variance(length, colour, colour_share)
-    if LEVEL_BAND_SIGMA > 0.0:
-        discount = 1.0
     wanted = own + reference.variance - simulated.variance
     ratio = wanted / own.clamp_min(1e-12)
     valid = (reference.variance > 0) & (own > 0)
