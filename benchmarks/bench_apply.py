@@ -19,6 +19,7 @@ import torch
 from darksynth.darkening import Darkening
 from darksynth.noise.values import NoiseValues
 from darksynth.synthesize import ClipParameters, ClipSynthesizer
+from machine import cpu_summary
 
 HEIGHT, WIDTH = 1080, 1920
 ALL_COMPONENTS = ClipParameters(
@@ -43,6 +44,7 @@ def timed(function: Callable[[], object]) -> float:
 
 
 def main() -> None:
+    print(cpu_summary(), flush=True)
     parser = argparse.ArgumentParser(description=__doc__)
     parser.add_argument("--rounds", type=int, default=12)
     parser.add_argument("--block", type=int, default=5)

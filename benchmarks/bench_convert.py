@@ -29,6 +29,8 @@ from pathlib import Path
 import numpy as np
 from PIL import Image
 
+from machine import cpu_summary
+
 REPO = Path(__file__).resolve().parents[1]
 PROFILE = REPO / "src" / "darksynth" / "data" / "default_profile.json"
 CLASSES = 10
@@ -104,6 +106,7 @@ def run_convert(dataset: Path, output: Path, workers: int) -> tuple[float, float
 
 
 def main() -> int:
+    print(cpu_summary(), flush=True)
     parser = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     parser.add_argument("--images", type=int, default=2000)
     parser.add_argument("--width", type=int, default=640)

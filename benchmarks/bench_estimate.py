@@ -26,6 +26,7 @@ from darksynth.io.arrays import hwc_to_chw
 from darksynth.io.video import VideoWriter
 from darksynth.noise.values import NoiseValues
 from darksynth.synthesize import ClipParameters, ClipSynthesizer
+from machine import cpu_summary
 
 HEIGHT, WIDTH, FRAMES = 1080, 1920, 16
 
@@ -56,8 +57,8 @@ def make_reference(path: Path) -> None:
             writer.write(np.ascontiguousarray(frame.permute(1, 2, 0).numpy()))
 
 
-def run_once(reference: Path, weights: Path | None) -> tuple[float, float]:
-    command = [sys.executable, "-m", "darksynth", "estimate", str(reference)]
+def run_once(reference: Path, weights: Path | None, extra: list[str]) -> tuple[float, float]:
+    command = [sys.executable, "-m", "darksynth", "estimate", str(reference), *extra]
     if weights is not None:
         command += ["--weights", str(weights)]
     started = time.perf_counter()
@@ -71,14 +72,17 @@ def run_once(reference: Path, weights: Path | None) -> tuple[float, float]:
 
 
 def main() -> None:
+    print(cpu_summary(), flush=True)
     parser = argparse.ArgumentParser(description=__doc__)
     parser.add_argument("--weights", type=Path, default=None)
     parser.add_argument("--repeats", type=int, default=3)
+    parser.add_argument("--no-refine", action="store_true", help="time the network alone, without the refinement")
     args = parser.parse_args()
     with tempfile.TemporaryDirectory() as folder:
         reference = Path(folder) / "reference.mp4"
         make_reference(reference)
-        runs = [run_once(reference, args.weights) for _ in range(args.repeats)]
+        extra = ["--no-refine"] if args.no_refine else []
+        runs = [run_once(reference, args.weights, extra) for _ in range(args.repeats)]
     times = [t for t, _ in runs]
     peak = max(m for _, m in runs)
     print(f"runs (s, MiB): {[(round(t, 2), round(m)) for t, m in runs]}; includes process start and imports")

@@ -17,9 +17,11 @@ import time
 from pathlib import Path
 
 from darksynth.evaluation.methods import DEFAULT_METHODS
+from machine import cpu_summary
 
 
 def main() -> int:
+    print(cpu_summary(), flush=True)
     parser = argparse.ArgumentParser(description=__doc__)
     parser.add_argument("--data", type=Path, default=Path(__file__).resolve().parents[2] / "shared" / "data")
     parser.add_argument("--methods", default=",".join(DEFAULT_METHODS))

@@ -33,6 +33,8 @@ from pathlib import Path
 import av
 import numpy as np
 
+from machine import cpu_summary
+
 REPO = Path(__file__).resolve().parents[1]
 PROFILE = REPO / "src" / "darksynth" / "data" / "default_profile.json"
 DISTINCT_FRAMES = 15
@@ -248,6 +250,7 @@ def profile_stages(source: Path, output: Path, frames: int, codec: str | None) -
 
 
 def main() -> None:
+    print(cpu_summary(), flush=True)
     parser = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     parser.add_argument("--seconds", type=float, default=120.0, help="length of the long video")
     parser.add_argument("--short-seconds", type=float, default=10.0, help="length of the short video")

@@ -32,7 +32,6 @@ from darksynth.io.images import read_image
 from darksynth.noise.sampling import random_darkening_values, random_noise_values
 from darksynth.noise.simulate import add_noise
 from darksynth.noise.values import NoiseValues
-from darksynth.refine import refine_profile
 from darksynth.tensors import to_8bit_levels
 from darksynth.training.batches import BRIGHT_ALPHA_RANGE, BRIGHT_GAMMA_RANGE
 from darksynth.training.weights import default_weights_path, load_weights
@@ -86,9 +85,7 @@ def main() -> int:
         dark = darken(clean, alpha, gamma)
         truth = _drawn_values(generator, compressed=index % 4 < 2)
         noisy = to_8bit_levels(add_noise(dark, truth, generator=generator))
-        found = estimate(noisy[None], network).profile.noise
-        if refine:
-            found = refine_profile(noisy[None], found)
+        found = estimate(noisy[None], network, refine=refine).profile.noise
         found = found.to("cpu", torch.float32)
         again = to_8bit_levels(add_noise(dark, found, generator=torch.Generator().manual_seed(10_000 + index)))
         real, synthetic = noisy - dark, again - dark

@@ -138,7 +138,9 @@ def test_srgb_model_outputs_land_in_their_profile_entries(tiny_model: Callable[.
     # v of the sRGB model: shot, read, gain (2), length, correlations (3), chroma length, quantization,
     # banding, temporal banding, periodic (3), compression.
     fractions = torch.linspace(0.05, 0.95, 16)
-    result = estimate(_reference(1, 64, 64, banding=0.1), _rigged(tiny_model(log_levels=False), fractions))
+    result = estimate(
+        _reference(1, 64, 64, banding=0.1), _rigged(tiny_model(log_levels=False), fractions), refine=False
+    )
     noise = result.profile.noise
     assert noise["shot"] == pytest.approx((0.05 * 0.2,), rel=1e-5)
     gain_low, gain_high = noise_parameter("channel_gain").training_range
@@ -155,14 +157,73 @@ def test_srgb_model_outputs_land_in_their_profile_entries(tiny_model: Callable[.
 
 
 def test_nearly_noise_free_estimate_warns(tiny_model: Callable[..., DEN]) -> None:
-    quiet = estimate(
-        _reference(1, 64, 64), _rigged(tiny_model(), torch.full((vector_size(),), 0.001)), source="quiet.png"
-    )
+    quiet_network = _rigged(tiny_model(), torch.full((vector_size(),), 0.001))
+    quiet = estimate(_reference(1, 64, 64), quiet_network, source="quiet.png", refine=False)
     assert any(w.startswith("quiet.png: nearly noise-free") for w in quiet.warnings)
     noisy = estimate(
         _reference(1, 64, 64), _rigged(tiny_model(), torch.full((vector_size(),), 0.5)), source="noisy.png"
     )
     assert not any("noise-free" in w for w in noisy.warnings)
+
+
+def test_the_refinement_overrules_a_network_that_calls_a_noisy_reference_noise_free(
+    tiny_model: Callable[..., DEN],
+) -> None:
+    # White noise of std 0.03 (7.65 8-bit levels) on a level of 0.2: plainly visible.
+    network = _rigged(tiny_model(), torch.full((vector_size(),), 0.001))
+    noise = 0.03 * torch.randn(1, 3, 128, 128, generator=torch.Generator().manual_seed(0))
+    result = estimate((0.2 + noise).clamp(0, 1), network, source="dim.png")
+    assert not any("noise-free" in w for w in result.warnings), result.warnings
+    network_only = estimate((0.2 + noise).clamp(0, 1), network, source="dim.png", refine=False)
+    assert network_only.profile.meta["noise_std_8bit"] < 1.0
+    assert "network_values" in result.profile.meta["refined"]
+    assert 0.8 < result.profile.meta["noise_std_8bit"] / 7.65 < 1.2
+
+
+def test_a_clean_reference_stays_noise_free_after_the_refinement(tiny_model: Callable[..., DEN]) -> None:
+    # A smooth clean gradient on 8-bit levels: nothing the refinement could read as noise.
+    ramp = torch.linspace(0.05, 0.25, 128)
+    clean = (ramp[:, None].expand(128, 128)[None, None].expand(1, 3, 128, 128) * 255).round() / 255
+    network = _rigged(tiny_model(), torch.full((vector_size(),), 0.001))
+    result = estimate(clean, network, source="clean.png")
+    assert any(w.startswith("clean.png: nearly noise-free") for w in result.warnings), result.warnings
+
+
+def test_the_refinement_carries_the_ranges_to_its_values(tiny_model: Callable[..., DEN]) -> None:
+    # apply draws every ranged parameter within its range: ranges left at the network's values would undo the
+    # refinement.
+    network = _rigged(tiny_model(), torch.full((vector_size(),), 0.001))
+    profile = estimate(_reference(1, 128, 128), network).profile
+    for name, intervals in profile.ranges.items():
+        if name in ("alpha", "gamma"):
+            continue
+        for (low, high), value in zip(intervals, profile.noise[name].tolist(), strict=True):
+            assert low <= value <= high, (name, low, value, high)
+    (compression,) = profile.ranges["compression"]
+    assert compression[0] == compression[1] == profile.noise.scalar("compression")
+
+
+def test_moved_ranges_scale_levels_and_shift_the_rest() -> None:
+    from darksynth.estimate import moved_ranges
+
+    before = NoiseValues.from_values({"shot": 0.01, "correlation_length": 0.5})
+    after = before.replace(shot=0.03, correlation_length=1.0)
+    ranges = {"shot": ((0.005, 0.02),), "correlation_length": ((0.2, 0.9),), "read": ((0.001, 0.002),)}
+    moved = moved_ranges(ranges, before, after)
+    assert moved["shot"][0] == pytest.approx((0.015, 0.06))
+    assert moved["correlation_length"][0] == pytest.approx((0.7, 1.4))
+    assert "read" not in moved  # unchanged values keep their ranges
+
+
+def test_a_reference_too_small_to_refine_keeps_the_network_values_and_says_so(
+    tiny_model: Callable[..., DEN],
+) -> None:
+    network = _rigged(tiny_model(), torch.full((vector_size(),), 0.3))
+    reference = _reference(1, 48, 48)
+    refined = estimate(reference, network, source="small.png")
+    plain = estimate(reference, network, source="small.png", refine=False)
+    assert refined.profile.noise == plain.profile.noise
+    assert any(w.startswith("small.png: 48x48 is too small to refine") for w in refined.warnings)
 
 
 def test_noise_free_warning_reads_the_noise_the_profile_adds_on_this_reference(
@@ -269,3 +330,39 @@ def test_batch_size_does_not_change_the_estimate(tiny_model: Callable[..., DEN])
     whole = estimate(reference, model, batch=16)
     one_by_one = estimate(reference, model, batch=1)
     np.testing.assert_allclose(one_by_one.per_crop.vector(), whole.per_crop.vector(), rtol=1e-5, atol=1e-7)
+
+
+@pytest.mark.parametrize("level", [0.0, 1.0])
+def test_a_uniform_reference_says_there_is_no_noise_to_measure(tiny_model: Callable[..., DEN], level: float) -> None:
+    # Black or saturated: no noise survives; the refinement is skipped (nothing to read) and the profile says so.
+    result = estimate(torch.full((1, 3, 96, 96), level), tiny_model(), source="flat.png")
+    assert any(w.startswith("flat.png: the reference is uniform") for w in result.warnings), result.warnings
+    assert "refined" not in result.profile.meta
+
+
+def test_a_clip_with_a_scene_cut_warns_and_names_the_frame(tiny_model: Callable[..., DEN]) -> None:
+    generator = torch.Generator().manual_seed(0)
+    dark = 0.1 + 0.02 * torch.randn(3, 3, 96, 96, generator=generator)
+    ramp = torch.linspace(0.1, 0.6, 96).expand(3, 96, 96)
+    other = ramp + 0.02 * torch.randn(2, 3, 96, 96, generator=generator)
+    clip = torch.cat([dark, other]).clamp(0, 1)
+    result = estimate(clip, tiny_model(), source="cut.mp4")
+    assert result.profile.meta["scene_cuts"] == [3]
+    assert any(w.startswith("cut.mp4: scene cut before frame(s) [3]") for w in result.warnings), result.warnings
+    # One scene with its noise redrawn every frame has no cut.
+    steady = estimate(dark.clamp(0, 1), tiny_model(), source="steady.mp4")
+    assert "scene_cuts" not in steady.profile.meta
+    assert not any("scene cut" in w for w in steady.warnings)
+
+
+def test_a_clean_daylight_photo_warns_that_its_texture_is_read_as_noise() -> None:
+    from darksynth.training.weights import default_weights_path, load_weights
+
+    # A bright clean scene on 8-bit levels, with fine texture (a sum of gratings) and no noise.
+    y, x = torch.meshgrid(torch.arange(160.0), torch.arange(160.0), indexing="ij")
+    texture = 0.08 * torch.sin(x * 0.9) * torch.cos(y * 0.7) + 0.05 * torch.sin((x + y) * 0.35)
+    scene = torch.stack([0.55 + texture, 0.5 + 0.8 * texture, 0.45 + texture])[None]
+    photo = (scene.clamp(0, 1) * 255).round() / 255
+    result = estimate(photo, load_weights(default_weights_path("v3", "srgb")), source="day.jpg")
+    bright = [w for w in result.warnings if w.startswith("day.jpg: mean level 0.50 is bright")]
+    assert bright and "clean daylight photo" in bright[0], result.warnings

@@ -101,10 +101,11 @@ def test_gaussian_denoise_keeps_a_constant_and_smooths_noise() -> None:
     assert gaussian_denoise(noise).std() < 0.3 * noise.std()
 
 
-def test_the_refined_den_method_reads_the_noisy_image_only() -> None:
+def test_the_den_method_is_refined_and_reads_the_noisy_image_only() -> None:
     from darksynth.evaluation.methods import build_method
 
-    method = build_method("den-refined")
+    method = build_method("den")
+    assert "refined" in method.summary
     noisy = _reference(KNOWN)[0, :, :96, :96]
     clean = 0.4 * smooth_scene(256)[:, :96, :96]
     with_clean = method.fit(noisy, clean)

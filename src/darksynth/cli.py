@@ -406,9 +406,9 @@ def estimate_command(
     refine: Annotated[
         bool,
         typer.Option(
-            "--refine",
-            help="Refine the network's noise on the reference itself by analysis by synthesis (slower, 5-10 s; "
-            "closer levels on the real pairs, see docs/refine.md).",
+            "--refine/--no-refine",
+            help="Refine the sRGB network's noise on the reference itself by analysis by synthesis (default; "
+            "stronger, closer to the real pairs' noise, see docs/refine.md); --no-refine keeps the network's values.",
         ),
     ] = default_of(EstimateOptions, "refine"),
 ) -> None:

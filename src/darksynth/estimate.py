@@ -14,13 +14,14 @@ never predicts exactly zero), and how much noise the profile would add on it (th
 from __future__ import annotations
 
 import math
-from collections.abc import Sequence
-from dataclasses import dataclass, field, replace
+from collections.abc import Mapping, Sequence
+from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
 import numpy as np
 import torch
+import torch.nn.functional as F
 
 from darksynth.darkening import ALPHA_RANGE, GAMMA_RANGE, Darkening
 from darksynth.darkening_estimate import (
@@ -37,11 +38,11 @@ from darksynth.io.discover import classify_input, scan_folder
 from darksynth.io.images import read_image
 from darksynth.io.video import iter_video_frames
 from darksynth.models.den import DEN
-from darksynth.noise.components import model_parameters, noise_components
+from darksynth.noise.components import model_parameters, noise_components, noise_parameter
 from darksynth.noise.level import mean_noise_variance
 from darksynth.noise.values import NoiseValues
 from darksynth.profile import Profile
-from darksynth.refine import refine_profile
+from darksynth.refine import ANALYSIS_FRAMES, refine_profile
 
 CROP = 128
 """Side of the square crops; the network was trained on crops of this size."""
@@ -159,22 +160,18 @@ class EstimateOptions:
     device: str = "cpu"
     max_frames: int = MAX_FRAMES
     batch: int = 16
-    refine: bool = False
-    """After the network, refine the noise on the reference itself by analysis by synthesis
-    (:func:`darksynth.refine.refine_profile`, docs/refine.md): on the real pairs it more than halves the
-    histogram KL on polyu and nam-cc15, but costs 5-10 s and can make the noise less coloured, so it is asked for."""
+    refine: bool = True
+    """After the sRGB network, refine the noise on the reference itself by analysis by synthesis
+    (:func:`darksynth.refine.refine_profile`, docs/refine.md): on the real pairs it divides the histogram KL of
+    the network's estimate by 1.7-4.6; ``--no-refine`` keeps the network's values (the ablation)."""
 
 
 def estimate_file(path: Path, network: DEN, options: EstimateOptions) -> Estimate:
     """Read a reference file or frame folder and estimate its profile (the ``estimate`` job)."""
     frames = load_reference(path, clip=options.clip, max_frames=options.max_frames)
-    result = estimate(frames, network, source=str(path), batch=options.batch, device=options.device)
-    if not options.refine:
-        return result
-    refined = refine_profile(frames, result.profile.noise)
-    meta = {**result.profile.meta, "refined": "analysis by synthesis on the reference (docs/refine.md)"}
-    result.profile = replace(result.profile, noise=refined, meta=meta)
-    return result
+    return estimate(
+        frames, network, source=str(path), batch=options.batch, device=options.device, refine=options.refine
+    )
 
 
 @dataclass
@@ -277,8 +274,15 @@ def estimate(
     source: str = "",
     batch: int = 16,
     device: torch.device | str = "cpu",
+    refine: bool = True,
 ) -> Estimate:
-    """Estimate a noise profile from reference frames (T, 3, H, W) in [0, 1]."""
+    """Estimate a noise profile from reference frames (T, 3, H, W) in [0, 1].
+
+    Args:
+        refine: for a network of the sRGB model, refine its values on the reference itself
+            (:func:`darksynth.refine.refine_profile`); skipped, with a warning, on a reference smaller than
+            :data:`REFINE_MIN_SIDE`. The paper's model is never refined (the refinement moves the sRGB structure).
+    """
     crops = crop_grid(reference)
     network = network.to(device).eval()
     per_crop = NoiseValues.stack(
@@ -305,12 +309,31 @@ def estimate(
     # A few frames spread over the clip measure the columns and the level: the whole 1080p clip took 1.5 s more.
     measured = spread_frames(reference.shape[0], MEASURED_FRAMES)
     noise = _decide_columns(reference, measured, noise, ranges, meta)
-    warnings = []
+    warnings: list[str] = []
+    name = source or "reference"
+    uniform = uniform_frames(reference)
+    if uniform:
+        which = "the reference is" if len(uniform) == reference.shape[0] else f"frames {uniform} are"
+        warnings.append(
+            f"{name}: {which} uniform (black, saturated or flat: std under {FLAT_STD * 255:.1f} 8-bit level): there "
+            "is no noise to measure there, and what the profile holds from them is the network's output on a flat "
+            "image, not a measurement"
+        )
+    cuts = scene_cuts(reference)
+    if cuts:
+        meta["scene_cuts"] = cuts
+        warnings.append(
+            f"{name}: scene cut before frame(s) {cuts}: the estimate mixes more than one scene (the refinement reads "
+            f"the first {ANALYSIS_FRAMES} frames, the darkening several spread over the clip); give one shot"
+        )
+    if refine and noise_model == "srgb" and len(uniform) < reference.shape[0]:
+        noise = _refine(reference, noise, ranges, meta, warnings, name)
     level = float(reference.mean())
     if level > BRIGHT_MEAN:
         warnings.append(
             f"{source or 'reference'}: mean level {level:.2f} is bright for a low-light reference; "
-            "the estimate may be unreliable"
+            "the estimate may be unreliable (on a clean daylight photo the profile holds what it reads of the "
+            "photo's grain, JPEG residue and fine texture as noise, often several 8-bit levels)"
         )
     noise_std = profile_noise_std(noise, reference, measured)
     meta["noise_std_8bit"] = round(noise_std * 255, 3)
@@ -327,6 +350,94 @@ def estimate(
     darkening = _estimate_darkening(reference, source or "reference", ranges, meta, warnings)
     profile = Profile(noise=noise, darkening=darkening, ranges=ranges, meta=meta)
     return Estimate(profile=profile, per_crop=per_crop, warnings=warnings)
+
+
+FLAT_STD = 0.5 / 255
+"""Below this std over all pixels of a frame (half an 8-bit level), a frame is uniform (black, saturated or flat):
+it holds no noise to measure."""
+
+SCENE_CUT_CHANGE = 0.08
+"""A change of the 16x16-block means between two consecutive frames above this (mean absolute, [0, 1] scale) is
+a scene cut: noise, which averages out over 256 pixels, moves the block means by well under 0.01 at the
+strongest training level; a camera pan or a light switched on in a dim scene moves them by a few hundredths."""
+
+
+def uniform_frames(reference: torch.Tensor) -> list[int]:
+    """Frames of a reference (T, 3, H, W) whose pixels are all (nearly) the same value."""
+    spread = reference.flatten(1).std(dim=1)
+    return [int(i) for i in torch.nonzero(spread < FLAT_STD).flatten()]
+
+
+def scene_cuts(reference: torch.Tensor) -> list[int]:
+    """Indices t of frames that start a new scene (a cut between frames t - 1 and t)."""
+    if reference.shape[0] < 2 or min(reference.shape[-2:]) < 16:
+        return []
+    blocks = F.avg_pool2d(reference, 16)
+    change = (blocks[1:] - blocks[:-1]).abs().mean(dim=(1, 2, 3))
+    return [int(i) + 1 for i in torch.nonzero(change > SCENE_CUT_CHANGE).flatten()]
+
+
+REFINE_MIN_SIDE = 64
+"""Smallest side the refinement reads a reference of: below it, its 30 % smoothest pixels split into eight level
+bins leave too few pixels per bin for a variance (about 150 at 64 px), and the network's values stay."""
+
+
+def _refine(
+    reference: torch.Tensor,
+    noise: NoiseValues,
+    ranges: dict[str, tuple[tuple[float, float], ...]],
+    meta: dict[str, Any],
+    warnings: list[str],
+    source: str,
+) -> NoiseValues:
+    """The network's values refined on the reference, with ``ranges`` carried along (see :func:`moved_ranges`)
+    and what the network had said in ``meta["refined"]``."""
+    if min(reference.shape[-2:]) < REFINE_MIN_SIDE:
+        warnings.append(
+            f"{source}: {reference.shape[-1]}x{reference.shape[-2]} is too small to refine the noise on (needs "
+            f"{REFINE_MIN_SIDE} px a side); the profile keeps the network's values, which are weaker and greyer "
+            "than real noise (docs/refine.md)"
+        )
+        meta["refined"] = {"method": "not refined: reference too small"}
+        return noise
+    refined = refine_profile(reference, noise)
+    ranges.update(moved_ranges(ranges, noise, refined))
+    meta["refined"] = {
+        "method": "analysis by synthesis on the reference (docs/refine.md); ranges moved with the values",
+        "network_values": {name: [round(float(v), 5) for v in noise[name].tolist()] for name in noise},
+    }
+    return refined
+
+
+def moved_ranges(
+    ranges: Mapping[str, tuple[tuple[float, float], ...]], before: NoiseValues, after: NoiseValues
+) -> dict[str, tuple[tuple[float, float], ...]]:
+    """The network's per-crop ranges carried to refined values.
+
+    ``apply`` draws every parameter that has a range within it, so ranges left around the network's values would
+    undo the refinement. Levels (parameters with a log floor: positive, spanning decades) move by the ratio of
+    the values, every other parameter by their difference, each clipped to its bounds and widened to hold the
+    value; compression, which the refinement chooses among a few strengths, keeps no spread. Parameters the
+    refinement left unchanged keep their ranges.
+    """
+    moved: dict[str, tuple[tuple[float, float], ...]] = {}
+    for name, intervals in ranges.items():
+        if name not in before or name not in after or torch.equal(before[name], after[name]):
+            continue
+        parameter = noise_parameter(name)
+        entries = []
+        for (low, high), old, new in zip(intervals, before[name].tolist(), after[name].tolist(), strict=True):
+            if name == "compression":
+                low = high = new
+            elif parameter.log_floor is not None and old > 0.0:
+                low, high = low * new / old, high * new / old
+            else:
+                low, high = low + new - old, high + new - old
+            low = min(max(low, parameter.minimum), new)
+            high = max(min(high, parameter.maximum), new)
+            entries.append((float(low), float(high)))
+        moved[name] = tuple(entries)
+    return moved
 
 
 def profile_noise_std(noise: NoiseValues, reference: torch.Tensor, frames: Sequence[int] | None = None) -> float:

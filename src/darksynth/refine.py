@@ -96,6 +96,10 @@ MAX_STEP_RATIO = 4.0
 """Most a step may scale a level bin's variance by (or divide it by): a simulation far off in structure (a
 length at a bound, a wrong compression) must not throw the level out of range in one step."""
 
+CATCH_UP_STEPS = 4
+"""Further steps for the chosen candidate while its level is still held back by MAX_STEP_RATIO: with the fixed
+steps, a level can then move by up to 4^(2 + 1 + 4) in variance (128x in std) from the network's."""
+
 MAX_LENGTH_STEP = 0.75
 """Most a step may move a kernel length (pixels)."""
 
@@ -459,11 +463,12 @@ def _detail_variance(length: float, colour_length: float, colour_share: float) -
 
 def refine_step(
     values: NoiseValues, analysis: Analysis, reference: ResidualStatistics, *, seed: int = 0
-) -> tuple[NoiseValues, ResidualStatistics]:
+) -> tuple[NoiseValues, ResidualStatistics, bool]:
     """One step: simulate with ``values``, measure, move every refined parameter by the gap to the reference.
 
     Returns:
-        The moved values and the statistics of the simulation with ``values`` (before the move).
+        The moved values, the statistics of the simulation with ``values`` (before the move), and whether the
+        level was held back by :data:`MAX_STEP_RATIO` (the median level bin wanted more than the cap allows).
     """
     values = _floored(values)
     simulation = simulate(analysis, values, seed=seed)
@@ -488,7 +493,9 @@ def refine_step(
     wanted = own + reference.variance - simulated.variance
     ratio = wanted / own.clamp_min(1e-12)
     valid = (reference.variance > 0) & (own > 0)
-    ratio = torch.where(valid, ratio, torch.ones_like(ratio)).clamp(1.0 / MAX_STEP_RATIO, MAX_STEP_RATIO)
+    ratio = torch.where(valid, ratio, torch.ones_like(ratio))
+    held_back = bool(ratio.median() > MAX_STEP_RATIO or ratio.median() < 1.0 / MAX_STEP_RATIO)
+    ratio = ratio.clamp(1.0 / MAX_STEP_RATIO, MAX_STEP_RATIO)
     ratio = ratio * min(max(discount, 1.0 / MAX_STEP_RATIO), MAX_STEP_RATIO)
     target = _model_variance(values, analysis.levels) * ratio
     refined = _refit_levels(values, analysis.levels, target, analysis.denoised[0])
@@ -507,7 +514,7 @@ def refine_step(
         refined = refined.replace(
             **{name: [clipped(name, float(v) * scale) for v in values[name].tolist()] for name in COLUMN_PARAMETERS}
         )
-    return refined, simulated
+    return refined, simulated, held_back
 
 
 def refine_profile(
@@ -551,13 +558,20 @@ def refine_profile(
     for compression in COMPRESSION_CANDIDATES:
         values = initial.to("cpu", torch.float64).replace(compression=compression)
         for _ in range(iterations):
-            values, simulated = refine_step(values, analysis, target, seed=seed)
+            values, simulated, _ = refine_step(values, analysis, target, seed=seed)
         # Scored by the simulation of the last step's input, which is one step behind but costs nothing more.
         distance = target.distance(simulated)
         if distance < best_distance:
             best, best_distance = values, distance
+    held_back = False
     for _ in range(final_iterations):
-        best, _ = refine_step(best, analysis, target, seed=seed)
+        best, _, held_back = refine_step(best, analysis, target, seed=seed)
+    # A start far off (a network that calls a visibly noisy reference nearly noise-free) is still held back by
+    # the step cap after the fixed steps: it gets up to CATCH_UP_STEPS more, as long as the cap holds it.
+    for _ in range(CATCH_UP_STEPS):
+        if not held_back:
+            break
+        best, _, held_back = refine_step(best, analysis, target, seed=seed)
     return best
 
 

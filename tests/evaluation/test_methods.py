@@ -94,12 +94,23 @@ def test_every_den_method_uses_a_shipped_den_of_its_noise_model_and_variant() ->
     from darksynth.evaluation.methods import DEN_METHODS
     from darksynth.training.weights import SHIPPED_WEIGHTS
 
-    assert DEN_METHODS == {"den": ("srgb", "v3"), "den-paper": ("paper", "v3"), "den-v2": ("paper", "v2")}
+    assert DEN_METHODS == {
+        "den": ("srgb", "v3"),
+        "den-network": ("srgb", "v3"),
+        "den-paper": ("paper", "v3"),
+        "den-v2": ("paper", "v2"),
+    }
     assert set(DEN_METHODS.values()) <= set(SHIPPED_WEIGHTS)
     for name, (noise_model, variant) in DEN_METHODS.items():
         method = build_method(name)
         assert f"DEN {variant}, {noise_model} noise model" in method.summary
         assert method.details["weights"].endswith(SHIPPED_WEIGHTS[noise_model, variant])
+
+
+def test_den_is_refined_and_den_network_is_not() -> None:
+    assert "refined on it" in build_method("den").summary
+    assert "refined" not in build_method("den-network").summary
+    assert "refined" not in build_method("den-paper").summary
 
 
 def test_the_shipped_v2_ablation_is_a_den_without_decoder() -> None:

@@ -93,13 +93,14 @@ def load_den_weights(name: str, weights: Path, device: str) -> DEN:
         raise MethodUnavailableError(f"{name}: {error}") from None
 
 
-def _den_method(name: str, weights: Path, device: str) -> NoiseMethod:
+def _den_method(name: str, weights: Path, device: str, *, refine: bool = True) -> NoiseMethod:
     from darksynth.estimate import estimate
 
     model = load_den_weights(name, weights, device)
+    refined = refine and model.noise_model == "srgb"
 
     def fit(noisy: torch.Tensor, clean: torch.Tensor) -> NoiseValues:
-        return estimate(noisy.to(torch.float32)[None], model, device=device).profile.noise
+        return estimate(noisy.to(torch.float32)[None], model, device=device, refine=refine).profile.noise
 
     def synthesize(clean: torch.Tensor, values: NoiseValues, generator: torch.Generator) -> torch.Tensor:
         # The paper's model f(v) on the clean image as it is: it already has the reference's brightness.
@@ -108,7 +109,8 @@ def _den_method(name: str, weights: Path, device: str) -> NoiseMethod:
     return NoiseMethod(
         name=name,
         summary=f"DEN {model.config.variant}, {model.noise_model} noise model ({weights.name}): v from the noisy "
-        "image, f(v) added to the clean",
+        + ("image, refined on it by analysis by synthesis" if refined else "image")
+        + ", f(v) added to the clean",
         fit=fit,
         synthesize=synthesize,
         details={"weights": str(weights)},
@@ -189,10 +191,15 @@ def _srgb_method(name: str) -> NoiseMethod:
 
 DEN_METHODS: dict[str, tuple[str, str]] = {
     "den": ("srgb", "v3"),
+    "den-network": ("srgb", "v3"),
     "den-paper": ("paper", "v3"),
     "den-v2": ("paper", "v2"),
 }
-"""The DEN methods and the (noise model, variant) of the shipped DEN each uses unless given weights."""
+"""The DEN methods and the (noise model, variant) of the shipped DEN each uses unless given weights. ``den`` is
+what ``darksynth estimate`` gives (the sRGB DEN, refined on the reference); ``den-network`` the same network's
+values without the refinement (its ablation)."""
+
+UNREFINED_DEN_METHODS = frozenset({"den-network"})
 
 DEFAULT_METHODS: tuple[str, ...] = (
     "den",
@@ -213,8 +220,8 @@ METHOD_NAMES: tuple[str, ...] = (
     *DEFAULT_METHODS,
     # Clean-aided ablations of the extended sRGB noise model (docs/srgb-noise.md), run by name only.
     *_SRGB_ORACLES,
-    # The DEN refined on the reference by analysis by synthesis (docs/refine.md), run by name only.
-    "den-refined",
+    # The sRGB DEN without the refinement on the reference (docs/refine.md), run by name only.
+    "den-network",
 )
 
 
@@ -231,7 +238,8 @@ def build_method(name: str, *, weights: dict[str, Path] | None = None, device: s
     weights = weights or {}
     if name in DEN_METHODS:
         noise_model, variant = DEN_METHODS[name]
-        return _den_method(name, DENChoice(weights.get(name), noise_model=noise_model, variant=variant).path(), device)
+        path = DENChoice(weights.get(name), noise_model=noise_model, variant=variant).path()
+        return _den_method(name, path, device, refine=name not in UNREFINED_DEN_METHODS)
     if name == "den-v1":
         raise MethodUnavailableError("den-v1: the v1 variant (a U-Net that outputs the noisy image) is not built")
     if name == "awgn":
@@ -263,10 +271,6 @@ def build_method(name: str, *, weights: dict[str, Path] | None = None, device: s
         return _starlight_method(device)
     if name in _SRGB_ORACLES:
         return _srgb_method(name)
-    if name == "den-refined":
-        from darksynth.evaluation.refined import refined_den_method
-
-        return refined_den_method(name, DENChoice(weights.get(name)).path(), device)
     raise MethodUnavailableError(f"{name}: unknown method (known: {', '.join(METHOD_NAMES)})")
 
 

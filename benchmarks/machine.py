@@ -1,0 +1,43 @@
+"""The machine a benchmark ran on, printed beside its figures: a speed claim has to hold on AVX2-only and on
+AVX-512 processors, and the same code can differ several-fold between them (docs/performance.md)."""
+
+from __future__ import annotations
+
+import os
+import platform
+from pathlib import Path
+
+VECTOR_FLAGS = ("sse4_2", "avx", "avx2", "fma", "avx512f", "avx512bw", "avx512vl", "avx512_vnni", "avx512dq")
+"""The x86 vector extensions that decide which kernels torch and the compiler can use."""
+
+
+def _cpuinfo() -> tuple[str, set[str]]:
+    model, flags = platform.processor() or platform.machine(), set()
+    try:
+        text = Path("/proc/cpuinfo").read_text()
+    except OSError:
+        return model, flags
+    for line in text.splitlines():
+        key, _, value = line.partition(":")
+        if key.strip() == "model name" and value.strip():
+            model = value.strip()
+        elif key.strip() == "flags":
+            flags = set(value.split())
+            break
+    return model, flags
+
+
+def cpu_summary() -> str:
+    """One line: CPU model, logical cores available, the vector extensions present and torch's CPU capability."""
+    model, flags = _cpuinfo()
+    present = [flag for flag in VECTOR_FLAGS if flag in flags]
+    try:
+        import torch
+
+        capability = torch.backends.cpu.get_cpu_capability()
+    except (ImportError, AttributeError):
+        capability = "unknown"
+    cores = len(os.sched_getaffinity(0)) if hasattr(os, "sched_getaffinity") else os.cpu_count()
+    return (
+        f"cpu: {model}; {cores} cores; vector extensions: {' '.join(present) or 'none found'}; torch uses {capability}"
+    )
