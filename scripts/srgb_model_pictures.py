@@ -9,8 +9,9 @@ Two PNG files, both made only from permissively licensed material, so both may b
   per-channel gains, spatial correlation, channel correlations and JPEG compression, each titled with its
   parameter. Synthetic only.
 - ``lol-real-vs-synthetic.png``: per LOL image (MIT licence; real dark photographs without a clean image),
-  a crop of the real image | the ``srgb`` DEN's estimate from that image applied to a clean Set8 frame (MIT) |
-  the same refined on the reference (``estimate --refine``) | the same with the paper's DEN. All are
+  a crop of the real image | the profile ``estimate`` writes from that image (sRGB DEN refined on the reference,
+  the default) applied to a clean Set8 frame (MIT) as ``apply`` does | the sRGB network's values alone
+  (``--no-refine``) | the paper's DEN. All are
   brightened by the same factor (BRIGHTEN) so the noise shows
   as it does when a dark image is viewed brightened; the scenes differ, the noise's look is what to compare.
 """
@@ -18,7 +19,6 @@ Two PNG files, both made only from permissively licensed material, so both may b
 from __future__ import annotations
 
 import argparse
-from dataclasses import replace
 from pathlib import Path
 
 import matplotlib
@@ -33,7 +33,6 @@ from darksynth.io.images import read_image
 from darksynth.noise.simulate import add_noise
 from darksynth.noise.values import NoiseValues
 from darksynth.profile import Profile
-from darksynth.refine import refine_profile
 from darksynth.synthesize import synthesize
 from darksynth.training.weights import default_weights_path, load_weights
 
@@ -77,16 +76,15 @@ def lol_rows(data: Path) -> list[list[tuple[str, np.ndarray]]]:
         reference = load_reference(data / "real-lowlight/images/lol" / name)
         real = reference[0].permute(1, 2, 0).numpy()
         row = [(f"real LOL {name}", _crop(np.clip(real * BRIGHTEN, 0, 1)))]
-        for model_name, model in models.items():
-            profile: Profile = estimate(reference, model).profile
-            variants = [(f"{model_name} DEN", profile)]
-            if model_name == "srgb":
-                refined = replace(profile, noise=refine_profile(reference, profile.noise))
-                variants.append(("srgb DEN + refine", refined))
-            for title, chosen in variants:
-                result = synthesize(clean, chosen, generator=torch.Generator().manual_seed(0))
-                image = np.asarray(result.image, dtype=np.float64) / 255.0
-                row.append((f"{title} on a clean frame", _crop(np.clip(image * BRIGHTEN, 0, 1))))
+        variants: list[tuple[str, Profile]] = [
+            ("estimate (srgb, refined)", estimate(reference, models["srgb"]).profile),
+            ("srgb network alone", estimate(reference, models["srgb"], refine=False).profile),
+            ("paper DEN", estimate(reference, models["paper"]).profile),
+        ]
+        for title, chosen in variants:
+            result = synthesize(clean, chosen, generator=torch.Generator().manual_seed(0))
+            image = np.asarray(result.image, dtype=np.float64) / 255.0
+            row.append((f"{title} on a clean frame", _crop(np.clip(image * BRIGHTEN, 0, 1))))
         rows.append(row)
     return rows
 

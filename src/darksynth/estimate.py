@@ -163,7 +163,7 @@ class EstimateOptions:
     refine: bool = True
     """After the sRGB network, refine the noise on the reference itself by analysis by synthesis
     (:func:`darksynth.refine.refine_profile`, docs/refine.md): on the real pairs it divides the histogram KL of
-    the network's estimate by 1.7-4.6; ``--no-refine`` keeps the network's values (the ablation)."""
+    the network's estimate by 1.7-4.8 (docs/results.md); ``--no-refine`` keeps the network's values (the ablation)."""
 
 
 def estimate_file(path: Path, network: DEN, options: EstimateOptions) -> Estimate:

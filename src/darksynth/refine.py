@@ -75,7 +75,7 @@ ANALYSIS_FRAMES = 4
 """Frames of a clip the statistics pool (the first ones)."""
 
 SMOOTH_SHARE = 0.3
-"""Share of pixels of each level, the least textured, whose detail the level and correlation statistics read."""
+"""Share of pixels, the least textured of their level and of the whole crop, whose detail the statistics read."""
 
 LEVEL_BINS = 8
 """Bins of x_hat's level for the per-channel residual variance."""
@@ -192,7 +192,8 @@ def _local_mean(frames: torch.Tensor) -> torch.Tensor:
 
 
 def _smooth_pixels(denoised: torch.Tensor) -> torch.Tensor:
-    """The SMOOTH_SHARE least textured pixels of each level of the denoised image (T, 1, H, W), bool.
+    """The pixels among the SMOOTH_SHARE least textured both of their level and of the whole denoised image
+    (T, 1, H, W), bool.
 
     Texture is told by the local energy of the denoised image's horizontal and vertical details. It is read on
     the denoised image, not the noisy one: the fine noise the statistics measure has little left there, so the
@@ -211,7 +212,10 @@ def _smooth_pixels(denoised: torch.Tensor) -> torch.Tensor:
         inside = index == bin_index
         if bool(inside.any()):
             smooth |= inside & (energy <= torch.quantile(_sample(energy[inside]), SMOOTH_SHARE))
-    return smooth
+    # A level bin that lies on edges or texture (the dark strokes of a drawing on a flat wall fill bins of their
+    # own) would still give its SMOOTH_SHARE least textured pixels, which are texture: a pixel must be among
+    # the least textured of the whole crop as well.
+    return smooth & (energy <= torch.quantile(_sample(energy), SMOOTH_SHARE))
 
 
 def _sample(values: torch.Tensor) -> torch.Tensor:
