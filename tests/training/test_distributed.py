@@ -60,6 +60,9 @@ LAUNCHES: dict[str, list[str]] = {
 """torchrun launches of the worker, in this order, each into ``WORKDIR/NAME/den.safetensors`` ("resume" into
 "resumed"). One training per process: a process group cannot be joined reliably again after leaving one."""
 
+TEARDOWN_ABORT = "terminate called without an active exception"
+"""What a worker prints when it aborts in gloo's teardown as its process exits."""
+
 
 def _worker(arguments: list[str]) -> None:
     """One torchrun process: train CONFIG (``--steps``, ``--resume``) on CORPUS into OUT; record the error it
@@ -120,7 +123,19 @@ def workdir(corpus_root: Path, tmp_path_factory: pytest.TempPathFactory) -> Path
             *map(str, (corpus_root, out, record, *options)),
         ]
         result = subprocess.run(command, capture_output=True, text=True, timeout=120, env=environment, cwd=REPOSITORY)
-        assert result.returncode == 0, result.stderr[-3000:]
+        if result.returncode != 0 and TEARDOWN_ABORT in result.stderr and name != "resume":
+            # A worker sometimes aborts in gloo's teardown as its process exits (about one full suite in three
+            # on the 2-core machines, never alone): the launch runs once more from a clean output, so that the
+            # module's tests judge the training, not that race. A second abort, or any other failure, still fails.
+            shutil.rmtree(out.parent, ignore_errors=True)
+            shutil.rmtree(record)
+            record.mkdir()
+            if name == "blocked":
+                (workdir / "blocked" / "den.checkpoint.safetensors").mkdir(parents=True)
+            result = subprocess.run(
+                command, capture_output=True, text=True, timeout=120, env=environment, cwd=REPOSITORY
+            )
+        assert result.returncode == 0, f"launch {name}: {result.stderr[-3000:]}"
         if name == "resumed":
             shutil.copytree(out.parent, workdir / "resumed.step2")
     return workdir
