@@ -125,7 +125,7 @@ def workdir(corpus_root: Path, tmp_path_factory: pytest.TempPathFactory) -> Path
         result = subprocess.run(command, capture_output=True, text=True, timeout=120, env=environment, cwd=REPOSITORY)
         if result.returncode != 0 and TEARDOWN_ABORT in result.stderr:
             # A worker sometimes aborts in gloo's teardown as its process exits (about one full suite in three
-            # on the 2-core machines, never alone): the launch runs once more from a clean output, so that the
+            # on the 2-core machines, rarely alone): the launch runs once more from a clean output, so that the
             # module's tests judge the training, not that race. A second abort, or any other failure, still fails.
             shutil.rmtree(out.parent, ignore_errors=True)
             if name == "resume":  # it continues the "resumed" run: from that run's state after its 2 steps
