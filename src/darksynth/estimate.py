@@ -331,7 +331,7 @@ def estimate(
     level = float(reference.mean())
     if level > BRIGHT_MEAN:
         warnings.append(
-            f"{source or 'reference'}: mean level {level:.2f} is bright for a low-light reference; "
+            f"{name}: mean level {level:.2f} is bright for a low-light reference; "
             "the estimate may be unreliable (on a clean daylight photo the profile holds what it reads of the "
             "photo's grain, JPEG residue and fine texture as noise, often several 8-bit levels)"
         )
@@ -339,7 +339,7 @@ def estimate(
     meta["noise_std_8bit"] = round(noise_std * 255, 3)
     if noise_std < NOISE_FREE_STD:
         warnings.append(
-            f"{source or 'reference'}: nearly noise-free; the profile adds noise of std {noise_std * 255:.2f} "
+            f"{name}: nearly noise-free; the profile adds noise of std {noise_std * 255:.2f} "
             f"8-bit levels on it (below {NOISE_FREE_STD * 255:.1f})"
         )
     if reference.shape[0] == 1:
@@ -347,7 +347,7 @@ def estimate(
             "single image: temporal banding cannot be told from banding; their split is the network's prior "
             "(what it learned from the training table's ranges), not a measurement"
         )
-    darkening = _estimate_darkening(reference, source or "reference", ranges, meta, warnings)
+    darkening = _estimate_darkening(reference, name, ranges, meta, warnings)
     profile = Profile(noise=noise, darkening=darkening, ranges=ranges, meta=meta)
     return Estimate(profile=profile, per_crop=per_crop, warnings=warnings)
 
