@@ -8,6 +8,7 @@ import math
 import pytest
 import torch
 
+from darksynth.noise.correlated import correlated_normal
 from darksynth.noise.simulate import add_noise
 from darksynth.noise.values import NoiseValues
 from darksynth.refine import analyse, gaussian_denoise, plain_fit, refine_profile, residual_statistics
@@ -113,3 +114,20 @@ def test_the_den_method_is_refined_and_reads_the_noisy_image_only() -> None:
     assert with_clean == without_clean
     assert not method.oracle
     assert method.synthesize(clean, with_clean, torch.Generator().manual_seed(0)).shape == clean.shape
+
+
+def test_a_finer_green_is_matched_on_its_total_variance_not_its_finest_detail() -> None:
+    # Demosaiced green is finer than red and blue: on the real pairs its finest detail holds 1.2-1.7x their
+    # share of its variance. Here green is white and red and blue are correlated by a 0.45 px kernel (1.5x),
+    # all three at the same std. The shared length cannot make green finer; matched on its finest detail,
+    # green came out 1.08x too strong here and red and blue 0.9x as strong as it.
+    generator = torch.Generator().manual_seed(11)
+    scene = 0.4 * smooth_scene(256)
+    noise = torch.randn((3, 256, 256), generator=generator, dtype=torch.float64)
+    noise[[0, 2]] = correlated_normal((2, 256, 256), generator, 0.45, dtype=torch.float64)
+    std = 6.0 / 255.0
+    refined = refine_profile(to_8bit_levels(scene + std * noise), WEAK)
+    green = _mean_std(refined, level=float(scene[1].mean()))
+    red, blue = refined["channel_gain"].tolist()
+    assert 0.94 < green / std < 1.06
+    assert 0.91 < red < 1.09 and 0.91 < blue < 1.09
