@@ -150,9 +150,10 @@ def test_run_reports_every_set_and_skips_unavailable_methods(make_pair_set: Make
     messages: list[str] = []
     results = run_downstream(
         [first, second, tmp_path / "absent"],
-        ["awgn", "nope", "den-v1", "pg-oracle"],
+        ["awgn", "nope", "den-v2", "pg-oracle"],
         [clean_root],
         TINY,
+        weights={"den-v2": tmp_path / "missing.safetensors"},
         progress=messages.append,
     )
     assert results["lpips"] == LPIPS_STATUS and LPIPS_STATUS.startswith("not computed: ")
@@ -160,7 +161,7 @@ def test_run_reports_every_set_and_skips_unavailable_methods(make_pair_set: Make
     assert results["clean_images"]["count"] == 3
     assert set(results["methods"]) == {"awgn", "pg-oracle"}
     problems = " | ".join(results["problems"])
-    assert "nope: unknown method" in problems and "den-v1" in problems and "absent" in problems
+    assert "nope: unknown method" in problems and "den-v2: no trained weights" in problems and "absent" in problems
     for name, pairs in (("first", 2), ("second", 1)):
         assert list(results[name]) == [NOISY_INPUT, "awgn", "pg-oracle"]
         for method, row in results[name].items():

@@ -30,8 +30,8 @@ def clean() -> torch.Tensor:
 def test_unknown_and_unbuilt_methods_are_unavailable(tmp_path: Path) -> None:
     with pytest.raises(MethodUnavailableError, match="nope: unknown method"):
         build_method("nope")
-    with pytest.raises(MethodUnavailableError, match=r"den-v1: .*not built"):
-        build_method("den-v1")
+    with pytest.raises(MethodUnavailableError, match=r"den-v1: .*absent\.safetensors: no v1 weights"):
+        build_method("den-v1", weights={"den-v1": tmp_path / "absent.safetensors"})
     with pytest.raises(MethodUnavailableError, match=r"den-v2: no trained weights at .*absent"):
         build_method("den-v2", weights={"den-v2": tmp_path / "absent.safetensors"})
     corrupt = tmp_path / "corrupt.safetensors"

@@ -117,6 +117,34 @@ def _den_method(name: str, weights: Path, device: str, *, refine: bool = True) -
     )
 
 
+def _den_v1_method(weights: Path | None, device: str) -> NoiseMethod:
+    from darksynth.baselines.den_v1 import default_den_v1_path, load_den_v1
+
+    path = weights or default_den_v1_path()
+    try:
+        model = load_den_v1(path, device=device)
+    except DarksynthError as error:
+        raise MethodUnavailableError(f"den-v1: {error}") from None
+
+    def fit(noisy: torch.Tensor, clean: torch.Tensor) -> torch.Tensor:
+        with torch.no_grad():
+            return model.encode(noisy.to(device=device, dtype=torch.float32)[None, None])
+
+    def synthesize(clean: torch.Tensor, code: torch.Tensor, generator: torch.Generator) -> torch.Tensor:
+        with torch.no_grad():
+            noisy = model.generate(clean.to(device=device, dtype=torch.float32)[None, None], code, generator)
+        return to_8bit_levels(noisy[0, 0].to(clean.dtype).cpu())
+
+    return NoiseMethod(
+        name="den-v1",
+        summary=f"the paper's ablation v1 ({path.name}): a code read from the noisy image by the DEN's encoder, "
+        "and a U-Net that makes the clean image noisy from it directly, without f",
+        fit=fit,
+        synthesize=synthesize,
+        details={"weights": str(path)},
+    )
+
+
 def _starlight_method(device: str) -> NoiseMethod:
     try:
         from darksynth.baselines.starlight import load_starlight
@@ -241,7 +269,7 @@ def build_method(name: str, *, weights: dict[str, Path] | None = None, device: s
         path = DENChoice(weights.get(name), noise_model=noise_model, variant=variant).path()
         return _den_method(name, path, device, refine=name not in UNREFINED_DEN_METHODS)
     if name == "den-v1":
-        raise MethodUnavailableError("den-v1: the v1 variant (a U-Net that outputs the noisy image) is not built")
+        return _den_v1_method(weights.get(name), device)
     if name == "awgn":
         return _poisson_gaussian_method(
             name, f"Gaussian, fixed sigma {AWGN_SIGMA * 255:.0f}/255", _fixed(_gaussian([AWGN_SIGMA] * 3))

@@ -215,9 +215,31 @@ class DEN(nn.Module):
         Returns:
             v in normalised space (B, vector_size(noise_model)) and, for v3, the dark clean clip (B, T, C, H, W).
         """
+        features, x, skips = self._encode(clip)
+        normalised = torch.sigmoid(self.head(features))
+        dark = None
+        if self.config.variant == "v3":
+            batch, frames, channels, height, width = clip.shape
+            for up, decoder, skip in zip(self.ups, self.decoders, reversed(skips), strict=True):
+                x = decoder(torch.cat([up(x), skip], dim=1))
+            dark = self.to_image(x)[..., :height, :width].reshape(batch, frames, channels, height, width)
+        return DENOutput(
+            normalised=normalised,
+            dark=dark,
+            noise_model=self.config.noise_model,
+            log_levels=self.config.log_levels,
+            table_version=self.config.table_version,
+        )
+
+    def features(self, clip: torch.Tensor) -> torch.Tensor:
+        """What the head reads of noisy clips (B, T, C, H, W): the pooled bottleneck beside the standardised
+        noise statistics, (B, feature_size)."""
+        return self._encode(clip)[0]
+
+    def _encode(self, clip: torch.Tensor) -> tuple[torch.Tensor, torch.Tensor, list[torch.Tensor]]:
         if clip.dim() != 5 or clip.shape[2] != self.config.channels:
             raise ValueError(f"expected clips (B, T, {self.config.channels}, H, W), got shape {tuple(clip.shape)}")
-        batch, frames, channels, height, width = clip.shape
+        batch, frames, _channels, height, width = clip.shape
         statistics = (self.statistics(clip) - self.statistics_mean) / self.statistics_scale
         moving = clip - clip.mean(dim=1, keepdim=True)
         x = torch.cat([clip, moving], dim=2).flatten(0, 1)
@@ -233,19 +255,7 @@ class DEN(nn.Module):
         # A bottleneck of a single position (a small frame through a deep network) has no spread, not a NaN one.
         spread = pooled.std(-1) if pooled.shape[-1] > 1 else torch.zeros_like(pooled[..., 0])
         features = torch.cat([self.pooled_norm(torch.cat([pooled.mean(-1), spread], -1)), statistics], dim=-1)
-        normalised = torch.sigmoid(self.head(features))
-        dark = None
-        if self.config.variant == "v3":
-            for up, decoder, skip in zip(self.ups, self.decoders, reversed(skips), strict=True):
-                x = decoder(torch.cat([up(x), skip], dim=1))
-            dark = self.to_image(x)[..., :height, :width].reshape(batch, frames, channels, height, width)
-        return DENOutput(
-            normalised=normalised,
-            dark=dark,
-            noise_model=self.config.noise_model,
-            log_levels=self.config.log_levels,
-            table_version=self.config.table_version,
-        )
+        return features, x, skips
 
     def normalise(self, vector: torch.Tensor) -> torch.Tensor:
         """v in the parameters' units -> the [0, 1] space this model's head predicts in (training targets)."""
