@@ -84,10 +84,11 @@ def main() -> int:
         alpha, gamma = random_darkening_values(alpha_range, gamma_range, generator=generator)
         dark = darken(clean, alpha, gamma)
         truth = _drawn_values(generator, compressed=index % 4 < 2)
-        noisy = to_8bit_levels(add_noise(dark, truth, generator=generator))
+        # add_noise takes clips (T, C, H, W): the column components need the frame axis.
+        noisy = to_8bit_levels(add_noise(dark[None], truth, generator=generator)[0])
         found = estimate(noisy[None], network, refine=refine).profile.noise
         found = found.to("cpu", torch.float32)
-        again = to_8bit_levels(add_noise(dark, found, generator=torch.Generator().manual_seed(10_000 + index)))
+        again = to_8bit_levels(add_noise(dark[None], found, generator=torch.Generator().manual_seed(10_000 + index))[0])
         real, synthetic = noisy - dark, again - dark
         kld = kl_divergence_noise_flow(real.numpy(), synthetic.numpy())
         channel = (synthetic.std(dim=(1, 2)) / real.std(dim=(1, 2)).clamp_min(1e-6)).numpy()
@@ -96,10 +97,17 @@ def main() -> int:
         klds.append(kld)
         channel_ratios.append(channel)
         band_ratios.append(band)
+        # The references have no column components: any found is a false stripe pattern (issue 13, item 3).
+        columns = {
+            name: round(float(found[name].abs().max()), 4)
+            for name in ("banding", "temporal_banding", "periodic")
+            if float(found[name].abs().max()) > 0
+        }
         kind = f"{'bright' if bright else 'dark'} {'jpeg' if truth.scalar('compression') > 0 else 'png'}"
         print(
             f"{path.name} ({kind}, real std {float(real.std()) * 255:.1f}): kld {kld:.3f} "
             f"channel ratio {np.round(channel, 2).tolist()} band ratio {np.round(band, 2).tolist()}"
+            + (f" columns found (none put on): {columns}" if columns else "")
         )
     channels, bands = np.array(channel_ratios), np.array(band_ratios)
     print(
