@@ -3,15 +3,16 @@
 Layers, lowest first (a module may import its own package and any lower layer, never a higher one or a
 sibling of its own layer):
 
-0. ``errors``, ``tensors``, ``seeding``: conventions that import nothing of darksynth;
-1. ``io`` (files, videos, atomic writes) and ``darkening``;
+0. ``errors``, ``tensors``, ``seeding``, ``version``: conventions that import nothing of darksynth;
+1. ``io`` (files, videos, atomic writes), ``darkening`` and ``commands`` (the command line's shape, without its code);
 2. ``noise``: the components, their table, the carrier of values, the composer;
 3. ``profile``, ``darkening_estimate``;
 4. ``synthesize``, ``models``;
 5. ``apply``, ``refine``, ``training``, ``transforms``;
 6. ``baselines``, ``datasets``, ``estimate`` (it may refine);
 7. ``evaluation``, ``demo``;
-8. ``cli``, the package ``__init__``; 9. ``__main__``, which only calls the cli.
+8. ``cli``, the package ``__init__``; 9. ``main``, the entry point (the light app, or the cli); 10. ``__main__``,
+   which only calls it.
 
 The pure core (``tensors``, ``darkening``, ``noise``) also never imports ``io``: reading and writing files is
 for the edges, so the core runs on tensors alone.
@@ -30,6 +31,8 @@ LAYERS: dict[str, int] = {
     "errors": 0,
     "tensors": 0,
     "seeding": 0,
+    "version": 0,
+    "commands": 1,
     "io": 1,
     "darkening": 1,
     "noise": 2,
@@ -47,7 +50,8 @@ LAYERS: dict[str, int] = {
     "evaluation": 7,
     "demo": 7,
     "cli": 8,
-    "__main__": 9,
+    "main": 9,
+    "__main__": 10,
     "__init__": 8,
 }
 

@@ -1,5 +1,5 @@
 """``python -m darksynth``: the command line."""
 
-from darksynth.cli import main
+from darksynth.main import main
 
 main()

@@ -15,8 +15,8 @@ import typer
 from rich.console import Console
 from rich.progress import BarColumn, MofNCompleteColumn, Progress, TextColumn, TimeRemainingColumn
 
-from darksynth import __version__
 from darksynth.apply import ApplyOptions, ApplyReport, Task, apply
+from darksynth.commands import COMMAND_HELP, new_app
 from darksynth.darkening import Darkening
 from darksynth.datasets import FORMATS, ConversionReport, ConvertOptions, DatasetFormat, Shard
 from darksynth.errors import DarksynthError
@@ -29,13 +29,7 @@ from darksynth.synthesize import DarkeningChoice
 from darksynth.training.loop import TrainConfig
 from darksynth.training.weights import LOG_LEVELS, DENChoice
 
-app = typer.Typer(
-    name="darksynth",
-    help="Realistic synthetic low-light images and videos from clean ones.",
-    no_args_is_help=True,
-    add_completion=False,
-    pretty_exceptions_enable=False,
-)
+app = new_app()
 console = Console(stderr=True)
 
 
@@ -116,7 +110,7 @@ def run_with_progress(input_path: Path, output_path: Path, options: ApplyOptions
         return apply(input_path, output_path, options, on_start=on_start, on_frames=on_frames, on_task=on_task)
 
 
-@app.command("apply")
+@app.command("apply", help=COMMAND_HELP["apply"])
 def apply_command(
     input_path: Annotated[Path, typer.Argument(metavar="INPUT", help="Clean image, video, or folder of them.")],
     output_path: Annotated[Path, typer.Argument(metavar="OUTPUT", help="Output file or folder (never inside INPUT).")],
@@ -142,7 +136,6 @@ def apply_command(
         bool | None, typer.Option("--compile/--no-compile", help="Fuse the 8-bit kernel (default: for long clips).")
     ] = default_of(ApplyOptions, "compile"),
 ) -> None:
-    """Make low-light versions of clean images, videos or folders with a noise profile."""
     try:
         options = ApplyOptions(
             profile=load_profile(profile),
@@ -170,7 +163,7 @@ def apply_command(
         raise fail(f"{len(report.failures)} file(s) failed; see the messages above and the manifest")
 
 
-@app.command("convert")
+@app.command("convert", help=COMMAND_HELP["convert"])
 def convert_command(
     dataset: Annotated[Path, typer.Argument(metavar="DATASET", help="Root folder of the annotated dataset.")],
     output: Annotated[Path, typer.Argument(metavar="OUTPUT", help="Output folder (never inside DATASET).")],
@@ -214,7 +207,6 @@ def convert_command(
         ),
     ] = False,
 ) -> None:
-    """Convert a whole annotated dataset to low light; annotations carried over, resumable, shardable."""
     from darksynth.datasets import convert_dataset
 
     try:
@@ -271,7 +263,7 @@ def _convert_summary(report: ConversionReport) -> None:
         raise fail(f"{len(report.failures)} failure(s); see the messages above and the manifest")
 
 
-@app.command("train")
+@app.command("train", help=COMMAND_HELP["train"])
 def train_command(
     data: Annotated[list[Path], typer.Argument(help="Clean images, folders of them, and videos.")],
     out: Annotated[Path, typer.Option("--out", help="Weights file to write (.safetensors).")],
@@ -327,7 +319,6 @@ def train_command(
     resume: Annotated[bool, typer.Option("--resume", help="Continue from OUT's checkpoint.")] = False,
     device: Annotated[str, typer.Option(help="torch device.")] = default_of(TrainConfig, "device"),
 ) -> None:
-    """Train the DEN self-supervised on clean material: random crops, darkening, random v, f(v)."""
     from darksynth.training.corpus import load_corpus
     from darksynth.training.distributed import ranks_from_environment
     from darksynth.training.loop import train
@@ -383,7 +374,7 @@ def train_command(
         say(f"wrote {out} and {out.with_suffix('.json')} after {summary['steps']} steps")
 
 
-@app.command("estimate")
+@app.command("estimate", help=COMMAND_HELP["estimate"])
 def estimate_command(
     reference: Annotated[Path, typer.Argument(help="Real low-light image, video, or frame folder (with --clip).")],
     out: Annotated[Path | None, typer.Option("--out", help="Profile JSON to write (stdout when omitted).")] = None,
@@ -412,7 +403,6 @@ def estimate_command(
         ),
     ] = default_of(EstimateOptions, "refine"),
 ) -> None:
-    """Estimate a noise profile from one real low-light reference, zero-shot."""
     import json
 
     from darksynth.estimate import estimate_file
@@ -467,7 +457,7 @@ def evaluate_command_line(pairs: list[Path], out: Path, options: EvaluationOptio
     return shlex.join(["darksynth", "evaluate", *arguments, "--out", str(out)])
 
 
-@app.command("evaluate")
+@app.command("evaluate", help=COMMAND_HELP["evaluate"])
 def evaluate_command(
     pairs: Annotated[
         list[Path], typer.Option("--pairs", help="Folder of real pairs (noisy/NAME, clean/NAME); repeatable.")
@@ -500,7 +490,6 @@ def evaluate_command(
         EvaluationOptions, "downstream_steps"
     ),
 ) -> None:
-    """Compare each method's synthetic noise with real noise on sets of real pairs."""
     from darksynth.evaluation.job import rank_by_kld, run_evaluation
 
     chosen = [m.strip() for m in methods.split(",") if m.strip()]
@@ -527,12 +516,11 @@ def evaluate_command(
     say(f"wrote {', '.join(str(path) for path in run.files[:-1])} and {run.files[-1]}")
 
 
-@app.command("demo")
+@app.command("demo", help=COMMAND_HELP["demo"])
 def demo_command(
     out: Annotated[Path, typer.Option(help="Folder to write the demo into.")] = Path("darksynth-demo"),
     seed: Annotated[int, typer.Option(help="Seed of the demo.")] = 0,
 ) -> None:
-    """Run the whole job on the shipped sample: low-light image, clip and a side-by-side preview."""
     from darksynth.demo import run_demo
 
     try:
@@ -543,20 +531,12 @@ def demo_command(
         say(f"wrote {path}")
 
 
-@app.callback(invoke_without_command=True)
-def root(
-    version: Annotated[bool, typer.Option("--version", help="Print the version and exit.")] = False,
-) -> None:
-    """darksynth: realistic synthetic low-light data."""
-    if version:
-        typer.echo(f"darksynth {__version__}")
-        raise typer.Exit()
-
-
-def main() -> None:
-    """Console-script entry point."""
+def main(argv: Sequence[str] | None = None) -> None:
+    """Run a command (``argv``: the arguments after the program name; sys.argv's by default). The console
+    script enters through :func:`darksynth.main.main`, which answers ``--version`` and ``--help`` without this
+    module."""
     try:
-        app()
+        app(list(sys.argv[1:] if argv is None else argv), prog_name="darksynth")
     except KeyboardInterrupt:
         say("darksynth: interrupted; finished files are complete, no partial file was left")
         sys.exit(130)

@@ -43,7 +43,7 @@ import torch.nn.functional as F
 
 from darksynth.models.den import DEN, DENOutput
 from darksynth.noise.components import noise_parameter
-from darksynth.noise.correlated import gaussian_kernel1d, kernel_autocorrelation
+from darksynth.noise.correlated import filter_valid, gaussian_kernel1d, kernel_autocorrelation
 from darksynth.noise.fit import (
     LENGTH_GRID,
     PoissonGaussian,
@@ -172,10 +172,8 @@ def gaussian_denoise(frames: torch.Tensor, sigma: float = DENOISE_SIGMA) -> torc
     kernel = gaussian_kernel1d(sigma, dtype=frames.dtype, device=frames.device)
     radius = kernel.numel() // 2
     shape = frames.shape
-    flat = frames.reshape(-1, 1, shape[-2], shape[-1])
-    flat = F.conv2d(F.pad(flat, (radius, radius, 0, 0), mode="reflect"), kernel.view(1, 1, 1, -1))
-    flat = F.conv2d(F.pad(flat, (0, 0, radius, radius), mode="reflect"), kernel.view(1, 1, -1, 1))
-    return flat.reshape(shape)
+    flat = F.pad(frames.reshape(-1, 1, shape[-2], shape[-1]), (radius, radius, radius, radius), mode="reflect")
+    return filter_valid(flat, kernel).reshape(shape)
 
 
 def _as_frames(reference: torch.Tensor) -> torch.Tensor:

@@ -30,7 +30,6 @@ from collections.abc import Sequence
 
 import numpy as np
 import torch
-import torch.nn.functional as F
 from PIL import Image
 
 KERNEL_RADIUS_STDS = 3.0
@@ -59,13 +58,24 @@ def kernel_autocorrelation(length: float, lag: int) -> float:
     return float((kernel[: kernel.numel() - lag] * kernel[lag:]).sum() / kernel.square().sum())
 
 
-def _filter_valid(noise: torch.Tensor, kernel: torch.Tensor) -> torch.Tensor:
-    """Separable 'valid' convolution by ``kernel`` along x and along y over the last two axes of (..., H, W)."""
-    shape = noise.shape
-    flat = noise.reshape(-1, 1, shape[-2], shape[-1])
-    flat = F.conv2d(flat, kernel.view(1, 1, 1, -1))
-    flat = F.conv2d(flat, kernel.view(1, 1, -1, 1))
-    return flat.reshape(*shape[:-2], flat.shape[-2], flat.shape[-1])
+def filter_valid(noise: torch.Tensor, kernel: torch.Tensor) -> torch.Tensor:
+    """Separable 'valid' convolution by a symmetric 1-D ``kernel`` along x and along y over the last two axes of
+    (..., H, W): (..., H - K + 1, W - K + 1).
+
+    Written as a sum of shifted slices, each multiplied by its tap: for these short kernels (3-17 taps) it is
+    10-20x faster on a CPU than ``conv2d`` with one input channel (275 ms against 12 ms for a 1080p RGB frame and
+    5 taps, benchmarks/bench_apply.py's machine), with the same result to the bit there.
+    """
+    taps = [float(t) for t in kernel.tolist()]
+    width = noise.shape[-1] - len(taps) + 1
+    along_x = noise[..., :, :width] * taps[0]
+    for offset, tap in enumerate(taps[1:], start=1):
+        along_x.add_(noise[..., :, offset : offset + width], alpha=tap)
+    height = along_x.shape[-2] - len(taps) + 1
+    both = along_x[..., :height, :] * taps[0]
+    for offset, tap in enumerate(taps[1:], start=1):
+        both.add_(along_x[..., offset : offset + height, :], alpha=tap)
+    return both
 
 
 def correlated_normal(
@@ -92,7 +102,7 @@ def correlated_normal(
     energy = kernel.square().sum()
     # sqrt(sum k_x^2 sum k_y^2) with k_x = k_y, written as before the lengths were tied so that a seed draws
     # bit-identical noise across versions.
-    return _filter_valid(white, kernel) / (energy * energy).sqrt()
+    return filter_valid(white, kernel) / (energy * energy).sqrt()
 
 
 def jpeg_compress(image: torch.Tensor, quality: int) -> torch.Tensor:
