@@ -21,19 +21,23 @@ import torch
 
 from darksynth.darkening import ALPHA_RANGE, GAMMA_RANGE, Darkening, darken
 from darksynth.io.arrays import numpy_to_tensor, tensor_to_numpy
-from darksynth.noise.components import noise_parameters
+from darksynth.noise.components import noise_parameter, noise_parameters
+from darksynth.noise.correlated import structured_normal
 from darksynth.noise.counter_rng import random_key
 from darksynth.noise.kernel8 import (
     FAST_PATH,
     FULL_SCALE,
+    STRUCTURED_PATH,
     PixelKernel,
     compiled_pixel_kernel,
+    compiled_structured_kernel,
     kernel_scalars,
     pixel_kernel_8bit,
     pixel_kernel_in_pieces,
+    structured_pixel_kernel_8bit,
 )
 from darksynth.noise.sampling import random_uniform
-from darksynth.noise.simulate import add_noise, column_noise
+from darksynth.noise.simulate import add_noise, apply_output_stages, column_noise
 from darksynth.noise.values import NoiseValues
 from darksynth.profile import Profile
 from darksynth.tensors import CLIP_DIMS
@@ -97,7 +101,9 @@ class ClipSynthesizer:
 
     Every frame goes through the composer (:func:`darksynth.noise.simulate.add_noise`), which holds the
     components a clip keeps fixed (temporal banding) from the first frame on. 8-bit frames whose values the
-    fused kernel covers (:data:`darksynth.noise.kernel8.FAST_PATH` in the table) take it for the per-pixel part.
+    fused kernel covers (:data:`darksynth.noise.kernel8.FAST_PATH` in the table) take it for the per-pixel part;
+    with ``compile``, those of the sRGB model (:data:`darksynth.noise.kernel8.STRUCTURED_PATH`) draw the structured
+    unit noise with the composer's function and do the rest in the compiled structured kernel's one pass.
 
     Args:
         parameters: the clip's parameters (see :func:`draw_clip_parameters`).
@@ -122,7 +128,11 @@ class ClipSynthesizer:
         self._kernel: PixelKernel = compiled_pixel_kernel() if compile else pixel_kernel_8bit
         uncovered = self._values.uncovered_by(FAST_PATH)
         self._fusable = not uncovered
-        if uncovered:
+        # Only compiled: eagerly, the structured kernel's chain of whole-frame operations is slower than the
+        # general composer (349 against 205 ms a 1080p frame; docs/performance.md).
+        self._structured = compile and bool(uncovered) and self._values.covered_by(STRUCTURED_PATH)
+        self._structured_kernel: PixelKernel = compiled_structured_kernel() if compile else structured_pixel_kernel_8bit
+        if uncovered and not self._structured:
             logger.debug("8-bit frames take the general composer: %s not covered by %s", uncovered, FAST_PATH)
         self._scalars: tuple[torch.Tensor, ...] | None = None
 
@@ -133,6 +143,8 @@ class ClipSynthesizer:
         frame = frame.to(self.device)
         if frame.dtype == torch.uint8 and self._fusable:
             return self._fused(frame)
+        if frame.dtype == torch.uint8 and self._structured:
+            return self._fused_structured(frame)
         scale = _full_scale(frame.dtype)
         clean = frame.to(torch.float32) / scale if scale else frame.to(torch.float32)
         darkening = self.parameters.darkening
@@ -141,10 +153,7 @@ class ClipSynthesizer:
         noisy = add_noise(signal[None], self._values, generator=self.generator, held=self._held)[0]
         return _to_dtype(noisy, frame.dtype)
 
-    def _fused(self, frame: torch.Tensor) -> torch.Tensor:
-        columns = column_noise(
-            (1, *frame.shape), self._values, generator=self.generator, held=self._held, device=self.device
-        )[0]
+    def _kernel_scalars(self) -> tuple[torch.Tensor, ...]:
         if self._scalars is None:
             darkening = self.parameters.darkening
             self._scalars = kernel_scalars(
@@ -154,17 +163,58 @@ class ClipSynthesizer:
                 self.parameters.noise,
                 device=self.device,
             )
+        return self._scalars
+
+    def _columns_8bit(self, frame: torch.Tensor) -> torch.Tensor:
+        columns = column_noise(
+            (1, *frame.shape), self._values, generator=self.generator, held=self._held, device=self.device
+        )[0]
+        return columns * FULL_SCALE
+
+    def _fused(self, frame: torch.Tensor) -> torch.Tensor:
+        columns_8bit = self._columns_8bit(frame)
+        scalars = self._kernel_scalars()
         key = random_key(self.generator).to(self.device)
-        columns_8bit = columns * FULL_SCALE
         if self._kernel is not pixel_kernel_8bit:
             try:
-                return self._kernel(frame, key, *self._scalars, columns_8bit)
+                return self._kernel(frame, key, *scalars, columns_8bit)
             except Exception as error:
                 # torch.compile fails in many ways on a platform without a working compiler; the eager kernel
                 # gives the same bits, only slower.
                 logger.warning("compiled 8-bit kernel failed (%s); using the eager kernel", error)
                 self._kernel = pixel_kernel_8bit
-        return pixel_kernel_in_pieces(self._kernel, frame, key, self._scalars, columns_8bit)
+        return pixel_kernel_in_pieces(self._kernel, frame, key, scalars, columns_8bit)
+
+    def _fused_structured(self, frame: torch.Tensor) -> torch.Tensor:
+        # The composer's draws in its order for a frame: the column components, the structured unit noise
+        # (pixel_noise's heteroscedastic part), the quantization bytes; then one pass and the output stages.
+        columns_8bit = self._columns_8bit(frame)
+        values = self._values
+        unit = structured_normal(
+            (1, *frame.shape),
+            values["correlation_length"][..., 0],
+            values["channel_correlation"],
+            values["channel_gain"],
+            generator=self.generator,
+            dtype=torch.float32,
+            chroma_lengths=values["chroma_length"][..., 0],
+        )[0].to(self.device)
+        source = self.generator.device if self.generator is not None else torch.device("cpu")
+        byte = torch.empty(frame.shape, dtype=torch.uint8, device=source).random_(generator=self.generator)
+        byte = byte.to(self.device)
+        arguments = (frame, unit, byte, *self._kernel_scalars(), columns_8bit)
+        try:
+            out = self._structured_kernel(*arguments)
+        except Exception as error:
+            if self._structured_kernel is structured_pixel_kernel_8bit:
+                raise
+            logger.warning("compiled structured kernel failed (%s); using the eager kernel", error)
+            self._structured_kernel = structured_pixel_kernel_8bit
+            out = self._structured_kernel(*arguments)
+        if values.is_neutral(noise_parameter("compression")):
+            return out
+        compressed = apply_output_stages(out.to(torch.float32)[None] / FULL_SCALE, values, generator=self.generator)
+        return _to_dtype(compressed[0], frame.dtype)
 
 
 def _full_scale(dtype: torch.dtype) -> float | None:

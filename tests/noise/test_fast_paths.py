@@ -10,7 +10,7 @@ import torch
 
 from darksynth.darkening import Darkening
 from darksynth.noise import kernel8
-from darksynth.noise.kernel8 import FAST_PATH
+from darksynth.noise.kernel8 import FAST_PATH, STRUCTURED_PATH
 from darksynth.noise.values import NoiseValues
 from darksynth.synthesize import ClipParameters, ClipSynthesizer
 
@@ -72,3 +72,79 @@ def test_a_failing_compiled_kernel_falls_back_once_with_a_log_line(
     warnings = [r for r in caplog.records if "compiled 8-bit kernel failed" in r.getMessage()]
     assert len(warnings) == 1 and "no working C compiler" in warnings[0].getMessage()
     assert kernel8.pixel_kernel_8bit is not broken
+
+
+SRGB = {
+    "shot": 0.05,
+    "read": 0.01,
+    "quantization": 0.004,
+    "channel_gain": [1.3, 0.8],
+    "correlation_length": 1.0,
+    "channel_correlation": [0.5, 0.3, 0.2],
+    "chroma_length": 1.0,
+    "banding": 0.002,
+}
+
+
+def test_the_structured_path_is_taken_compiled_for_the_srgb_model_only() -> None:
+    srgb = ClipParameters(NoiseValues.from_values(SRGB), None)  # type: ignore[arg-type]
+    white = ClipParameters(NoiseValues.from_values(PAPER), None)
+    assert NoiseValues.from_values(SRGB).covered_by(STRUCTURED_PATH)  # type: ignore[arg-type]
+    assert ClipSynthesizer(srgb, compile=True)._structured
+    assert not ClipSynthesizer(srgb, compile=False)._structured  # eagerly the general composer is faster
+    assert not ClipSynthesizer(white, compile=True)._structured  # the white fused kernel instead
+    assert ClipSynthesizer(white, compile=True)._fusable
+
+
+def _statistics(frames: torch.Tensor) -> dict[str, torch.Tensor]:
+    """Per channel mean and std, the channel correlations and the lag-1 autocorrelation along x and y."""
+    noise = frames - frames.mean(dim=(0, 2, 3), keepdim=True)
+    flat = noise.transpose(0, 1).reshape(3, -1)
+    correlation = torch.corrcoef(flat)
+    lag_x = (noise[..., 1:] * noise[..., :-1]).mean(dim=(0, 2, 3)) / noise.var(dim=(0, 2, 3))
+    lag_y = (noise[..., 1:, :] * noise[..., :-1, :]).mean(dim=(0, 2, 3)) / noise.var(dim=(0, 2, 3))
+    return {
+        "mean": frames.mean(dim=(0, 2, 3)),
+        "std": frames.std(dim=(0, 2, 3)),
+        "correlation": torch.stack([correlation[0, 1], correlation[1, 2], correlation[0, 2]]),
+        "lag": torch.cat([lag_x, lag_y]),
+    }
+
+
+@pytest.mark.parametrize("compression", [0.0, 0.3])
+def test_structured_and_general_paths_draw_the_same_law(compression: float) -> None:
+    """The compiled structured kernel against the general composer on the same 8-bit frames, by moments:
+    per-channel mean and std, channel correlations, lag-1 autocorrelation (spatial correlation)."""
+    values = NoiseValues.from_values(SRGB | {"compression": compression})  # type: ignore[arg-type]
+    parameters = ClipParameters(values, Darkening(0.4, 1.0))
+    frame = torch.full((3, 192, 192), 150, dtype=torch.uint8)
+    structured = ClipSynthesizer(parameters, generator=torch.Generator().manual_seed(3), compile=True)
+    general = ClipSynthesizer(parameters, generator=torch.Generator().manual_seed(4))
+    assert structured._structured and not general._structured
+    fast = _statistics(torch.stack([structured(frame) for _ in range(6)]).double())
+    slow = _statistics(torch.stack([general(frame) for _ in range(6)]).double())
+    assert torch.allclose(fast["mean"], slow["mean"], atol=0.3)  # 8-bit levels
+    assert torch.allclose(fast["std"] / slow["std"], torch.ones(3, dtype=torch.float64), atol=0.04)
+    assert torch.allclose(fast["correlation"], slow["correlation"], atol=0.03)
+    assert torch.allclose(fast["lag"], slow["lag"], atol=0.03)
+    # The structure is there at all: correlated channels and spatially correlated noise.
+    assert float(fast["correlation"].min()) > 0.1 and float(fast["lag"].min()) > 0.3
+
+
+def test_a_failing_compiled_structured_kernel_falls_back_with_a_log_line(
+    monkeypatch: pytest.MonkeyPatch, caplog: pytest.LogCaptureFixture
+) -> None:
+    def broken(*args: object) -> torch.Tensor:
+        raise RuntimeError("no working C compiler")
+
+    monkeypatch.setattr(sys.modules["darksynth.synthesize"], "compiled_structured_kernel", lambda: broken)
+    parameters = ClipParameters(NoiseValues.from_values(SRGB), None)  # type: ignore[arg-type]
+    frame = torch.full((3, 32, 32), 100, dtype=torch.uint8)
+    with caplog.at_level(logging.WARNING, logger="darksynth.synthesize"):
+        compiled = ClipSynthesizer(parameters, generator=torch.Generator().manual_seed(2), compile=True)
+        frames = [compiled(frame) for _ in range(3)]
+    eager = ClipSynthesizer(parameters, generator=torch.Generator().manual_seed(2), compile=True)
+    eager._structured_kernel = kernel8.structured_pixel_kernel_8bit
+    assert all(torch.equal(a, eager(frame)) for a in frames)
+    warnings = [r for r in caplog.records if "compiled structured kernel failed" in r.getMessage()]
+    assert len(warnings) == 1 and "no working C compiler" in warnings[0].getMessage()

@@ -44,9 +44,12 @@ Role = Literal["amplitude", "shape"]
 """``amplitude``: the component draws nothing when all its amplitude parameters are neutral. ``shape``: shapes
 what the amplitudes draw (a correlation length, a channel gain) and draws nothing by itself."""
 
-FastPath = Literal["fused_8bit"]
+FastPath = Literal["fused_8bit", "structured_8bit"]
 """A specialised implementation of part of f(v). ``fused_8bit``: :mod:`darksynth.noise.kernel8`, one pass over
-an 8-bit frame that draws white heteroscedastic and quantization noise and adds the column components."""
+an 8-bit frame that draws white heteroscedastic and quantization noise and adds the column components.
+``structured_8bit``: the same pass fed with the sRGB model's structured unit noise (channel gains, spatial and
+colour correlation, drawn by the composer's own function) instead of its counter-based normal, then the
+compression stage: the default path of a profile from ``estimate``."""
 
 DrawFunction = Callable[[torch.Tensor, Mapping[str, torch.Tensor], torch.Generator | None], torch.Tensor]
 """``draw(signal, values, generator) -> noise``: ``signal`` is the darkened clean clip (..., T, C, H, W),
@@ -132,10 +135,16 @@ _HETEROSCEDASTIC_PARAMETERS: tuple[Parameter, ...] = (
         1.0,
         (0.0, 0.2),
         log_floor=0.002,
-        fast_paths=frozenset({"fused_8bit"}),
+        fast_paths=frozenset({"fused_8bit", "structured_8bit"}),
     ),
     Parameter(
-        "read", 1, "std, signal-independent", 1.0, (0.0, 0.1), log_floor=0.001, fast_paths=frozenset({"fused_8bit"})
+        "read",
+        1,
+        "std, signal-independent",
+        1.0,
+        (0.0, 0.1),
+        log_floor=0.001,
+        fast_paths=frozenset({"fused_8bit", "structured_8bit"}),
     ),
     # Measured on the real pairs (docs/srgb-noise.md): red and blue noise 1.1-1.5x green's std, Gaussian
     # lengths 0.6-0.9 px, channel correlations 0.2-0.7, different per pair of channels.
@@ -148,6 +157,7 @@ _HETEROSCEDASTIC_PARAMETERS: tuple[Parameter, ...] = (
         minimum=0.25,
         neutral=1.0,
         noise_model="srgb",
+        fast_paths=frozenset({"structured_8bit"}),
         since_version=2,
         statistics=SRGB_STATISTICS,
         role="shape",
@@ -160,6 +170,7 @@ _HETEROSCEDASTIC_PARAMETERS: tuple[Parameter, ...] = (
         8.0,
         (0.0, 2.0),
         noise_model="srgb",
+        fast_paths=frozenset({"structured_8bit"}),
         since_version=2,
         statistics=SRGB_STATISTICS,
         role="shape",
@@ -173,6 +184,7 @@ _HETEROSCEDASTIC_PARAMETERS: tuple[Parameter, ...] = (
         (0.0, 0.7),
         minimum=-0.45,
         noise_model="srgb",
+        fast_paths=frozenset({"structured_8bit"}),
         since_version=2,
         statistics=SRGB_STATISTICS,
         role="shape",
@@ -187,6 +199,7 @@ _HETEROSCEDASTIC_PARAMETERS: tuple[Parameter, ...] = (
         8.0,
         (0.0, 3.0),
         noise_model="srgb",
+        fast_paths=frozenset({"structured_8bit"}),
         since_version=3,
         statistics=SRGB_STATISTICS,
         role="shape",
@@ -272,7 +285,7 @@ def _column_variance(name: str) -> VarianceFunction:
     return variance
 
 
-_FUSED: frozenset[FastPath] = frozenset({"fused_8bit"})
+_FUSED: frozenset[FastPath] = frozenset({"fused_8bit", "structured_8bit"})
 """The 8-bit kernel draws quantization itself and adds the column components, which the composer draws."""
 
 # The training ranges cover real sRGB low-light noise: at mid-grey (x = 0.5) shot 0.2 alone gives a std of
@@ -370,6 +383,7 @@ NOISE_COMPONENTS: tuple[NoiseComponent, ...] = (
                 0.95,
                 (0.0, 0.7),
                 noise_model="srgb",
+                fast_paths=frozenset({"structured_8bit"}),
                 since_version=2,
                 statistics=SRGB_STATISTICS,
                 training_off_probability=0.4,

@@ -33,6 +33,10 @@ FAST_PATH: FastPath = "fused_8bit"
 """The name under which the table declares what this kernel covers (:attr:`Parameter.fast_paths`): white
 heteroscedastic and quantization noise per pixel; the column components come in as a precomputed pattern."""
 
+STRUCTURED_PATH: FastPath = "structured_8bit"
+"""The sRGB model's path: :func:`structured_pixel_kernel_8bit` with the structured unit noise and the quantization
+bytes drawn by the caller from its generator, the compression stage after it."""
+
 PixelKernel = Callable[..., torch.Tensor]
 
 
@@ -72,6 +76,30 @@ def pixel_kernel_8bit(
     quantization = (byte.to(torch.float32) + 0.5) * quantization_step
     level = (darkened + std * normal + quantization) * FULL_SCALE + column_pattern
     # Rounding before clamping equals clamping before rounding here because the bounds are integers.
+    return level.round().clamp(0.0, FULL_SCALE).to(torch.uint8)
+
+
+def structured_pixel_kernel_8bit(
+    frame: torch.Tensor,
+    unit: torch.Tensor,
+    byte: torch.Tensor,
+    alpha: torch.Tensor,
+    inverse_gamma: torch.Tensor,
+    shot_squared: torch.Tensor,
+    read_squared: torch.Tensor,
+    quantization_step: torch.Tensor,
+    column_pattern: torch.Tensor,
+) -> torch.Tensor:
+    """One frame of darkening + f(v) for the sRGB model on 8-bit values: :func:`pixel_kernel_8bit` with the
+    normal replaced by ``unit``, the structured unit noise (C, H, W) float32 whose channel gains, spatial and
+    colour correlation :func:`darksynth.noise.correlated.structured_normal` drew, and the quantization byte by
+    ``byte`` (C, H, W) uint8. The composer's own law: std * unit is its heteroscedastic draw, the byte its
+    quantization draw (:func:`darksynth.noise.quantization.quantization_noise`)."""
+    clean = frame.to(torch.float32) * (1.0 / FULL_SCALE)
+    darkened = alpha * torch.exp(inverse_gamma * torch.log(clean))
+    std = torch.sqrt(shot_squared * darkened + read_squared)
+    quantization = (byte.to(torch.float32) + 0.5) * quantization_step
+    level = (darkened + std * unit + quantization) * FULL_SCALE + column_pattern
     return level.round().clamp(0.0, FULL_SCALE).to(torch.uint8)
 
 
@@ -133,6 +161,7 @@ def pixel_kernel_in_pieces(
 
 
 _compiled: PixelKernel | None = None
+_compiled_structured: PixelKernel | None = None
 
 
 def compiled_pixel_kernel() -> PixelKernel:
@@ -149,3 +178,15 @@ def compiled_pixel_kernel() -> PixelKernel:
             logger.warning("torch.compile unavailable (%s); using the eager 8-bit kernel", error)
             _compiled = pixel_kernel_8bit
     return _compiled
+
+
+def compiled_structured_kernel() -> PixelKernel:
+    """:func:`structured_pixel_kernel_8bit` through ``torch.compile`` (the eager one where that is unavailable)."""
+    global _compiled_structured
+    if _compiled_structured is None:
+        try:
+            _compiled_structured = torch.compile(structured_pixel_kernel_8bit, dynamic=False, fullgraph=True)
+        except Exception as error:  # pragma: no cover - depends on the platform's compiler
+            logger.warning("torch.compile unavailable (%s); using the eager structured kernel", error)
+            _compiled_structured = structured_pixel_kernel_8bit
+    return _compiled_structured
