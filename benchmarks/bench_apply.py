@@ -67,9 +67,11 @@ def jpeg_round_trip(frame_hwc: np.ndarray, quality: int = 75) -> np.ndarray:
     return np.asarray(Image.open(buffer).convert("RGB"))
 
 
-def timed(function: Callable[[], object]) -> float:
+def timed(function: Callable[[], object], device: str = "cpu") -> float:
     start = time.perf_counter()
     function()
+    if device.startswith("cuda"):
+        torch.cuda.synchronize()  # CUDA work is asynchronous: wait for it before reading the clock
     return (time.perf_counter() - start) * 1e3
 
 
@@ -92,11 +94,11 @@ def main() -> None:
     print(f"demo profile: compression {srgb.noise.scalar('compression'):.2f}, shot {srgb.noise.scalar('shot'):.4f}")
 
     started = time.perf_counter()
-    compiled = ClipSynthesizer(ALL_COMPONENTS, generator=generator, compile=True)
+    compiled = ClipSynthesizer(ALL_COMPONENTS, generator=generator, compile=True, device=args.device)
     compiled(frame)
     first_call_s = time.perf_counter() - started
-    eager = ClipSynthesizer(ALL_COMPONENTS, generator=generator, compile=False)
-    srgb_synthesizer = ClipSynthesizer(srgb, generator=generator, compile=True)
+    eager = ClipSynthesizer(ALL_COMPONENTS, generator=generator, compile=False, device=args.device)
+    srgb_synthesizer = ClipSynthesizer(srgb, generator=generator, compile=True, device=args.device)
     gauss = albumentations.GaussNoise(std_range=(0.05, 0.05), p=1.0)
     chain = albumentations.Compose(
         [
@@ -124,7 +126,7 @@ def main() -> None:
     results: dict[str, list[float]] = {name: [] for name in methods}
     for _ in range(args.rounds):
         for name, method in methods.items():
-            results[name].extend(timed(method) for _ in range(args.block))
+            results[name].extend(timed(method, args.device) for _ in range(args.block))
     median = {name: statistics.median(values) for name, values in results.items()}
     print(f"torch {torch.__version__}, threads {torch.get_num_threads()}, frame {WIDTH}x{HEIGHT} RGB uint8")
     print(f"first compiled call (compile or cache load): {first_call_s:.2f} s")
