@@ -162,3 +162,17 @@ def test_prior_share_grows_as_the_tones_say_less() -> None:
         assert 0.0 < wide.prior_share[name] < narrow.prior_share[name] < 1.0, (wide.prior_share, narrow.prior_share)
     assert wide.prior_share["gamma"] < 0.2
     assert fit_darkening(_line(0.3, 1.0), use_prior=False).prior_share == {}
+
+
+def test_the_pooled_and_per_frame_estimate_equals_the_separate_calls() -> None:
+    from darksynth.darkening_estimate import estimate_darkening, estimate_darkening_pooled_and_per_frame
+    from darksynth.errors import DarksynthError
+
+    generator = torch.Generator().manual_seed(0)
+    frames = (0.2 * torch.rand(3, 3, 96, 128, generator=generator) ** 2 * 255).round() / 255
+    frames[1] *= 0.5
+    pooled, per_frame = estimate_darkening_pooled_and_per_frame(frames)
+    assert pooled.darkening == estimate_darkening(frames).darkening
+    assert [e.darkening if e else None for e in per_frame] == [estimate_darkening(f).darkening for f in frames]
+    with pytest.raises(DarksynthError, match="too dark or too flat"):
+        estimate_darkening_pooled_and_per_frame(torch.zeros(2, 3, 64, 64))

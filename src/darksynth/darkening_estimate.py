@@ -183,15 +183,63 @@ def median_noise(frames: torch.Tensor, block: int = BLOCK) -> float:
     1.25 / ``block`` of that standard deviation.
     """
     frames = frames.to(torch.float32)
-    side = max(1, min(block, frames.shape[-2], frames.shape[-1]))
     tiles = _tiles(frames, block).flatten(0, -2)
     # An even subsample of the blocks reads the same median noise at a bounded cost (4K clips have ~25 M).
     tiles = tiles[:: max(1, tiles.shape[0] // NOISE_BLOCKS)]
     centre, upper = torch.quantile(tiles, torch.tensor([0.5, 0.75]), dim=-1)
+    return _noise_of_quantiles(centre, upper, _side(frames, block))
+
+
+def _side(frames: torch.Tensor, block: int) -> int:
+    return max(1, min(block, frames.shape[-2], frames.shape[-1]))
+
+
+def _noise_of_quantiles(centre: torch.Tensor, upper: torch.Tensor, side: int) -> float:
     lit = upper > 0
     if not bool(lit.any()):
         return 0.0
     return float((upper - centre)[lit].median()) / 0.6745 * _MEDIAN_EFFICIENCY / side
+
+
+def estimate_darkening_pooled_and_per_frame(
+    frames: torch.Tensor, *, block: int = BLOCK, source: str = "reference"
+) -> tuple[DarkeningEstimate, list[DarkeningEstimate | None]]:
+    """:func:`estimate_darkening` of frames (T, C, H, W) pooled, and of each frame alone (None where one is too
+    dark or flat), from one pass of block statistics per frame instead of two.
+
+    The pooled figures are read from the frames' block statistics concatenated in frame order, the order in which
+    :func:`estimate_darkening` reads them: the same numbers, as long as one frame's blocks are few enough to be
+    read without subsampling (up to :data:`NOISE_BLOCKS`, past 4K per frame); past that the pooled noise is read
+    from every step-th block of the frames' subsamples.
+
+    Raises:
+        DarksynthError: the pooled reference is too dark or too flat (see :func:`estimate_darkening`).
+    """
+    medians, centres, uppers = [], [], []
+    per_frame: list[DarkeningEstimate | None] = []
+    side = _side(frames, block)
+    for frame in frames:
+        plane = frame.to(torch.float32)
+        frame_medians = block_medians(plane, block).flatten().numpy().astype(np.float64)
+        tiles = _tiles(plane, block).flatten(0, -2)
+        tiles = tiles[:: max(1, tiles.shape[0] // NOISE_BLOCKS)]
+        centre, upper = torch.quantile(tiles, torch.tensor([0.5, 0.75]), dim=-1)
+        medians.append(frame_medians)
+        centres.append(centre)
+        uppers.append(upper)
+        try:
+            per_frame.append(
+                fit_darkening(
+                    np.quantile(frame_medians, PROBABILITIES), _noise_of_quantiles(centre, upper, side), source=source
+                )
+            )
+        except DarksynthError:
+            per_frame.append(None)
+    centre_all, upper_all = torch.cat(centres), torch.cat(uppers)
+    step = max(1, centre_all.shape[0] // NOISE_BLOCKS)
+    pooled_noise = _noise_of_quantiles(centre_all[::step], upper_all[::step], side)
+    pooled = fit_darkening(np.quantile(np.concatenate(medians), PROBABILITIES), pooled_noise, source=source)
+    return pooled, per_frame
 
 
 def _paper_prior() -> tuple[float, float, float, float]:

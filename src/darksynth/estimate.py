@@ -29,7 +29,7 @@ from darksynth.darkening_estimate import (
     GAMMA_BOUNDS,
     PROBABILITIES,
     DarkeningEstimate,
-    estimate_darkening,
+    estimate_darkening_pooled_and_per_frame,
     estimate_darkening_spread,
 )
 from darksynth.errors import DarksynthError
@@ -545,7 +545,8 @@ def _estimate_darkening(
     # not information (all 16 frames of a 1080p clip took 6 s more).
     frames = reference[spread_frames(reference.shape[0], DARKENING_FRAMES)]
     try:
-        found = estimate_darkening(frames, source=source)
+        # The pooled estimate and each frame's own (for the clip's range) from one pass over the frames.
+        found, per_frame_found = estimate_darkening_pooled_and_per_frame(frames, source=source)
     except DarksynthError as error:
         warnings.append(f"{error}; the profile has no darkening, apply will draw it from the paper's ranges")
         meta["darkening"] = {
@@ -584,12 +585,7 @@ def _estimate_darkening(
             "estimates have about twice the tone-curve error"
         )
     if frames.shape[0] > 1:
-        per_frame = []
-        for frame in frames:
-            try:
-                per_frame.append(estimate_darkening(frame, source=source).darkening)
-            except DarksynthError:
-                continue
+        per_frame = [estimated.darkening for estimated in per_frame_found if estimated is not None]
         if len(per_frame) > 1:
             for name in ("alpha", "gamma"):
                 values = [getattr(d, name) for d in per_frame]
