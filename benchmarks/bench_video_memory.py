@@ -123,7 +123,7 @@ class ChildRun:
     stderr_tail: str = ""
 
 
-def run_apply(source: Path, output: Path, codec: str | None) -> ChildRun:
+def run_apply(source: Path, output: Path, codec: str | None, profile: Path = PROFILE) -> ChildRun:
     """Run ``darksynth apply`` on one video in a child process and measure it.
 
     Peak memory: the child is reaped with ``os.wait4``, whose rusage belongs to that child alone (its ru_maxrss is
@@ -134,7 +134,7 @@ def run_apply(source: Path, output: Path, codec: str | None) -> ChildRun:
     child and any live descendants catches memory in helper processes that a per-process peak would not add up.
     """
     command = [sys.executable, "-m", "darksynth", "apply", str(source), str(output)]
-    command += ["--profile", str(PROFILE), "--seed", "0"]
+    command += ["--profile", str(profile), "--seed", "0"]
     if codec:
         command += ["--codec", codec]
     run = ChildRun()
@@ -198,7 +198,7 @@ def report(label: str, run: ChildRun) -> None:
     print(f"  apply: {run.stderr_tail}")
 
 
-def profile_stages(source: Path, output: Path, frames: int, codec: str | None) -> None:
+def profile_stages(source: Path, output: Path, frames: int, codec: str | None, profile: Path = PROFILE) -> None:
     """Time decoding, synthesis (compiled, warmed up) and encoding separately on ``frames`` frames, in process."""
     import torch
 
@@ -216,7 +216,7 @@ def profile_stages(source: Path, output: Path, frames: int, codec: str | None) -
     decode_s = time.perf_counter() - started
 
     generator = torch.Generator().manual_seed(0)
-    parameters = draw_clip_parameters(load_profile(PROFILE), darkening="profile", generator=generator)
+    parameters = draw_clip_parameters(load_profile(profile), darkening="profile", generator=generator)
     synthesizer = ClipSynthesizer(parameters, generator=generator, compile=True)
     started = time.perf_counter()
     synthesizer(torch.from_numpy(decoded[0]).permute(2, 0, 1))
@@ -260,6 +260,12 @@ def main() -> None:
     parser.add_argument("--codec", default=None, help="passed to darksynth apply --codec (default: its own)")
     parser.add_argument("--workdir", type=Path, default=None, help="kept if given; else a temporary folder")
     parser.add_argument("--profile-stages", type=int, default=0, metavar="N", help="time the stages on N frames")
+    parser.add_argument(
+        "--profile",
+        type=Path,
+        default=PROFILE,
+        help="noise profile (default: the shipped paper-model default; an estimate'd profile takes the sRGB path)",
+    )
     args = parser.parse_args()
 
     import torch  # only to report the thread count the children get by default (they run the same torch)
@@ -287,7 +293,7 @@ def main() -> None:
         runs = {}
         for name in ("warmup", "short", "long"):
             output = workdir / f"out_{name}{suffix}"
-            runs[name] = run = run_apply(sources[name], output, args.codec)
+            runs[name] = run = run_apply(sources[name], output, args.codec, args.profile)
             size = output.stat().st_size / MIB / MIB
             report(f"apply {name}", run)
             print(f"  output {size:.0f} MiB, {size * 8 * 1.048576 / (run.frames / args.fps):.0f} Mbit/s")
@@ -305,7 +311,9 @@ def main() -> None:
         print(f"peak RSS long - short: {growth:+.0f} MiB; under 1 GiB: {long.maxrss_kib < 1024 * 1024}")
 
         if args.profile_stages:
-            profile_stages(sources["short"], workdir / f"out_stages{suffix}", args.profile_stages, args.codec)
+            profile_stages(
+                sources["short"], workdir / f"out_stages{suffix}", args.profile_stages, args.codec, args.profile
+            )
 
         print(
             f"video_seconds={args.seconds:g} frames={long.frames} apply_s={long.seconds:.1f} "
