@@ -366,3 +366,10 @@ def test_a_clean_daylight_photo_warns_that_its_texture_is_read_as_noise() -> Non
     result = estimate(photo, load_weights(default_weights_path("v3", "srgb")), source="day.jpg")
     bright = [w for w in result.warnings if w.startswith("day.jpg: mean level 0.50 is bright")]
     assert bright and "clean daylight photo" in bright[0], result.warnings
+
+
+def test_only_the_srgb_model_is_refined_and_only_when_asked() -> None:
+    from darksynth.estimate import refines
+
+    assert refines("srgb") and refines("srgb", True)
+    assert not refines("srgb", False) and not refines("paper") and not refines("paper", True)

@@ -38,7 +38,7 @@ from darksynth.io.discover import classify_input, scan_folder
 from darksynth.io.images import read_image
 from darksynth.io.video import iter_video_frames
 from darksynth.models.den import DEN
-from darksynth.noise.components import model_parameters, noise_components, noise_parameter
+from darksynth.noise.components import NoiseModel, model_parameters, noise_components, noise_parameter
 from darksynth.noise.level import mean_noise_variance
 from darksynth.noise.values import NoiseValues
 from darksynth.profile import Profile
@@ -326,7 +326,7 @@ def estimate(
             f"{name}: scene cut before frame(s) {cuts}: the estimate mixes more than one scene (the refinement reads "
             f"the first {ANALYSIS_FRAMES} frames, the darkening several spread over the clip); give one shot"
         )
-    if refine and noise_model == "srgb" and len(uniform) < reference.shape[0]:
+    if refines(noise_model, refine) and len(uniform) < reference.shape[0]:
         noise = _refine(reference, noise, ranges, meta, warnings, name)
     level = float(reference.mean())
     if level > BRIGHT_MEAN:
@@ -360,6 +360,12 @@ SCENE_CUT_CHANGE = 0.08
 """A change of the 16x16-block means between two consecutive frames above this (mean absolute, [0, 1] scale) is
 a scene cut: noise, which averages out over 256 pixels, moves the block means by well under 0.01 at the
 strongest training level; a camera pan or a light switched on in a dim scene moves them by a few hundredths."""
+
+
+def refines(noise_model: NoiseModel, refine: bool = True) -> bool:
+    """Whether ``estimate`` (asked to ``refine``) refines a network's values of this noise model on the reference:
+    the sRGB model's only; the paper model stays the paper's."""
+    return refine and noise_model == "srgb"
 
 
 def uniform_frames(reference: torch.Tensor) -> list[int]:

@@ -94,10 +94,10 @@ def load_den_weights(name: str, weights: Path, device: str) -> DEN:
 
 
 def _den_method(name: str, weights: Path, device: str, *, refine: bool = True) -> NoiseMethod:
-    from darksynth.estimate import estimate
+    from darksynth.estimate import estimate, refines
 
     model = load_den_weights(name, weights, device)
-    refined = refine and model.noise_model == "srgb"
+    refined = refines(model.noise_model, refine)
 
     def fit(noisy: torch.Tensor, clean: torch.Tensor) -> NoiseValues:
         return estimate(noisy.to(torch.float32)[None], model, device=device, refine=refine).profile.noise
