@@ -21,8 +21,7 @@ import torch
 
 from darksynth.darkening import ALPHA_RANGE, GAMMA_RANGE, Darkening, darken
 from darksynth.io.arrays import numpy_to_tensor, tensor_to_numpy
-from darksynth.noise.components import noise_parameter, noise_parameters
-from darksynth.noise.correlated import structured_normal
+from darksynth.noise.components import noise_parameter, noise_parameters, structured_unit_noise
 from darksynth.noise.counter_rng import random_key
 from darksynth.noise.kernel8 import (
     FAST_PATH,
@@ -190,15 +189,7 @@ class ClipSynthesizer:
         # (pixel_noise's heteroscedastic part), the quantization bytes; then one pass and the output stages.
         columns_8bit = self._columns_8bit(frame)
         values = self._values
-        unit = structured_normal(
-            (1, *frame.shape),
-            values["correlation_length"][..., 0],
-            values["channel_correlation"],
-            values["channel_gain"],
-            generator=self.generator,
-            dtype=torch.float32,
-            chroma_lengths=values["chroma_length"][..., 0],
-        )[0].to(self.device)
+        unit = structured_unit_noise((1, *frame.shape), values, generator=self.generator)[0].to(self.device)
         source = self.generator.device if self.generator is not None else torch.device("cpu")
         byte = torch.empty(frame.shape, dtype=torch.uint8, device=source).random_(generator=self.generator)
         byte = byte.to(self.device)

@@ -13,7 +13,7 @@ All values are on the [0, 1] intensity scale of the image.
 
 from __future__ import annotations
 
-from collections.abc import Callable, Mapping
+from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass
 from typing import Literal
 
@@ -50,6 +50,13 @@ an 8-bit frame that draws white heteroscedastic and quantization noise and adds 
 ``structured_8bit``: the same pass fed with the sRGB model's structured unit noise (channel gains, spatial and
 colour correlation, drawn by the composer's own function) instead of its counter-based normal, then the
 compression stage: the default path of a profile from ``estimate``."""
+
+_FUSED: frozenset[FastPath] = frozenset({"fused_8bit", "structured_8bit"})
+"""Both 8-bit kernels: the levels (shot, read), quantization, which they draw themselves, and the column components,
+which the composer draws and they add."""
+
+_STRUCTURED: frozenset[FastPath] = frozenset({"structured_8bit"})
+"""The sRGB structure (gains, spatial and colour correlation) and compression: the structured path only."""
 
 DrawFunction = Callable[[torch.Tensor, Mapping[str, torch.Tensor], torch.Generator | None], torch.Tensor]
 """``draw(signal, values, generator) -> noise``: ``signal`` is the darkened clean clip (..., T, C, H, W),
@@ -135,7 +142,7 @@ _HETEROSCEDASTIC_PARAMETERS: tuple[Parameter, ...] = (
         1.0,
         (0.0, 0.2),
         log_floor=0.002,
-        fast_paths=frozenset({"fused_8bit", "structured_8bit"}),
+        fast_paths=_FUSED,
     ),
     Parameter(
         "read",
@@ -144,7 +151,7 @@ _HETEROSCEDASTIC_PARAMETERS: tuple[Parameter, ...] = (
         1.0,
         (0.0, 0.1),
         log_floor=0.001,
-        fast_paths=frozenset({"fused_8bit", "structured_8bit"}),
+        fast_paths=_FUSED,
     ),
     # Measured on the real pairs (docs/srgb-noise.md): red and blue noise 1.1-1.5x green's std, Gaussian
     # lengths 0.6-0.9 px, channel correlations 0.2-0.7, different per pair of channels.
@@ -157,7 +164,7 @@ _HETEROSCEDASTIC_PARAMETERS: tuple[Parameter, ...] = (
         minimum=0.25,
         neutral=1.0,
         noise_model="srgb",
-        fast_paths=frozenset({"structured_8bit"}),
+        fast_paths=_STRUCTURED,
         since_version=2,
         statistics=SRGB_STATISTICS,
         role="shape",
@@ -170,7 +177,7 @@ _HETEROSCEDASTIC_PARAMETERS: tuple[Parameter, ...] = (
         8.0,
         (0.0, 2.0),
         noise_model="srgb",
-        fast_paths=frozenset({"structured_8bit"}),
+        fast_paths=_STRUCTURED,
         since_version=2,
         statistics=SRGB_STATISTICS,
         role="shape",
@@ -184,7 +191,7 @@ _HETEROSCEDASTIC_PARAMETERS: tuple[Parameter, ...] = (
         (0.0, 0.7),
         minimum=-0.45,
         noise_model="srgb",
-        fast_paths=frozenset({"structured_8bit"}),
+        fast_paths=_STRUCTURED,
         since_version=2,
         statistics=SRGB_STATISTICS,
         role="shape",
@@ -199,7 +206,7 @@ _HETEROSCEDASTIC_PARAMETERS: tuple[Parameter, ...] = (
         8.0,
         (0.0, 3.0),
         noise_model="srgb",
-        fast_paths=frozenset({"structured_8bit"}),
+        fast_paths=_STRUCTURED,
         since_version=3,
         statistics=SRGB_STATISTICS,
         role="shape",
@@ -216,17 +223,30 @@ def _draw_heteroscedastic(
         return heteroscedastic_noise(signal, shot, read, generator=generator)
     # A single frame (C, H, W), as streaming passes it, is a clip of one frame.
     shape = signal.shape if signal.dim() >= 4 else (1, *signal.shape)
-    batch = shape[: len(shape) - 4]
-    unit = structured_normal(
+    unit = structured_unit_noise(shape, values, generator=generator, dtype=signal.dtype).reshape(signal.shape)
+    return heteroscedastic_std(signal, shot, read) * unit
+
+
+def structured_unit_noise(
+    shape: Sequence[int],
+    values: Mapping[str, torch.Tensor],
+    *,
+    generator: torch.Generator | None,
+    dtype: torch.dtype = torch.float32,
+) -> torch.Tensor:
+    """The heteroscedastic component's unit noise for clips ``shape`` (*batch, T, C, H, W): channel gains,
+    spatial and colour correlation of ``values`` (batched like the clips, or unbatched), before the per-pixel
+    std; the structured fast path draws the same (:mod:`darksynth.synthesize`)."""
+    batch = tuple(shape[: len(shape) - 4])
+    return structured_normal(
         shape,
         values["correlation_length"].expand(*batch, 1)[..., 0],
         values["channel_correlation"].expand(*batch, 3),
         values["channel_gain"].expand(*batch, 2),
         generator=generator,
-        dtype=signal.dtype,
+        dtype=dtype,
         chroma_lengths=values["chroma_length"].expand(*batch, 1)[..., 0],
-    ).reshape(signal.shape)
-    return heteroscedastic_std(signal, shot, read) * unit
+    )
 
 
 def _draw_compression(
@@ -284,9 +304,6 @@ def _column_variance(name: str) -> VarianceFunction:
 
     return variance
 
-
-_FUSED: frozenset[FastPath] = frozenset({"fused_8bit", "structured_8bit"})
-"""The 8-bit kernel draws quantization itself and adds the column components, which the composer draws."""
 
 # The training ranges cover real sRGB low-light noise: at mid-grey (x = 0.5) shot 0.2 alone gives a std of
 # 0.14 of full scale, and read noise adds up to 0.1 at black.
@@ -383,7 +400,7 @@ NOISE_COMPONENTS: tuple[NoiseComponent, ...] = (
                 0.95,
                 (0.0, 0.7),
                 noise_model="srgb",
-                fast_paths=frozenset({"structured_8bit"}),
+                fast_paths=_STRUCTURED,
                 since_version=2,
                 statistics=SRGB_STATISTICS,
                 training_off_probability=0.4,

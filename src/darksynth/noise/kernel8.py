@@ -69,14 +69,9 @@ def pixel_kernel_8bit(
         The low-light frame (C, H, W) uint8, rounded and clipped.
     """
     normal, byte = normal_and_byte(frame.shape, key)
-    clean = frame.to(torch.float32) * (1.0 / FULL_SCALE)
-    # exp(log(x) / gamma) is x ** (1 / gamma), with log(0) = -inf giving exactly 0 at black.
-    darkened = alpha * torch.exp(inverse_gamma * torch.log(clean))
-    std = torch.sqrt(shot_squared * darkened + read_squared)
-    quantization = (byte.to(torch.float32) + 0.5) * quantization_step
-    level = (darkened + std * normal + quantization) * FULL_SCALE + column_pattern
-    # Rounding before clamping equals clamping before rounding here because the bounds are integers.
-    return level.round().clamp(0.0, FULL_SCALE).to(torch.uint8)
+    return structured_pixel_kernel_8bit(
+        frame, normal, byte, alpha, inverse_gamma, shot_squared, read_squared, quantization_step, column_pattern
+    )
 
 
 def structured_pixel_kernel_8bit(
@@ -94,12 +89,15 @@ def structured_pixel_kernel_8bit(
     normal replaced by ``unit``, the structured unit noise (C, H, W) float32 whose channel gains, spatial and
     colour correlation :func:`darksynth.noise.correlated.structured_normal` drew, and the quantization byte by
     ``byte`` (C, H, W) uint8. The composer's own law: std * unit is its heteroscedastic draw, the byte its
-    quantization draw (:func:`darksynth.noise.quantization.quantization_noise`)."""
+    quantization draw (:func:`darksynth.noise.quantization.quantization_noise`). :func:`pixel_kernel_8bit` is
+    this pass fed with its counter-based normal and byte."""
     clean = frame.to(torch.float32) * (1.0 / FULL_SCALE)
+    # exp(log(x) / gamma) is x ** (1 / gamma), with log(0) = -inf giving exactly 0 at black.
     darkened = alpha * torch.exp(inverse_gamma * torch.log(clean))
     std = torch.sqrt(shot_squared * darkened + read_squared)
     quantization = (byte.to(torch.float32) + 0.5) * quantization_step
     level = (darkened + std * unit + quantization) * FULL_SCALE + column_pattern
+    # Rounding before clamping equals clamping before rounding here because the bounds are integers.
     return level.round().clamp(0.0, FULL_SCALE).to(torch.uint8)
 
 
@@ -160,8 +158,20 @@ def pixel_kernel_in_pieces(
     return out
 
 
-_compiled: PixelKernel | None = None
-_compiled_structured: PixelKernel | None = None
+_compiled: dict[str, PixelKernel] = {}
+
+
+def _compiled_kernel(kernel: PixelKernel) -> PixelKernel:
+    """``kernel`` through ``torch.compile``, once per process, or ``kernel`` itself where compilation is
+    unavailable (with one logged line)."""
+    name = kernel.__name__
+    if name not in _compiled:
+        try:
+            _compiled[name] = torch.compile(kernel, dynamic=False, fullgraph=True)
+        except Exception as error:  # pragma: no cover - depends on the platform's compiler
+            logger.warning("torch.compile unavailable (%s); using the eager %s", error, name)
+            _compiled[name] = kernel
+    return _compiled[name]
 
 
 def compiled_pixel_kernel() -> PixelKernel:
@@ -170,23 +180,9 @@ def compiled_pixel_kernel() -> PixelKernel:
     Compiling costs seconds once per process and frame size (less with the on-disk cache of later runs), so
     callers use it for streams of many same-sized frames and the eager kernel for a single image.
     """
-    global _compiled
-    if _compiled is None:
-        try:
-            _compiled = torch.compile(pixel_kernel_8bit, dynamic=False, fullgraph=True)
-        except Exception as error:  # pragma: no cover - depends on the platform's compiler
-            logger.warning("torch.compile unavailable (%s); using the eager 8-bit kernel", error)
-            _compiled = pixel_kernel_8bit
-    return _compiled
+    return _compiled_kernel(pixel_kernel_8bit)
 
 
 def compiled_structured_kernel() -> PixelKernel:
     """:func:`structured_pixel_kernel_8bit` through ``torch.compile`` (the eager one where that is unavailable)."""
-    global _compiled_structured
-    if _compiled_structured is None:
-        try:
-            _compiled_structured = torch.compile(structured_pixel_kernel_8bit, dynamic=False, fullgraph=True)
-        except Exception as error:  # pragma: no cover - depends on the platform's compiler
-            logger.warning("torch.compile unavailable (%s); using the eager structured kernel", error)
-            _compiled_structured = structured_pixel_kernel_8bit
-    return _compiled_structured
+    return _compiled_kernel(structured_pixel_kernel_8bit)
