@@ -183,11 +183,17 @@ def median_noise(frames: torch.Tensor, block: int = BLOCK) -> float:
     1.25 / ``block`` of that standard deviation.
     """
     frames = frames.to(torch.float32)
+    centre, upper = _block_noise_quantiles(frames, block)
+    return _noise_of_quantiles(centre, upper, _side(frames, block))
+
+
+def _block_noise_quantiles(frames: torch.Tensor, block: int) -> tuple[torch.Tensor, torch.Tensor]:
+    """Median and 75th percentile of every block of float32 frames, in flat order (frame, channel, row, column)."""
     tiles = _tiles(frames, block).flatten(0, -2)
     # An even subsample of the blocks reads the same median noise at a bounded cost (4K clips have ~25 M).
     tiles = tiles[:: max(1, tiles.shape[0] // NOISE_BLOCKS)]
     centre, upper = torch.quantile(tiles, torch.tensor([0.5, 0.75]), dim=-1)
-    return _noise_of_quantiles(centre, upper, _side(frames, block))
+    return centre, upper
 
 
 def _side(frames: torch.Tensor, block: int) -> int:
@@ -221,9 +227,7 @@ def estimate_darkening_pooled_and_per_frame(
     for frame in frames:
         plane = frame.to(torch.float32)
         frame_medians = block_medians(plane, block).flatten().numpy().astype(np.float64)
-        tiles = _tiles(plane, block).flatten(0, -2)
-        tiles = tiles[:: max(1, tiles.shape[0] // NOISE_BLOCKS)]
-        centre, upper = torch.quantile(tiles, torch.tensor([0.5, 0.75]), dim=-1)
+        centre, upper = _block_noise_quantiles(plane, block)
         medians.append(frame_medians)
         centres.append(centre)
         uppers.append(upper)

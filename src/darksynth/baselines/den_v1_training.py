@@ -34,7 +34,8 @@ from darksynth.baselines.den_v1 import DENv1, DENv1Config, save_den_v1
 from darksynth.baselines.starlight_training import (
     STATISTICS_WITH_GRADIENT,
     PatchDiscriminator,
-    discriminator_features,
+    adversarial_loss,
+    discriminator_step,
     histogram_kl,
 )
 from darksynth.darkening import darken
@@ -182,18 +183,12 @@ class _V1Steps:
         dark, target = sample.dark.to(device), sample.target.to(device)
         fake = model(sample.reference.to(device), dark, self.generator)
 
-        scores_real = discriminator(discriminator_features(dark, target))
-        scores_fake = discriminator(discriminator_features(dark, fake.detach()))
-        loss_d = 0.5 * ((scores_real - 1.0).square().mean() + scores_fake.square().mean())
-        self.optimizer_d.zero_grad(set_to_none=True)
-        loss_d.backward()
-        self.optimizer_d.step()
-
-        adversarial = (discriminator(discriminator_features(dark, fake)) - 1.0).square().mean()
+        loss_d = discriminator_step(discriminator, self.optimizer_d, dark, target, fake)
+        adversarial = adversarial_loss(discriminator, dark, fake)
         matching = per_clip_statistics_loss(fake, target)
         loss_g = config.lambda_adversarial * adversarial + config.lambda_statistics * matching
         self.optimizer.zero_grad(set_to_none=True)
-        loss_g.backward()
+        loss_g.backward()  # type: ignore[no-untyped-call]
         self.optimizer.step()
         return {
             "discriminator": float(loss_d.detach()),

@@ -161,6 +161,29 @@ def discriminator_features(dark: torch.Tensor, noisy: torch.Tensor) -> torch.Ten
     return features.flatten(0, 1)
 
 
+def discriminator_step(
+    discriminator: nn.Module,
+    optimizer: torch.optim.Optimizer,
+    dark: torch.Tensor,
+    real: torch.Tensor,
+    fake: torch.Tensor,
+) -> torch.Tensor:
+    """One least-squares GAN step of the discriminator (real scored 1, the generator's clips 0); its loss."""
+    scores_real = discriminator(discriminator_features(dark, real))
+    scores_fake = discriminator(discriminator_features(dark, fake.detach()))
+    loss: torch.Tensor = 0.5 * ((scores_real - 1.0).square().mean() + scores_fake.square().mean())
+    optimizer.zero_grad(set_to_none=True)
+    loss.backward()  # type: ignore[no-untyped-call]
+    optimizer.step()
+    return loss
+
+
+def adversarial_loss(discriminator: nn.Module, dark: torch.Tensor, fake: torch.Tensor) -> torch.Tensor:
+    """The generator's least-squares GAN loss: its clips should be scored 1."""
+    result: torch.Tensor = (discriminator(discriminator_features(dark, fake)) - 1.0).square().mean()
+    return result
+
+
 def statistics_loss(fake: torch.Tensor, real: torch.Tensor) -> torch.Tensor:
     """Mean squared difference of the batch means of the DEN's noise statistics (log10 units)."""
     fake_statistics = noise_statistics(fake)[:, STATISTICS_WITH_GRADIENT].mean(0)
@@ -323,18 +346,12 @@ class _StarlightSteps:
         dark, real = batch.dark.to(self.device), batch.noisy.to(self.device)
         fake = model(dark, self.generator)
 
-        scores_real = discriminator(discriminator_features(dark, real))
-        scores_fake = discriminator(discriminator_features(dark, fake.detach()))
-        loss_d = 0.5 * ((scores_real - 1.0).square().mean() + scores_fake.square().mean())
-        self.optimizer_d.zero_grad(set_to_none=True)
-        loss_d.backward()
-        self.optimizer_d.step()
-
-        adversarial = (discriminator(discriminator_features(dark, fake)) - 1.0).square().mean()
+        loss_d = discriminator_step(discriminator, self.optimizer_d, dark, real, fake)
+        adversarial = adversarial_loss(discriminator, dark, fake)
         matching = statistics_loss(fake, real)
         loss_g = config.lambda_adversarial * adversarial + config.lambda_statistics * matching
         self.optimizer.zero_grad(set_to_none=True)
-        loss_g.backward()
+        loss_g.backward()  # type: ignore[no-untyped-call]
         self.optimizer.step()
         for schedule in self.schedules:
             schedule.step()
