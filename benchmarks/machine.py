@@ -40,4 +40,17 @@ def cpu_summary() -> str:
     cores = len(os.sched_getaffinity(0)) if hasattr(os, "sched_getaffinity") else os.cpu_count()
     return (
         f"cpu: {model}; {cores} cores; vector extensions: {' '.join(present) or 'none found'}; torch uses {capability}"
+        f"; {_compiled_target()}"
     )
+
+
+def _compiled_target() -> str:
+    """The vector instruction set torch.compile's C++ kernels are generated for and the -march they are built
+    with: ATEN_CPU_CAPABILITY=avx2 with TORCHINDUCTOR_CPP_MARCH=x86-64-v3 makes an AVX-512 machine build and run
+    AVX2-only code, how docs/performance.md measures the other processor family on one machine."""
+    try:
+        from torch._inductor import config, cpu_vec_isa
+
+        return f"compiled kernels: {cpu_vec_isa.pick_vec_isa() or 'scalar'}, -march={config.cpp.march or 'native'}"
+    except (ImportError, AttributeError):
+        return "compiled kernels: unknown"

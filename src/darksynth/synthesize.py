@@ -21,7 +21,7 @@ import torch
 
 from darksynth.darkening import ALPHA_RANGE, GAMMA_RANGE, Darkening, darken
 from darksynth.io.arrays import numpy_to_tensor, tensor_to_numpy
-from darksynth.noise.components import noise_parameter, noise_parameters, structured_unit_noise
+from darksynth.noise.components import noise_parameter, noise_parameters
 from darksynth.noise.counter_rng import random_key
 from darksynth.noise.kernel8 import (
     FAST_PATH,
@@ -29,11 +29,13 @@ from darksynth.noise.kernel8 import (
     STRUCTURED_PATH,
     PixelKernel,
     compiled_pixel_kernel,
-    compiled_structured_kernel,
+    compiled_srgb_kernel,
     kernel_scalars,
     pixel_kernel_8bit,
     pixel_kernel_in_pieces,
-    structured_pixel_kernel_8bit,
+    srgb_kernel_factors,
+    srgb_kernel_in_pieces,
+    srgb_pixel_kernel_8bit,
 )
 from darksynth.noise.sampling import random_uniform
 from darksynth.noise.simulate import add_noise, apply_output_stages, column_noise
@@ -101,8 +103,9 @@ class ClipSynthesizer:
     Every frame goes through the composer (:func:`darksynth.noise.simulate.add_noise`), which holds the
     components a clip keeps fixed (temporal banding) from the first frame on. 8-bit frames whose values the
     fused kernel covers (:data:`darksynth.noise.kernel8.FAST_PATH` in the table) take it for the per-pixel part;
-    with ``compile``, those of the sRGB model (:data:`darksynth.noise.kernel8.STRUCTURED_PATH`) draw the structured
-    unit noise with the composer's function and do the rest in the compiled structured kernel's one pass.
+    with ``compile``, those of the sRGB model (:data:`darksynth.noise.kernel8.STRUCTURED_PATH`) take the compiled
+    sRGB kernel, which draws the structured unit noise and does the per-pixel pass in one function, and then the
+    compression stage.
 
     Args:
         parameters: the clip's parameters (see :func:`draw_clip_parameters`).
@@ -127,10 +130,11 @@ class ClipSynthesizer:
         self._kernel: PixelKernel = compiled_pixel_kernel() if compile else pixel_kernel_8bit
         uncovered = self._values.uncovered_by(FAST_PATH)
         self._fusable = not uncovered
-        # Only compiled: eagerly, the structured kernel's chain of whole-frame operations is slower than the
-        # general composer (349 against 205 ms a 1080p frame; docs/performance.md).
+        # Only compiled: eagerly, the sRGB kernel's chain of operations is slower than the general composer
+        # (200 against 149 ms a 1080p frame; docs/performance.md).
         self._structured = compile and bool(uncovered) and self._values.covered_by(STRUCTURED_PATH)
-        self._structured_kernel: PixelKernel = compiled_structured_kernel() if compile else structured_pixel_kernel_8bit
+        self._srgb_kernel: PixelKernel = compiled_srgb_kernel() if compile else srgb_pixel_kernel_8bit
+        self._srgb_factors: tuple[torch.Tensor, ...] | None = None
         if uncovered and not self._structured:
             logger.debug("8-bit frames take the general composer: %s not covered by %s", uncovered, FAST_PATH)
         self._scalars: tuple[torch.Tensor, ...] | None = None
@@ -143,7 +147,9 @@ class ClipSynthesizer:
         if frame.dtype == torch.uint8 and self._fusable:
             return self._fused(frame)
         if frame.dtype == torch.uint8 and self._structured:
-            return self._fused_structured(frame)
+            structured = self._fused_structured(frame)
+            if structured is not None:
+                return structured
         scale = _full_scale(frame.dtype)
         clean = frame.to(torch.float32) / scale if scale else frame.to(torch.float32)
         darkening = self.parameters.darkening
@@ -184,24 +190,30 @@ class ClipSynthesizer:
                 self._kernel = pixel_kernel_8bit
         return pixel_kernel_in_pieces(self._kernel, frame, key, scalars, columns_8bit)
 
-    def _fused_structured(self, frame: torch.Tensor) -> torch.Tensor:
-        # The composer's draws in its order for a frame: the column components, the structured unit noise
-        # (pixel_noise's heteroscedastic part), the quantization bytes; then one pass and the output stages.
+    def _fused_structured(self, frame: torch.Tensor) -> torch.Tensor | None:
+        """The frame through the compiled sRGB kernel and the output stages; None once that kernel has failed
+        (the caller then takes the general composer, which has the same law)."""
         columns_8bit = self._columns_8bit(frame)
-        values = self._values
-        unit = structured_unit_noise((1, *frame.shape), values, generator=self.generator)[0].to(self.device)
-        source = self.generator.device if self.generator is not None else torch.device("cpu")
-        byte = torch.empty(frame.shape, dtype=torch.uint8, device=source).random_(generator=self.generator)
-        byte = byte.to(self.device)
-        arguments = (frame, unit, byte, *self._kernel_scalars(), columns_8bit)
+        key = random_key(self.generator).to(self.device)
+        if self._srgb_factors is None:
+            self._srgb_factors = srgb_kernel_factors(self._values, frame.shape[0], device=self.device)
         try:
-            out = self._structured_kernel(*arguments)
+            out = srgb_kernel_in_pieces(
+                self._srgb_kernel,
+                frame,
+                key,
+                self._srgb_factors,
+                self._kernel_scalars(),
+                columns_8bit,
+                piece_values=frame.numel(),
+            )
         except Exception as error:
-            if self._structured_kernel is structured_pixel_kernel_8bit:
-                raise
-            logger.warning("compiled structured kernel failed (%s); using the eager kernel", error)
-            self._structured_kernel = structured_pixel_kernel_8bit
-            out = self._structured_kernel(*arguments)
+            # As for the white kernel: a platform without a working compiler. Eagerly this kernel is slower than
+            # the general composer (docs/performance.md), so the stream goes on there.
+            logger.warning("compiled sRGB kernel failed (%s); using the general composer", error)
+            self._structured = False
+            return None
+        values = self._values
         if values.is_neutral(noise_parameter("compression")):
             return out
         compressed = apply_output_stages(out.to(torch.float32)[None] / FULL_SCALE, values, generator=self.generator)

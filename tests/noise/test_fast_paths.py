@@ -111,11 +111,15 @@ def _statistics(frames: torch.Tensor) -> dict[str, torch.Tensor]:
     }
 
 
-@pytest.mark.parametrize("compression", [0.0, 0.3])
-def test_structured_and_general_paths_draw_the_same_law(compression: float) -> None:
-    """The compiled structured kernel against the general composer on the same 8-bit frames, by moments:
-    per-channel mean and std, channel correlations, lag-1 autocorrelation (spatial correlation)."""
-    values = NoiseValues.from_values(SRGB | {"compression": compression})  # type: ignore[arg-type]
+@pytest.mark.parametrize(
+    ("compression", "chroma_length"), [(0.0, 1.0), (0.3, 1.0), (0.0, 0.0)], ids=["chroma", "chroma-jpeg", "cholesky"]
+)
+def test_structured_and_general_paths_draw_the_same_law(compression: float, chroma_length: float) -> None:
+    """The compiled sRGB kernel against the general composer on the same 8-bit frames, by moments: per-channel
+    mean and std, channel correlations, lag-1 autocorrelation (spatial correlation); with coarser colour noise
+    (the principal-component mixing) and without (the Cholesky mixing)."""
+    extra = {"compression": compression, "chroma_length": chroma_length}
+    values = NoiseValues.from_values(SRGB | extra)  # type: ignore[arg-type]
     parameters = ClipParameters(values, Darkening(0.4, 1.0))
     frame = torch.full((3, 192, 192), 150, dtype=torch.uint8)
     structured = ClipSynthesizer(parameters, generator=torch.Generator().manual_seed(3), compile=True)
@@ -131,20 +135,31 @@ def test_structured_and_general_paths_draw_the_same_law(compression: float) -> N
     assert float(fast["correlation"].min()) > 0.1 and float(fast["lag"].min()) > 0.3
 
 
-def test_a_failing_compiled_structured_kernel_falls_back_with_a_log_line(
+def test_a_failing_compiled_srgb_kernel_falls_back_to_the_general_composer_with_a_log_line(
     monkeypatch: pytest.MonkeyPatch, caplog: pytest.LogCaptureFixture
 ) -> None:
     def broken(*args: object) -> torch.Tensor:
         raise RuntimeError("no working C compiler")
 
-    monkeypatch.setattr(sys.modules["darksynth.synthesize"], "compiled_structured_kernel", lambda: broken)
+    module = sys.modules["darksynth.synthesize"]
+    monkeypatch.setattr(module, "compiled_srgb_kernel", lambda: broken)
+    composed: list[int] = []
+    general_add_noise = module.add_noise
+
+    def counting_add_noise(*args: object, **kwargs: object) -> torch.Tensor:
+        composed.append(1)
+        return general_add_noise(*args, **kwargs)  # type: ignore[arg-type]
+
+    monkeypatch.setattr(module, "add_noise", counting_add_noise)
     parameters = ClipParameters(NoiseValues.from_values(SRGB), None)  # type: ignore[arg-type]
-    frame = torch.full((3, 32, 32), 100, dtype=torch.uint8)
+    frame = torch.full((3, 64, 64), 100, dtype=torch.uint8)
     with caplog.at_level(logging.WARNING, logger="darksynth.synthesize"):
         compiled = ClipSynthesizer(parameters, generator=torch.Generator().manual_seed(2), compile=True)
         frames = [compiled(frame) for _ in range(3)]
-    eager = ClipSynthesizer(parameters, generator=torch.Generator().manual_seed(2), compile=True)
-    eager._structured_kernel = kernel8.structured_pixel_kernel_8bit
-    assert all(torch.equal(a, eager(frame)) for a in frames)
-    warnings = [r for r in caplog.records if "compiled structured kernel failed" in r.getMessage()]
+    assert not compiled._structured and len(composed) == 3  # every frame, the failing one included
+    assert all(f.dtype == torch.uint8 and f.shape == frame.shape for f in frames)
+    std = torch.stack(frames).double().std(dim=(0, 2, 3))
+    expected = 255.0 * (0.05**2 * 100 / 255 + 0.01**2) ** 0.5 * torch.tensor([1.3, 1.0, 0.8], dtype=torch.float64)
+    assert torch.allclose(std / expected, torch.ones(3, dtype=torch.float64), atol=0.15)
+    warnings = [r for r in caplog.records if "compiled sRGB kernel failed" in r.getMessage()]
     assert len(warnings) == 1 and "no working C compiler" in warnings[0].getMessage()

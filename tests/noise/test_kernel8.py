@@ -13,6 +13,7 @@ import torch
 import darksynth
 from darksynth.darkening import Darkening
 from darksynth.noise.components import model_parameters
+from darksynth.noise.counter_rng import advance, random_key
 from darksynth.noise.kernel8 import compiled_pixel_kernel, pixel_kernel_8bit
 from darksynth.noise.values import NoiseValues
 from darksynth.profile import default_profile_path, load_profile
@@ -123,7 +124,7 @@ def _kernel_argument(name: str, generator: torch.Generator) -> torch.Tensor:
         "mean_table": lambda: torch.rand(256, generator=generator) * 300.0 - 20.0,
         "std_table": lambda: torch.rand(256, generator=generator) * 30.0,
         "level_step": lambda: torch.tensor(5.0 / 256.0),
-        "key": lambda: torch.randint(0, 1 << 62, (), dtype=torch.int64, generator=generator),
+        "key": lambda: random_key(generator),
         "alpha": lambda: torch.tensor(0.9),
         "inverse_gamma": lambda: torch.tensor(1.3),
         "shot_squared": lambda: torch.tensor(0.3**2),
@@ -165,11 +166,76 @@ def test_kernel_in_pieces_is_bit_identical_to_one_call() -> None:
     generator = torch.Generator().manual_seed(5)
     frame = torch.randint(0, 256, (3, 301, 517), dtype=torch.uint8, generator=generator)
     columns = torch.randn(3, 1, 517, generator=generator) * 3
-    key = torch.tensor(123_456_789, dtype=torch.int64)
+    key = torch.tensor([123_456_789, -5], dtype=torch.int32)
     values = NoiseValues.from_values({"shot": 0.1, "read": 0.02, "quantization": 0.01})
     scalars = kernel_scalars(0.3, 0.6, values, device=torch.device("cpu"))
     whole = pixel_kernel_8bit(frame, key, *scalars, columns)
     # Pieces of 7 rows (3619 values) cut every channel into many blocks, the last one partial.
     pieces = pixel_kernel_in_pieces(pixel_kernel_8bit, frame, key, scalars, columns, piece_values=3619)
     assert torch.equal(whole, pieces)
-    assert not torch.equal(whole, pixel_kernel_8bit(frame, key + 1, *scalars, columns))
+    assert not torch.equal(whole, pixel_kernel_8bit(frame, advance(key, 1), *scalars, columns))
+    # The base word wraps at 2^32: a block near the end of the counter range still gets its own numbers.
+    wrapped = torch.tensor([(1 << 31) - 1000, -5], dtype=torch.int32)
+    whole = pixel_kernel_8bit(frame, wrapped, *scalars, columns)
+    assert torch.equal(
+        whole, pixel_kernel_in_pieces(pixel_kernel_8bit, frame, wrapped, scalars, columns, piece_values=3619)
+    )
+
+
+SRGB_VALUES = {
+    "shot": 0.1,
+    "read": 0.02,
+    "quantization": 0.01,
+    "channel_gain": [1.2, 0.7],
+    "correlation_length": 0.8,
+    "channel_correlation": [0.5, 0.3, 0.2],
+    "chroma_length": 1.5,
+}
+
+
+@pytest.mark.parametrize("channels", [3, 1])
+def test_srgb_kernel_in_pieces_is_bit_identical_to_one_call(channels: int) -> None:
+    from darksynth.noise.kernel8 import (
+        kernel_scalars,
+        srgb_kernel_factors,
+        srgb_kernel_in_pieces,
+        srgb_pixel_kernel_8bit,
+    )
+
+    generator = torch.Generator().manual_seed(6)
+    frame = torch.randint(0, 256, (channels, 157, 211), dtype=torch.uint8, generator=generator)
+    columns = torch.randn(channels, 1, 211, generator=generator) * 3
+    key = random_key(generator)
+    values = NoiseValues.from_values(SRGB_VALUES)  # type: ignore[arg-type]
+    factors = srgb_kernel_factors(values, channels, device=torch.device("cpu"))
+    scalars = kernel_scalars(0.3, 0.6, values, device=torch.device("cpu"))
+    whole = srgb_kernel_in_pieces(srgb_pixel_kernel_8bit, frame, key, factors, scalars, columns)
+    # Blocks of 5 rows: the padded margins of neighbouring blocks overlap, and the last block is partial.
+    pieces = srgb_kernel_in_pieces(
+        srgb_pixel_kernel_8bit, frame, key, factors, scalars, columns, piece_values=5 * channels * 211
+    )
+    assert torch.equal(whole, pieces)
+    other = srgb_kernel_in_pieces(srgb_pixel_kernel_8bit, frame, random_key(generator), factors, scalars, columns)
+    assert (other != whole).double().mean().item() > 0.3
+
+
+def test_counter_normals_and_bytes_have_their_laws_and_are_independent() -> None:
+    """Moments of the counter-based normal against N(0, 1), the bytes' histogram against uniform, and no
+    correlation between neighbouring draws, between a draw's normal and byte, or between two keys."""
+    from darksynth.noise.counter_rng import normal_and_byte
+
+    generator = torch.Generator().manual_seed(11)
+    count = 1 << 20
+    normal, byte = normal_and_byte((count,), random_key(generator))
+    other, _ = normal_and_byte((count,), random_key(generator))
+    n = float(count)
+    z = normal.double()
+    assert abs(z.mean().item()) < 5 / math.sqrt(n)
+    assert abs(z.var().item() - 1.0) < 5 * math.sqrt(2 / n)
+    assert abs(scipy.stats.skew(z.numpy())) < 5 * math.sqrt(6 / n)
+    assert abs(scipy.stats.kurtosis(z.numpy())) < 5 * math.sqrt(24 / n)
+    assert scipy.stats.kstest(z.numpy()[:100_000], "norm").pvalue > 1e-3
+    histogram = torch.bincount(byte.long(), minlength=256).double()
+    assert scipy.stats.chisquare(histogram.numpy()).pvalue > 1e-3
+    for a, b in ((z[1:], z[:-1]), (z, byte.double()), (z, other.double())):
+        assert abs(torch.corrcoef(torch.stack([a, b]))[0, 1].item()) < 5 / math.sqrt(n)

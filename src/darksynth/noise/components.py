@@ -236,7 +236,7 @@ def structured_unit_noise(
 ) -> torch.Tensor:
     """The heteroscedastic component's unit noise for clips ``shape`` (*batch, T, C, H, W): channel gains,
     spatial and colour correlation of ``values`` (batched like the clips, or unbatched), before the per-pixel
-    std; the structured fast path draws the same (:mod:`darksynth.synthesize`)."""
+    std; the compiled sRGB kernel draws the same law from the same factors (:mod:`darksynth.noise.kernel8`)."""
     batch = tuple(shape[: len(shape) - 4])
     return structured_normal(
         shape,

@@ -208,37 +208,67 @@ def structured_normal(
     for length, pairs, (red, blue), chroma in zip(
         flat_lengths, flat_correlations, flat_gains, flat_chroma, strict=True
     ):
+        lengths_of_components, mixing = unit_noise_factors(channels, length, chroma, pairs, (red, blue))
         if channels == 3 and chroma > 0.0:
-            clips.append(_luma_chroma_normal(frame_shape, generator, length, chroma, pairs, (red, blue), dtype))
+            clips.append(_luma_chroma_normal(frame_shape, generator, lengths_of_components, mixing, dtype))
             continue
         unit = correlated_normal(frame_shape, generator, float(length), dtype=dtype, device=device)
         if channels == 3:
-            factor = torch.linalg.cholesky(valid_channel_correlation(pairs))
-            factor = factor * torch.tensor([red, 1.0, blue], dtype=torch.float64)[:, None]
-            unit = torch.einsum("ij,tjhw->tihw", factor.to(device=device, dtype=dtype), unit)
+            unit = torch.einsum("ij,tjhw->tihw", mixing.to(device=device, dtype=dtype), unit)
         clips.append(unit)
     return torch.stack(clips).reshape(*batch, *frame_shape)
+
+
+def unit_noise_factors(
+    channels: int, length: float, chroma: float, pairs: Sequence[float], gains: tuple[float, float]
+) -> tuple[list[float], torch.Tensor]:
+    """How :func:`structured_normal` makes one clip's unit noise: the kernel length of each of its independent
+    unit-variance components, and the (C, N) float64 matrix that mixes the N components into the C channels.
+
+    Grey: one component of ``length``, mixing [[1]]. Colour without chroma length: three components of
+    ``length``, mixed by the Cholesky factor of the channel correlation scaled by the gains. Colour with a chroma
+    length: the principal components of the channel covariance S = G R G, the two colour ones first with the
+    kernel of std sqrt(length^2 + chroma^2), the main one last with ``length``, mixed by V diag(sqrt(lambda)).
+    In every case the mixing M gives the per-pixel channel covariance M M^T = S. The fused sRGB kernel
+    (:mod:`darksynth.noise.kernel8`) draws the same components from the same factors.
+    """
+    if channels != 3:
+        return [float(length)], torch.ones(1, 1, dtype=torch.float64)
+    scale = torch.tensor([gains[0], 1.0, gains[1]], dtype=torch.float64)
+    if chroma <= 0.0:
+        factor = torch.linalg.cholesky(valid_channel_correlation(pairs))
+        return [float(length)] * 3, factor * scale[:, None]
+    covariance = valid_channel_correlation(pairs) * scale[:, None] * scale[None, :]
+    eigenvalues, eigenvectors = torch.linalg.eigh(covariance)  # ascending: the main component is the last
+    colour_length = math.sqrt(length**2 + chroma**2)
+    return [colour_length, colour_length, float(length)], eigenvectors * eigenvalues.clamp_min(0.0).sqrt()[None, :]
+
+
+def normalised_taps(lengths: Sequence[float], *, dtype: torch.dtype = torch.float32) -> torch.Tensor:
+    """(N, K) taps, one row per component: :func:`gaussian_kernel1d` of each length divided by the square root of
+    its energy (so that filtering white noise along x and y keeps its variance at 1), zero-padded on both sides
+    to the longest kernel."""
+    kernels = [gaussian_kernel1d(length) for length in lengths]
+    size = max(kernel.numel() for kernel in kernels)
+    taps = torch.zeros(len(kernels), size, dtype=torch.float64)
+    for row, kernel in enumerate(kernels):
+        margin = (size - kernel.numel()) // 2
+        taps[row, margin : margin + kernel.numel()] = kernel / kernel.square().sum().sqrt()
+    return taps.to(dtype)
 
 
 def _luma_chroma_normal(
     frame_shape: tuple[int, ...],
     generator: torch.Generator,
-    length: float,
-    chroma: float,
-    pairs: Sequence[float],
-    gains: tuple[float, float],
+    lengths: Sequence[float],
+    mixing: torch.Tensor,
     dtype: torch.dtype,
 ) -> torch.Tensor:
-    """One clip (T, 3, H, W) of :func:`structured_normal` with coarser colour noise (see there)."""
+    """One clip (T, 3, H, W) of :func:`structured_normal` with coarser colour noise (see there), from its
+    :func:`unit_noise_factors`."""
     device = generator.device
-    scale = torch.tensor([gains[0], 1.0, gains[1]], dtype=torch.float64)
-    covariance = valid_channel_correlation(pairs) * scale[:, None] * scale[None, :]
-    eigenvalues, eigenvectors = torch.linalg.eigh(covariance)  # ascending: the main component is the last
     frames, _, height, width = frame_shape
-    colour = correlated_normal(
-        (frames, 2, height, width), generator, math.sqrt(length**2 + chroma**2), dtype=dtype, device=device
-    )
-    brightness = correlated_normal((frames, 1, height, width), generator, float(length), dtype=dtype, device=device)
+    colour = correlated_normal((frames, 2, height, width), generator, lengths[0], dtype=dtype, device=device)
+    brightness = correlated_normal((frames, 1, height, width), generator, lengths[2], dtype=dtype, device=device)
     components = torch.cat([colour, brightness], dim=1)
-    mixing = eigenvectors * eigenvalues.clamp_min(0.0).sqrt()[None, :]
     return torch.einsum("ij,tjhw->tihw", mixing.to(device=device, dtype=dtype), components)

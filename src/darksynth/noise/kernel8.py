@@ -21,7 +21,8 @@ from collections.abc import Callable
 import torch
 
 from darksynth.noise.components import FastPath
-from darksynth.noise.counter_rng import normal_and_byte
+from darksynth.noise.correlated import normalised_taps, unit_noise_factors
+from darksynth.noise.counter_rng import advance, first_word, flat_index, normal_and_byte, normal_from_word
 from darksynth.noise.quantization import QUANTIZATION_LEVELS
 from darksynth.noise.values import NoiseValues
 
@@ -34,10 +35,15 @@ FAST_PATH: FastPath = "fused_8bit"
 heteroscedastic and quantization noise per pixel; the column components come in as a precomputed pattern."""
 
 STRUCTURED_PATH: FastPath = "structured_8bit"
-"""The sRGB model's path: :func:`structured_pixel_kernel_8bit` with the structured unit noise and the quantization
-bytes drawn by the caller from its generator, the compression stage after it."""
+"""The sRGB model's path: :func:`srgb_pixel_kernel_8bit`, which draws the structured unit noise (counter-based
+normals, the spatial filter of each component, the channel mixing) and does the per-pixel pass in one compiled
+function; the compression stage runs after it."""
 
 PixelKernel = Callable[..., torch.Tensor]
+
+EAGER_CHUNK_VALUES = 1 << 19
+"""The eager kernel works through a frame in pieces of about this many values: its chain of operations
+materialises some twenty frame-sized temporaries, over 1 GiB for a 1080p frame if done in one piece."""
 
 
 def pixel_kernel_8bit(
@@ -57,7 +63,7 @@ def pixel_kernel_8bit(
 
     Args:
         frame: clean frame (C, H, W) uint8.
-        key: 0-dim int64, the frame's key for the counter-based normal and quantization byte.
+        key: (2,) int32, the frame's key for the counter-based normal and quantization byte.
         alpha: darkening scale (1 for no darkening).
         inverse_gamma: darkening exponent 1 / gamma (1 for no darkening).
         shot_squared: shot^2 of the heteroscedastic noise, on the [0, 1] scale.
@@ -85,12 +91,10 @@ def structured_pixel_kernel_8bit(
     quantization_step: torch.Tensor,
     column_pattern: torch.Tensor,
 ) -> torch.Tensor:
-    """One frame of darkening + f(v) for the sRGB model on 8-bit values: :func:`pixel_kernel_8bit` with the
-    normal replaced by ``unit``, the structured unit noise (C, H, W) float32 whose channel gains, spatial and
-    colour correlation :func:`darksynth.noise.correlated.structured_normal` drew, and the quantization byte by
-    ``byte`` (C, H, W) uint8. The composer's own law: std * unit is its heteroscedastic draw, the byte its
-    quantization draw (:func:`darksynth.noise.quantization.quantization_noise`). :func:`pixel_kernel_8bit` is
-    this pass fed with its counter-based normal and byte."""
+    """The per-pixel pass of both kernels: darkening, std * ``unit`` (the heteroscedastic draw), the quantization
+    draw from ``byte`` (C, H, W) int32 in 0..255 (:func:`darksynth.noise.quantization.quantization_noise`'s law), the
+    column pattern, rounding and clamping. ``unit`` (C, H, W) float32 is white for :func:`pixel_kernel_8bit` and
+    the structured unit noise for :func:`srgb_pixel_kernel_8bit`."""
     clean = frame.to(torch.float32) * (1.0 / FULL_SCALE)
     # exp(log(x) / gamma) is x ** (1 / gamma), with log(0) = -inf giving exactly 0 at black.
     darkened = alpha * torch.exp(inverse_gamma * torch.log(clean))
@@ -99,6 +103,103 @@ def structured_pixel_kernel_8bit(
     level = (darkened + std * unit + quantization) * FULL_SCALE + column_pattern
     # Rounding before clamping equals clamping before rounding here because the bounds are integers.
     return level.round().clamp(0.0, FULL_SCALE).to(torch.uint8)
+
+
+def srgb_pixel_kernel_8bit(
+    frame: torch.Tensor,
+    key: torch.Tensor,
+    taps: torch.Tensor,
+    mixing: torch.Tensor,
+    first_row: torch.Tensor,
+    frame_rows: torch.Tensor,
+    alpha: torch.Tensor,
+    inverse_gamma: torch.Tensor,
+    shot_squared: torch.Tensor,
+    read_squared: torch.Tensor,
+    quantization_step: torch.Tensor,
+    column_pattern: torch.Tensor,
+) -> torch.Tensor:
+    """Rows ``first_row ..`` of one frame of darkening + f(v) for the sRGB model on 8-bit values, the structured
+    unit noise drawn inside: :func:`structured_pixel_kernel_8bit` fed with counter-based draws.
+
+    The unit noise is the general path's law (:func:`darksynth.noise.correlated.structured_normal`): N white
+    components on a grid padded by the kernel radius, each filtered along x and y by its row of ``taps`` (variance
+    kept at 1), mixed into the channels by ``mixing``. Normal n at padded row y and column x is the draw of index
+    (n * (frame_rows + K - 1) + y) * (W + K - 1) + x, the quantization byte of channel c at row y, column x the
+    draw of index N * (frame_rows + K - 1) * (W + K - 1) + (c * frame_rows + y) * W + x, so a block of rows
+    gets exactly its numbers in the whole frame: the eager kernel runs in blocks that stay in cache and the
+    output does not depend on the blocking.
+
+    Args:
+        frame: rows of the clean frame (C, R, W) uint8.
+        key: (2,) int32 key of the frame (:func:`darksynth.noise.counter_rng.random_key`).
+        taps: (N, K) float32 normalised taps (:func:`darksynth.noise.correlated.normalised_taps`), K odd.
+        mixing: (C, N) float32 mixing of the components into the channels.
+        first_row, frame_rows: 0-dim int32, the block's first row in the frame and the frame's height.
+        alpha ... column_pattern: as :func:`pixel_kernel_8bit`.
+    """
+    channels, rows, width = frame.shape
+    count, size = taps.shape
+    device = frame.device
+    padded_width = width + size - 1
+    padded_rows = frame_rows + (size - 1)
+    component = torch.arange(count, dtype=torch.int32, device=device)[:, None, None]
+    row = (torch.arange(rows + size - 1, dtype=torch.int32, device=device) + first_row)[None, :, None]
+    column = torch.arange(padded_width, dtype=torch.int32, device=device)[None, None, :]
+    white, _ = normal_from_word(first_word((component * padded_rows + row) * padded_width + column, key))
+    along_x = taps[:, 0, None, None] * white[:, :, :width]
+    for tap in range(1, size):
+        along_x = along_x + taps[:, tap, None, None] * white[:, :, tap : tap + width]
+    both = taps[:, 0, None, None] * along_x[:, :rows]
+    for tap in range(1, size):
+        both = both + taps[:, tap, None, None] * along_x[:, tap : tap + rows]
+    unit = mixing[:, 0, None, None] * both[0]
+    for component_index in range(1, count):
+        unit = unit + mixing[:, component_index, None, None] * both[component_index]
+    channel = torch.arange(channels, dtype=torch.int32, device=device)[:, None, None]
+    frame_row = (torch.arange(rows, dtype=torch.int32, device=device) + first_row)[None, :, None]
+    byte_index = (channel * frame_rows + frame_row) * width + flat_index((1, 1, width), device)
+    _, byte = normal_from_word(first_word(byte_index + count * padded_rows * padded_width, key))
+    return structured_pixel_kernel_8bit(
+        frame, unit, byte, alpha, inverse_gamma, shot_squared, read_squared, quantization_step, column_pattern
+    )
+
+
+def srgb_kernel_factors(values: NoiseValues, channels: int, *, device: torch.device) -> tuple[torch.Tensor, ...]:
+    """The (taps, mixing) arguments of :func:`srgb_pixel_kernel_8bit` for unbatched ``values`` and ``channels``:
+    the general path's own factors (:func:`darksynth.noise.correlated.unit_noise_factors`)."""
+    pairs = values["channel_correlation"].tolist()
+    red, blue = values["channel_gain"].tolist()
+    lengths, mixing = unit_noise_factors(
+        channels, values.scalar("correlation_length"), values.scalar("chroma_length"), pairs, (red, blue)
+    )
+    return normalised_taps(lengths).to(device), mixing.to(device=device, dtype=torch.float32)
+
+
+def srgb_kernel_in_pieces(
+    kernel: PixelKernel,
+    frame: torch.Tensor,
+    key: torch.Tensor,
+    factors: tuple[torch.Tensor, ...],
+    scalars: tuple[torch.Tensor, ...],
+    column_pattern: torch.Tensor,
+    *,
+    piece_values: int = EAGER_CHUNK_VALUES,
+) -> torch.Tensor:
+    """Run the sRGB kernel on blocks of rows (all channels, which the mixing needs); bit-identical to one call."""
+    channels, height, width = frame.shape
+    rows = max(1, piece_values // max(channels * width, 1))
+    frame_rows = torch.tensor(height, dtype=torch.int32, device=frame.device)
+    if rows >= height:
+        first = torch.zeros((), dtype=torch.int32, device=frame.device)
+        return kernel(frame, key, *factors, first, frame_rows, *scalars, column_pattern)
+    out = torch.empty_like(frame)
+    for top in range(0, height, rows):
+        first = torch.tensor(top, dtype=torch.int32, device=frame.device)
+        out[:, top : top + rows] = kernel(
+            frame[:, top : top + rows], key, *factors, first, frame_rows, *scalars, column_pattern
+        )
+    return out
 
 
 def kernel_scalars(
@@ -122,11 +223,6 @@ def kernel_scalars(
     return tuple(torch.tensor(v, dtype=torch.float32, device=device) for v in scalars)
 
 
-EAGER_CHUNK_VALUES = 1 << 19
-"""The eager kernel works through a frame in pieces of about this many values: its chain of operations
-materialises some twenty frame-sized temporaries, over 1 GiB for a 1080p frame if done in one piece."""
-
-
 def pixel_kernel_in_pieces(
     kernel: PixelKernel,
     frame: torch.Tensor,
@@ -138,7 +234,7 @@ def pixel_kernel_in_pieces(
 ) -> torch.Tensor:
     """Run the kernel on blocks of rows of each channel; the result is bit-identical to one call on the frame.
 
-    The counter-based draws depend only on a value's flat index plus the key, so a block starting at flat
+    The counter-based draws depend only on a value's flat index plus the key's base, so a block starting at flat
     index ``offset`` gets exactly its own numbers when the key is advanced by ``offset``.
     """
     channels, height, width = frame.shape
@@ -151,7 +247,7 @@ def pixel_kernel_in_pieces(
             offset = (channel * height + top) * width
             out[channel : channel + 1, top : top + rows] = kernel(
                 frame[channel : channel + 1, top : top + rows],
-                key + offset,
+                advance(key, offset),
                 *scalars,
                 column_pattern[channel : channel + 1],
             )
@@ -183,6 +279,6 @@ def compiled_pixel_kernel() -> PixelKernel:
     return _compiled_kernel(pixel_kernel_8bit)
 
 
-def compiled_structured_kernel() -> PixelKernel:
-    """:func:`structured_pixel_kernel_8bit` through ``torch.compile`` (the eager one where that is unavailable)."""
-    return _compiled_kernel(structured_pixel_kernel_8bit)
+def compiled_srgb_kernel() -> PixelKernel:
+    """:func:`srgb_pixel_kernel_8bit` through ``torch.compile`` (the eager one where that is unavailable)."""
+    return _compiled_kernel(srgb_pixel_kernel_8bit)
