@@ -135,6 +135,27 @@ def test_clip_shares_temporal_banding(tmp_path: Path, write_profile: Callable[..
     assert not np.array_equal(separate[0], separate[1])
 
 
+def test_a_clip_whose_frames_change_size_goes_on_with_one_warning(
+    tmp_path: Path, write_profile: Callable[..., Path], caplog: pytest.LogCaptureFixture
+) -> None:
+    zero = {"shot": 0, "read": 0, "quantization": 0, "banding": 0, "periodic": [0, 0, 0]}
+    profile = write_profile(noise={**zero, "temporal_banding": 0.05}, darkening=None)
+    frames = tmp_path / "clip"
+    frames.mkdir()
+    for index, width in enumerate((40, 40, 56, 56)):
+        Image.fromarray(np.full((6, width, 3), 128, np.uint8)).save(frames / f"{index:02d}.png")
+    code, _, err = run_cli("apply", frames, tmp_path / "out", "-p", profile, "--no-darken", "--clip")
+    assert code == 0, err
+    out = [_pixels(tmp_path / "out" / f"{i:02d}.png") for i in range(4)]
+    assert [frame.shape[1] for frame in out] == [40, 40, 56, 56]
+    # Each size keeps one held pattern: equal frames within a size, banding present at both.
+    assert np.array_equal(out[0], out[1]) and np.array_equal(out[2], out[3])
+    assert out[0].std() > 3 and out[2].std() > 3
+    # The warning goes to stderr through logging's last-resort handler; pytest captures it before that.
+    warnings = [r.getMessage() for r in caplog.records if "frame size changed" in r.getMessage()]
+    assert len(warnings) == 1 and "3x6x40 to 3x6x56" in warnings[0]
+
+
 def test_video_keeps_frames_and_rate(tmp_path: Path, profile_file: Path) -> None:
     source = tmp_path / "clean.mp4"
     with VideoWriter(source, width=48, height=32, fps=Fraction(30000, 1001)) as writer:

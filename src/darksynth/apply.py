@@ -8,6 +8,7 @@ the order or the process in which tasks run.
 from __future__ import annotations
 
 import json
+import logging
 import os
 import sys
 import time
@@ -18,7 +19,9 @@ from multiprocessing import get_context
 from pathlib import Path
 from typing import Any, Literal
 
+import numpy as np
 import torch
+from PIL import Image as PILImage
 
 from darksynth import __version__
 from darksynth.errors import DarksynthError
@@ -30,6 +33,8 @@ from darksynth.io.video import VIDEO_SUFFIXES, VideoWriter, iter_video_frames, p
 from darksynth.profile import Profile, profile_to_dict
 from darksynth.seeding import derive_seed
 from darksynth.synthesize import ClipParameters, ClipSynthesizer, DarkeningChoice, draw_clip_parameters
+
+logger = logging.getLogger(__name__)
 
 TaskKind = Literal["image", "video", "clip"]
 
@@ -168,7 +173,6 @@ def _run_task(task: Task, options: ApplyOptions, progress: Progress | None) -> d
         frames = _run_video(task, options, parameters, generator, progress)
     else:
         synthesizer: ClipSynthesizer | None = None
-        size: tuple[int, ...] | None = None
         for source, target in zip(task.inputs, task.outputs, strict=True):
             image = read_image(source)
             if synthesizer is None:
@@ -176,11 +180,7 @@ def _run_task(task: Task, options: ApplyOptions, progress: Progress | None) -> d
                 synthesizer = ClipSynthesizer(
                     parameters, generator=generator, device=options.device, compile=compile_kernel
                 )
-            if size is not None and image.pixels.shape != size:
-                raise DarksynthError(
-                    f"{source}: frame size {image.pixels.shape[:2]} differs from the clip's {size[:2]}"
-                )
-            size = image.pixels.shape
+            # A frame of another size is the synthesizer's to handle (it logs the change and goes on).
             result = synthesizer(hwc_to_chw(image.pixels))
             write_image(target, Image(chw_to_hwc(result), image.alpha, image.bit_depth, image.source_mode))
             if progress:
@@ -214,8 +214,12 @@ def _run_video(
     if options.crf is not None:
         writer_options["crf"] = options.crf
     count = 0
+    resized = False
     with VideoWriter(target, **writer_options) as writer:
         for frame in iter_video_frames(source):
+            if frame.shape[:2] != (info.height, info.width):
+                frame = _to_stream_size(source, frame, info.width, info.height, first=not resized)
+                resized = True
             result = synthesizer(hwc_to_chw(frame))
             writer.write(chw_to_hwc(result))
             count += 1
@@ -224,6 +228,19 @@ def _run_video(
     if count == 0:
         raise DarksynthError(f"{source}: the video has no decodable frames")
     return count
+
+
+def _to_stream_size(source: Path, frame: np.ndarray, width: int, height: int, *, first: bool) -> np.ndarray:
+    # A stream that switches resolution mid-way (adaptive streaming, a camera's mode change) cannot go into one
+    # encoded stream at two sizes: the clean frame is scaled to the stream's declared size, as ffmpeg does by
+    # default, before the noise is drawn, so the noise keeps its per-pixel law.
+    if first:
+        logger.warning(
+            "%s: a frame of %dx%d in a %dx%d stream is scaled to the stream's size",
+            source, frame.shape[1], frame.shape[0], width, height,
+        )  # fmt: skip
+    scaled = PILImage.fromarray(frame).resize((width, height), PILImage.Resampling.BILINEAR)
+    return np.asarray(scaled)
 
 
 def _worth_compiling(options: ApplyOptions, values: int) -> bool:

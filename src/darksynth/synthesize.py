@@ -138,12 +138,16 @@ class ClipSynthesizer:
         if uncovered and not self._structured:
             logger.debug("8-bit frames take the general composer: %s not covered by %s", uncovered, FAST_PATH)
         self._scalars: tuple[torch.Tensor, ...] | None = None
+        self._frame_shape: torch.Size | None = None
 
     def __call__(self, frame: torch.Tensor) -> torch.Tensor:
         """Low-light version of one frame (C, H, W): uint8 in, uint8 out; uint16 and float likewise."""
         if frame.dim() != 3:
             raise ValueError(f"expected a frame shaped (C, H, W), got shape {tuple(frame.shape)}")
         frame = frame.to(self.device)
+        if self._frame_shape is not None and frame.shape != self._frame_shape:
+            self._restart_for_new_size(frame.shape)
+        self._frame_shape = frame.shape
         if frame.dtype == torch.uint8 and self._fusable:
             return self._fused(frame)
         if frame.dtype == torch.uint8 and self._structured:
@@ -157,6 +161,20 @@ class ClipSynthesizer:
         # A frame is a clip of one frame for the composer.
         noisy = add_noise(signal[None], self._values, generator=self.generator, held=self._held)[0]
         return _to_dtype(noisy, frame.dtype)
+
+    def _restart_for_new_size(self, shape: torch.Size) -> None:
+        # A stream whose frames change size (a video that switches resolution, a folder of mixed sizes): the
+        # held patterns (temporal banding) are tied to the width, and the compiled kernels to the shape, which
+        # would recompile for seconds at every change. The clip's patterns are redrawn for the new size and its
+        # frames go on through the general composer, which has the same law for any size.
+        logger.warning(
+            "frame size changed within a clip from %s to %s: its held patterns are redrawn and its frames take "
+            "the general composer",
+            "x".join(map(str, self._frame_shape or ())),
+            "x".join(map(str, shape)),
+        )
+        self._held.clear()
+        self._fusable = self._structured = False
 
     def _kernel_scalars(self) -> tuple[torch.Tensor, ...]:
         if self._scalars is None:
