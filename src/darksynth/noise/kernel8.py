@@ -77,12 +77,12 @@ def pixel_kernel_8bit(
         The low-light frame (C, H, W) uint8, rounded and clipped.
     """
     normal, byte = normal_and_byte(frame.shape, key)
-    return structured_pixel_kernel_8bit(
+    return pixel_pass_8bit(
         frame, normal, byte, alpha, inverse_gamma, shot_squared, read_squared, quantization_step, column_pattern
     )
 
 
-def structured_pixel_kernel_8bit(
+def pixel_pass_8bit(
     frame: torch.Tensor,
     unit: torch.Tensor,
     byte: torch.Tensor,
@@ -125,7 +125,7 @@ def srgb_pixel_kernel_8bit(
     column_pattern: torch.Tensor,
 ) -> torch.Tensor:
     """Rows ``first_row ..`` of one frame of darkening + f(v) for the sRGB model on 8-bit values, the structured
-    unit noise drawn inside: :func:`structured_pixel_kernel_8bit` fed with counter-based draws.
+    unit noise drawn inside: :func:`pixel_pass_8bit` fed with counter-based draws.
 
     The unit noise is the general path's law (:func:`darksynth.noise.correlated.structured_normal`): N white
     components on a grid padded by the kernel radius, each filtered along x and y by its row of ``taps`` (variance
@@ -165,7 +165,7 @@ def srgb_pixel_kernel_8bit(
     frame_row = (torch.arange(rows, dtype=torch.int32, device=device) + first_row)[None, :, None]
     byte_index = (channel * frame_rows + frame_row) * width + flat_index((1, 1, width), device)
     _, byte = normal_from_word(first_word(byte_index + count * padded_rows * padded_width, key))
-    return structured_pixel_kernel_8bit(
+    return pixel_pass_8bit(
         frame, unit, byte, alpha, inverse_gamma, shot_squared, read_squared, quantization_step, column_pattern
     )
 
