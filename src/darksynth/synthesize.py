@@ -35,7 +35,6 @@ from darksynth.noise.kernel8 import (
     pixel_kernel_in_pieces,
     srgb_kernel_factors,
     srgb_kernel_in_pieces,
-    srgb_pixel_kernel_8bit,
 )
 from darksynth.noise.sampling import random_uniform
 from darksynth.noise.simulate import add_noise, apply_output_stages, column_noise
@@ -133,7 +132,6 @@ class ClipSynthesizer:
         # Only compiled: eagerly, the sRGB kernel's chain of operations is slower than the general composer
         # (200 against 149 ms a 1080p frame; docs/performance.md).
         self._structured = compile and bool(uncovered) and self._values.covered_by(STRUCTURED_PATH)
-        self._srgb_kernel: PixelKernel = compiled_srgb_kernel() if compile else srgb_pixel_kernel_8bit
         self._srgb_factors: tuple[torch.Tensor, ...] | None = None
         if uncovered and not self._structured:
             logger.debug("8-bit frames take the general composer: %s not covered by %s", uncovered, FAST_PATH)
@@ -217,7 +215,7 @@ class ClipSynthesizer:
             self._srgb_factors = srgb_kernel_factors(self._values, frame.shape[0], device=self.device)
         try:
             out = srgb_kernel_in_pieces(
-                self._srgb_kernel,
+                compiled_srgb_kernel(),
                 frame,
                 key,
                 self._srgb_factors,

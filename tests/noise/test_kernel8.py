@@ -18,6 +18,7 @@ from darksynth.noise.kernel8 import compiled_pixel_kernel, pixel_kernel_8bit
 from darksynth.noise.values import NoiseValues
 from darksynth.profile import default_profile_path, load_profile
 from darksynth.synthesize import ClipParameters, ClipSynthesizer, draw_clip_parameters
+from tests.noise.test_fast_paths import SRGB
 
 
 def _per_level_moments(clean: torch.Tensor, noisy: torch.Tensor) -> tuple[torch.Tensor, torch.Tensor]:
@@ -182,17 +183,6 @@ def test_kernel_in_pieces_is_bit_identical_to_one_call() -> None:
     )
 
 
-SRGB_VALUES = {
-    "shot": 0.1,
-    "read": 0.02,
-    "quantization": 0.01,
-    "channel_gain": [1.2, 0.7],
-    "correlation_length": 0.8,
-    "channel_correlation": [0.5, 0.3, 0.2],
-    "chroma_length": 1.5,
-}
-
-
 @pytest.mark.parametrize("channels", [3, 1])
 def test_srgb_kernel_in_pieces_is_bit_identical_to_one_call(channels: int) -> None:
     from darksynth.noise.kernel8 import (
@@ -206,7 +196,7 @@ def test_srgb_kernel_in_pieces_is_bit_identical_to_one_call(channels: int) -> No
     frame = torch.randint(0, 256, (channels, 157, 211), dtype=torch.uint8, generator=generator)
     columns = torch.randn(channels, 1, 211, generator=generator) * 3
     key = random_key(generator)
-    values = NoiseValues.from_values(SRGB_VALUES)  # type: ignore[arg-type]
+    values = NoiseValues.from_values(SRGB)  # type: ignore[arg-type]
     factors = srgb_kernel_factors(values, channels, device=torch.device("cpu"))
     scalars = kernel_scalars(0.3, 0.6, values, device=torch.device("cpu"))
     whole = srgb_kernel_in_pieces(srgb_pixel_kernel_8bit, frame, key, factors, scalars, columns)

@@ -57,10 +57,10 @@ def random_key(generator: torch.Generator | None = None) -> torch.Tensor:
     return torch.randint(-(1 << 31), 1 << 31, (KEY_WORDS,), generator=generator, dtype=torch.int32, device=device)
 
 
-def advance(key: torch.Tensor, offset: int | torch.Tensor) -> torch.Tensor:
+def advance(key: torch.Tensor, offset: int) -> torch.Tensor:
     """The key whose draw for index ``i`` is the draw of ``key`` for index ``i + offset`` (wrapping at 2^32)."""
     step = torch.zeros_like(key)
-    step[0] = offset if isinstance(offset, int) and offset < (1 << 31) else _signed32(int(offset) % (1 << 32))
+    step[0] = _signed32(offset % (1 << 32))
     return key + step
 
 
@@ -105,7 +105,13 @@ def normal_from_word(word: torch.Tensor) -> tuple[torch.Tensor, torch.Tensor]:
     central = _polynomial(_ERFINV_CENTRAL, w - 2.5)
     tail = _polynomial(_ERFINV_TAIL, torch.sqrt(w) - 3.0)
     normal = math.sqrt(2.0) * torch.where(w < 5.0, central, tail) * centred
-    return normal, word & 0xFF
+    return normal, byte_from_word(word)
+
+
+def byte_from_word(word: torch.Tensor) -> torch.Tensor:
+    """The uniform byte (0..255, int32) of a word: its low 8 bits, which the normal of the same word leaves
+    unused, so a value's normal and byte are independent."""
+    return word & 0xFF
 
 
 def flat_index(shape: torch.Size | tuple[int, ...], device: torch.device) -> torch.Tensor:

@@ -24,7 +24,14 @@ import torch
 
 from darksynth.noise.components import FastPath
 from darksynth.noise.correlated import normalised_taps, unit_noise_factors
-from darksynth.noise.counter_rng import advance, first_word, flat_index, normal_and_byte, normal_from_word
+from darksynth.noise.counter_rng import (
+    advance,
+    byte_from_word,
+    first_word,
+    flat_index,
+    normal_and_byte,
+    normal_from_word,
+)
 from darksynth.noise.quantization import QUANTIZATION_LEVELS
 from darksynth.noise.values import NoiseValues
 
@@ -164,7 +171,7 @@ def srgb_pixel_kernel_8bit(
     channel = torch.arange(channels, dtype=torch.int32, device=device)[:, None, None]
     frame_row = (torch.arange(rows, dtype=torch.int32, device=device) + first_row)[None, :, None]
     byte_index = (channel * frame_rows + frame_row) * width + flat_index((1, 1, width), device)
-    _, byte = normal_from_word(first_word(byte_index + count * padded_rows * padded_width, key))
+    byte = byte_from_word(first_word(byte_index + count * padded_rows * padded_width, key))
     return pixel_pass_8bit(
         frame, unit, byte, alpha, inverse_gamma, shot_squared, read_squared, quantization_step, column_pattern
     )
