@@ -11,6 +11,8 @@ import numpy as np
 import pytest
 from PIL import Image
 
+from darksynth.io.images import Image as ImageData
+from darksynth.io.images import read_image, write_image
 from darksynth.io.video import VideoWriter, iter_video_frames, probe_video
 from tests.command_line import run_cli
 
@@ -313,6 +315,9 @@ def test_srgb_profile_applies_to_every_image_kind(tmp_path: Path, write_profile:
     folder = tmp_path / "kinds"
     folder.mkdir()
     Image.fromarray(np.full((40, 48), 30000, np.uint16)).save(folder / "deep.png")
+    deep_rgb = np.random.default_rng(0).integers(0, 65536, (40, 48, 3)).astype(np.uint16)
+    for name in ("deep_rgb.png", "deep_rgb.tif"):
+        write_image(folder / name, ImageData(deep_rgb, None, 16, "RGB"))
     Image.fromarray(np.full((40, 48), 120, np.uint8)).save(folder / "grey.png")
     Image.fromarray(np.zeros((1, 1, 3), np.uint8)).save(folder / "tiny.png")
     rgba = np.dstack([np.full((32, 32, 3), 200, np.uint8), np.arange(1024, dtype=np.uint8).reshape(32, 32)])
@@ -326,6 +331,10 @@ def test_srgb_profile_applies_to_every_image_kind(tmp_path: Path, write_profile:
         # Still 16 bit; the JPEG stage leaves it on 8-bit levels scaled to 16 bits.
         assert deep.mode.startswith("I") and values.max() > 255
         assert np.all(values % 257 == 0)
+    for name in ("deep_rgb.png", "deep_rgb.tif"):
+        written = read_image(tmp_path / "out" / name)
+        assert written.bit_depth == 16 and written.pixels.shape == (40, 48, 3), name
+        assert np.all(written.pixels % 257 == 0), name
     assert _pixels(tmp_path / "out" / "grey.png").ndim == 2
     assert _pixels(tmp_path / "out" / "tiny.png").shape == (1, 1, 3)
     assert np.array_equal(_pixels(tmp_path / "out" / "alpha.png")[..., 3], rgba[..., 3])

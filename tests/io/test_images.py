@@ -240,6 +240,16 @@ def test_16bit_write_read_round_trip_is_exact(tmp_path: Path, suffix: str, chann
             np.testing.assert_array_equal(reference[:, :, 3], alpha)
 
 
+@pytest.mark.parametrize("suffix", [".png", ".tif"])
+def test_16bit_write_accepts_a_non_contiguous_array(tmp_path: Path, suffix: str) -> None:
+    """A (H, W, C) view of a channels-first array (what a permuted tensor gives) is written like its copy."""
+    channels_first = _random((3, 9, 4), np.uint16)
+    pixels = channels_first.transpose(1, 2, 0)
+    assert not pixels.flags.c_contiguous
+    write_image(tmp_path / f"out{suffix}", Image(pixels=pixels, alpha=None, bit_depth=16))
+    np.testing.assert_array_equal(read_image(tmp_path / f"out{suffix}").pixels, pixels)
+
+
 def test_16bit_grey_alpha_tiff_is_refused(tmp_path: Path) -> None:
     image = Image(pixels=_random((2, 2, 1), np.uint16), alpha=_random((2, 2), np.uint16), bit_depth=16)
     with pytest.raises(DarksynthError, match=r"out\.tif: 16-bit grey with alpha cannot be written as TIFF"):

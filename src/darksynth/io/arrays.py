@@ -18,7 +18,9 @@ def tensor_to_numpy(tensor: torch.Tensor) -> np.ndarray:
     """A contiguous numpy copy or view of a tensor (on any device), uint16 included."""
     tensor = tensor.cpu()
     if tensor.dtype == torch.uint16:
-        return tensor.to(torch.int32).numpy().astype(np.uint16)
+        # .to() keeps a permuted tensor's strides, so the int32 array can be a non-contiguous view: the copy to
+        # uint16 is made contiguous here, as the encoders reinterpret its bytes.
+        return np.ascontiguousarray(tensor.to(torch.int32).numpy(), dtype=np.uint16)
     return np.ascontiguousarray(tensor.numpy())
 
 

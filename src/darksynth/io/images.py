@@ -317,7 +317,9 @@ def _encode_16bit_with_ffmpeg(channels: np.ndarray, fmt: str) -> bytes:
     plane = frame.planes[0]
     dtype = np.dtype(">u2" if pix_fmt.endswith("be") else "<u2")
     rows = np.zeros((height, plane.line_size), dtype=np.uint8)
-    rows[:, : width * count * 2] = channels.astype(dtype).view(np.uint8).reshape(height, width * count * 2)
+    # Any layout is accepted: viewing the samples as bytes needs a C-contiguous array.
+    samples = np.ascontiguousarray(channels, dtype=dtype)
+    rows[:, : width * count * 2] = samples.view(np.uint8).reshape(height, width * count * 2)
     plane.update(rows.tobytes())
     codec = _video_codec(_FFMPEG_CODEC[fmt], "w")
     codec.width = width
