@@ -84,6 +84,21 @@ def test_rewrite_yolo_yaml_remaps_absolute_splits_only(tmp_path: Path) -> None:
     assert document == {"train": str(output / "images/train"), "val": "images/val", "test": "/elsewhere/x"}
 
 
+def test_rewrite_yolo_yaml_keeps_inline_comments(tmp_path: Path) -> None:
+    dataset, output = tmp_path / "ds", tmp_path / "out"
+    text = (
+        "path: ../coco  # dataset root dir\n"
+        f"train: {dataset / 'images/train'} # 118k images\n"
+        "val: 'images/val # not a comment'  # quoted\n"
+        "names: {0: person}\n"
+    )
+    lines = rewrite_yolo_yaml(text, dataset, output).splitlines()
+    assert lines[0] == f"path: {json.dumps(str(output.resolve()))}  # dataset root dir"
+    assert lines[1] == f"train: {json.dumps(str(output.resolve() / 'images/train'))} # 118k images"
+    assert lines[2] == "val: 'images/val # not a comment'  # quoted"
+    assert yaml.safe_load("\n".join(lines))["val"] == "images/val # not a comment"
+
+
 def test_folder_mirrors_tree(folder_dataset: Path, profile_path: Path, tmp_path: Path) -> None:
     output = tmp_path / "out"
     report = convert_dataset(ConvertOptions(folder_dataset, output, load_profile(profile_path), "folder"))

@@ -393,11 +393,36 @@ def rewrite_yolo_yaml(text: str, dataset: Path, output: Path) -> str:
             continue
         ending = line[len(line.rstrip("\r\n")) :]
         key = match["key"]
+        comment = _inline_comment(match["value"])
         if key == "path":
-            lines[index] = f"path: {json.dumps(str(target))}{ending}"
+            lines[index] = f"path: {json.dumps(str(target))}{comment}{ending}"
         elif key in _YOLO_SPLIT_KEYS:
             value = _load_yaml(match["value"]) if match["value"] else None
             if isinstance(value, str) and Path(value).is_absolute() and Path(value).is_relative_to(source):
                 moved = target / Path(value).relative_to(source)
-                lines[index] = f"{key}: {json.dumps(str(moved))}{ending}"
+                lines[index] = f"{key}: {json.dumps(str(moved))}{comment}{ending}"
     return "".join(lines)
+
+
+def _inline_comment(value: str) -> str:
+    """The trailing ``  # comment`` of a YAML value, with the blanks before it, or "" when there is none.
+
+    A ``#`` starts a comment only after a blank and outside quotes; rather than re-implement YAML's quoting, the
+    first such ``#`` whose cut leaves a value that YAML reads the same as the whole is the comment's start."""
+    whole = _safe_scalar(value)
+    for found in re.finditer(r"[ \t]+#", value):
+        if _safe_scalar(value[: found.start()]) == whole:
+            return value[found.start() :]
+    return ""
+
+
+def _safe_scalar(text: str) -> Any:
+    import yaml  # _load_yaml has checked that it is there
+
+    try:
+        return yaml.safe_load(text)
+    except yaml.YAMLError:  # a cut inside a quoted string is not YAML: that # is not a comment
+        return _NOT_YAML
+
+
+_NOT_YAML = object()
