@@ -92,14 +92,15 @@ def test_flag_defaults_are_the_library_defaults(command: str, expected: dict[str
 def test_train_help_shows_the_training_defaults() -> None:
     result = CliRunner().invoke(app, ["train", "--help"], env={"COLUMNS": "200", "TERMINAL_WIDTH": "200"})
     assert result.exit_code == 0
-    lines = result.stdout.splitlines()
+    # One entry per option: click wraps an option's help onto indented continuation lines.
+    entries = " ".join(result.stdout.split()).split(" --")
     for flag, default in (
         ("--steps", TrainConfig().steps),
         ("--validate-every", TrainConfig().validate_every),
         ("--width", DENConfig().width),
     ):
-        (line,) = [line for line in lines if f" {flag} " in line]
-        assert f"[default: {default}]" in line, line
+        (entry,) = [e for e in entries if e.startswith(flag[2:] + " ")]
+        assert f"[default: {default}]" in entry or f"[default: {default};" in entry, entry
 
 
 def test_apply_without_flags_builds_the_default_options(
@@ -246,3 +247,31 @@ def test_console_script_exit_code_and_single_line(tmp_path: Path, profile_file: 
     )
     assert completed.returncode == 1
     assert completed.stderr.strip().splitlines() == [f"darksynth: error: {missing}: no such file or folder"]
+
+
+@pytest.mark.parametrize(
+    ("arguments", "status", "said"),
+    [
+        (["apply", "in.png", "out.png", "-p", "p.json", "--workers", "0"], 1, "apply: Invalid value for '--workers'"),
+        (["convert", "d", "o", "-p", "p.json", "-f", "coco", "--crf", "99"], 1, "convert: Invalid value for '--crf'"),
+        (["apply", "in.png", "out.png", "-p", "p.json", "--wrkers", "2"], 2, "apply: No such option: --wrkers"),
+        (["apply", "in.png"], 2, "apply: Missing argument 'OUTPUT'"),
+        (["aply"], 2, "No such command 'aply'"),
+    ],
+)
+def test_command_line_mistakes_are_one_line_errors(arguments: list[str], status: int, said: str) -> None:
+    """A bad value exits 1 like every other bad value; a malformed command line exits 2; both in one line."""
+    code, out, err = run_cli(*arguments)
+    assert code == status
+    assert out == ""
+    (line,) = err.splitlines()
+    assert line.startswith("darksynth: error: ") and said in line, line
+
+
+def test_help_is_plain_text_that_keeps_brackets_and_shows_no_bool_values() -> None:
+    result = CliRunner().invoke(app, ["convert", "--help"], env={"COLUMNS": "200", "TERMINAL_WIDTH": "200"})
+    assert result.exit_code == 0
+    assert "darksynth[ray]" in result.stdout
+    assert "<bool>" not in result.stdout and "╭" not in result.stdout
+    (jitter,) = [line for line in result.stdout.splitlines() if "--jitter" in line]
+    assert jitter.split()[0] == "--jitter", jitter

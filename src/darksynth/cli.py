@@ -535,8 +535,4 @@ def main(argv: Sequence[str] | None = None) -> None:
     """Run a command (``argv``: the arguments after the program name; sys.argv's by default). The console
     script enters through :func:`darksynth.main.main`, which answers ``--version`` and ``--help`` without this
     module."""
-    try:
-        app(list(sys.argv[1:] if argv is None else argv), prog_name="darksynth")
-    except KeyboardInterrupt:
-        say("darksynth: interrupted; finished files are complete, no partial file was left")
-        sys.exit(130)
+    app(list(sys.argv[1:] if argv is None else argv), prog_name="darksynth")
