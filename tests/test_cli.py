@@ -108,7 +108,8 @@ def test_apply_without_flags_builds_the_default_options(
 ) -> None:
     built: list[ApplyOptions] = []
 
-    def run(input_path: Path, output_path: Path, options: ApplyOptions) -> ApplyReport:
+    def run(input_path: Path, output_path: Path, options: ApplyOptions, *, quiet: bool) -> ApplyReport:
+        assert not quiet
         built.append(options)
         return ApplyReport()
 

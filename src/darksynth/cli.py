@@ -13,10 +13,10 @@ from typing import Annotated, Any, cast, get_args
 
 import typer
 from rich.console import Console
-from rich.progress import BarColumn, MofNCompleteColumn, Progress, TextColumn, TimeRemainingColumn
 
 from darksynth.apply import ApplyOptions, ApplyReport, Task, apply
 from darksynth.commands import COMMAND_HELP, new_app
+from darksynth.console_progress import progress_display
 from darksynth.darkening import Darkening
 from darksynth.datasets import FORMATS, ConversionReport, ConvertOptions, DatasetFormat, Shard
 from darksynth.errors import DarksynthError
@@ -84,30 +84,25 @@ def darkening_choice(alpha: float | None, gamma: float | None, no_darken: bool) 
     return Darkening(alpha=alpha, gamma=gamma)
 
 
-def run_with_progress(input_path: Path, output_path: Path, options: ApplyOptions) -> ApplyReport:
-    """Run ``apply`` with a progress bar over frames and print the outcome of each failed task."""
-    columns = (
-        TextColumn("{task.description}"),
-        BarColumn(),
-        MofNCompleteColumn(),
-        TimeRemainingColumn(),
-    )
-    with Progress(*columns, console=console, transient=True) as progress:
-        bar = progress.add_task("frames", total=None)
+def run_with_progress(
+    input_path: Path, output_path: Path, options: ApplyOptions, *, quiet: bool = False
+) -> ApplyReport:
+    """Run ``apply`` showing its progress over frames and the outcome of each failed task."""
+    with progress_display(console, "apply", unit="frames", quiet=quiet) as display:
 
         def on_start(tasks: list[Task], total_frames: int) -> None:
-            progress.update(bar, total=total_frames or None, description=f"{len(tasks)} file(s)")
-
-        def on_frames(count: int) -> None:
-            progress.advance(bar, count)
+            display.update(total=total_frames or None, description=f"{len(tasks)} file(s)")
 
         def on_task(task: Task, error: str | None) -> None:
             if options.workers > 1:
-                progress.advance(bar, len(task.inputs) if task.kind != "video" else 0)
+                display.advance(len(task.inputs) if task.kind != "video" else 0)
             if error is not None:
-                say(f"darksynth: error: {error}", progress.console)
+                display.say(f"darksynth: error: {error}")
 
-        return apply(input_path, output_path, options, on_start=on_start, on_frames=on_frames, on_task=on_task)
+        return apply(input_path, output_path, options, on_start=on_start, on_frames=display.advance, on_task=on_task)
+
+
+QUIET_HELP = "No progress and no summary; warnings and errors are still printed."
 
 
 @app.command("apply", help=COMMAND_HELP["apply"])
@@ -135,6 +130,7 @@ def apply_command(
     compile_kernel: Annotated[
         bool | None, typer.Option("--compile/--no-compile", help="Fuse the 8-bit kernel (default: for long clips).")
     ] = default_of(ApplyOptions, "compile"),
+    quiet: Annotated[bool, typer.Option("--quiet", "-q", help=QUIET_HELP)] = False,
 ) -> None:
     try:
         options = ApplyOptions(
@@ -149,15 +145,16 @@ def apply_command(
             compile=compile_kernel,
             profile_source=str(profile),
         )
-        report = run_with_progress(input_path, output_path, options)
+        report = run_with_progress(input_path, output_path, options, quiet=quiet)
     except DarksynthError as error:
         raise fail(str(error)) from None
     frames = sum(int(r["frames"]) for r in report.records)
-    say(
-        f"wrote {len(report.records)} file(s), {frames} frame(s) in {report.seconds:.1f} s; "
-        f"seed {options.seed}; manifest {report.manifest}"
-    )
-    if report.skipped:
+    if not quiet:
+        say(
+            f"wrote {len(report.records)} file(s), {frames} frame(s) in {report.seconds:.1f} s; "
+            f"seed {options.seed}; manifest {report.manifest}"
+        )
+    if report.skipped and not quiet:
         say(f"skipped {len(report.skipped)} file(s) that are not images or videos: {', '.join(report.skipped)}")
     if report.failures:
         raise fail(f"{len(report.failures)} file(s) failed; see the messages above and the manifest")
@@ -206,6 +203,7 @@ def convert_command(
             "needs darksynth[ray].",
         ),
     ] = False,
+    quiet: Annotated[bool, typer.Option("--quiet", "-q", help=QUIET_HELP)] = False,
 ) -> None:
     from darksynth.datasets import convert_dataset
 
@@ -230,24 +228,31 @@ def convert_command(
 
             report = convert_dataset_with_ray(options, on_failure=lambda message: say(f"darksynth: error: {message}"))
         else:
-            columns = (TextColumn("{task.description}"), BarColumn(), MofNCompleteColumn(), TimeRemainingColumn())
-            with Progress(*columns, console=console, transient=True) as progress:
-                bar = progress.add_task("converting", total=None)
+            with progress_display(console, "convert", unit="files", quiet=quiet) as display:
 
                 def on_progress(finished: int, total: int) -> None:
-                    progress.update(bar, completed=finished, total=total)
+                    display.update(completed=finished, total=total)
 
                 def on_failure(message: str) -> None:
-                    say(f"darksynth: error: {message}", progress.console)
+                    display.say(f"darksynth: error: {message}")
 
                 report = convert_dataset(options, on_progress=on_progress, on_failure=on_failure)
     except DarksynthError as error:
         raise fail(str(error)) from None
-    _convert_summary(report)
+    _convert_summary(report, quiet=quiet)
 
 
-def _convert_summary(report: ConversionReport) -> None:
-    """The closing lines of a conversion; exit 1 after them if anything failed."""
+def _convert_summary(report: ConversionReport, *, quiet: bool) -> None:
+    """The closing lines of a conversion (none with ``quiet``); exit 1 after them if anything failed."""
+    if report.failures:
+        if not quiet:
+            _convert_counts(report)
+        raise fail(f"{len(report.failures)} failure(s); see the messages above and the manifest")
+    if not quiet:
+        _convert_counts(report)
+
+
+def _convert_counts(report: ConversionReport) -> None:
     done = report.converted + report.already_done
     say(
         f"converted {done} file(s) ({report.converted} new, {report.already_done} already done), carried over "
@@ -259,8 +264,6 @@ def _convert_summary(report: ConversionReport) -> None:
         say(f"manifest {report.manifest}")
     else:
         say(f"manifest not written yet: {report.pending} file(s) of other shards have no record yet")
-    if report.failures:
-        raise fail(f"{len(report.failures)} failure(s); see the messages above and the manifest")
 
 
 @app.command("train", help=COMMAND_HELP["train"])
@@ -318,6 +321,7 @@ def train_command(
     seed: Annotated[int, typer.Option()] = default_of(TrainConfig, "seed"),
     resume: Annotated[bool, typer.Option("--resume", help="Continue from OUT's checkpoint.")] = False,
     device: Annotated[str, typer.Option(help="torch device.")] = default_of(TrainConfig, "device"),
+    quiet: Annotated[bool, typer.Option("--quiet", "-q", help=QUIET_HELP)] = False,
 ) -> None:
     from darksynth.training.corpus import load_corpus
     from darksynth.training.distributed import ranks_from_environment
@@ -349,28 +353,21 @@ def train_command(
         ranks = ranks_from_environment(os.environ)  # torchrun's WORLD_SIZE, RANK, LOCAL_RANK; none: one process
         corpus = load_corpus(data, clips or [], minimum_side=crop)
         held = load_corpus(holdout, minimum_side=crop) if holdout else corpus
-        if ranks.is_main:
+        if ranks.is_main and not quiet:
             say(f"training on {len(corpus.images)} images and {len(corpus.clips)} clips; validating on {len(held)}")
-        with Progress(
-            TextColumn("step"),
-            BarColumn(),
-            MofNCompleteColumn(),
-            TextColumn("{task.description}"),
-            TimeRemainingColumn(),
-            console=console,
-            disable=not ranks.is_main,
-        ) as progress:
-            bar = progress.add_task("", total=steps)
+        # Only the main process of a torchrun job reports.
+        with progress_display(console, "train", unit="steps", quiet=quiet or not ranks.is_main) as display:
+            display.update(total=steps)
 
             def on_step(step: int, loss: float, report: dict[str, object] | None) -> None:
-                progress.update(bar, completed=step, description=f"loss {loss:.4f}")
-                if report is not None:
-                    say(f"step {step}: validation R2 {report['r2']}", progress.console)
+                display.update(completed=step, description=f"loss {loss:.4f}")
+                if report is not None and ranks.is_main and not quiet:
+                    display.say(f"step {step}: validation R2 {report['r2']}")
 
             summary = train(corpus, held, config, out, resume=resume, progress=on_step, ranks=ranks)
     except DarksynthError as error:
         raise fail(str(error)) from None
-    if ranks.is_main:
+    if ranks.is_main and not quiet:
         say(f"wrote {out} and {out.with_suffix('.json')} after {summary['steps']} steps")
 
 
@@ -402,6 +399,7 @@ def estimate_command(
             "stronger, closer to the real pairs' noise, see docs/refine.md); --no-refine keeps the network's values.",
         ),
     ] = default_of(EstimateOptions, "refine"),
+    quiet: Annotated[bool, typer.Option("--quiet", "-q", help=QUIET_HELP)] = False,
 ) -> None:
     import json
 
@@ -429,7 +427,8 @@ def estimate_command(
         save_profile(out, result.profile)
     except OSError as error:
         raise fail(f"{out}: {error.strerror or error}") from None
-    say(f"wrote {out} from {result.per_crop.batch_shape[0]} crops")
+    if not quiet:
+        say(f"wrote {out} from {result.per_crop.batch_shape[0]} crops")
 
 
 def parse_weights(entries: list[str]) -> dict[str, Path]:
@@ -489,6 +488,7 @@ def evaluate_command(
     downstream_steps: Annotated[int, typer.Option(help="Training steps of each downstream denoiser.")] = default_of(
         EvaluationOptions, "downstream_steps"
     ),
+    quiet: Annotated[bool, typer.Option("--quiet", "-q", help=QUIET_HELP)] = False,
 ) -> None:
     from darksynth.evaluation.job import rank_by_kld, run_evaluation
 
@@ -504,12 +504,14 @@ def evaluate_command(
             downstream_steps=downstream_steps,
         )
         options = dataclasses.replace(options, command=evaluate_command_line(pairs, out, options))
-        with console.status("evaluating") as status:
-            run = run_evaluation(pairs, out, options, progress=lambda message: status.update(message))
+        with progress_display(console, "evaluate", quiet=quiet) as display:
+            run = run_evaluation(pairs, out, options, progress=lambda message: display.update(description=message))
     except DarksynthError as error:
         raise fail(str(error)) from None
     for problem in run.results["problems"]:
         say(f"darksynth: warning: {problem}")
+    if quiet:
+        return
     for name, ranked in rank_by_kld(run.results).items():
         pair_count = run.results["sets"][name]["pairs"]
         say(f"{name} ({pair_count} pairs), kld: " + ", ".join(f"{m} {kld:.3f}" for m, kld in ranked))
