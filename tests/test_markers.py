@@ -41,6 +41,9 @@ HEAVY_TESTS: dict[str, tuple[str, ...]] = {
         "datasets/test_convert_resume.py::test_killed_run_resumes_to_the_same_bytes",
         "datasets/test_convert_resume.py::test_shards_partition_and_together_equal_a_full_run",
     ),
+    "a folder apply with worker processes, killed": (
+        "test_apply_workers.py::test_workers_end_soon_after_the_parent_is_killed",
+    ),
     "every evaluation method on every pair": (
         "evaluation/test_evaluate_cli.py::test_reports_check_den_against_every_blind_method_the_oracle_and_the_paper_model",
     ),

@@ -11,6 +11,7 @@ import json
 import logging
 import os
 import sys
+import threading
 import time
 from collections.abc import Callable, Iterator
 from concurrent.futures import ProcessPoolExecutor, as_completed
@@ -247,8 +248,25 @@ def _worth_compiling(options: ApplyOptions, values: int) -> bool:
     return options.compile if options.compile is not None else values >= COMPILE_MIN_ELEMENTS
 
 
+PARENT_POLL_SECONDS = 0.5
+"""How often a pool worker checks that the process that started it is alive."""
+
+
 def _init_worker(threads: int) -> None:
     torch.set_num_threads(threads)
+    # A pool worker outlives a parent killed with SIGKILL: the executor's shutdown never runs, and a worker in the
+    # middle of a frame does not read the closed queue until its task ends (minutes for a long video). A thread that
+    # sees the parent gone (the worker re-parented) ends the worker; its half-written file is a hidden temporary,
+    # removed by the next run. PR_SET_PDEATHSIG would be immediate but fires when the *thread* that started the
+    # worker ends, which for an executor need not be the main one.
+    threading.Thread(target=_exit_with_parent, args=(os.getppid(),), name="exit-with-parent", daemon=True).start()
+
+
+def _exit_with_parent(parent: int) -> None:
+    while True:
+        time.sleep(PARENT_POLL_SECONDS)
+        if os.getppid() != parent:
+            os._exit(1)
 
 
 def execute(
