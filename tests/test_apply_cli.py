@@ -67,18 +67,25 @@ def test_explicit_alpha_gamma(rgb_image: Path, profile_file: Path, tmp_path: Pat
     assert 0.45 < ratio < 0.56
 
 
-def test_ranges_are_sampled_per_file_and_recorded(tmp_path: Path, write_profile: Callable[..., Path]) -> None:
+def test_ranges_are_sampled_per_file_with_jitter_and_recorded(
+    tmp_path: Path, write_profile: Callable[..., Path]
+) -> None:
     profile = write_profile(ranges={"shot": [0.01, 0.05], "alpha": [0.1, 0.2]})
     folder = tmp_path / "frames"
     folder.mkdir()
     for index in range(4):
         Image.fromarray(np.full((8, 8, 3), 120, np.uint8)).save(folder / f"{index}.png")
-    assert run_cli("apply", folder, tmp_path / "out", "-p", profile, "--seed", "0")[0] == 0
-    records = json.loads((tmp_path / "out.manifest.json").read_text())["files"]
+    assert run_cli("apply", folder, tmp_path / "out", "-p", profile, "--seed", "0", "--jitter")[0] == 0
+    records = json.loads((tmp_path / "out" / "darksynth-manifest.json").read_text())["files"]
     shots = {r["parameters"]["noise"]["shot"] for r in records}
     alphas = {r["parameters"]["darkening"]["alpha"] for r in records}
     assert len(shots) == 4 and all(0.01 <= s <= 0.05 for s in shots)
     assert len(alphas) == 4 and all(0.1 <= a <= 0.2 for a in alphas)
+    # Without --jitter, as in convert: the profile's values for every file, ranges ignored.
+    assert run_cli("apply", folder, tmp_path / "fixed", "-p", profile, "--seed", "0")[0] == 0
+    fixed = json.loads((tmp_path / "fixed" / "darksynth-manifest.json").read_text())["files"]
+    assert {r["parameters"]["noise"]["shot"] for r in fixed} == {0.06}
+    assert {r["parameters"]["darkening"]["alpha"] for r in fixed} == {0.2}
 
 
 def _folder(tmp_path: Path) -> Path:
@@ -100,7 +107,7 @@ def test_folder_mirrors_tree_lists_skipped(tmp_path: Path, profile_file: Path) -
     for relative in ("a.png", "sub/b.jpg", "sub/deeper/c.bmp"):
         assert (tmp_path / "out" / relative).is_file()
     assert not (tmp_path / "out" / "notes.txt").exists()
-    manifest = json.loads((tmp_path / "out.manifest.json").read_text())
+    manifest = json.loads((tmp_path / "out" / "darksynth-manifest.json").read_text())
     assert manifest["skipped"] == ["notes.txt"]
     assert [r["input"] for r in manifest["files"]] == ["a.png", "sub/b.jpg", "sub/deeper/c.bmp"]
 
@@ -227,7 +234,7 @@ def test_bad_folder_entry_is_reported_and_rest_converted(tmp_path: Path, profile
     assert next(line for line in err.splitlines() if "broken.png" in line).startswith("darksynth: error:")
     assert (tmp_path / "out" / "a.png").is_file()
     assert not (tmp_path / "out" / "broken.png").exists()
-    manifest = json.loads((tmp_path / "out.manifest.json").read_text())
+    manifest = json.loads((tmp_path / "out" / "darksynth-manifest.json").read_text())
     assert len(manifest["failures"]) == 1 and "broken.png" in manifest["failures"][0]
 
 
@@ -342,3 +349,53 @@ def test_srgb_profile_applies_to_every_image_kind(tmp_path: Path, write_profile:
     residual = colour - colour.mean(axis=(0, 1))
     # Correlated across channels, as the profile asks (JPEG's chroma subsampling only adds to it).
     assert np.corrcoef(residual.reshape(-1, 3).T)[0, 1] > 0.3
+
+
+def test_existing_outputs_are_refused_unless_overwrite(rgb_image: Path, profile_file: Path, tmp_path: Path) -> None:
+    """apply's policy is convert's: nothing that exists before the run is replaced without --overwrite."""
+    out = tmp_path / "out.png"
+    assert run_cli("apply", rgb_image, out, "-p", profile_file, "--seed", "1")[0] == 0
+    first = out.read_bytes()
+    code, _, err = run_cli("apply", rgb_image, out, "-p", profile_file, "--seed", "2")
+    _assert_one_line_error(code, err, "out.png: exists", "--overwrite")
+    assert out.read_bytes() == first
+    assert run_cli("apply", rgb_image, out, "-p", profile_file, "--seed", "2", "--overwrite")[0] == 0
+    assert out.read_bytes() != first
+
+    root = _folder(tmp_path)
+    assert run_cli("apply", root, tmp_path / "tree", "-p", profile_file, "--seed", "1")[0] == 0
+    (tmp_path / "tree" / "sub" / "b.jpg").unlink()  # one output missing, two and the manifest still there
+    before = {p: p.read_bytes() for p in (tmp_path / "tree").rglob("*") if p.is_file()}
+    code, _, err = run_cli("apply", root, tmp_path / "tree", "-p", profile_file, "--seed", "2")
+    _assert_one_line_error(code, err, "exists (and 2 more of this run's outputs)")
+    assert {p: p.read_bytes() for p in (tmp_path / "tree").rglob("*") if p.is_file()} == before
+
+
+def test_an_unwritable_output_is_refused_once_before_any_work(tmp_path: Path, profile_file: Path) -> None:
+    root = _folder(tmp_path)
+    blocker = tmp_path / "a-file"
+    blocker.write_text("a file where the output folder should go")
+    code, _, err = run_cli("apply", root, blocker / "out", "-p", profile_file)
+    _assert_one_line_error(code, err, "a-file", "cannot write the output here")
+    assert blocker.read_text() == "a file where the output folder should go"
+
+
+def test_a_killed_runs_temporary_file_is_removed_by_the_next_run(tmp_path: Path, profile_file: Path) -> None:
+    source = tmp_path / "clean.mp4"
+    with VideoWriter(source, width=48, height=32, fps=Fraction(25)) as writer:
+        for index in range(3):
+            writer.write(np.full((32, 48, 3), 60 * index, np.uint8))
+    out = tmp_path / "out"
+    out.mkdir()
+    left = out / ".dark.tmp-0123456789ab.mp4"  # what a SIGKILL in the middle of the video leaves
+    left.write_bytes(b"half a video")
+    other = out / ".other.tmp-0123456789ab.mp4"  # another output's: perhaps a run still going
+    other.write_bytes(b"someone else's")
+    code, _, err = run_cli("apply", source, out / "dark.mp4", "-p", profile_file, "--seed", "0")
+    assert code == 0, err
+    assert not left.exists() and other.exists()
+    assert sorted(p.name for p in out.iterdir()) == [
+        ".other.tmp-0123456789ab.mp4",
+        "dark.mp4",
+        "dark.mp4.manifest.json",
+    ]

@@ -4,7 +4,8 @@ Layers, lowest first (a module may import its own package and any lower layer, n
 sibling of its own layer):
 
 0. ``errors``, ``tensors``, ``seeding``, ``version``: conventions that import nothing of darksynth;
-1. ``io`` (files, videos, atomic writes), ``darkening`` and ``commands`` (the command line's shape, without its code);
+1. ``io`` (files, videos, atomic writes), ``darkening``, ``commands`` (the command line's shape, without its code)
+   and ``console_progress`` (how a command shows its progress);
 2. ``noise``: the components, their table, the carrier of values, the composer;
 3. ``profile``, ``darkening_estimate``;
 4. ``synthesize``, ``models``;
@@ -33,6 +34,7 @@ LAYERS: dict[str, int] = {
     "seeding": 0,
     "version": 0,
     "commands": 1,
+    "console_progress": 1,
     "io": 1,
     "darkening": 1,
     "noise": 2,

@@ -7,10 +7,12 @@ the order or the process in which tasks run.
 
 from __future__ import annotations
 
+import dataclasses
 import json
 import logging
 import os
 import sys
+import tempfile
 import threading
 import time
 from collections.abc import Callable, Iterator
@@ -27,13 +29,19 @@ from PIL import Image as PILImage
 from darksynth import __version__
 from darksynth.errors import DarksynthError
 from darksynth.io.arrays import chw_to_hwc, hwc_to_chw
-from darksynth.io.atomic import write_text_atomic
+from darksynth.io.atomic import remove_stale_temps, write_text_atomic
 from darksynth.io.discover import check_output_location, classify_input, scan_folder
 from darksynth.io.images import IMAGE_SUFFIXES, Image, read_image, write_image
 from darksynth.io.video import VIDEO_SUFFIXES, VideoWriter, iter_video_frames, probe_video
 from darksynth.profile import Profile, profile_to_dict
 from darksynth.seeding import derive_seed
-from darksynth.synthesize import ClipParameters, ClipSynthesizer, DarkeningChoice, draw_clip_parameters
+from darksynth.synthesize import (
+    ClipParameters,
+    ClipSynthesizer,
+    DarkeningChoice,
+    draw_clip_parameters,
+    fixed_darkening,
+)
 
 logger = logging.getLogger(__name__)
 
@@ -48,6 +56,10 @@ costs about 13 s the first time on a machine and 3-4 s with the on-disk cache of
 (about 80 frames of 1080p RGB) the saving, about 6 s, exceeds a warm compilation; a cold one pays off from
 about 1.1e9 values on."""
 
+MANIFEST_NAME = "darksynth-manifest.json"
+"""The manifest of a run into a folder, inside it (``apply`` and ``convert`` alike); a single output file's
+manifest lies beside it as ``NAME.manifest.json``."""
+
 Progress = Callable[[int], None]
 """Called with the number of frames just finished."""
 
@@ -60,6 +72,9 @@ class ApplyOptions:
         profile: the noise profile.
         seed: run seed; each task's seed derives from it and the task's relative path.
         darkening: see :data:`darksynth.synthesize.DarkeningChoice`.
+        jitter: draw each file's (or clip's) parameters within the profile's ranges; otherwise every file gets the
+            profile's values (see :meth:`drawing`).
+        overwrite: replace outputs that exist before the run (otherwise the run is refused).
         clip: treat each folder of images as one clip (shared parameters and temporal banding).
         workers: processes for folders.
         codec: video codec (None: the writer's high-quality default); crf: its quality setting.
@@ -71,6 +86,8 @@ class ApplyOptions:
     profile: Profile
     seed: int
     darkening: DarkeningChoice = "profile"
+    jitter: bool = False
+    overwrite: bool = False
     clip: bool = False
     workers: int = 1
     codec: str | None = None
@@ -78,6 +95,18 @@ class ApplyOptions:
     device: str = "cpu"
     compile: bool | None = None
     profile_source: str = ""
+
+    def drawing(self) -> tuple[Profile, DarkeningChoice]:
+        """The profile and darkening each file's parameters are drawn from.
+
+        With ``jitter``, the profile as it is (its ranges drawn from per file). Without, the profile without ranges
+        and a fixed darkening (:func:`darksynth.synthesize.fixed_darkening`): nothing is drawn, every file gets the
+        same values and its seed only drives the noise itself.
+        """
+        if self.jitter:
+            return self.profile, self.darkening
+        darkening = fixed_darkening(self.profile) if self.darkening == "profile" else self.darkening
+        return dataclasses.replace(self.profile, ranges={}), darkening
 
 
 @dataclass(frozen=True)
@@ -106,9 +135,9 @@ def task_seed(run_seed: int, key: str) -> int:
     return derive_seed("darksynth", run_seed, key)
 
 
-def manifest_path(output: Path) -> Path:
-    """The manifest lies beside the output: ``OUTPUT.manifest.json``."""
-    return output.with_name(output.name + ".manifest.json")
+def manifest_path(output: Path, *, folder: bool) -> Path:
+    """A folder's manifest lies inside it (:data:`MANIFEST_NAME`), a file's beside it: ``OUTPUT.manifest.json``."""
+    return output / MANIFEST_NAME if folder else output.with_name(output.name + ".manifest.json")
 
 
 def plan(input_path: Path, output_path: Path, *, clip: bool) -> tuple[list[Task], list[str], Path]:
@@ -168,7 +197,8 @@ def run_task(task: Task, options: ApplyOptions, progress: Progress | None = None
 def _run_task(task: Task, options: ApplyOptions, progress: Progress | None) -> dict[str, Any]:
     seed = task_seed(options.seed, task.key)
     generator = torch.Generator(device=options.device).manual_seed(seed)
-    parameters = draw_clip_parameters(options.profile, darkening=options.darkening, generator=generator)
+    profile, darkening = options.drawing()
+    parameters = draw_clip_parameters(profile, darkening=darkening, generator=generator)
     frames = len(task.inputs)
     if task.kind == "video":
         frames = _run_video(task, options, parameters, generator, progress)
@@ -299,7 +329,11 @@ def execute(
 
 
 def write_manifest(path: Path, input_path: Path, output_path: Path, options: ApplyOptions, report: ApplyReport) -> None:
-    """Record everything needed to reproduce each output: versions, profile, run seed, per-task seeds and values."""
+    """Record everything needed to reproduce each output: versions, profile, run seed, per-task seeds and values.
+
+    Raises:
+        DarksynthError: the manifest cannot be written.
+    """
     document = {
         "darksynth": __version__,
         "torch": torch.__version__,
@@ -311,6 +345,7 @@ def write_manifest(path: Path, input_path: Path, output_path: Path, options: App
         "seed": options.seed,
         "device": options.device,
         "darkening": options.darkening if isinstance(options.darkening, str | type(None)) else vars(options.darkening),
+        "jitter": options.jitter,
         "clip": options.clip,
         "codec": options.codec,
         "crf": options.crf,
@@ -319,7 +354,37 @@ def write_manifest(path: Path, input_path: Path, output_path: Path, options: App
         "skipped": report.skipped,
         "seconds": round(report.seconds, 3),
     }
-    write_text_atomic(path, json.dumps(document, indent=2) + "\n")
+    try:
+        write_text_atomic(path, json.dumps(document, indent=2) + "\n")
+    except OSError as error:
+        raise DarksynthError(
+            f"{error.filename or path}: cannot write the manifest ({error.strerror or error})"
+        ) from None
+
+
+def claim_outputs(outputs: list[Path], root: Path, *, folder: bool, overwrite: bool) -> None:
+    """Check, before any work, that a run may write its outputs; remove what a killed run left for them.
+
+    Refused without ``overwrite``: any output (manifest included) that exists already. Refused always: an
+    output location that cannot be written (read-only file system, no permission, a file where a folder should
+    be), found by creating the folder and a file in it, so that it fails once instead of once per file.
+
+    Raises:
+        DarksynthError: one line naming the first existing output and the count, or the unwritable location.
+    """
+    if not overwrite:
+        existing = [path for path in outputs if path.exists()]
+        if existing:
+            more = f" (and {len(existing) - 1} more of this run's outputs)" if len(existing) > 1 else ""
+            raise DarksynthError(f"{existing[0]}: exists{more}; add --overwrite to replace, or choose another output")
+    location = root if folder else root.parent
+    try:
+        location.mkdir(parents=True, exist_ok=True)
+        with tempfile.NamedTemporaryFile(dir=location, prefix=".darksynth-probe-"):
+            pass
+    except OSError as error:
+        raise DarksynthError(f"{location}: cannot write the output here ({error.strerror or error})") from None
+    remove_stale_temps(outputs)
 
 
 def apply(
@@ -342,16 +407,21 @@ def apply(
         on_task: called as each task ends, with the error message or None.
 
     Raises:
-        DarksynthError: the run cannot start (bad input path, output inside input, nothing to do), or the
-            single input file fails.
+        DarksynthError: the run cannot start (bad input path, output inside input, outputs that exist without
+            ``options.overwrite``, an output location that cannot be written), the single input file fails, or
+            the manifest cannot be written.
     """
     started = time.perf_counter()
     tasks, skipped, output_path = plan(input_path, output_path, clip=options.clip)
+    folder = input_path.is_dir()
+    manifest = manifest_path(output_path, folder=folder)
+    outputs = [path for task in tasks for path in task.outputs]
+    claim_outputs([*outputs, manifest], output_path, folder=folder, overwrite=options.overwrite)
     total_frames = sum(_frame_estimate(t) for t in tasks)
     if on_start:
         on_start(tasks, total_frames)
     report = ApplyReport(skipped=skipped)
-    if input_path.is_dir():
+    if folder:
         for task, record, error in execute(tasks, options, on_frames=on_frames):
             if record is not None:
                 report.records.append(record)
@@ -363,8 +433,8 @@ def apply(
         # One file: its failure is the run's failure, raised as such, and then there is nothing to record.
         report.records.append(run_task(tasks[0], options, on_frames))
     report.seconds = time.perf_counter() - started
-    report.manifest = manifest_path(output_path)
-    write_manifest(report.manifest, input_path, output_path, options, report)
+    report.manifest = manifest
+    write_manifest(manifest, input_path, output_path, options, report)
     return report
 
 

@@ -102,6 +102,7 @@ def run_with_progress(
         return apply(input_path, output_path, options, on_start=on_start, on_frames=display.advance, on_task=on_task)
 
 
+JITTER_HELP = "Draw each file's or clip's parameters within the profile's ranges (default: the profile's values)."
 QUIET_HELP = "No progress and no summary; warnings and errors are still printed."
 
 
@@ -117,6 +118,10 @@ def apply_command(
     clip: Annotated[bool, typer.Option("--clip", help="Each folder of frames is one clip.")] = default_of(
         ApplyOptions, "clip"
     ),
+    jitter: Annotated[bool, typer.Option("--jitter", help=JITTER_HELP)] = default_of(ApplyOptions, "jitter"),
+    overwrite: Annotated[
+        bool, typer.Option("--overwrite", help="Replace outputs that exist (otherwise the run is refused).")
+    ] = default_of(ApplyOptions, "overwrite"),
     workers: Annotated[int, typer.Option(min=1, help="Processes for folders.")] = default_of(ApplyOptions, "workers"),
     codec: Annotated[str | None, typer.Option(help="Video codec, e.g. libx264 (default), ffv1.")] = default_of(
         ApplyOptions, "codec"
@@ -137,6 +142,8 @@ def apply_command(
             profile=load_profile(profile),
             seed=seed if seed is not None else secrets.randbits(31),
             darkening=darkening_choice(alpha, gamma, no_darken),
+            jitter=jitter,
+            overwrite=overwrite,
             clip=clip,
             workers=workers,
             codec=codec,
@@ -174,9 +181,7 @@ def convert_command(
     workers: Annotated[int, typer.Option(min=1, help="Processes on this machine.")] = default_of(
         ConvertOptions, "workers"
     ),
-    jitter: Annotated[
-        bool, typer.Option("--jitter", help="Draw parameters per image or clip within the profile's ranges.")
-    ] = default_of(ConvertOptions, "jitter"),
+    jitter: Annotated[bool, typer.Option("--jitter", help=JITTER_HELP)] = default_of(ConvertOptions, "jitter"),
     shard: Annotated[str | None, typer.Option(help="Convert only part K of N (1-based), e.g. 3/8.")] = default_of(
         ConvertOptions, "shard"
     ),

@@ -88,7 +88,8 @@ def run_demo(out: Path, *, seed: int = 0) -> list[Path]:
         if not sample_path(name).is_file():
             raise DarksynthError(f"{sample_path(name)}: demo sample missing from the installation")
     profile, source = demo_profile()
-    options = ApplyOptions(profile=profile, seed=seed, profile_source=source)
+    # The demo's folder is the demo's own: a second run replaces its files.
+    options = ApplyOptions(profile=profile, seed=seed, profile_source=source, overwrite=True)
     out.mkdir(parents=True, exist_ok=True)
     profile_out = out / "profile.json"
     save_profile(profile_out, profile)

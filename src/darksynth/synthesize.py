@@ -96,6 +96,17 @@ def draw_clip_parameters(
     return ClipParameters(noise=noise, darkening=chosen)
 
 
+def fixed_darkening(profile: Profile) -> Darkening:
+    """The darkening when nothing is drawn: the profile's, else the centre of its alpha/gamma ranges or the paper's."""
+    if profile.darkening is not None:
+        return profile.darkening
+    centres = {}
+    for name, paper in (("alpha", ALPHA_RANGE), ("gamma", GAMMA_RANGE)):
+        low, high = profile.ranges[name][0] if name in profile.ranges else paper
+        centres[name] = (low + high) / 2
+    return Darkening(alpha=centres["alpha"], gamma=centres["gamma"])
+
+
 class ClipSynthesizer:
     """Darkening + f(v) for the frames of one clip, one frame at a time (memory does not grow with length).
 
@@ -354,5 +365,6 @@ __all__ = [
     "ClipSynthesizer",
     "LowLightResult",
     "draw_clip_parameters",
+    "fixed_darkening",
     "synthesize",
 ]

@@ -66,9 +66,11 @@ def test_bad_options_are_refused_by_check(options: ConvertOptions, change: dict[
 
 def test_apply_options_fix_the_parameters_unless_jitter(options: ConvertOptions) -> None:
     fixed = options.apply_options()
-    assert fixed.profile.ranges == {} and fixed.darkening == fixed_darkening(options.profile)
+    assert not fixed.jitter and fixed.profile == options.profile
+    drawn_from, darkening = fixed.drawing()
+    assert drawn_from.ranges == {} and darkening == fixed_darkening(options.profile)
     jittered = dataclasses.replace(options, jitter=True).apply_options()
-    assert jittered.profile == options.profile and jittered.darkening == "profile"
+    assert jittered.jitter and jittered.drawing() == (options.profile, "profile")
     assert (fixed.seed, fixed.workers, fixed.codec, fixed.crf, fixed.device) == (3, 1, None, None, "cpu")
 
 

@@ -22,8 +22,6 @@ from __future__ import annotations
 import dataclasses
 import hashlib
 import json
-import os
-import re
 import shutil
 import time
 from collections.abc import Callable, Mapping
@@ -34,15 +32,15 @@ from typing import Any, Final
 import torch
 
 from darksynth import __version__
-from darksynth.apply import ApplyOptions, execute, run_task
-from darksynth.darkening import ALPHA_RANGE, GAMMA_RANGE, Darkening
+from darksynth.apply import MANIFEST_NAME, ApplyOptions, execute, run_task
 from darksynth.datasets.formats import FORMATS, CarriedFile, DatasetFormat, DatasetPlan, MediaItem, plan_dataset
 from darksynth.datasets.formats import rewrite_yolo_yaml as _rewrite_yolo_yaml
 from darksynth.errors import DarksynthError
-from darksynth.io.atomic import TEMP_MARKER, atomic_output, write_text_atomic
+from darksynth.io.atomic import atomic_output, write_text_atomic
+from darksynth.io.atomic import remove_stale_temps as remove_temps_of
 from darksynth.io.discover import check_output_location
 from darksynth.profile import Profile, profile_to_dict
-from darksynth.synthesize import DarkeningChoice
+from darksynth.synthesize import fixed_darkening
 
 __all__ = [
     "MANIFEST_NAME",
@@ -66,10 +64,8 @@ __all__ = [
 ]
 
 STATE_FOLDER: Final = ".darksynth"
-MANIFEST_NAME: Final = "darksynth-manifest.json"
 _STATE_NAME: Final = "convert-state.json"
 _RECORDS: Final = "records"
-_TEMP_NAME = re.compile(r"^\.(?P<stem>.*)" + re.escape(TEMP_MARKER) + r"[0-9a-f]{12}(?P<suffix>.*)$")
 
 ProgressCallback = Callable[[int, int], None]
 """Called with (items finished, items of this run) as each item ends (already done items count at the start)."""
@@ -159,17 +155,11 @@ class ConvertOptions:
         return dataclasses.replace(self, dataset=self.dataset.resolve(), output=self.output.resolve())
 
     def apply_options(self) -> ApplyOptions:
-        """The ``apply`` options of each item: with ``jitter`` the profile as it is, else fixed values."""
-        profile: Profile = self.profile
-        darkening: DarkeningChoice = "profile"
-        if not self.jitter:
-            # Without ranges and with a fixed darkening, draw_clip_parameters draws nothing: every item gets the
-            # same values and its seed only drives the noise itself.
-            profile, darkening = dataclasses.replace(self.profile, ranges={}), fixed_darkening(self.profile)
+        """The ``apply`` options of each item (``jitter`` means the same for both commands)."""
         return ApplyOptions(
-            profile=profile,
+            profile=self.profile,
             seed=self.seed,
-            darkening=darkening,
+            jitter=self.jitter,
             workers=self.workers,
             codec=self.codec,
             crf=self.crf,
@@ -189,17 +179,6 @@ class ConvertOptions:
                 value = str(value)
             fingerprint[option.name] = value
         return fingerprint
-
-
-def fixed_darkening(profile: Profile) -> Darkening:
-    """The darkening without jitter: the profile's, else the centre of its alpha/gamma ranges or the paper's."""
-    if profile.darkening is not None:
-        return profile.darkening
-    centres = {}
-    for name, paper in (("alpha", ALPHA_RANGE), ("gamma", GAMMA_RANGE)):
-        low, high = profile.ranges[name][0] if name in profile.ranges else paper
-        centres[name] = (low + high) / 2
-    return Darkening(alpha=centres["alpha"], gamma=centres["gamma"])
 
 
 @dataclass
@@ -463,15 +442,7 @@ def remove_stale_temps(options: ConvertOptions, plan: DatasetPlan, owns: Callabl
     owned.update(c.key for c in plan.carried if owns(c.key))
     if options.shard is None:
         owned.update({MANIFEST_NAME, f"{STATE_FOLDER}/{_STATE_NAME}"})
-    for folder, _, names in os.walk(output):
-        base = Path(folder)
-        for name in names:
-            match = _TEMP_NAME.match(name)
-            if match is None:
-                continue
-            original = (base / (match["stem"] + match["suffix"])).relative_to(output).as_posix()
-            if original in owned:
-                (base / name).unlink(missing_ok=True)
+    remove_temps_of(output / relative for relative in owned)
 
 
 def carry_file(options: ConvertOptions, carried: CarriedFile) -> bool:

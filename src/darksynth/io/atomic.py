@@ -4,13 +4,15 @@ from __future__ import annotations
 
 import contextlib
 import os
+import re
 import secrets
-from collections.abc import Iterator
+from collections.abc import Iterable, Iterator
 from pathlib import Path
 
-__all__ = ["atomic_output", "temp_path_for", "write_text_atomic"]
+__all__ = ["atomic_output", "remove_stale_temps", "temp_path_for", "write_text_atomic"]
 
 TEMP_MARKER = ".tmp-"
+_TEMP_NAME = re.compile(r"^\.(?P<stem>.*)" + re.escape(TEMP_MARKER) + r"[0-9a-f]{12}(?P<suffix>.*)$")
 
 
 def temp_path_for(dest: Path) -> Path:
@@ -55,6 +57,30 @@ def atomic_output(dest: Path) -> Iterator[Path]:
     except BaseException:
         tmp.unlink(missing_ok=True)
         raise
+
+
+def remove_stale_temps(outputs: Iterable[Path]) -> int:
+    """Remove the temporary files that a killed run left for any of ``outputs``; return how many.
+
+    A run killed with SIGKILL (or by a power cut) cannot remove its temporary file; the next run that writes the
+    same output removes it. Only temporaries of the given outputs are touched, so that a run writing other files
+    into the same folder keeps its own.
+    """
+    by_folder: dict[Path, set[str]] = {}
+    for output in outputs:
+        by_folder.setdefault(output.parent, set()).add(output.name)
+    removed = 0
+    for folder, names in by_folder.items():
+        try:
+            entries = list(os.scandir(folder))
+        except OSError:  # the folder does not exist yet: nothing was left in it
+            continue
+        for entry in entries:
+            match = _TEMP_NAME.match(entry.name)
+            if match is not None and match["stem"] + match["suffix"] in names:
+                Path(entry.path).unlink(missing_ok=True)
+                removed += 1
+    return removed
 
 
 def write_text_atomic(dest: Path, text: str) -> None:
