@@ -75,26 +75,32 @@ def compose_sheet(
     panels: list[tuple[str, np.ndarray]], *, brighten_from: int = 1, gain: float | None = None
 ) -> np.ndarray:
     """Labelled 8-bit RGB panels of one size side by side, and below them the panels from ``brighten_from`` on,
-    brightened: each to mid-grey by its own gain, or all by ``gain``."""
+    brightened.
+
+    Args:
+        panels: (label, pixels (H, W, 3) uint8) in the order shown.
+        brighten_from: the first panel of the second row that is brightened; those before it are shown as they are.
+        gain: one gain for every brightened panel, said in a caption bar between the rows; None (the demo's sheet):
+            each panel to mid-grey by its own gain, said in a caption over the second row.
+    """
     height, width = panels[0][1].shape[:2]
     rows = [
         [p for _, p in panels],
         [p if i < brighten_from else brighten(p, gain) for i, (_, p) in enumerate(panels)],
     ]
-    canvas = PILImage.new("RGB", (width * len(panels), LABEL_HEIGHT + 2 * height), "black")
+    row_tops = (LABEL_HEIGHT, LABEL_HEIGHT + height + (0 if gain is None else LABEL_HEIGHT))
+    canvas = PILImage.new("RGB", (width * len(panels), row_tops[1] + height), "black")
     draw = ImageDraw.Draw(canvas)
     for column, (label, _) in enumerate(panels):
         draw.text((column * width + 4, 3), label, fill="white")
-        for row, images in enumerate(rows):
-            canvas.paste(PILImage.fromarray(images[column]), (column * width, LABEL_HEIGHT + row * height))
+        for top, images in zip(row_tops, rows, strict=True):
+            canvas.paste(PILImage.fromarray(images[column]), (column * width, top))
     caption = (
         "below: dark panels brightened to mid-grey"
         if gain is None
         else f"below: dark panels x{gain:.1f}, one gain for all (the synthetic panel's mean to mid-grey)"
     )
-    # The demo's sheet keeps its look; the outline keeps a caption on a bright panel legible.
-    outline = 0 if gain is None else 1
-    draw.text((4, LABEL_HEIGHT + height + 3), caption, fill="yellow", stroke_width=outline, stroke_fill="black")
+    draw.text((4, LABEL_HEIGHT + height + 3), caption, fill="yellow")
     return np.asarray(canvas)
 
 
