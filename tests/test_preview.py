@@ -294,3 +294,23 @@ def test_a_profile_written_by_estimate_brings_its_reference(
     assert code == 0, err
     assert "4 panels" in err
     assert np.array_equal(_panel(_pixels(tmp_path / "p.png"), 0, 3, 32, 24), centre_crop(_pixels(reference), 24, 32))
+
+
+def test_demo_sheet_keeps_its_layout_and_per_panel_brightening(tmp_path: Path) -> None:
+    """The demo builds its sheet from the same code: four panels as is, below them each dark panel to mid-grey."""
+    from darksynth.demo import run_demo, sample_path
+
+    run_demo(tmp_path / "demo", seed=0)
+    sheet = _pixels(tmp_path / "demo" / "preview.png")
+    clean = _pixels(sample_path("clean.png"))
+    height, width = clean.shape[:2]
+    assert sheet.shape == (LABEL_HEIGHT + 2 * height, 4 * width, 3)
+
+    def panel(row: int, column: int) -> np.ndarray:
+        top = LABEL_HEIGHT + row * height
+        return sheet[top : top + height, column * width : (column + 1) * width]
+
+    assert np.array_equal(panel(0, 0), clean)
+    assert np.array_equal(panel(0, 2), _pixels(tmp_path / "demo" / "clean_lowlight.png"))
+    assert np.array_equal(panel(1, 3), brighten(panel(0, 3)))
+    assert abs(float(panel(1, 2)[LABEL_HEIGHT:].mean()) / 255 - 0.45) < 0.05

@@ -45,11 +45,16 @@ def brighten(pixels: np.ndarray, gain: float | None = None) -> np.ndarray:
     return brightened
 
 
-def centre_crop(pixels: np.ndarray, height: int, width: int) -> np.ndarray:
-    """The centre ``height`` x ``width`` of an 8-bit RGB image, padded with black where it is smaller."""
+def centre_window(pixels: np.ndarray, height: int, width: int) -> np.ndarray:
+    """The centre ``height`` x ``width`` of an image (H, W, C), or less where it is smaller (a view, not a copy)."""
     top = max(0, (pixels.shape[0] - height) // 2)
     left = max(0, (pixels.shape[1] - width) // 2)
-    crop = pixels[top : top + height, left : left + width]
+    return pixels[top : top + height, left : left + width]
+
+
+def centre_crop(pixels: np.ndarray, height: int, width: int) -> np.ndarray:
+    """The centre ``height`` x ``width`` of an 8-bit RGB image, padded with black where it is smaller."""
+    crop = centre_window(pixels, height, width)
     padded = np.zeros((height, width, 3), dtype=np.uint8)
     padded[: crop.shape[0], : crop.shape[1]] = crop
     return padded
@@ -235,7 +240,8 @@ def run_preview(image_path: Path, out: Path, options: PreviewOptions) -> Preview
     panels = [("clean", shown(clean))]
     if darkening is not None:
         label = f"darkened a={darkening.alpha:.2f} g={darkening.gamma:.2f}"
-        panels.append((label, shown(darkened_pixels(clean, darkening))))
+        # The darkening is per pixel: the window alone is darkened, at the image's own bit depth.
+        panels.append((label, shown(darkened_pixels(centre_window(clean, height, width), darkening))))
     noisy_panel = shown(noisy)
     panels.append(("darkened + noise" if darkening is not None else "noise, not darkened", noisy_panel))
     if reference is not None:
