@@ -10,7 +10,7 @@ sibling of its own layer):
 3. ``profile``, ``darkening_estimate``;
 4. ``synthesize``, ``models``;
 5. ``apply``, ``refine``, ``training``, ``transforms``;
-6. ``baselines``, ``datasets``, ``estimate`` (it may refine);
+6. ``baselines``, ``datasets``, ``estimate`` (it may refine), ``preview`` (it runs ``apply``'s synthesis);
 7. ``evaluation``, ``demo``;
 8. ``cli``, the package ``__init__``; 9. ``main``, the entry point (the light app, or the cli); 10. ``__main__``,
    which only calls it.
@@ -49,6 +49,7 @@ LAYERS: dict[str, int] = {
     "transforms": 5,
     "baselines": 6,
     "datasets": 6,
+    "preview": 6,
     "evaluation": 7,
     "demo": 7,
     "cli": 8,

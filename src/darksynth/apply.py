@@ -194,11 +194,34 @@ def run_task(task: Task, options: ApplyOptions, progress: Progress | None = None
         raise DarksynthError(f"{where}: {error.strerror or error}") from None
 
 
-def _run_task(task: Task, options: ApplyOptions, progress: Progress | None) -> dict[str, Any]:
-    seed = task_seed(options.seed, task.key)
+def start_task(key: str, options: ApplyOptions) -> tuple[int, torch.Generator, ClipParameters]:
+    """A task's seed, the generator its noise is drawn from and its parameters, all fixed by the run seed and the
+    task's key (its path relative to the input; for a single input file, its name)."""
+    seed = task_seed(options.seed, key)
     generator = torch.Generator(device=options.device).manual_seed(seed)
     profile, darkening = options.drawing()
     parameters = draw_clip_parameters(profile, darkening=darkening, generator=generator)
+    return seed, generator, parameters
+
+
+def synthesize_image(pixels: np.ndarray, key: str, options: ApplyOptions) -> tuple[np.ndarray, ClipParameters]:
+    """The low-light pixels that ``apply`` writes for an image task with this key, and the parameters drawn.
+
+    Args:
+        pixels: the clean image (H, W, C), uint8 or uint16.
+        key: the task's key; an image given to ``apply`` as its input has its file name as key.
+
+    Returns:
+        The low-light image in the dtype of ``pixels``, and its parameters.
+    """
+    _, generator, parameters = start_task(key, options)
+    compile_kernel = _worth_compiling(options, pixels.size)
+    synthesizer = ClipSynthesizer(parameters, generator=generator, device=options.device, compile=compile_kernel)
+    return chw_to_hwc(synthesizer(hwc_to_chw(pixels))), parameters
+
+
+def _run_task(task: Task, options: ApplyOptions, progress: Progress | None) -> dict[str, Any]:
+    seed, generator, parameters = start_task(task.key, options)
     frames = len(task.inputs)
     if task.kind == "video":
         frames = _run_video(task, options, parameters, generator, progress)

@@ -24,6 +24,7 @@ from darksynth.estimate import EstimateOptions
 from darksynth.evaluation.options import EvaluationOptions
 from darksynth.models.den import DENConfig, Variant
 from darksynth.noise.components import NOISE_MODELS, NoiseModel
+from darksynth.preview import PANEL_SIZE
 from darksynth.profile import load_profile
 from darksynth.synthesize import DarkeningChoice
 from darksynth.training.loop import TrainConfig
@@ -434,6 +435,50 @@ def estimate_command(
         raise fail(f"{out}: {error.strerror or error}") from None
     if not quiet:
         say(f"wrote {out} from {result.per_crop.batch_shape[0]} crops")
+
+
+@app.command("preview", help=COMMAND_HELP["preview"])
+def preview_command(
+    image: Annotated[Path, typer.Argument(metavar="IMAGE", help="One clean image.")],
+    profile: Annotated[Path, typer.Option("--profile", "-p", help="Noise profile JSON.")],
+    out: Annotated[Path, typer.Option("--out", help="Preview image to write.")] = Path("preview.png"),
+    seed: Annotated[int | None, typer.Option(help="Run seed, as apply's; random (and printed) when omitted.")] = None,
+    alpha: Annotated[float | None, typer.Option(help="Darkening scale, with --gamma.")] = None,
+    gamma: Annotated[float | None, typer.Option(help="Darkening exponent: x_d = alpha * x ** (1/gamma).")] = None,
+    no_darken: Annotated[bool, typer.Option("--no-darken", help="Add noise only, keep the brightness.")] = False,
+    crop: Annotated[
+        str, typer.Option(help="Largest panel, WIDTHxHEIGHT or SIDE; a larger image is shown by its centre.")
+    ] = "x".join(map(str, PANEL_SIZE)),
+    overwrite: Annotated[bool, typer.Option("--overwrite", help="Replace an existing OUT.")] = False,
+    device: Annotated[str, typer.Option(help="torch device: cpu, cuda, cuda:1 ...")] = default_of(
+        ApplyOptions, "device"
+    ),
+) -> None:
+    from darksynth.preview import PreviewOptions, parse_panel_size, run_preview
+
+    try:
+        options = PreviewOptions(
+            synthesis=ApplyOptions(
+                profile=load_profile(profile),
+                seed=seed if seed is not None else secrets.randbits(31),
+                darkening=darkening_choice(alpha, gamma, no_darken),
+                device=device,
+                profile_source=str(profile),
+            ),
+            panel_size=parse_panel_size(crop),
+            overwrite=overwrite,
+            profile_path=profile,
+        )
+        report = run_preview(image, out, options)
+    except DarksynthError as error:
+        raise fail(str(error)) from None
+    for warning in report.warnings:
+        say(f"darksynth: warning: {warning}")
+    width, height = report.panel_size
+    say(
+        f"wrote {report.output}: {len(report.labels)} panels of {width}x{height}, seed {options.synthesis.seed}, "
+        f"dark panels brightened x{report.gain:.1f}"
+    )
 
 
 def parse_weights(entries: list[str]) -> dict[str, Path]:

@@ -27,6 +27,7 @@ COMMAND_HELP: dict[str, str] = {
     "convert": "Convert a whole annotated dataset to low light; annotations carried over, resumable, shardable.",
     "train": "Train the DEN self-supervised on clean material: random crops, darkening, random v, f(v).",
     "estimate": "Estimate a noise profile from one real low-light reference, zero-shot.",
+    "preview": "Preview one image with a profile before converting: clean, darkened, noisy and the real reference.",
     "evaluate": "Compare each method's synthetic noise with real noise on sets of real pairs.",
     "demo": "Run the whole job on the shipped sample: low-light image, clip and a side-by-side preview.",
 }

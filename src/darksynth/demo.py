@@ -4,57 +4,21 @@ from __future__ import annotations
 
 from pathlib import Path
 
-import numpy as np
-from PIL import Image as PILImage
-from PIL import ImageDraw
-
 from darksynth.apply import ApplyOptions, apply
-from darksynth.darkening import darken
+from darksynth.darkening import Darkening
 from darksynth.errors import DarksynthError
 from darksynth.estimate import estimate, load_reference
-from darksynth.io.arrays import hwc_to_chw
 from darksynth.io.images import Image, read_image, write_image
+from darksynth.preview import centre_crop, compose_sheet, darkened_pixels
 from darksynth.profile import Profile, default_profile_path, load_profile, save_profile
 from darksynth.training.weights import default_weights_path, load_weights
 
 SAMPLE = Path(__file__).parent / "data" / "sample"
-LABEL_HEIGHT = 18
 
 
 def sample_path(name: str) -> Path:
     """A file of the shipped sample (clean.png, clean_clip.mp4, reference.png)."""
     return SAMPLE / name
-
-
-def _brighten(pixels: np.ndarray, target_mean: float = 0.45) -> np.ndarray:
-    # Dark panels are shown a second time with a gain that brings their mean to mid-grey, so the noise shows.
-    as_float = pixels.astype(np.float32) / 255.0
-    gain = target_mean / max(float(as_float.mean()), 1e-3)
-    brightened: np.ndarray = (np.clip(as_float * gain, 0.0, 1.0) * 255.0 + 0.5).astype(np.uint8)
-    return brightened
-
-
-def _centre_crop(pixels: np.ndarray, height: int, width: int) -> np.ndarray:
-    top = max(0, (pixels.shape[0] - height) // 2)
-    left = max(0, (pixels.shape[1] - width) // 2)
-    crop = pixels[top : top + height, left : left + width]
-    padded = np.zeros((height, width, 3), dtype=np.uint8)
-    padded[: crop.shape[0], : crop.shape[1]] = crop
-    return padded
-
-
-def preview(panels: list[tuple[str, np.ndarray]], *, brighten_from: int = 1) -> np.ndarray:
-    """Side-by-side panels with labels, and below them the panels from ``brighten_from`` on, brightened."""
-    height, width = panels[0][1].shape[:2]
-    rows = [[p for _, p in panels], [p if i < brighten_from else _brighten(p) for i, (_, p) in enumerate(panels)]]
-    canvas = PILImage.new("RGB", (width * len(panels), LABEL_HEIGHT + 2 * height), "black")
-    draw = ImageDraw.Draw(canvas)
-    for column, (label, _) in enumerate(panels):
-        draw.text((column * width + 4, 3), label, fill="white")
-        for row, images in enumerate(rows):
-            canvas.paste(PILImage.fromarray(images[column]), (column * width, LABEL_HEIGHT + row * height))
-    draw.text((4, LABEL_HEIGHT + height + 3), "below: dark panels brightened to mid-grey", fill="yellow")
-    return np.asarray(canvas)
 
 
 def demo_profile() -> tuple[Profile, str]:
@@ -101,18 +65,18 @@ def run_demo(out: Path, *, seed: int = 0) -> list[Path]:
 
     clean = read_image(sample_path("clean.png")).pixels
     darkening = image_report.records[0]["parameters"]["darkening"]
-    clean_tensor = hwc_to_chw(clean).float() / 255.0
-    darkened = darken(clean_tensor, darkening["alpha"], darkening["gamma"])
-    darkened_pixels = (darkened * 255.0).round().byte().permute(1, 2, 0).numpy()
     noisy = read_image(out / "clean_lowlight.png").pixels
     reference = read_image(sample_path("reference.png")).pixels
     panels = [
         ("clean", clean),
-        (f"darkened a={darkening['alpha']:.2f} g={darkening['gamma']:.2f}", darkened_pixels),
+        (
+            f"darkened a={darkening['alpha']:.2f} g={darkening['gamma']:.2f}",
+            darkened_pixels(clean, Darkening(**darkening)),
+        ),
         ("darkened + noise", noisy),
-        ("real reference (crop)", _centre_crop(reference, *clean.shape[:2])),
+        ("real reference (crop)", centre_crop(reference, *clean.shape[:2])),
     ]
     preview_path = out / "preview.png"
-    write_image(preview_path, Image(preview(panels)))
+    write_image(preview_path, Image(compose_sheet(panels)))
     manifests = [r.manifest for r in (image_report, clip_report) if r.manifest is not None]
     return [profile_out, out / "clean_lowlight.png", out / "clip_lowlight.mp4", *manifests, preview_path]
