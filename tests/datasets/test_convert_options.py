@@ -7,10 +7,12 @@ from pathlib import Path
 
 import pytest
 
+import darksynth.console_progress
 from darksynth.datasets import SCHEDULING_OPTIONS, ConvertOptions, Shard, fixed_darkening
 from darksynth.datasets.ray_convert import convert_dataset_with_ray
 from darksynth.errors import DarksynthError
 from darksynth.profile import load_profile, profile_to_dict
+from tests.command_line import run_cli
 
 
 @pytest.fixture
@@ -87,3 +89,15 @@ def test_ray_refuses_the_options_it_decides_itself(
     message = str(raised.value)
     assert message.startswith("--ray schedules the work itself") and f"(got {named})" in message
     assert "\n" not in message
+
+
+def test_convert_reports_progress_in_a_log_and_nothing_with_quiet(
+    monkeypatch: pytest.MonkeyPatch, folder_dataset: Path, profile_path: Path, tmp_path: Path
+) -> None:
+    monkeypatch.setattr(darksynth.console_progress, "LOG_INTERVAL", 0.0)
+    code, _, err = run_cli("convert", folder_dataset, tmp_path / "a", "-p", profile_path, "-f", "folder")
+    assert code == 0, err
+    progress = [line for line in err.splitlines() if line.startswith("convert: ")]
+    assert progress and progress[-1].startswith("convert: 4/4 files (100%)"), err
+    code, out, err = run_cli("convert", folder_dataset, tmp_path / "b", "-p", profile_path, "-f", "folder", "-q")
+    assert (code, out, err) == (0, "", "")
