@@ -160,9 +160,11 @@ def test_a_clip_whose_frames_change_size_goes_on_with_one_warning(
     # Each size keeps one held pattern: equal frames within a size, banding present at both.
     assert np.array_equal(out[0], out[1]) and np.array_equal(out[2], out[3])
     assert out[0].std() > 3 and out[2].std() > 3
-    # The warning goes to stderr through logging's last-resort handler; pytest captures it before that.
+    # The warning is logged, and the command line prints it as its own warning line.
     warnings = [r.getMessage() for r in caplog.records if "frame size changed" in r.getMessage()]
-    assert len(warnings) == 1 and "3x6x40 to 3x6x56" in warnings[0]
+    assert len(warnings) == 1 and "3x6x40 to 3x6x56 at frame 2" in warnings[0]
+    assert warnings[0].startswith(f"{frames}: ")
+    assert f"darksynth: warning: {warnings[0]}" in err.splitlines()
 
 
 def test_video_keeps_frames_and_rate(tmp_path: Path, profile_file: Path) -> None:

@@ -232,7 +232,11 @@ def _run_task(task: Task, options: ApplyOptions, progress: Progress | None) -> d
             if synthesizer is None:
                 compile_kernel = _worth_compiling(options, frames * image.pixels.size)
                 synthesizer = ClipSynthesizer(
-                    parameters, generator=generator, device=options.device, compile=compile_kernel
+                    parameters,
+                    generator=generator,
+                    device=options.device,
+                    compile=compile_kernel,
+                    name=str(source.parent if task.kind == "clip" else source),
                 )
             # A frame of another size is the synthesizer's to handle (it logs the change and goes on).
             result = synthesizer(hwc_to_chw(image.pixels))

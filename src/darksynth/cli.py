@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import dataclasses
+import logging
 import os
 import secrets
 import shlex
@@ -37,6 +38,20 @@ console = Console(stderr=True)
 def say(message: str, target: Console = console) -> None:
     """Print a message as is: no markup, no highlighting, never wrapped, so that an error stays one line."""
     target.print(message, markup=False, highlight=False, soft_wrap=True)
+
+
+class WarningLines(logging.Handler):
+    """The library's logged warnings as the command line's own lines, ``darksynth: warning: ...`` on stderr
+    (through the console, so that they print above a progress bar instead of through it)."""
+
+    def emit(self, record: logging.LogRecord) -> None:
+        kind = "error" if record.levelno >= logging.ERROR else "warning"
+        say(f"darksynth: {kind}: {' '.join(record.getMessage().split())}")
+
+
+_library_logger = logging.getLogger("darksynth")
+if not any(isinstance(handler, WarningLines) for handler in _library_logger.handlers):
+    _library_logger.addHandler(WarningLines(logging.WARNING))
 
 
 def fail(message: str) -> typer.Exit:

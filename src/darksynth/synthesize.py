@@ -122,6 +122,7 @@ class ClipSynthesizer:
         generator: source of randomness, consumed frame after frame.
         device: where the work runs (``"cpu"``, ``"cuda"``); frames are moved there and results returned there.
         compile: fuse the 8-bit kernel with ``torch.compile``; worth it for a long stream of same-sized frames.
+        name: what the clip is called in log messages (its file or folder).
     """
 
     def __init__(
@@ -131,8 +132,10 @@ class ClipSynthesizer:
         generator: torch.Generator | None = None,
         device: torch.device | str = "cpu",
         compile: bool = False,
+        name: str = "",
     ) -> None:
         self.parameters = parameters
+        self.name = name
         self.generator = generator
         self.device = torch.device(device)
         self._values = parameters.noise.to(self.device, torch.float32)
@@ -148,6 +151,7 @@ class ClipSynthesizer:
             logger.debug("8-bit frames take the general composer: %s not covered by %s", uncovered, FAST_PATH)
         self._scalars: tuple[torch.Tensor, ...] | None = None
         self._frame_shape: torch.Size | None = None
+        self._frames_done = 0
 
     def __call__(self, frame: torch.Tensor) -> torch.Tensor:
         """Low-light version of one frame (C, H, W): uint8 in, uint8 out; uint16 and float likewise."""
@@ -157,6 +161,7 @@ class ClipSynthesizer:
         if self._frame_shape is not None and frame.shape != self._frame_shape:
             self._restart_for_new_size(frame.shape)
         self._frame_shape = frame.shape
+        self._frames_done += 1
         if frame.dtype == torch.uint8 and self._fusable:
             return self._fused(frame)
         if frame.dtype == torch.uint8 and self._structured:
@@ -177,10 +182,12 @@ class ClipSynthesizer:
         # would recompile for seconds at every change. The clip's patterns are redrawn for the new size and its
         # frames go on through the general composer, which has the same law for any size.
         logger.warning(
-            "frame size changed within a clip from %s to %s: its held patterns are redrawn and its frames take "
-            "the general composer",
+            "%sframe size changed within a clip from %s to %s at frame %d: its held patterns are redrawn and its "
+            "frames take the general composer",
+            f"{self.name}: " if self.name else "",
             "x".join(map(str, self._frame_shape or ())),
             "x".join(map(str, shape)),
+            self._frames_done,
         )
         self._held.clear()
         self._fusable = self._structured = False
