@@ -253,6 +253,9 @@ def test_garbage_mp4(tmp_path: Path) -> None:
     with pytest.raises(InputFileError, match="not a readable video") as info:
         probe_video(path)
     assert info.value.path == path
+    # FFmpeg's readable reason only: no "[Errno 1094995529]", no second copy of the path.
+    assert info.value.problem == "not a readable video (Invalid data found when processing input)"
+    assert str(info.value).count(path.name) == 1
     with pytest.raises(InputFileError, match="not a readable video"):
         list(iter_video_frames(path))
 
@@ -300,3 +303,4 @@ def test_corrupt_frames_mid_stream_name_the_frame(tmp_path: Path, monkeypatch: p
     with pytest.raises(InputFileError, match="cannot decode video frame 3") as info:
         next(frames)
     assert info.value.path == path
+    assert info.value.problem == "cannot decode video frame 3 (Invalid data found when processing input)"

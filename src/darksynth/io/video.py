@@ -20,7 +20,7 @@ from av.container import InputContainer, OutputContainer
 from av.video.reformatter import ColorRange, Colorspace
 from av.video.stream import VideoStream
 
-from darksynth.errors import DarksynthError, InputFileError
+from darksynth.errors import DarksynthError, InputFileError, error_reason
 from darksynth.io.atomic import atomic_output
 
 __all__ = [
@@ -244,7 +244,7 @@ class VideoWriter:
         except BaseException as err:
             stack.__exit__(type(err), err, err.__traceback__)
             if isinstance(err, av.FFmpegError | ValueError):
-                raise DarksynthError(f"{self.path}: cannot encode {self._describe()} ({err})") from err
+                raise DarksynthError(f"{self.path}: cannot encode {self._describe()} ({error_reason(err)})") from err
             raise
         self._stack = stack
         return self
@@ -278,7 +278,9 @@ class VideoWriter:
         try:
             self._container.mux(self._stream.encode(video_frame))
         except av.FFmpegError as err:
-            raise DarksynthError(f"{self.path}: encoding frame {self._frames_written} failed ({err})") from err
+            raise DarksynthError(
+                f"{self.path}: encoding frame {self._frames_written} failed ({error_reason(err)})"
+            ) from err
         self._frames_written += 1
 
     def __exit__(
@@ -303,12 +305,12 @@ class VideoWriter:
         except BaseException as err:
             stack.__exit__(type(err), err, err.__traceback__)
             if isinstance(err, av.FFmpegError):
-                raise DarksynthError(f"{self.path}: finishing the video failed ({err})") from err
+                raise DarksynthError(f"{self.path}: finishing the video failed ({error_reason(err)})") from err
             raise
         try:
             stack.__exit__(None, None, None)
         except av.FFmpegError as err:
-            raise DarksynthError(f"{self.path}: finishing the video failed ({err})") from err
+            raise DarksynthError(f"{self.path}: finishing the video failed ({error_reason(err)})") from err
         return False
 
     def _add_stream(self, container: OutputContainer) -> VideoStream:
@@ -350,9 +352,9 @@ def _open_input(path: Path) -> InputContainer:
     try:
         return av.open(str(path), mode="r")
     except av.FFmpegError as err:
-        raise InputFileError(path, f"not a readable video ({err})") from None
+        raise InputFileError(path, f"not a readable video ({error_reason(err)})") from None
     except OSError as err:
-        raise InputFileError(path, f"cannot open ({err.strerror or err})") from None
+        raise InputFileError(path, f"cannot open ({error_reason(err)})") from None
 
 
 def _video_stream(path: Path, container: InputContainer) -> VideoStream:
@@ -370,7 +372,7 @@ def _decoded_frames(path: Path, container: InputContainer, stream: VideoStream) 
         except StopIteration:
             return
         except av.FFmpegError as err:
-            raise InputFileError(path, f"cannot decode video frame {index} ({err})") from None
+            raise InputFileError(path, f"cannot decode video frame {index} ({error_reason(err)})") from None
         yield frame
         index += 1
 
