@@ -1,10 +1,67 @@
-"""``darksynth apply`` on videos: what the output keeps of the input besides its frames, and its messages."""
+"""``darksynth apply`` and ``convert`` on videos: the encoding of the output, what it keeps of the input besides its
+frames, and the messages."""
 
 from __future__ import annotations
 
+import json
+from fractions import Fraction
 from pathlib import Path
 
+import av
+import numpy as np
+import pytest
+
+from darksynth.io.video import VideoWriter
 from tests.command_line import run_cli
+
+
+def _clean_video(path: Path, frames: int = 6, width: int = 48, height: int = 32) -> Path:
+    with VideoWriter(path, width=width, height=height, fps=Fraction(25), codec="ffv1") as writer:
+        for index in range(frames):
+            writer.write(np.full((height, width, 3), 40 + 20 * index, np.uint8))
+    return path
+
+
+def _pix_fmt(path: Path) -> str | None:
+    with av.open(str(path)) as container:
+        return container.streams.video[0].codec_context.pix_fmt
+
+
+@pytest.mark.parametrize(
+    ("flags", "written", "recorded"), [((), "yuv420p", None), (("--pix-fmt", "yuv444p"), "yuv444p", "yuv444p")]
+)
+def test_apply_pix_fmt_default_playable_and_recorded(
+    tmp_path: Path, profile_file: Path, flags: tuple[str, ...], written: str, recorded: str | None
+) -> None:
+    source = _clean_video(tmp_path / "clean.mkv")
+    out = tmp_path / "dark.mp4"
+    code, _, err = run_cli("apply", source, out, "-p", profile_file, "--seed", "0", *flags)
+    assert code == 0, err
+    assert _pix_fmt(out) == written
+    assert json.loads((tmp_path / "dark.mp4.manifest.json").read_text())["pix_fmt"] == recorded
+
+
+def test_apply_bad_pix_fmt_is_one_line_naming_it_and_the_choices(tmp_path: Path, profile_file: Path) -> None:
+    source = _clean_video(tmp_path / "clean.mkv")
+    code, _, err = run_cli("apply", source, tmp_path / "dark.mp4", "-p", profile_file, "--pix-fmt", "yuv9000p")
+    assert code == 1
+    (line,) = err.strip().splitlines()
+    assert line.startswith(f"darksynth: error: {tmp_path / 'dark.mp4'}: libx264 cannot encode pixel format 'yuv9000p'")
+    assert "(choices: " in line and " yuv420p " in line and " yuv444p " in line
+    assert not (tmp_path / "dark.mp4").exists()
+
+
+def test_convert_records_pix_fmt_and_refuses_to_resume_with_another(tmp_path: Path, profile_file: Path) -> None:
+    dataset = tmp_path / "ds"
+    _clean_video(dataset / "videos" / "walk.mkv")
+    output = tmp_path / "out"
+    arguments = ("convert", dataset, output, "-p", profile_file, "--format", "video-folder")
+    code, _, err = run_cli(*arguments, "--pix-fmt", "yuv444p")
+    assert code == 0, err
+    assert _pix_fmt(output / "videos" / "walk.mkv") == "yuv444p"
+    assert json.loads((output / "darksynth-manifest.json").read_text())["pix_fmt"] == "yuv444p"
+    code, _, err = run_cli(*arguments)
+    assert code == 1 and "other options (pix_fmt)" in err
 
 
 def test_unreadable_video_gives_ffmpegs_reason_once(tmp_path: Path, profile_file: Path) -> None:

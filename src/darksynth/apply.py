@@ -61,7 +61,8 @@ class ApplyOptions:
         darkening: see :data:`darksynth.synthesize.DarkeningChoice`.
         clip: treat each folder of images as one clip (shared parameters and temporal banding).
         workers: processes for folders.
-        codec: video codec (None: the writer's high-quality default); crf: its quality setting.
+        codec: video codec (None: the writer's high-quality default); crf: its quality setting; pix_fmt: the
+            pixel format it codes (None: the writer's default for the codec, yuv420p for H.264).
         device: torch device for the computation.
         compile: fuse the 8-bit kernel with torch.compile; None decides by stream length.
         profile_source: where the profile came from, for the manifest.
@@ -74,6 +75,7 @@ class ApplyOptions:
     workers: int = 1
     codec: str | None = None
     crf: int | None = None
+    pix_fmt: str | None = None
     device: str = "cpu"
     compile: bool | None = None
     profile_source: str = ""
@@ -213,6 +215,8 @@ def _run_video(
         writer_options["codec"] = options.codec
     if options.crf is not None:
         writer_options["crf"] = options.crf
+    if options.pix_fmt is not None:
+        writer_options["pix_fmt"] = options.pix_fmt
     count = 0
     resized = False
     with VideoWriter(target, **writer_options) as writer:
@@ -296,6 +300,7 @@ def write_manifest(path: Path, input_path: Path, output_path: Path, options: App
         "clip": options.clip,
         "codec": options.codec,
         "crf": options.crf,
+        "pix_fmt": options.pix_fmt,
         "files": sorted(report.records, key=lambda r: r["input"]),
         "failures": report.failures,
         "skipped": report.skipped,

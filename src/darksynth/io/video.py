@@ -7,6 +7,7 @@ the length of the video.
 from __future__ import annotations
 
 import contextlib
+import logging
 from collections.abc import Iterable, Iterator
 from dataclasses import dataclass
 from fractions import Fraction
@@ -33,10 +34,14 @@ __all__ = [
     "probe_video",
 ]
 
+logger = logging.getLogger(__name__)
+
 VIDEO_SUFFIXES: Final[frozenset[str]] = frozenset({".mp4", ".mov", ".avi", ".mkv"})
 
-# H.264 plays almost everywhere; with yuv444p (High 4:4:4 Predictive profile) the colour planes keep full
-# resolution, so per-pixel chroma noise is not averaged away as it would be by 4:2:0 subsampling.
+# H.264 in 4:2:0 (yuv420p, the High profile) plays everywhere: browsers, QuickTime, phones, hardware decoders. It is
+# also what cameras record, so the colour noise of the output is subsampled as a real dark video's is.
+# ``pix_fmt="yuv444p"`` keeps per-pixel chroma noise at the price of High 4:4:4, which browsers and QuickTime do not
+# play (docs/video-output.md measures the difference).
 DEFAULT_CODEC: Final = "libx264"
 
 # x264's CRF 23 default smooths away exactly the fine, low-amplitude noise this tool synthesises. Measured on a
@@ -64,14 +69,20 @@ _X264_CODECS: Final[frozenset[str]] = frozenset({"libx264", "libx264rgb"})
 # is decoded as BT.601 by FFmpeg and most players, so they are converted with BT.601 to round-trip.
 _BT709_CODECS: Final[frozenset[str]] = frozenset({"libx264", "libx265"})
 
-# Pixel format per codec: full-resolution chroma where the codec has it, RGB where it stores RGB losslessly.
+# Default pixel format per codec: the playable 4:2:0 for H.264 and H.265, RGB where the codec stores RGB losslessly.
 _PIX_FMT: Final[dict[str, str]] = {
-    "libx264": "yuv444p",
+    "libx264": "yuv420p",
     "libx264rgb": "rgb24",
     "ffv1": "bgr0",
-    "libx265": "yuv444p",
+    "libx265": "yuv420p",
     "mpeg4": "yuv420p",
 }
+
+# x264 and x265 code subsampled chroma in whole samples and refuse a 4:2:0 picture of odd width or height (FFmpeg's
+# mpeg4 encoder, for one, takes it). Padding or cropping would change the frame size, and so every annotation of a
+# converted dataset; an odd-sized video is written in 4:4:4 instead, with a notice.
+_WHOLE_CHROMA_CODECS: Final[frozenset[str]] = frozenset({"libx264", "libx265"})
+_ODD_SIZE_PIX_FMT: Final = "yuv444p"
 
 # Fixed quantiser for MPEG-4 Part 2, whose default 200 kb/s bit rate would be far too low (2 is near the best).
 _MPEG4_QSCALE: Final = 2
@@ -175,15 +186,18 @@ class VideoWriter:
         width: Frame width in pixels (odd sizes work with the default codec).
         height: Frame height in pixels.
         fps: Frame rate, kept exactly (``Fraction(30000, 1001)`` stays 29.97...).
-        codec: FFmpeg encoder name: ``libx264`` (default, yuv444p), ``libx264rgb`` (RGB; crf=0 is lossless),
+        codec: FFmpeg encoder name: ``libx264`` (default), ``libx264rgb`` (RGB; crf=0 is lossless),
             ``ffv1`` (lossless, .mkv or .avi), ``libx265``, ``mpeg4`` or any other the container accepts.
         crf: Constant rate factor for the codecs that have one (lower is better; 0 lossless for x264);
             None gives :data:`DEFAULT_CRF` for the x264 family and the encoder's own default otherwise.
+        pix_fmt: Pixel format the encoder codes, one it supports (``yuv444p`` keeps full-resolution chroma);
+            None gives yuv420p for libx264 and libx265 (yuv444p, with a logged notice, when the width or height
+            is odd, which x264 and x265 cannot code in 4:2:0), RGB for libx264rgb and ffv1.
 
     Raises:
-        DarksynthError: On construction, if the size, frame rate, codec or crf is not usable; on entering, if
-            the suffix or the codec/container pair is not, or the encoder refuses the settings; on writing or
-            closing, if the encoder fails. Each message is one line and names the path.
+        DarksynthError: On construction, if the size, frame rate, codec, crf or pixel format is not usable; on
+            entering, if the suffix or the codec/container pair is not, or the encoder refuses the settings; on
+            writing or closing, if the encoder fails. Each message is one line and names the path.
     """
 
     def __init__(
@@ -195,6 +209,7 @@ class VideoWriter:
         fps: Fraction,
         codec: str = DEFAULT_CODEC,
         crf: int | None = None,
+        pix_fmt: str | None = None,
     ) -> None:
         if width < 1 or height < 1:
             raise DarksynthError(f"{path}: video size must be positive, got {width}x{height}")
@@ -219,6 +234,7 @@ class VideoWriter:
         self.fps = Fraction(fps)
         self.codec = codec
         self.crf = DEFAULT_CRF if crf is None and codec in _X264_CODECS else crf
+        self.pix_fmt = _choose_pix_fmt(path, encoder, pix_fmt, width, height)
         self._colorspace = Colorspace.ITU709 if codec in _BT709_CODECS else Colorspace.ITU601
         self._stack: contextlib.ExitStack | None = None
         self._container: OutputContainer | None = None
@@ -319,10 +335,7 @@ class VideoWriter:
             raise DarksynthError(f"{self.path}: {self.codec} is not a video codec")
         stream.width = self.width
         stream.height = self.height
-        supported = {fmt.name for fmt in stream.codec_context.codec.video_formats or ()}
-        pix_fmt = _PIX_FMT.get(self.codec)
-        if pix_fmt is None:
-            pix_fmt = "yuv444p" if "yuv444p" in supported or not supported else sorted(supported)[0]
+        pix_fmt = self.pix_fmt
         stream.pix_fmt = pix_fmt
         # An explicit time base of 1/fps keeps rates like 30000/1001 exact in every container.
         stream.codec_context.time_base = 1 / self.fps
@@ -341,7 +354,43 @@ class VideoWriter:
         return stream
 
     def _describe(self) -> str:
-        return f"{self.width}x{self.height} at {self.fps} fps with {self.codec}"
+        return f"{self.width}x{self.height} at {self.fps} fps with {self.codec} in {self.pix_fmt}"
+
+
+def _choose_pix_fmt(path: Path, encoder: av.Codec, pix_fmt: str | None, width: int, height: int) -> str:
+    supported = {fmt.name for fmt in encoder.video_formats or ()}
+    if pix_fmt is not None:
+        if supported and pix_fmt not in supported:
+            raise DarksynthError(
+                f"{path}: {encoder.name} cannot encode pixel format {pix_fmt!r} (choices: {_sorted(supported)})"
+            )
+        try:
+            av.VideoFormat(pix_fmt)
+        except ValueError:
+            raise DarksynthError(f"{path}: unknown pixel format {pix_fmt!r}") from None
+        if encoder.name in _WHOLE_CHROMA_CODECS and not _fits_chroma(pix_fmt, width, height):
+            raise DarksynthError(
+                f"{path}: {encoder.name} cannot code {width}x{height} in {pix_fmt}, whose chroma needs an even "
+                f"width and height; use {_ODD_SIZE_PIX_FMT}"
+            )
+        return pix_fmt
+    default = _PIX_FMT.get(encoder.name)
+    if default is None:
+        return "yuv444p" if "yuv444p" in supported or not supported else sorted(supported)[0]
+    if encoder.name in _WHOLE_CHROMA_CODECS and not _fits_chroma(default, width, height):
+        logger.warning(
+            "%s: %dx%d has an odd side, which %s cannot code in %s; written as %s",
+            path, width, height, encoder.name, default, _ODD_SIZE_PIX_FMT,
+        )  # fmt: skip
+        return _ODD_SIZE_PIX_FMT
+    return default
+
+
+def _fits_chroma(pix_fmt: str, width: int, height: int) -> bool:
+    """Whether a picture of this size has whole chroma samples in this format (any size does without subsampling)."""
+    fmt = av.VideoFormat(pix_fmt)
+    probe = 1024  # chroma_width(n) is n >> log2 of the horizontal subsampling
+    return width % (probe // fmt.chroma_width(probe)) == 0 and height % (probe // fmt.chroma_height(probe)) == 0
 
 
 def _open_input(path: Path) -> InputContainer:
