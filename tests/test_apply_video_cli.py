@@ -13,6 +13,7 @@ import pytest
 
 from darksynth.io.video import VideoWriter
 from tests.command_line import run_cli
+from tests.videos_with_audio import audio_packets, video_with_audio
 
 
 def _clean_video(path: Path, frames: int = 6, width: int = 48, height: int = 32) -> Path:
@@ -62,6 +63,72 @@ def test_convert_records_pix_fmt_and_refuses_to_resume_with_another(tmp_path: Pa
     assert json.loads((output / "darksynth-manifest.json").read_text())["pix_fmt"] == "yuv444p"
     code, _, err = run_cli(*arguments)
     assert code == 1 and "other options (pix_fmt)" in err
+
+
+@pytest.mark.parametrize(
+    ("source_name", "codecs", "out_name"),
+    [
+        ("clean.mp4", ("aac",), "dark.mp4"),
+        ("clean.mov", ("aac", "pcm_s16le"), "dark.mp4"),
+        ("clean.mp4", ("aac",), "dark.mov"),
+    ],
+)
+def test_apply_copiesaudio_packets_unchanged(
+    tmp_path: Path, profile_file: Path, source_name: str, codecs: tuple[str, ...], out_name: str
+) -> None:
+    source = video_with_audio(tmp_path / source_name, codecs)
+    out = tmp_path / out_name
+    code, _, err = run_cli("apply", source, out, "-p", profile_file, "--seed", "0")
+    assert code == 0, err
+    before, after = audio_packets(source), audio_packets(out)
+    assert len(after) == len(codecs)
+    for track_before, track_after in zip(before, after, strict=True):
+        assert len(track_before) >= 10
+        assert track_after == track_before  # the same bytes at the same times, all of it (it outlasts the video)
+    with av.open(str(out)) as container:
+        assert [s.codec_context.codec.canonical_name for s in container.streams.audio] == list(codecs)
+        # Interleaved as written: audio packets lie between video packets in the file, not all after them.
+        kinds = [p.stream.type for p in container.demux() if p.size]
+    assert kinds.index("audio") < len(kinds) // 2
+    assert sum(1 for p in kinds if p == "video") == 25
+
+
+def test_audio_stays_in_sync_when_the_source_starts_late(tmp_path: Path, profile_file: Path) -> None:
+    # Video and audio both begin 2 s in; the output's video begins at 0, so its audio must too.
+    source = video_with_audio(tmp_path / "late.mkv", ("pcm_s16le",), start=2)
+    out = tmp_path / "dark.mkv"
+    code, _, err = run_cli("apply", source, out, "-p", profile_file, "--seed", "0", "--codec", "ffv1")
+    assert code == 0, err
+    (before,), (after,) = audio_packets(source), audio_packets(out)
+    assert before[0][1] == 2 and after[0][1] == 0
+    assert [p[0] for p in after] == [p[0] for p in before]
+    assert [p[1] for p in after] == [p[1] - 2 for p in before]  # type: ignore[operator]
+
+
+def test_audio_the_container_cannot_hold_is_left_out_with_one_notice(
+    tmp_path: Path, profile_file: Path, caplog: pytest.LogCaptureFixture
+) -> None:
+    source = video_with_audio(tmp_path / "clean.mov", ("pcm_mulaw", "pcm_mulaw"))
+    out = tmp_path / "dark.mkv"  # Matroska has no pcm_mulaw
+    code, _, err = run_cli("apply", source, out, "-p", profile_file, "--seed", "0", "--codec", "ffv1")
+    assert code == 0, err
+    notices = [r.getMessage() for r in caplog.records if r.levelname == "WARNING"]
+    assert notices == [
+        f"{source}: 2 audio tracks (codec pcm_mulaw, pcm_mulaw) cannot go into .mkv; written without them"
+    ]
+    with av.open(str(out)) as container:
+        assert not container.streams.audio
+        assert sum(1 for _ in container.decode(video=0)) == 25
+
+
+def test_convert_carries_audio(tmp_path: Path, profile_file: Path) -> None:
+    dataset = tmp_path / "ds"
+    (dataset / "videos").mkdir(parents=True)
+    source = video_with_audio(dataset / "videos" / "walk.mp4", ("aac",))
+    output = tmp_path / "out"
+    code, _, err = run_cli("convert", dataset, output, "-p", profile_file, "--format", "video-folder")
+    assert code == 0, err
+    assert audio_packets(output / "videos" / "walk.mp4") == audio_packets(source)
 
 
 def test_unreadable_video_gives_ffmpegs_reason_once(tmp_path: Path, profile_file: Path) -> None:

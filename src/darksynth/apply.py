@@ -210,7 +210,9 @@ def _run_video(
     frames = info.frame_count if info.frame_count is not None else COMPILE_MIN_ELEMENTS
     compile_kernel = _worth_compiling(options, frames * 3 * info.width * info.height)
     synthesizer = ClipSynthesizer(parameters, generator=generator, device=options.device, compile=compile_kernel)
-    writer_options: dict[str, Any] = {"width": info.width, "height": info.height, "fps": info.fps}
+    # The source's audio goes into the output unchanged (a track the output's container cannot hold is left out
+    # with a notice).
+    writer_options: dict[str, Any] = {"width": info.width, "height": info.height, "fps": info.fps, "audio_from": source}
     if options.codec:
         writer_options["codec"] = options.codec
     if options.crf is not None:

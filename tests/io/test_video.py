@@ -18,6 +18,7 @@ from darksynth.io.video import (
     iter_video_frames,
     probe_video,
 )
+from tests.videos_with_audio import audio_packets, video_with_audio
 
 
 def _gradient_frames(count: int, height: int = 48, width: int = 64) -> list[np.ndarray]:
@@ -374,3 +375,30 @@ def test_corrupt_frames_mid_stream_name_the_frame(tmp_path: Path, monkeypatch: p
         next(frames)
     assert info.value.path == path
     assert info.value.problem == "cannot decode video frame 3 (Invalid data found when processing input)"
+
+
+# --- audio carried over ------------------------------------------------------------------------------------------
+
+
+def test_audio_is_interleaved_as_frames_are_written(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
+    # Streaming: each frame's audio goes in with it, none read ahead, so memory does not grow with the length (the
+    # muxer's own interleaving would hide a writer that kept all the audio for the end in a file this short).
+    source = video_with_audio(tmp_path / "clean.mov", ("pcm_s16le",), frames=50, audio_seconds=2.0)
+    muxed: list[tuple[str, int]] = []
+    real_mux = av.container.OutputContainer.mux
+
+    def spying_mux(self: av.container.OutputContainer, packets: object) -> None:
+        for packet in packets if isinstance(packets, list) else [packets]:  # type: ignore[attr-defined]
+            muxed.append((packet.stream.type, packet.pts))
+        real_mux(self, packets)  # type: ignore[arg-type]
+
+    monkeypatch.setattr(av.container.OutputContainer, "mux", spying_mux)
+    fps = Fraction(25)
+    with VideoWriter(tmp_path / "out.mkv", width=48, height=32, fps=fps, codec="ffv1", audio_from=source) as writer:
+        for index in range(50):
+            writer.write(np.zeros((32, 48, 3), np.uint8))
+            audio_end = max((pts for kind, pts in muxed if kind == "audio"), default=-1) / 8000  # pcm at 8 kHz
+            # The audio that went in starts before the end of the frame just written, and reaches close to it.
+            assert (index + 1) / fps - 0.2 < audio_end < (index + 1) / fps
+    assert writer.audio_codecs == ("pcm_s16le",)
+    assert audio_packets(tmp_path / "out.mkv") == audio_packets(source)
