@@ -77,7 +77,8 @@ class ApplyOptions:
         overwrite: replace outputs that exist before the run (otherwise the run is refused).
         clip: treat each folder of images as one clip (shared parameters and temporal banding).
         workers: processes for folders.
-        codec: video codec (None: the writer's high-quality default); crf: its quality setting.
+        codec: video codec (None: the writer's high-quality default); crf: its quality setting; pix_fmt: the
+            pixel format it codes (None: the writer's default for the codec, yuv420p for H.264).
         device: torch device for the computation.
         compile: fuse the 8-bit kernel with torch.compile; None decides by stream length.
         profile_source: where the profile came from, for the manifest.
@@ -92,6 +93,7 @@ class ApplyOptions:
     workers: int = 1
     codec: str | None = None
     crf: int | None = None
+    pix_fmt: str | None = None
     device: str = "cpu"
     compile: bool | None = None
     profile_source: str = ""
@@ -266,11 +268,15 @@ def _run_video(
     frames = info.frame_count if info.frame_count is not None else COMPILE_MIN_ELEMENTS
     compile_kernel = _worth_compiling(options, frames * 3 * info.width * info.height)
     synthesizer = ClipSynthesizer(parameters, generator=generator, device=options.device, compile=compile_kernel)
-    writer_options: dict[str, Any] = {"width": info.width, "height": info.height, "fps": info.fps}
+    # The source's audio goes into the output unchanged (a track the output's container cannot hold is left out
+    # with a notice).
+    writer_options: dict[str, Any] = {"width": info.width, "height": info.height, "fps": info.fps, "audio_from": source}
     if options.codec:
         writer_options["codec"] = options.codec
     if options.crf is not None:
         writer_options["crf"] = options.crf
+    if options.pix_fmt is not None:
+        writer_options["pix_fmt"] = options.pix_fmt
     count = 0
     resized = False
     with VideoWriter(target, **writer_options) as writer:
@@ -376,6 +382,7 @@ def write_manifest(path: Path, input_path: Path, output_path: Path, options: App
         "clip": options.clip,
         "codec": options.codec,
         "crf": options.crf,
+        "pix_fmt": options.pix_fmt,
         "files": sorted(report.records, key=lambda r: r["input"]),
         "failures": report.failures,
         "skipped": report.skipped,

@@ -145,6 +145,9 @@ def apply_command(
     crf: Annotated[int | None, typer.Option(min=0, max=63, help="Video quality (lower is better).")] = default_of(
         ApplyOptions, "crf"
     ),
+    pix_fmt: Annotated[
+        str | None, typer.Option("--pix-fmt", help="Video pixel format, e.g. yuv444p (default yuv420p for H.264).")
+    ] = default_of(ApplyOptions, "pix_fmt"),
     device: Annotated[str, typer.Option(help="torch device: cpu, cuda, cuda:1 ...")] = default_of(
         ApplyOptions, "device"
     ),
@@ -164,6 +167,7 @@ def apply_command(
             workers=workers,
             codec=codec,
             crf=crf,
+            pix_fmt=pix_fmt,
             device=device,
             compile=compile_kernel,
             profile_source=str(profile),
@@ -213,6 +217,9 @@ def convert_command(
     crf: Annotated[int | None, typer.Option(min=0, max=63, help="Video quality (lower is better).")] = default_of(
         ConvertOptions, "crf"
     ),
+    pix_fmt: Annotated[
+        str | None, typer.Option("--pix-fmt", help="Video pixel format, e.g. yuv444p (default yuv420p for H.264).")
+    ] = default_of(ConvertOptions, "pix_fmt"),
     device: Annotated[str, typer.Option(help="torch device: cpu, cuda, cuda:1 ...")] = default_of(
         ConvertOptions, "device"
     ),
@@ -242,6 +249,7 @@ def convert_command(
             overwrite=overwrite,
             codec=codec,
             crf=crf,
+            pix_fmt=pix_fmt,
             device=device,
         )
         if use_ray:

@@ -21,7 +21,10 @@ def options(tmp_path: Path, ranged_profile: Path) -> ConvertOptions:
 
 
 def test_fingerprint_is_the_state_earlier_runs_recorded(options: ConvertOptions) -> None:
-    """Outputs written before the options became one object must still resume: the same keys, the same values."""
+    """Outputs written before the options became one object must still resume: the same keys, the same values.
+
+    The one key added since is pix_fmt: the default pixel format of H.264 went from 4:4:4 to 4:2:0 with it, so a
+    conversion begun before must not resume (its videos and the new ones would differ)."""
     assert options.fingerprint() == {
         "dataset": str(options.dataset),
         "format": "coco",
@@ -31,6 +34,7 @@ def test_fingerprint_is_the_state_earlier_runs_recorded(options: ConvertOptions)
         "images_root": None,
         "codec": None,
         "crf": None,
+        "pix_fmt": None,
         "device": "cpu",
     }
 
@@ -40,7 +44,14 @@ def test_only_scheduling_options_leave_the_fingerprint_unchanged(options: Conver
     assert set(options.fingerprint()) == names - SCHEDULING_OPTIONS
     scheduled = dataclasses.replace(options, output=Path("elsewhere"), workers=4, shard=Shard(1, 2), overwrite=True)
     assert scheduled.fingerprint() == options.fingerprint()
-    for change in ({"seed": 4}, {"jitter": True}, {"codec": "ffv1"}, {"crf": 3}, {"images_root": Path("x")}):
+    for change in (
+        {"seed": 4},
+        {"jitter": True},
+        {"codec": "ffv1"},
+        {"crf": 3},
+        {"pix_fmt": "yuv444p"},
+        {"images_root": Path("x")},
+    ):
         assert dataclasses.replace(options, **change).fingerprint() != options.fingerprint(), change
 
 

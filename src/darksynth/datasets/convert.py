@@ -124,7 +124,7 @@ class ConvertOptions:
         shard: the part of the dataset this run handles, or None for all of it.
         images_root: COCO: the folder ``file_name`` entries are relative to (tried first).
         overwrite: start over in an output written with other options.
-        codec, crf, device: as for ``apply``.
+        codec, crf, pix_fmt, device: as for ``apply``.
     """
 
     dataset: Path
@@ -139,6 +139,7 @@ class ConvertOptions:
     overwrite: bool = False
     codec: str | None = None
     crf: int | None = None
+    pix_fmt: str | None = None
     device: str = "cpu"
 
     def checked(self) -> ConvertOptions:
@@ -163,6 +164,7 @@ class ConvertOptions:
             workers=self.workers,
             codec=self.codec,
             crf=self.crf,
+            pix_fmt=self.pix_fmt,
             device=self.device,
         )
 
@@ -497,6 +499,7 @@ def write_manifest_if_complete(options: ConvertOptions, plan: DatasetPlan) -> tu
         "device": options.device,
         "codec": options.codec,
         "crf": options.crf,
+        "pix_fmt": options.pix_fmt,
         "images_root": None if options.images_root is None else str(options.images_root),
         "profile": profile_to_dict(options.profile),
         "files": done,

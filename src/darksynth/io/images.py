@@ -18,7 +18,7 @@ import PIL.Image
 import PIL.TiffImagePlugin
 from av.video.codeccontext import VideoCodecContext
 
-from darksynth.errors import DarksynthError, InputFileError
+from darksynth.errors import DarksynthError, InputFileError, error_reason
 from darksynth.io.atomic import atomic_output
 
 __all__ = ["IMAGE_SUFFIXES", "Image", "read_image", "write_image"]
@@ -140,6 +140,8 @@ def read_image(path: str | Path) -> Image:
         raise InputFileError(path, f"image too large to read safely ({err})") from None
     except MemoryError:
         raise InputFileError(path, "not enough memory to decode this image") from None
+    except av.FFmpegError as err:  # 16-bit PNG and TIFF are decoded by FFmpeg
+        raise InputFileError(path, f"corrupt or truncated image ({error_reason(err)})") from None
     except Exception as err:  # Pillow's decoders raise OSError, SyntaxError, ValueError, EOFError, zlib.error...
         raise InputFileError(path, f"corrupt or truncated image ({type(err).__name__}: {err})") from None
 
@@ -189,7 +191,7 @@ def write_image(path: Path, image: Image, *, jpeg_quality: int = 95) -> None:
             else:
                 _save_8bit_with_pil(tmp, channels, fmt, jpeg_quality)
     except (OSError, ValueError, av.FFmpegError) as err:
-        raise DarksynthError(f"{path}: cannot write {fmt} image ({err})") from err
+        raise DarksynthError(f"{path}: cannot write {fmt} image ({error_reason(err)})") from err
 
 
 def _pil_to_arrays(path: Path, pil: PIL.Image.Image) -> tuple[np.ndarray, np.ndarray | None]:

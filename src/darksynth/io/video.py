@@ -1,12 +1,14 @@
 """Reading and writing videos frame by frame with PyAV, as (H, W, 3) uint8 RGB arrays.
 
 Frames are streamed: neither reading nor writing holds more than the codec's own few frames in memory, whatever
-the length of the video.
+the length of the video. The writer can carry a source video's audio tracks over unchanged, packet by packet.
 """
 
 from __future__ import annotations
 
 import contextlib
+import io
+import logging
 from collections.abc import Iterable, Iterator
 from dataclasses import dataclass
 from fractions import Fraction
@@ -16,11 +18,12 @@ from typing import Final, Self
 
 import av
 import numpy as np
+from av.audio.stream import AudioStream
 from av.container import InputContainer, OutputContainer
 from av.video.reformatter import ColorRange, Colorspace
 from av.video.stream import VideoStream
 
-from darksynth.errors import DarksynthError, InputFileError
+from darksynth.errors import DarksynthError, InputFileError, error_reason
 from darksynth.io.atomic import atomic_output
 
 __all__ = [
@@ -33,10 +36,14 @@ __all__ = [
     "probe_video",
 ]
 
+logger = logging.getLogger(__name__)
+
 VIDEO_SUFFIXES: Final[frozenset[str]] = frozenset({".mp4", ".mov", ".avi", ".mkv"})
 
-# H.264 plays almost everywhere; with yuv444p (High 4:4:4 Predictive profile) the colour planes keep full
-# resolution, so per-pixel chroma noise is not averaged away as it would be by 4:2:0 subsampling.
+# H.264 in 4:2:0 (yuv420p, the High profile) plays everywhere: browsers, QuickTime, phones, hardware decoders. It is
+# also what cameras record, so the colour noise of the output is subsampled as a real dark video's is.
+# ``pix_fmt="yuv444p"`` keeps per-pixel chroma noise at the price of High 4:4:4, which browsers and QuickTime do not
+# play (docs/video-output.md measures the difference).
 DEFAULT_CODEC: Final = "libx264"
 
 # x264's CRF 23 default smooths away exactly the fine, low-amplitude noise this tool synthesises. Measured on a
@@ -64,14 +71,20 @@ _X264_CODECS: Final[frozenset[str]] = frozenset({"libx264", "libx264rgb"})
 # is decoded as BT.601 by FFmpeg and most players, so they are converted with BT.601 to round-trip.
 _BT709_CODECS: Final[frozenset[str]] = frozenset({"libx264", "libx265"})
 
-# Pixel format per codec: full-resolution chroma where the codec has it, RGB where it stores RGB losslessly.
+# Default pixel format per codec: the playable 4:2:0 for H.264 and H.265, RGB where the codec stores RGB losslessly.
 _PIX_FMT: Final[dict[str, str]] = {
-    "libx264": "yuv444p",
+    "libx264": "yuv420p",
     "libx264rgb": "rgb24",
     "ffv1": "bgr0",
-    "libx265": "yuv444p",
+    "libx265": "yuv420p",
     "mpeg4": "yuv420p",
 }
+
+# x264 and x265 code subsampled chroma in whole samples and refuse a 4:2:0 picture of odd width or height (FFmpeg's
+# mpeg4 encoder, for one, takes it). Padding or cropping would change the frame size, and so every annotation of a
+# converted dataset; an odd-sized video is written in 4:4:4 instead, with a notice.
+_WHOLE_CHROMA_CODECS: Final[frozenset[str]] = frozenset({"libx264", "libx265"})
+_ODD_SIZE_PIX_FMT: Final = "yuv444p"
 
 # Fixed quantiser for MPEG-4 Part 2, whose default 200 kb/s bit rate would be far too low (2 is near the best).
 _MPEG4_QSCALE: Final = 2
@@ -175,15 +188,21 @@ class VideoWriter:
         width: Frame width in pixels (odd sizes work with the default codec).
         height: Frame height in pixels.
         fps: Frame rate, kept exactly (``Fraction(30000, 1001)`` stays 29.97...).
-        codec: FFmpeg encoder name: ``libx264`` (default, yuv444p), ``libx264rgb`` (RGB; crf=0 is lossless),
+        codec: FFmpeg encoder name: ``libx264`` (default), ``libx264rgb`` (RGB; crf=0 is lossless),
             ``ffv1`` (lossless, .mkv or .avi), ``libx265``, ``mpeg4`` or any other the container accepts.
         crf: Constant rate factor for the codecs that have one (lower is better; 0 lossless for x264);
             None gives :data:`DEFAULT_CRF` for the x264 family and the encoder's own default otherwise.
+        audio_from: A video whose audio tracks are copied into the output unchanged (packets remuxed, not
+            re-encoded), shifted as its first video frame is to time 0 so they stay in sync; tracks whose codec
+            the container cannot hold are left out with one logged notice. None writes no audio.
+        pix_fmt: Pixel format the encoder codes, one it supports (``yuv444p`` keeps full-resolution chroma);
+            None gives yuv420p for libx264 and libx265 (yuv444p, with a logged notice, when the width or height
+            is odd, which x264 and x265 cannot code in 4:2:0), RGB for libx264rgb and ffv1.
 
     Raises:
-        DarksynthError: On construction, if the size, frame rate, codec or crf is not usable; on entering, if
-            the suffix or the codec/container pair is not, or the encoder refuses the settings; on writing or
-            closing, if the encoder fails. Each message is one line and names the path.
+        DarksynthError: On construction, if the size, frame rate, codec, crf or pixel format is not usable; on
+            entering, if the suffix or the codec/container pair is not, or the encoder refuses the settings; on
+            writing or closing, if the encoder fails. Each message is one line and names the path.
     """
 
     def __init__(
@@ -195,6 +214,8 @@ class VideoWriter:
         fps: Fraction,
         codec: str = DEFAULT_CODEC,
         crf: int | None = None,
+        pix_fmt: str | None = None,
+        audio_from: Path | None = None,
     ) -> None:
         if width < 1 or height < 1:
             raise DarksynthError(f"{path}: video size must be positive, got {width}x{height}")
@@ -219,6 +240,11 @@ class VideoWriter:
         self.fps = Fraction(fps)
         self.codec = codec
         self.crf = DEFAULT_CRF if crf is None and codec in _X264_CODECS else crf
+        self.pix_fmt = _choose_pix_fmt(path, encoder, pix_fmt, width, height)
+        self.audio_from = audio_from
+        self.audio_codecs: tuple[str, ...] = ()
+        """The codecs of the audio tracks copied from ``audio_from``, known once the writer is open."""
+        self._audio: _AudioCopy | None = None
         self._colorspace = Colorspace.ITU709 if codec in _BT709_CODECS else Colorspace.ITU601
         self._stack: contextlib.ExitStack | None = None
         self._container: OutputContainer | None = None
@@ -238,13 +264,17 @@ class VideoWriter:
                 )
             self._stream = self._add_stream(container)
             self._container = container
+            if self.audio_from is not None:
+                source = stack.enter_context(_open_input(self.audio_from))
+                self._audio = _AudioCopy(self.audio_from, source, self.path, container)
+                self.audio_codecs = self._audio.codecs
             # Opening the encoder and writing the header now makes a bad size or option fail here, before any work.
             self._stream.codec_context.open()
             container.start_encoding()
         except BaseException as err:
             stack.__exit__(type(err), err, err.__traceback__)
             if isinstance(err, av.FFmpegError | ValueError):
-                raise DarksynthError(f"{self.path}: cannot encode {self._describe()} ({err})") from err
+                raise DarksynthError(f"{self.path}: cannot encode {self._describe()} ({error_reason(err)})") from err
             raise
         self._stack = stack
         return self
@@ -275,10 +305,14 @@ class VideoWriter:
             )
         video_frame.pts = self._frames_written
         video_frame.time_base = 1 / self.fps
+        if self._audio is not None:
+            self._audio.mux_until(self._container, (self._frames_written + 1) / self.fps)
         try:
             self._container.mux(self._stream.encode(video_frame))
         except av.FFmpegError as err:
-            raise DarksynthError(f"{self.path}: encoding frame {self._frames_written} failed ({err})") from err
+            raise DarksynthError(
+                f"{self.path}: encoding frame {self._frames_written} failed ({error_reason(err)})"
+            ) from err
         self._frames_written += 1
 
     def __exit__(
@@ -287,8 +321,8 @@ class VideoWriter:
         exc: BaseException | None,
         traceback: TracebackType | None,
     ) -> bool:
-        stack, container, stream = self._stack, self._container, self._stream
-        self._stack = self._container = self._stream = None
+        stack, container, stream, audio = self._stack, self._container, self._stream, self._audio
+        self._stack = self._container = self._stream = self._audio = None
         if stack is None:
             return False
         if exc is not None:
@@ -300,15 +334,17 @@ class VideoWriter:
             if container is None or stream is None:
                 raise RuntimeError("VideoWriter lost its container")
             container.mux(stream.encode(None))
+            if audio is not None:
+                audio.mux_until(container, None)
         except BaseException as err:
             stack.__exit__(type(err), err, err.__traceback__)
             if isinstance(err, av.FFmpegError):
-                raise DarksynthError(f"{self.path}: finishing the video failed ({err})") from err
+                raise DarksynthError(f"{self.path}: finishing the video failed ({error_reason(err)})") from err
             raise
         try:
             stack.__exit__(None, None, None)
         except av.FFmpegError as err:
-            raise DarksynthError(f"{self.path}: finishing the video failed ({err})") from err
+            raise DarksynthError(f"{self.path}: finishing the video failed ({error_reason(err)})") from err
         return False
 
     def _add_stream(self, container: OutputContainer) -> VideoStream:
@@ -317,10 +353,7 @@ class VideoWriter:
             raise DarksynthError(f"{self.path}: {self.codec} is not a video codec")
         stream.width = self.width
         stream.height = self.height
-        supported = {fmt.name for fmt in stream.codec_context.codec.video_formats or ()}
-        pix_fmt = _PIX_FMT.get(self.codec)
-        if pix_fmt is None:
-            pix_fmt = "yuv444p" if "yuv444p" in supported or not supported else sorted(supported)[0]
+        pix_fmt = self.pix_fmt
         stream.pix_fmt = pix_fmt
         # An explicit time base of 1/fps keeps rates like 30000/1001 exact in every container.
         stream.codec_context.time_base = 1 / self.fps
@@ -339,7 +372,169 @@ class VideoWriter:
         return stream
 
     def _describe(self) -> str:
-        return f"{self.width}x{self.height} at {self.fps} fps with {self.codec}"
+        return f"{self.width}x{self.height} at {self.fps} fps with {self.codec} in {self.pix_fmt}"
+
+
+class _AudioCopy:
+    """The audio tracks of a source video, remuxed into an output container alongside the video being encoded.
+
+    The packets come from a second demuxer of the source, opened on the same file, that reads only its audio, so
+    they can be interleaved with the encoded video as it is written: each frame's audio goes in just before the
+    frame, and memory holds one packet, whatever the length. (Taking the audio from the frame reader's demuxer
+    would tie the writer to the reader; writing it all after the video would leave the output badly interleaved,
+    its video and audio far apart in the file.) The source is read twice, which costs little next to decoding
+    and encoding its frames.
+    """
+
+    def __init__(self, source_path: Path, source: InputContainer, path: Path, container: OutputContainer) -> None:
+        self.source_path = source_path
+        self.path = path
+        self._outputs: dict[int, AudioStream] = {}
+        codecs: list[str] = []
+        dropped: list[str] = []
+        for stream in source.streams.audio:
+            codec = _codec_name(stream)
+            if not _can_hold(container, stream):
+                dropped.append(codec)
+                continue
+            self._outputs[stream.index] = _add_copy(container, stream)
+            codecs.append(codec)
+        self.codecs = tuple(codecs)
+        if dropped:
+            tracks = "audio track" if len(dropped) == 1 else f"{len(dropped)} audio tracks"
+            logger.warning(
+                "%s: %s (codec %s) cannot go into %s; written without %s",
+                source_path, tracks, ", ".join(dropped), path.suffix.lower(), "it" if len(dropped) == 1 else "them",
+            )  # fmt: skip
+        # The output's first frame is at time 0: the audio moves with the source's first video frame.
+        video = source.streams.video[0]
+        self._offset = Fraction(video.start_time or 0) * (video.time_base or 1)
+        kept = [s for s in source.streams.audio if s.index in self._outputs]
+        self._packets: Iterator[av.Packet[AudioStream]] = source.demux(tuple(kept)) if kept else iter(())
+        self._next: av.Packet[AudioStream] | None = None
+        self._done = not kept
+
+    def mux_until(self, container: OutputContainer, end: Fraction | None) -> None:
+        """Mux the source's audio packets that start before ``end`` seconds of output time (None: all that remain).
+
+        Raises:
+            InputFileError: The source's audio cannot be read.
+            DarksynthError: The muxer refuses a packet.
+        """
+        while True:
+            packet = self._next if self._next is not None else self._read()
+            self._next = None
+            if packet is None:
+                return
+            start = self._start(packet)
+            if end is not None and start is not None and start >= end:
+                self._next = packet
+                return
+            self._shift(packet)
+            packet.stream = self._outputs[packet.stream.index]
+            try:
+                container.mux(packet)
+            except av.FFmpegError as err:
+                raise DarksynthError(f"{self.path}: writing the audio failed ({error_reason(err)})") from err
+
+    def _read(self) -> av.Packet[AudioStream] | None:
+        while not self._done:
+            try:
+                packet = next(self._packets)
+            except StopIteration:
+                self._done = True
+                return None
+            except av.FFmpegError as err:
+                raise InputFileError(self.source_path, f"cannot read its audio ({error_reason(err)})") from None
+            if packet.size:  # the demuxer ends each stream with an empty packet
+                return packet
+        return None
+
+    def _start(self, packet: av.Packet[AudioStream]) -> Fraction | None:
+        """When a packet starts in output time, in seconds (None if it carries no time)."""
+        ticks = packet.dts if packet.dts is not None else packet.pts
+        if ticks is None or packet.time_base is None:
+            return None
+        return ticks * packet.time_base - self._offset
+
+    def _shift(self, packet: av.Packet[AudioStream]) -> None:
+        if not self._offset or packet.time_base is None:
+            return
+        ticks = round(self._offset / packet.time_base)
+        if packet.pts is not None:
+            packet.pts -= ticks
+        if packet.dts is not None:
+            packet.dts -= ticks
+
+
+def _add_copy(container: OutputContainer, stream: AudioStream) -> AudioStream:
+    output = container.add_stream_from_template(stream)
+    # A codec tag is a container's own code for the codec (AVI's 0x00FF for AAC, say); left unset, the muxer picks
+    # the output's own, as ffmpeg's stream copy does.
+    output.codec_tag = "\0\0\0\0"
+    return output
+
+
+def _can_hold(container: OutputContainer, stream: AudioStream) -> bool:
+    """Whether the container can take a copy of the stream: its muxer lists the codec and accepts the stream."""
+    if _codec_name(stream) not in container.supported_codecs:
+        return False
+    # Some pairs the muxer lists are refused when the header is written (Opus or FLAC in .mov, for one): the stream
+    # is tried alone in a throwaway container of the same format first, since a container cannot drop a stream.
+    probe = av.open(io.BytesIO(), "w", format=container.format.name)
+    try:
+        _add_copy(probe, stream)
+        probe.start_encoding()
+    except (av.FFmpegError, ValueError):
+        return False
+    finally:
+        with contextlib.suppress(av.FFmpegError):
+            probe.close()
+    return True
+
+
+def _codec_name(stream: AudioStream) -> str:
+    """FFmpeg's name of a stream's codec ("mp3", not its decoder's "mp3float"), as the muxers list them."""
+    try:
+        return stream.codec_context.codec.canonical_name
+    except (AttributeError, av.FFmpegError):
+        return "unknown"
+
+
+def _choose_pix_fmt(path: Path, encoder: av.Codec, pix_fmt: str | None, width: int, height: int) -> str:
+    supported = {fmt.name for fmt in encoder.video_formats or ()}
+    if pix_fmt is not None:
+        if supported and pix_fmt not in supported:
+            raise DarksynthError(
+                f"{path}: {encoder.name} cannot encode pixel format {pix_fmt!r} (choices: {_sorted(supported)})"
+            )
+        try:
+            av.VideoFormat(pix_fmt)
+        except ValueError:
+            raise DarksynthError(f"{path}: unknown pixel format {pix_fmt!r}") from None
+        if encoder.name in _WHOLE_CHROMA_CODECS and not _fits_chroma(pix_fmt, width, height):
+            raise DarksynthError(
+                f"{path}: {encoder.name} cannot code {width}x{height} in {pix_fmt}, whose chroma needs an even "
+                f"width and height; use {_ODD_SIZE_PIX_FMT}"
+            )
+        return pix_fmt
+    default = _PIX_FMT.get(encoder.name)
+    if default is None:
+        return "yuv444p" if "yuv444p" in supported or not supported else sorted(supported)[0]
+    if encoder.name in _WHOLE_CHROMA_CODECS and not _fits_chroma(default, width, height):
+        logger.warning(
+            "%s: %dx%d has an odd side, which %s cannot code in %s; written as %s",
+            path, width, height, encoder.name, default, _ODD_SIZE_PIX_FMT,
+        )  # fmt: skip
+        return _ODD_SIZE_PIX_FMT
+    return default
+
+
+def _fits_chroma(pix_fmt: str, width: int, height: int) -> bool:
+    """Whether a picture of this size has whole chroma samples in this format (any size does without subsampling)."""
+    fmt = av.VideoFormat(pix_fmt)
+    probe = 1024  # chroma_width(n) is n >> log2 of the horizontal subsampling
+    return width % (probe // fmt.chroma_width(probe)) == 0 and height % (probe // fmt.chroma_height(probe)) == 0
 
 
 def _open_input(path: Path) -> InputContainer:
@@ -350,9 +545,9 @@ def _open_input(path: Path) -> InputContainer:
     try:
         return av.open(str(path), mode="r")
     except av.FFmpegError as err:
-        raise InputFileError(path, f"not a readable video ({err})") from None
+        raise InputFileError(path, f"not a readable video ({error_reason(err)})") from None
     except OSError as err:
-        raise InputFileError(path, f"cannot open ({err.strerror or err})") from None
+        raise InputFileError(path, f"cannot open ({error_reason(err)})") from None
 
 
 def _video_stream(path: Path, container: InputContainer) -> VideoStream:
@@ -370,7 +565,7 @@ def _decoded_frames(path: Path, container: InputContainer, stream: VideoStream) 
         except StopIteration:
             return
         except av.FFmpegError as err:
-            raise InputFileError(path, f"cannot decode video frame {index} ({err})") from None
+            raise InputFileError(path, f"cannot decode video frame {index} ({error_reason(err)})") from None
         yield frame
         index += 1
 
