@@ -41,6 +41,11 @@ HEAVY_TESTS: dict[str, tuple[str, ...]] = {
         "datasets/test_convert_resume.py::test_killed_run_resumes_to_the_same_bytes",
         "datasets/test_convert_resume.py::test_shards_partition_and_together_equal_a_full_run",
     ),
+    "fuzzing": (
+        "test_fuzz.py::test_profile_parser_gives_a_profile_or_a_one_line_error",
+        "test_fuzz.py::test_image_reader_gives_an_image_or_a_one_line_error",
+        "test_fuzz.py::test_video_reader_gives_frames_or_a_one_line_error",
+    ),
     "every evaluation method on every pair": (
         "evaluation/test_evaluate_cli.py::test_reports_check_den_against_every_blind_method_the_oracle_and_the_paper_model",
     ),
