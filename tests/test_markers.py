@@ -44,6 +44,11 @@ HEAVY_TESTS: dict[str, tuple[str, ...]] = {
     "a folder apply with worker processes, killed": (
         "test_apply_workers.py::test_workers_end_soon_after_the_parent_is_killed",
     ),
+    "fuzzing": (
+        "test_fuzz.py::test_profile_parser_gives_a_profile_or_a_one_line_error",
+        "test_fuzz.py::test_image_reader_gives_an_image_or_a_one_line_error",
+        "test_fuzz.py::test_video_reader_gives_frames_or_a_one_line_error",
+    ),
     "every evaluation method on every pair": (
         "evaluation/test_evaluate_cli.py::test_reports_check_den_against_every_blind_method_the_oracle_and_the_paper_model",
     ),

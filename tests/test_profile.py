@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import copy
 import json
+import sys
 from pathlib import Path
 from typing import Any
 
@@ -160,6 +161,13 @@ BAD_DOCUMENTS: list[tuple[str, dict[str, Any], tuple[str, ...]]] = [
     ("gamma negative", _edit(("darkening", "gamma"), -1.0), ("darkening.gamma", "-1.0")),
     ("darkening without gamma", _edit(("darkening",), {"alpha": 0.2}), ("darkening", "alpha")),
     ("meta not an object", _edit(("meta",), [1, 2]), ("meta", "[1, 2]")),
+    # Found by tests/test_fuzz.py: an integer literal beyond any float raised OverflowError.
+    ("integer beyond float", _edit(("noise", "shot"), 10**400), ("noise.shot", "too large for a float")),
+    ("range integer beyond float", _edit(("ranges", "shot"), [0, 10**400]), ("ranges.shot[1]", "too large")),
+    ("gamma integer beyond float", _edit(("darkening", "gamma"), -(10**400)), ("darkening.gamma", "too large")),
+    # Found by tests/test_fuzz.py: a key with a control character broke the message's single line.
+    ("range name with a control character", _edit(("ranges", "sh\x1fot"), [0, 1]), ("ranges.'sh\\x1fot'",)),
+    ("noise key with a line break", _edit(("noise", "dark\ncurrent"), 0.1), ("noise.'dark\\ncurrent'",)),
 ]
 
 
@@ -174,7 +182,7 @@ def test_bad_profile_raises_an_error_naming_field_and_value(
     assert message.startswith(f"{path}: "), message
     for fragment in fragments:
         assert fragment in message, f"{case}: {fragment!r} not in {message!r}"
-    assert "\n" not in message
+    assert message.isprintable(), message  # one line: no line break nor other control character
     assert isinstance(raised.value, DarksynthError)
 
 
@@ -199,6 +207,24 @@ def test_not_json_at_all(tmp_path: Path) -> None:
     path = tmp_path / "broken.json"
     path.write_text("shot = 0.1\n", encoding="utf-8")
     with pytest.raises(ProfileError, match="not valid JSON") as raised:
+        load_profile(path)
+    assert str(raised.value).startswith(f"{path}: ")
+
+
+def test_deeply_nested_json_is_a_one_line_error(tmp_path: Path) -> None:
+    # Found by tests/test_fuzz.py: the JSON decoder's RecursionError came through.
+    path = tmp_path / "deep.json"
+    path.write_text("[" * 100_000 + "]" * 100_000, encoding="utf-8")
+    with pytest.raises(ProfileError, match="nested too deeply") as raised:
+        load_profile(path)
+    assert str(raised.value).startswith(f"{path}: ")
+
+
+def test_a_number_of_too_many_digits_is_a_one_line_error(tmp_path: Path) -> None:
+    # Found by tests/test_fuzz.py: Python refuses to convert integers of over 4300 digits with a ValueError.
+    path = tmp_path / "digits.json"
+    path.write_text('{"version": ' + "9" * 5000 + "}", encoding="utf-8")
+    with pytest.raises(ProfileError, match=f"more than {sys.get_int_max_str_digits()} digits") as raised:
         load_profile(path)
     assert str(raised.value).startswith(f"{path}: ")
 

@@ -25,6 +25,7 @@ from __future__ import annotations
 import functools
 import json
 import math
+import sys
 from collections.abc import Callable, Mapping
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -81,10 +82,20 @@ def _fail(message: str) -> PydanticCustomError:
 def _number(value: Any, where: str) -> float:
     if isinstance(value, bool) or not isinstance(value, int | float):
         raise _fail(f"{where} must be a number, got {value!r}")
-    number = float(value)
+    try:
+        number = float(value)
+    except OverflowError:  # an integer literal beyond any float, such as 1 followed by 400 zeros
+        raise _fail(f"{where} must be finite, got an integer too large for a float") from None
     if not math.isfinite(number):
         raise _fail(f"{where} must be finite, got {value!r}")
     return number
+
+
+def _key(name: object) -> str:
+    """A document's key as it appears in a field name: quoted when it holds a line break or another control
+    character, so that the message stays on one line."""
+    text = str(name)
+    return text if text.isprintable() else repr(text)
 
 
 def _noise_value(value: Any, where: str, parameter: Parameter) -> float:
@@ -131,7 +142,7 @@ def _ranges(raw: Any) -> dict[str, tuple[Range, ...]]:
     parameters = {p.name: p for p in noise_parameters()}
     ranges: dict[str, tuple[Range, ...]] = {}
     for name, entry in raw.items():
-        key = f"ranges.{name}"
+        key = f"ranges.{_key(name)}"
         if name in DARKENING_LIMITS:
             ranges[name] = (_interval(entry, key, functools.partial(_darkening_ranged, name=name)),)
         elif name in parameters:
@@ -254,7 +265,7 @@ def profile_schema() -> type[_ProfileDocument]:
 
 
 def _error_message(error: Mapping[str, Any]) -> str:
-    where = ".".join(str(part) for part in error["loc"])
+    where = ".".join(_key(part) for part in error["loc"])
     kind = error["type"]
     if kind == "darksynth":
         return str(error["ctx"]["message"])
@@ -349,6 +360,11 @@ def load_profile(path: str | Path) -> Profile:
         document = json.loads(text)
     except json.JSONDecodeError as error:
         raise ProfileError(f"{path}: not valid JSON ({error.msg} at line {error.lineno})") from None
+    except ValueError:  # an integer literal of more digits than Python converts
+        limit = sys.get_int_max_str_digits()
+        raise ProfileError(f"{path}: not a usable JSON document (a number has more than {limit} digits)") from None
+    except RecursionError:
+        raise ProfileError(f"{path}: not a usable JSON document (nested too deeply)") from None
     return parse_profile(document, source=str(path))
 
 

@@ -343,6 +343,19 @@ def test_truncated_mp4(tmp_path: Path) -> None:
         list(iter_video_frames(path))
 
 
+def test_a_tag_that_is_not_utf8_does_not_stop_the_read(tmp_path: Path) -> None:
+    # Found by tests/test_fuzz.py: a flipped byte in the MP4 brand raised UnicodeDecodeError on opening.
+    path = tmp_path / "brand.mp4"
+    _write(path, _gradient_frames(3))
+    data = bytearray(path.read_bytes())
+    assert data[4:12] == b"ftypisom"
+    data[8] = 0x80
+    path.write_bytes(bytes(data))
+    info = probe_video(path)
+    assert (info.width, info.height) == (64, 48)
+    assert len(list(iter_video_frames(path))) == 3
+
+
 def test_file_without_video_stream(tmp_path: Path) -> None:
     path = tmp_path / "sound.mkv"
     with av.open(str(path), mode="w") as container:

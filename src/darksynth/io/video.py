@@ -543,7 +543,8 @@ def _open_input(path: Path) -> InputContainer:
     if path.is_dir():
         raise InputFileError(path, "is a folder, not a video file")
     try:
-        return av.open(str(path), mode="r")
+        # Tags are never read here, so a tag that is not valid UTF-8 (a damaged header) must not stop the pixels.
+        return av.open(str(path), mode="r", metadata_errors="replace")
     except av.FFmpegError as err:
         raise InputFileError(path, f"not a readable video ({error_reason(err)})") from None
     except OSError as err:
