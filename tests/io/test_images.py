@@ -1,5 +1,7 @@
 from __future__ import annotations
 
+import io
+import logging
 from pathlib import Path
 
 import cv2
@@ -451,3 +453,21 @@ def test_a_str_path_reads_like_a_path(tmp_path: Path) -> None:
     path = tmp_path / "str.png"
     write_image(path, Image(pixels=pixels, bit_depth=8))
     np.testing.assert_array_equal(read_image(str(path)).pixels, pixels)
+
+
+def test_a_warning_of_pillow_becomes_one_logged_line_naming_the_file(
+    tmp_path: Path, caplog: pytest.LogCaptureFixture
+) -> None:
+    """A damaged tag Pillow skips: the image is read and the user gets one line naming the file, not Python's
+    two-line warning from Pillow's source (the suite turns warnings into errors, so this fails without it)."""
+    buffer = io.BytesIO()
+    PIL.Image.fromarray(np.zeros((8, 8, 3), np.uint8)).save(buffer, "TIFF")
+    damaged = bytearray(buffer.getvalue())
+    damaged[122] = 194  # the PlanarConfiguration tag (284) now claims data beyond the end of the file
+    path = tmp_path / "damaged.tif"
+    path.write_bytes(bytes(damaged))
+    with caplog.at_level(logging.WARNING, logger="darksynth"):
+        image = read_image(path)
+    assert image.pixels.shape == (8, 8, 3)
+    messages = [r.getMessage() for r in caplog.records if r.name == "darksynth.io.images"]
+    assert messages == [f"{path}: Tag data larger than file. Skipping tag 284"]

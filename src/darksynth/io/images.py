@@ -7,6 +7,7 @@ codecs through PyAV, which darksynth already depends on for video.
 
 from __future__ import annotations
 
+import logging
 import warnings
 from dataclasses import dataclass
 from pathlib import Path
@@ -20,6 +21,8 @@ from av.video.codeccontext import VideoCodecContext
 
 from darksynth.errors import DarksynthError, InputFileError, error_reason
 from darksynth.io.atomic import atomic_output
+
+logger = logging.getLogger(__name__)
 
 __all__ = ["IMAGE_SUFFIXES", "Image", "read_image", "write_image"]
 
@@ -115,7 +118,10 @@ def read_image(path: str | Path) -> Image:
     # A str path used to reach Pillow's opener as it was and fail there as "corrupt or truncated image".
     path = Path(path)
     try:
-        with warnings.catch_warnings():
+        # Pillow warns about damage it reads past (a truncated tag, corrupt EXIF): recorded here, so that the user
+        # sees one line naming the file instead of Python's two-line warning naming Pillow's source.
+        with warnings.catch_warnings(record=True) as caught:
+            warnings.simplefilter("always")
             warnings.simplefilter("ignore", PIL.Image.DecompressionBombWarning)
             with PIL.Image.open(path) as pil:
                 # load() decodes everything now, so a truncated file fails here and not in the middle of a run.
@@ -145,6 +151,8 @@ def read_image(path: str | Path) -> Image:
     except Exception as err:  # Pillow's decoders raise OSError, SyntaxError, ValueError, EOFError, zlib.error...
         raise InputFileError(path, f"corrupt or truncated image ({type(err).__name__}: {err})") from None
 
+    for message in dict.fromkeys(" ".join(str(w.message).split()) for w in caught):
+        logger.warning("%s: %s", path, message)
     pixels = _apply_orientation(pixels, orientation)
     if alpha is not None:
         alpha = _apply_orientation(alpha, orientation)
