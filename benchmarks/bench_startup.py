@@ -47,7 +47,15 @@ def main() -> None:
         commands = {
             "version": [*DARKSYNTH, "--version"],
             "help": [*DARKSYNTH, "--help"],
-            "apply_png": [*DARKSYNTH, "apply", str(root / "frame.png"), str(root / "out.png"), "-p", str(profile)],
+            "apply_png": [
+                *DARKSYNTH,
+                "apply",
+                str(root / "frame.png"),
+                str(root / "out.png"),
+                "-p",
+                str(profile),
+                "--overwrite",
+            ],
         }
         times: dict[str, list[float]] = {name: [] for name in commands}
         for _ in range(args.repeats):
