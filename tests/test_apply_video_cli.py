@@ -52,6 +52,22 @@ def test_apply_bad_pix_fmt_is_one_line_naming_it_and_the_choices(tmp_path: Path,
     assert not (tmp_path / "dark.mp4").exists()
 
 
+@pytest.mark.parametrize("command", ["apply", "convert"])
+def test_bad_video_options_are_refused_once_before_any_work(tmp_path: Path, profile_file: Path, command: str) -> None:
+    """A folder of videos with a codec or pixel format the writer refuses: one line, not one per video."""
+    dataset = tmp_path / "ds"
+    for name in ("a.mkv", "b.mkv", "c.mkv"):
+        _clean_video(dataset / "videos" / name)
+    output = tmp_path / "out"
+    extra = ("--format", "video-folder") if command == "convert" else ()
+    for flags, said in ((("--pix-fmt", "yuv9000p"), "'yuv9000p'"), (("--codec", "nocodec"), "'nocodec'")):
+        code, _, err = run_cli(command, dataset, output, "-p", profile_file, *extra, *flags)
+        assert code == 1
+        (line,) = err.strip().splitlines()
+        assert line.startswith("darksynth: error: ") and said in line, line
+        assert not output.exists()
+
+
 def test_convert_records_pix_fmt_and_refuses_to_resume_with_another(tmp_path: Path, profile_file: Path) -> None:
     dataset = tmp_path / "ds"
     _clean_video(dataset / "videos" / "walk.mkv")

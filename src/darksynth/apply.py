@@ -18,6 +18,7 @@ import time
 from collections.abc import Callable, Iterator
 from concurrent.futures import ProcessPoolExecutor, as_completed
 from dataclasses import dataclass, field
+from fractions import Fraction
 from multiprocessing import get_context
 from pathlib import Path
 from typing import Any, Literal
@@ -270,13 +271,8 @@ def _run_video(
     synthesizer = ClipSynthesizer(parameters, generator=generator, device=options.device, compile=compile_kernel)
     # The source's audio goes into the output unchanged (a track the output's container cannot hold is left out
     # with a notice).
-    writer_options: dict[str, Any] = {"width": info.width, "height": info.height, "fps": info.fps, "audio_from": source}
-    if options.codec:
-        writer_options["codec"] = options.codec
-    if options.crf is not None:
-        writer_options["crf"] = options.crf
-    if options.pix_fmt is not None:
-        writer_options["pix_fmt"] = options.pix_fmt
+    writer_options: dict[str, Any] = {"width": info.width, "height": info.height, "fps": info.fps}
+    writer_options.update(audio_from=source, **_encoder_options(options))
     count = 0
     resized = False
     with VideoWriter(target, **writer_options) as writer:
@@ -292,6 +288,23 @@ def _run_video(
     if count == 0:
         raise DarksynthError(f"{source}: the video has no decodable frames")
     return count
+
+
+def _encoder_options(options: ApplyOptions) -> dict[str, Any]:
+    """The writer arguments the user chose (codec, crf, pixel format); the writer's defaults for the others."""
+    chosen: dict[str, Any] = {"codec": options.codec, "crf": options.crf, "pix_fmt": options.pix_fmt}
+    return {name: value for name, value in chosen.items() if value is not None and value != ""}
+
+
+def check_video_options(options: ApplyOptions, output: Path) -> None:
+    """Refuse a codec, crf or pixel format the writer cannot use, once, before a run writes any video (else
+    every video of a folder would fail with the same line). ``output``: the first video output, named in the error.
+
+    Raises:
+        DarksynthError: the writer refuses the options.
+    """
+    # Constructing a writer checks its options without opening a file; an even size leaves odd-size rules out.
+    VideoWriter(output, width=16, height=16, fps=Fraction(25), **_encoder_options(options))
 
 
 def _to_stream_size(source: Path, frame: np.ndarray, width: int, height: int, *, first: bool) -> np.ndarray:
@@ -450,6 +463,9 @@ def apply(
     folder = input_path.is_dir()
     manifest = manifest_path(output_path, folder=folder)
     outputs = [path for task in tasks for path in task.outputs]
+    videos = [task.outputs[0] for task in tasks if task.kind == "video"]
+    if videos:
+        check_video_options(options, videos[0])
     claim_outputs([*outputs, manifest], output_path, folder=folder, overwrite=options.overwrite)
     total_frames = sum(_frame_estimate(t) for t in tasks)
     if on_start:

@@ -32,7 +32,7 @@ from typing import Any, Final
 import torch
 
 from darksynth import __version__
-from darksynth.apply import MANIFEST_NAME, ApplyOptions, execute, run_task
+from darksynth.apply import MANIFEST_NAME, ApplyOptions, check_video_options, execute, run_task
 from darksynth.datasets.formats import FORMATS, CarriedFile, DatasetFormat, DatasetPlan, MediaItem, plan_dataset
 from darksynth.datasets.formats import rewrite_yolo_yaml as _rewrite_yolo_yaml
 from darksynth.errors import DarksynthError
@@ -357,6 +357,9 @@ def start_conversion(options: ConvertOptions, on_failure: Callable[[str], None] 
     """
     options = options.checked()
     plan = plan_dataset(options.dataset, options.format, images_root=options.images_root)
+    videos = [item for item in plan.items if item.kind == "video"]
+    if videos:
+        check_video_options(options.apply_options(), options.output / videos[0].inputs[0])
     prepare_output(options)
     owns = options.shard.owns if options.shard is not None else (lambda key: True)
     items = [i for i in plan.items if owns(i.key)]
