@@ -137,6 +137,33 @@ def test_audio_the_container_cannot_hold_is_left_out_with_one_notice(
         assert sum(1 for _ in container.decode(video=0)) == 25
 
 
+def test_tracks_that_are_not_carried_get_one_notice(
+    tmp_path: Path, profile_file: Path, caplog: pytest.LogCaptureFixture
+) -> None:
+    """A second video track (another angle, a thumbnail stream) is not carried: one line says so."""
+    source = tmp_path / "two.mkv"
+    with av.open(str(source), "w") as container:
+        streams = [container.add_stream("ffv1", rate=25) for _ in range(2)]
+        for stream in streams:
+            stream.width, stream.height, stream.pix_fmt = 16, 16, "bgr0"
+        for index in range(3):
+            frame = av.VideoFrame.from_ndarray(np.full((16, 16, 3), 50, np.uint8), format="rgb24").reformat(
+                format="bgr0"
+            )
+            frame.pts = index
+            for stream in streams:
+                container.mux(stream.encode(frame))
+        for stream in streams:
+            container.mux(stream.encode(None))
+    out = tmp_path / "dark.mkv"
+    code, _, err = run_cli("apply", source, out, "-p", profile_file, "--seed", "0", "--codec", "ffv1")
+    assert code == 0, err
+    notices = [r.getMessage() for r in caplog.records if r.levelname == "WARNING"]
+    assert notices == [f"{source}: 1 video track not carried into the output (only the first video and the audio are)"]
+    with av.open(str(out)) as container:
+        assert len(container.streams.video) == 1
+
+
 def test_convert_carries_audio(tmp_path: Path, profile_file: Path) -> None:
     dataset = tmp_path / "ds"
     (dataset / "videos").mkdir(parents=True)

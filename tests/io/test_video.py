@@ -140,6 +140,7 @@ def test_even_size_keeps_420_without_notice(tmp_path: Path, caplog: pytest.LogCa
         ("libx265", None, "yuv420p"),
         ("ffv1", None, "bgr0"),
         ("ffv1", "yuv444p", "yuv444p"),
+        ("libvpx-vp9", None, "yuv420p"),
     ],
 )
 def test_pix_fmt_choice_reaches_the_stream(tmp_path: Path, codec: str, pix_fmt: str | None, written: str) -> None:
@@ -147,6 +148,11 @@ def test_pix_fmt_choice_reaches_the_stream(tmp_path: Path, codec: str, pix_fmt: 
     _write(path, _gradient_frames(2), codec=codec, pix_fmt=pix_fmt)
     with av.open(str(path)) as container:
         assert container.streams.video[0].codec_context.pix_fmt == written
+
+
+def test_full_range_yuvj_format_is_refused_naming_its_replacement(tmp_path: Path) -> None:
+    with pytest.raises(DarksynthError, match=r"yuvj420p is FFmpeg's deprecated full-range format; use yuv420p$"):
+        VideoWriter(tmp_path / "clip.mp4", width=16, height=16, fps=Fraction(25), pix_fmt="yuvj420p")
 
 
 def _noisy_frames(count: int) -> tuple[np.ndarray, list[np.ndarray]]:

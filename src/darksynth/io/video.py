@@ -9,6 +9,7 @@ from __future__ import annotations
 import contextlib
 import io
 import logging
+from collections import Counter
 from collections.abc import Iterable, Iterator
 from dataclasses import dataclass
 from fractions import Fraction
@@ -71,13 +72,17 @@ _X264_CODECS: Final[frozenset[str]] = frozenset({"libx264", "libx264rgb"})
 # is decoded as BT.601 by FFmpeg and most players, so they are converted with BT.601 to round-trip.
 _BT709_CODECS: Final[frozenset[str]] = frozenset({"libx264", "libx265"})
 
-# Default pixel format per codec: the playable 4:2:0 for H.264 and H.265, RGB where the codec stores RGB losslessly.
+# Default pixel format per codec: the playable 4:2:0 for H.264, H.265, VP9 (profile 0; 4:4:4 is profile 1, which
+# Safari does not decode) and AV1 (main profile), RGB where the codec stores RGB losslessly.
 _PIX_FMT: Final[dict[str, str]] = {
     "libx264": "yuv420p",
     "libx264rgb": "rgb24",
     "ffv1": "bgr0",
     "libx265": "yuv420p",
     "mpeg4": "yuv420p",
+    "libvpx-vp9": "yuv420p",
+    "libaom-av1": "yuv420p",
+    "libsvtav1": "yuv420p",
 }
 
 # x264 and x265 code subsampled chroma in whole samples and refuse a 4:2:0 picture of odd width or height (FFmpeg's
@@ -408,6 +413,12 @@ class _AudioCopy:
             )  # fmt: skip
         # The output's first frame is at time 0: the audio moves with the source's first video frame.
         video = source.streams.video[0]
+        left_out = Counter(s.type for s in source.streams if s.type != "audio" and s.index != video.index)
+        if left_out:
+            kinds = " and ".join(f"{count} {kind} track{'s' if count > 1 else ''}" for kind, count in left_out.items())
+            logger.warning(
+                "%s: %s not carried into the output (only the first video and the audio are)", source_path, kinds
+            )
         self._offset = Fraction(video.start_time or 0) * (video.time_base or 1)
         kept = [s for s in source.streams.audio if s.index in self._outputs]
         self._packets: Iterator[av.Packet[AudioStream]] = source.demux(tuple(kept)) if kept else iter(())
@@ -512,6 +523,11 @@ def _choose_pix_fmt(path: Path, encoder: av.Codec, pix_fmt: str | None, width: i
             av.VideoFormat(pix_fmt)
         except ValueError:
             raise DarksynthError(f"{path}: unknown pixel format {pix_fmt!r}") from None
+        if pix_fmt.startswith("yuvj"):
+            # The writer tags and converts to limited range; FFmpeg's full-range "J" formats would contradict it.
+            raise DarksynthError(
+                f"{path}: {pix_fmt} is FFmpeg's deprecated full-range format; use {pix_fmt.replace('yuvj', 'yuv', 1)}"
+            )
         if encoder.name in _WHOLE_CHROMA_CODECS and not _fits_chroma(pix_fmt, width, height):
             raise DarksynthError(
                 f"{path}: {encoder.name} cannot code {width}x{height} in {pix_fmt}, whose chroma needs an even "
