@@ -28,7 +28,7 @@ import torch
 from PIL import Image as PILImage
 
 from darksynth import __version__
-from darksynth.errors import DarksynthError
+from darksynth.errors import DarksynthError, error_reason
 from darksynth.io.arrays import chw_to_hwc, hwc_to_chw
 from darksynth.io.atomic import remove_stale_temps, write_text_atomic
 from darksynth.io.discover import check_output_location, classify_input, scan_folder
@@ -194,7 +194,7 @@ def run_task(task: Task, options: ApplyOptions, progress: Progress | None = None
     except OSError as error:
         # Disk full, permission denied, a folder where a file should go: one line naming the file.
         where = error.filename or task.outputs[0]
-        raise DarksynthError(f"{where}: {error.strerror or error}") from None
+        raise DarksynthError(f"{where}: {error_reason(error)}") from None
 
 
 def start_task(key: str, options: ApplyOptions) -> tuple[int, torch.Generator, ClipParameters]:
@@ -404,9 +404,7 @@ def write_manifest(path: Path, input_path: Path, output_path: Path, options: App
     try:
         write_text_atomic(path, json.dumps(document, indent=2) + "\n")
     except OSError as error:
-        raise DarksynthError(
-            f"{error.filename or path}: cannot write the manifest ({error.strerror or error})"
-        ) from None
+        raise DarksynthError(f"{error.filename or path}: cannot write the manifest ({error_reason(error)})") from None
 
 
 def claim_outputs(outputs: list[Path], root: Path, *, folder: bool, overwrite: bool) -> None:
@@ -430,7 +428,7 @@ def claim_outputs(outputs: list[Path], root: Path, *, folder: bool, overwrite: b
         with tempfile.NamedTemporaryFile(dir=location, prefix=".darksynth-probe-"):
             pass
     except OSError as error:
-        raise DarksynthError(f"{location}: cannot write the output here ({error.strerror or error})") from None
+        raise DarksynthError(f"{location}: cannot write the output here ({error_reason(error)})") from None
     remove_stale_temps(outputs)
 
 

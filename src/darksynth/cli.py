@@ -20,7 +20,7 @@ from darksynth.commands import COMMAND_HELP, new_app
 from darksynth.console_progress import progress_display
 from darksynth.darkening import Darkening
 from darksynth.datasets import FORMATS, ConversionReport, ConvertOptions, DatasetFormat, Shard
-from darksynth.errors import DarksynthError
+from darksynth.errors import DarksynthError, error_reason
 from darksynth.estimate import EstimateOptions
 from darksynth.evaluation.options import EvaluationOptions
 from darksynth.models.den import DENConfig, Variant
@@ -455,7 +455,7 @@ def estimate_command(
     try:
         save_profile(out, result.profile)
     except OSError as error:
-        raise fail(f"{out}: {error.strerror or error}") from None
+        raise fail(f"{out}: {error_reason(error)}") from None
     if not quiet:
         say(f"wrote {out} from {result.per_crop.batch_shape[0]} crops")
 

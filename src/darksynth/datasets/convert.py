@@ -35,7 +35,7 @@ from darksynth import __version__
 from darksynth.apply import MANIFEST_NAME, ApplyOptions, check_video_options, execute, run_task
 from darksynth.datasets.formats import FORMATS, CarriedFile, DatasetFormat, DatasetPlan, MediaItem, plan_dataset
 from darksynth.datasets.formats import rewrite_yolo_yaml as _rewrite_yolo_yaml
-from darksynth.errors import DarksynthError
+from darksynth.errors import DarksynthError, error_reason
 from darksynth.io.atomic import atomic_output, write_text_atomic
 from darksynth.io.atomic import remove_stale_temps as remove_temps_of
 from darksynth.io.discover import check_output_location
@@ -265,7 +265,7 @@ def _write_record(output: Path, record: dict[str, Any]) -> None:
     try:
         write_text_atomic(path, json.dumps(record, indent=1, sort_keys=True) + "\n")
     except OSError as error:
-        raise DarksynthError(f"{error.filename or path}: cannot write the record ({error.strerror or error})") from None
+        raise DarksynthError(f"{error.filename or path}: cannot write the record ({error_reason(error)})") from None
 
 
 def _read_record(output: Path, key: str) -> dict[str, Any] | None:
@@ -422,7 +422,7 @@ def prepare_output(options: ConvertOptions) -> None:
         write_text_atomic(state_path, json.dumps(document, indent=2, sort_keys=True) + "\n")
     except OSError as error:
         where = error.filename or output
-        raise DarksynthError(f"{where}: cannot write the output folder ({error.strerror or error})") from None
+        raise DarksynthError(f"{where}: cannot write the output folder ({error_reason(error)})") from None
 
 
 def _read_json(path: Path) -> dict[str, Any]:
@@ -475,7 +475,7 @@ def carry_file(options: ConvertOptions, carried: CarriedFile) -> bool:
         return True
     except OSError as error:
         where = error.filename or target
-        raise DarksynthError(f"{where}: cannot carry over {carried.key} ({error.strerror or error})") from None
+        raise DarksynthError(f"{where}: cannot carry over {carried.key} ({error_reason(error)})") from None
 
 
 def write_manifest_if_complete(options: ConvertOptions, plan: DatasetPlan) -> tuple[Path | None, int]:
@@ -516,5 +516,5 @@ def write_manifest_if_complete(options: ConvertOptions, plan: DatasetPlan) -> tu
         # Shards finishing together may both write it: the same bytes, each atomically.
         write_text_atomic(path, text)
     except OSError as error:
-        raise DarksynthError(f"{path}: cannot write the manifest ({error.strerror or error})") from None
+        raise DarksynthError(f"{path}: cannot write the manifest ({error_reason(error)})") from None
     return path, 0

@@ -12,7 +12,7 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Any, Final
 
-from darksynth.errors import DarksynthError
+from darksynth.errors import DarksynthError, error_reason
 from darksynth.evaluation.options import EvaluationOptions
 from darksynth.evaluation.report import write_html_report, write_markdown
 from darksynth.io.atomic import write_text_atomic
@@ -80,7 +80,7 @@ def run_evaluation(
         write_markdown(outcome.results, results_md)
         write_html_report(outcome.results, outcome.examples, report_html)
     except OSError as error:
-        raise DarksynthError(f"{error.filename or out}: {error.strerror or error}") from None
+        raise DarksynthError(f"{error.filename or out}: {error_reason(error)}") from None
     return EvaluationRun(outcome.results, files)
 
 
