@@ -273,12 +273,10 @@ def convert_command(
 
 def _convert_summary(report: ConversionReport, *, quiet: bool) -> None:
     """The closing lines of a conversion (none with ``quiet``); exit 1 after them if anything failed."""
-    if report.failures:
-        if not quiet:
-            _convert_counts(report)
-        raise fail(f"{len(report.failures)} failure(s); see the messages above and the manifest")
     if not quiet:
         _convert_counts(report)
+    if report.failures:
+        raise fail(f"{len(report.failures)} failure(s); see the messages above and the manifest")
 
 
 def _convert_counts(report: ConversionReport) -> None:
