@@ -15,7 +15,7 @@ import torch
 from PIL import Image as PILImage
 from PIL import ImageDraw
 
-from darksynth.apply import ApplyOptions, synthesize_image
+from darksynth.apply import ApplyOptions, claim_outputs, synthesize_image
 from darksynth.darkening import Darkening, darken
 from darksynth.errors import DarksynthError
 from darksynth.io.discover import check_output_location, classify_input, scan_folder
@@ -197,7 +197,8 @@ class PreviewReport:
 
 
 def check_preview_output(out: Path, inputs: list[Path], *, overwrite: bool) -> None:
-    """Refuse an output that is not an image file, exists (unless ``overwrite``) or is one of the inputs.
+    """Refuse an output that is not an image file, is one of the inputs, exists (unless ``overwrite``) or cannot be
+    written.
 
     Raises:
         DarksynthError: naming the output and the problem.
@@ -206,8 +207,8 @@ def check_preview_output(out: Path, inputs: list[Path], *, overwrite: bool) -> N
         raise DarksynthError(f"{out}: a preview needs one of the suffixes {' '.join(sorted(IMAGE_SUFFIXES))}")
     for source in inputs:
         check_output_location(source, out)
-    if out.exists() and not overwrite:
-        raise DarksynthError(f"{out}: exists; pass --overwrite to replace it")
+    # apply's own rule: refused if it exists (without overwrite) or cannot be written, a killed run's temporary removed.
+    claim_outputs([out], out, folder=False, overwrite=overwrite)
 
 
 def run_preview(image_path: Path, out: Path, options: PreviewOptions) -> PreviewReport:
