@@ -139,7 +139,7 @@ class ClipSynthesizer:
         self.generator = generator
         self.device = torch.device(device)
         self._values = parameters.noise.to(self.device, torch.float32)
-        self._held: dict[str, torch.Tensor] = {}
+        self._held: dict[str, Any] = {}
         self._kernel: PixelKernel = compiled_pixel_kernel() if compile else pixel_kernel_8bit
         uncovered = self._values.uncovered_by(FAST_PATH)
         self._fusable = not uncovered

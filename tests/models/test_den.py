@@ -8,10 +8,10 @@ import pytest
 import torch
 
 from darksynth.models.den import DEN, denormalise, normalise
-from darksynth.noise.components import model_parameters, noise_parameters, vector_size
+from darksynth.noise.components import model_parameters, vector_size
 
-LOW = torch.tensor([p.training_range[0] for p in noise_parameters() for _ in range(p.size)])
-HIGH = torch.tensor([p.training_range[1] for p in noise_parameters() for _ in range(p.size)])
+LOW = torch.tensor([p.training_range[0] for p in model_parameters("srgb") for _ in range(p.size)])
+HIGH = torch.tensor([p.training_range[1] for p in model_parameters("srgb") for _ in range(p.size)])
 
 
 def _clip(shape: tuple[int, ...], seed: int = 0) -> torch.Tensor:
@@ -68,7 +68,7 @@ def test_predictions_lie_inside_the_training_ranges(
     assert ((output.normalised >= 0) & (output.normalised <= 1)).all()
 
 
-FLOOR = torch.tensor([p.log_floor or 0.0 for p in noise_parameters() for _ in range(p.size)])
+FLOOR = torch.tensor([p.log_floor or 0.0 for p in model_parameters("srgb") for _ in range(p.size)])
 LOGARITHMIC = FLOOR > 0
 
 

@@ -7,13 +7,15 @@ import math
 import torch
 
 from darksynth.darkening import ALPHA_RANGE, GAMMA_RANGE
-from darksynth.noise.components import noise_parameters
+from darksynth.noise.components import model_parameters
 from darksynth.noise.sampling import random_darkening_values, random_noise_values
 
 
 def test_random_noise_values_stay_in_training_ranges() -> None:
-    values = random_noise_values(batch_shape=(5000,), generator=torch.Generator().manual_seed(2))
-    for parameter in noise_parameters():
+    values = random_noise_values(
+        batch_shape=(5000,), generator=torch.Generator().manual_seed(2), noise_model="spectral"
+    )
+    for parameter in model_parameters("spectral"):
         low, high = parameter.training_range
         drawn = values[parameter.name]
         assert drawn.shape == (5000, parameter.size)
@@ -24,8 +26,10 @@ def test_random_noise_values_stay_in_training_ranges() -> None:
 
 
 def test_log_level_prior_draws_levels_log_uniformly_and_leaves_the_rest_uniform() -> None:
-    values = random_noise_values(batch_shape=(20000,), generator=torch.Generator().manual_seed(9), log_levels=True)
-    for parameter in noise_parameters():
+    values = random_noise_values(
+        batch_shape=(20000,), generator=torch.Generator().manual_seed(9), log_levels=True, noise_model="spectral"
+    )
+    for parameter in model_parameters("spectral"):
         drawn = values[parameter.name].double()
         low, high = parameter.training_range
         if parameter.log_floor is None:

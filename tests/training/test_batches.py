@@ -7,15 +7,15 @@ import torch
 
 from darksynth.noise.components import (
     NOISE_COMPONENTS,
-    noise_parameters,
+    model_parameters,
     vector_size,
 )
 from darksynth.noise.values import NoiseValues
 from darksynth.training.batches import synthesize_batch
 
-LOW = torch.tensor([p.training_range[0] for p in noise_parameters() for _ in range(p.size)])
-HIGH = torch.tensor([p.training_range[1] for p in noise_parameters() for _ in range(p.size)])
-NEUTRAL = torch.tensor([p.neutral for p in noise_parameters() for _ in range(p.size)])
+LOW = torch.tensor([p.training_range[0] for p in model_parameters("srgb") for _ in range(p.size)])
+HIGH = torch.tensor([p.training_range[1] for p in model_parameters("srgb") for _ in range(p.size)])
+NEUTRAL = torch.tensor([p.neutral for p in model_parameters("srgb") for _ in range(p.size)])
 
 
 def _clean(batch: int = 6, seed: int = 0) -> torch.Tensor:
@@ -58,7 +58,7 @@ def test_every_component_is_present_when_absence_is_impossible() -> None:
         [synthesize_batch(_clean(), generator=generator, absent_probability=0.0).vector for _ in range(40)]
     )
     values = NoiseValues.from_vector(vectors)
-    for parameter in noise_parameters():
+    for parameter in model_parameters("srgb"):
         off = (values[parameter.name] == parameter.neutral).all(-1).float().mean().item()
         expected = parameter.training_off_probability or 0.0
         # 240 clips: a binomial share's standard error is at most 0.032; 4 of them.

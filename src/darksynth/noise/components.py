@@ -15,7 +15,7 @@ from __future__ import annotations
 
 from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass
-from typing import Literal
+from typing import Any, Literal
 
 import torch
 
@@ -24,6 +24,7 @@ from darksynth.noise.correlated import jpeg_compress_clips, structured_normal
 from darksynth.noise.heteroscedastic import heteroscedastic_noise, heteroscedastic_std
 from darksynth.noise.periodic import periodic_noise
 from darksynth.noise.quantization import quantization_noise
+from darksynth.noise.spectral import LEVEL_KNOTS, OCTAVES, level_std, octave_covariances, spectral_clip_noise
 from darksynth.noise.statistics import PAPER_STATISTICS, SRGB_STATISTICS, EstimatorStatistics
 
 Structure = Literal["pixel", "column", "output"]
@@ -35,10 +36,12 @@ down the whole column, so the component can be drawn as a (..., T or 1, C, 1, W)
 compression; its ``draw`` returns the transformed image instead of noise.
 """
 
-NoiseModel = Literal["paper", "srgb"]
+NoiseModel = Literal["paper", "srgb", "spectral"]
 """``paper``: the paper's five components (profile version 1, DEN model version 1). ``srgb``: those plus the
 structure of real sRGB noise (per-channel gains, spatial and cross-channel correlation, JPEG), measured in
-docs/srgb-noise.md (profile version 2, DEN model version 2)."""
+docs/srgb-noise.md (profile version 2, DEN model version 2). ``spectral``: those plus the measured spectrum
+(per-octave colour covariances, level curves, temporal correlation; docs/spectral-noise.md, profile version 4),
+estimated by measurement on the reference rather than by the network."""
 
 Role = Literal["amplitude", "shape"]
 """``amplitude``: the component draws nothing when all its amplitude parameters are neutral. ``shape``: shapes
@@ -62,6 +65,13 @@ DrawFunction = Callable[[torch.Tensor, Mapping[str, torch.Tensor], torch.Generat
 """``draw(signal, values, generator) -> noise``: ``signal`` is the darkened clean clip (..., T, C, H, W),
 ``values`` maps each of the component's parameter names to a tensor shaped (*batch, size), where *batch are
 the clip's leading dimensions. The noise broadcasts against ``signal``."""
+
+StreamDrawFunction = Callable[
+    [torch.Tensor, Mapping[str, torch.Tensor], torch.Generator | None, dict[str, Any]], torch.Tensor
+]
+"""``draw_in_stream(signal, values, generator, held) -> noise`` for a component whose frames depend on the frames
+before them (temporal correlation): ``held`` is the stream's dict of per-clip objects, the same for every frame
+of a clip, where the component keeps its state."""
 
 VarianceFunction = Callable[[Mapping[str, torch.Tensor], torch.Tensor], torch.Tensor]
 """``variance(values, channel_means) -> (B, C)``: the component's contribution to the mean noise variance of
@@ -127,6 +137,8 @@ class NoiseComponent:
     output stage, which transforms the image instead of adding to it."""
     per_clip: bool = False
     """True when one draw is held over all frames of a clip: a frame-by-frame stream draws it once."""
+    draw_in_stream: StreamDrawFunction | None = None
+    """How a frame-by-frame stream draws it, for a component with memory from frame to frame; None: ``draw``."""
 
 
 def shapes_neutral(parameters: tuple[Parameter, ...], values: Mapping[str, torch.Tensor]) -> bool:
@@ -305,6 +317,116 @@ def _column_variance(name: str) -> VarianceFunction:
     return variance
 
 
+# The measured-spectrum model (docs/spectral-noise.md): real sRGB noise has a fine brightness grain over coarse
+# colour mottle (colour 8-75x white noise's power at 16-64 px on the real pairs) and, in video, persists from
+# frame to frame. Its structure is a covariance of brightness and colour per octave, its level a curve per channel.
+_SPECTRAL_PARAMETERS: tuple[Parameter, ...] = (
+    Parameter(
+        "level_curve",
+        3 * len(LEVEL_KNOTS),
+        "noise std of red, green and blue (8 values each) at the intensities "
+        + ", ".join(f"{k:.3f}" for k in LEVEL_KNOTS)
+        + ", linear between them",
+        1.0,
+        (0.0, 0.08),
+        noise_model="spectral",
+        since_version=4,
+        statistics=SRGB_STATISTICS,
+    ),
+    Parameter(
+        "octave_power",
+        3 * OCTAVES,
+        "per octave (finest first: wavelengths 2.8, 5.7, 11, 23, 45, 90 px) the power of brightness, colour "
+        "(red-blue) and colour (magenta-green) noise relative to white noise (1: white)",
+        1.0e4,
+        (0.2, 20.0),
+        neutral=1.0,
+        noise_model="spectral",
+        since_version=4,
+        statistics=SRGB_STATISTICS,
+        role="shape",
+    ),
+    Parameter(
+        "octave_correlation",
+        3 * OCTAVES,
+        "per octave the correlation of brightness-colour1, brightness-colour2 and colour1-colour2 noise",
+        0.99,
+        (-0.3, 0.3),
+        minimum=-0.99,
+        noise_model="spectral",
+        since_version=4,
+        statistics=SRGB_STATISTICS,
+        role="shape",
+    ),
+    Parameter(
+        "temporal_correlation",
+        OCTAVES,
+        "per octave the correlation of a frame's noise with the previous frame's (AR(1); 0 for independent frames)",
+        0.99,
+        (0.0, 0.9),
+        noise_model="spectral",
+        since_version=4,
+        statistics=SRGB_STATISTICS,
+        role="shape",
+        training_off_probability=0.5,
+    ),
+)
+
+
+def _spectral_clips(
+    signal: torch.Tensor,
+    values: Mapping[str, torch.Tensor],
+    generator: torch.Generator | None,
+    held: dict[str, Any] | None,
+) -> torch.Tensor:
+    if generator is None:
+        generator = torch.default_generator
+    # A single frame (C, H, W), as streaming passes it, is a clip of one frame.
+    clips = signal if signal.dim() >= 4 else signal[None]
+    batch = tuple(clips.shape[:-4])
+    flat = clips.reshape(-1, *clips.shape[-4:])
+    names = ("level_curve", "octave_power", "octave_correlation", "temporal_correlation")
+    flat_values = [
+        values[name].expand(*batch, values[name].shape[-1]).reshape(-1, values[name].shape[-1]) for name in names
+    ]
+    noise = []
+    for index, clip in enumerate(flat):
+        curve, power, correlation, temporal = (v[index] for v in flat_values)
+        noise.append(
+            spectral_clip_noise(
+                clip,
+                curve,
+                octave_covariances(power, correlation),
+                temporal,
+                generator=generator,
+                # A stream is one clip; a batch of clips never shares one clip's state.
+                state=held if flat.shape[0] == 1 else None,
+            )
+        )
+    return torch.stack(noise).reshape(signal.shape)
+
+
+def _draw_spectral(
+    signal: torch.Tensor, values: Mapping[str, torch.Tensor], generator: torch.Generator | None
+) -> torch.Tensor:
+    return _spectral_clips(signal, values, generator, None)
+
+
+def _draw_spectral_in_stream(
+    signal: torch.Tensor, values: Mapping[str, torch.Tensor], generator: torch.Generator | None, held: dict[str, Any]
+) -> torch.Tensor:
+    return _spectral_clips(signal, values, generator, held)
+
+
+def _spectral_variance(values: Mapping[str, torch.Tensor], channel_means: torch.Tensor) -> torch.Tensor:
+    # The unit noise has unit variance per channel; the level curve at each channel's mean gives its std.
+    rows = [
+        level_std(means[:, None, None], curve)
+        for means, curve in zip(channel_means, values["level_curve"], strict=True)
+    ]
+    return torch.stack(rows)[..., 0, 0].square()
+
+
 # The training ranges cover real sRGB low-light noise: at mid-grey (x = 0.5) shot 0.2 alone gives a std of
 # 0.14 of full scale, and read noise adds up to 0.1 at black.
 NOISE_COMPONENTS: tuple[NoiseComponent, ...] = (
@@ -316,6 +438,16 @@ NOISE_COMPONENTS: tuple[NoiseComponent, ...] = (
         variance=_heteroscedastic_variance,
         reference="Foi et al. 2008, Practical Poissonian-Gaussian noise modeling and fitting; "
         "structure: docs/srgb-noise.md",
+    ),
+    NoiseComponent(
+        name="spectral",
+        parameters=_SPECTRAL_PARAMETERS,
+        structure="pixel",
+        draw=_draw_spectral,
+        draw_in_stream=_draw_spectral_in_stream,
+        variance=_spectral_variance,
+        reference="Lebrun, Colom and Morel 2015, The Noise Clinic; Norkin and Birkbeck 2018, AV1 film grain; "
+        "docs/spectral-noise.md",
     ),
     NoiseComponent(
         name="quantization",
@@ -415,7 +547,7 @@ NOISE_COMPONENTS: tuple[NoiseComponent, ...] = (
 """The table. Read it through the functions below, which look it up at each call, so that a component
 declared here (or, in a test, added to it) is seen everywhere."""
 
-NOISE_MODELS: tuple[NoiseModel, ...] = ("paper", "srgb")
+NOISE_MODELS: tuple[NoiseModel, ...] = ("paper", "srgb", "spectral")
 
 
 def noise_components() -> tuple[NoiseComponent, ...]:
@@ -424,7 +556,7 @@ def noise_components() -> tuple[NoiseComponent, ...]:
 
 
 def noise_parameters() -> tuple[Parameter, ...]:
-    """Every parameter, in table order: the full v of the ``srgb`` model."""
+    """Every parameter, in table order: the full v of the ``spectral`` model."""
     return tuple(p for c in NOISE_COMPONENTS for p in c.parameters)
 
 

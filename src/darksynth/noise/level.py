@@ -35,6 +35,7 @@ def mean_noise_variance(values: Mapping[str, torch.Tensor], dark: torch.Tensor) 
     channel_means = dark.reshape(batch, -1, channels, dark.shape[-2] * dark.shape[-1]).mean(dim=(1, 3))
     variance = torch.zeros_like(channel_means)
     for component in noise_components():
-        if component.variance is not None:
+        # A model without a component's parameters (the network's ``srgb`` v has no spectrum) has it neutral.
+        if component.variance is not None and all(p.name in values for p in component.parameters):
             variance = variance + component.variance(values, channel_means)
     return variance.mean(dim=1)

@@ -12,6 +12,8 @@ ones in table order, then the output stages on the clipped image.
 
 from __future__ import annotations
 
+from typing import Any
+
 import torch
 
 from darksynth.noise.components import NoiseComponent, noise_components
@@ -27,7 +29,7 @@ def column_noise(
     values: NoiseValues,
     *,
     generator: torch.Generator | None,
-    held: dict[str, torch.Tensor] | None = None,
+    held: dict[str, Any] | None = None,
     device: torch.device | str | None = None,
 ) -> torch.Tensor:
     """The sum of the active column components for clips of ``shape`` (*batch, T, C, H, W).
@@ -60,11 +62,21 @@ def column_noise(
     return total
 
 
-def pixel_noise(signal: torch.Tensor, values: NoiseValues, *, generator: torch.Generator | None) -> torch.Tensor:
-    """The sum of the active per-pixel components for a darkened clip (*batch, T, C, H, W)."""
+def pixel_noise(
+    signal: torch.Tensor,
+    values: NoiseValues,
+    *,
+    generator: torch.Generator | None,
+    held: dict[str, Any] | None = None,
+) -> torch.Tensor:
+    """The sum of the active per-pixel components for a darkened clip (*batch, T, C, H, W); ``held`` as for
+    :func:`column_noise`, where components with memory from frame to frame keep their state."""
     total = torch.zeros_like(signal)
     for component in _active(values, "pixel"):
-        total = total + component.draw(signal, values, generator)
+        if held is not None and component.draw_in_stream is not None:
+            total = total + component.draw_in_stream(signal, values, generator, held)
+        else:
+            total = total + component.draw(signal, values, generator)
     return total
 
 
@@ -89,7 +101,7 @@ def add_noise(
     values: NoiseValues,
     *,
     generator: torch.Generator | None,
-    held: dict[str, torch.Tensor] | None = None,
+    held: dict[str, Any] | None = None,
 ) -> torch.Tensor:
     """The noisy low-light clip: signal + f(v), clipped to [0, 1], then the output stages (compression).
 
@@ -104,5 +116,5 @@ def add_noise(
     """
     values = values.to(signal.device, signal.dtype)
     columns = column_noise(signal.shape, values, generator=generator, held=held, device=signal.device)
-    noisy = (signal + columns + pixel_noise(signal, values, generator=generator)).clamp(0.0, 1.0)
+    noisy = (signal + columns + pixel_noise(signal, values, generator=generator, held=held)).clamp(0.0, 1.0)
     return apply_output_stages(noisy, values, generator=generator)

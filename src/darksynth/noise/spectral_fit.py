@@ -1,0 +1,330 @@
+"""Measuring the spectral model's statistics on noise, and fitting its parameters by re-synthesis.
+
+Pure functions on tensors; the clean-aided fit (:func:`oracle_spectral_fit`) and the blind estimate
+(:mod:`darksynth.estimation.spectrum`) share them. The statistics of a noise map (or of a residual, noisy minus
+denoised) are:
+
+* per octave band (:data:`BANDS`, finest first) the 3x3 cross-power of its brightness and colour components
+  (:data:`darksynth.noise.spectral.OPPONENT_BASIS`), relative to white noise of unit variance: the whole map
+  is band-passed first (an ideal radial filter on its FFT), then the products are averaged over the pixels of a
+  mask (all pixels, or the flat blocks of a reference), so texture outside the mask cannot leak into a band;
+* per channel and level-curve knot (:data:`darksynth.noise.spectral.LEVEL_KNOTS`) the variance of the map's
+  frequencies in the bands, weighted by the hat function of the knot at the pixel's intensity (the clean or
+  denoised image's);
+* for clips, per band the correlation of each frame's band with the next frame's.
+
+The fit moves the parameters until a simulation measured through the same operator shows the measured
+statistics (indirect inference): each octave's covariance by the matrix that maps the simulated band
+cross-power onto the measured one, each knot's std by the ratio of the stds, each octave's AR(1) coefficient
+by the gap of the correlations.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Callable
+from dataclasses import dataclass
+
+import torch
+
+from darksynth.noise.spectral import LEVEL_KNOTS, OCTAVES, OPPONENT_BASIS, covariance_parameters, octave_covariances
+
+BANDS: tuple[tuple[float, float], ...] = (
+    (1 / 4, 0.71),
+    (1 / 8, 1 / 4),
+    (1 / 16, 1 / 8),
+    (1 / 32, 1 / 16),
+    (1 / 64, 1 / 32),
+    (1 / 128, 1 / 64),
+)
+"""Radial frequency bands in cycles/px, finest first, one per octave of the model: [1/4, 0.71), [1/8, 1/4), ...,
+[1/128, 1/64). The first five are the bands of the evaluation's band measure."""
+
+COMPRESSION_CANDIDATES: tuple[float, ...] = (0.0, 0.2, 0.4)
+"""JPEG strengths a fit tries for the model's output stage: none, quality 80, quality 60. JPEG's 4:2:0 chroma takes
+the fine colour out of noise, including the 8-bit rounding's, which no spectrum added before rounding can do."""
+
+MIN_KNOT_WEIGHT = 200.0
+"""A knot whose hat weights sum to less than this (pixels) is not measured; it takes its neighbour's value."""
+
+
+@dataclass(frozen=True)
+class SpectralStatistics:
+    """What :func:`measure` reads from a noise map.
+
+    Attributes:
+        cross_power: (OCTAVES, 3, 3) band cross-power in the colour basis, relative to white unit variance.
+        knot_variance: (C, 8) variance per channel and knot (nan where the knot is not measured).
+        temporal: (OCTAVES,) frame-to-frame correlation per band; None for a single frame.
+    """
+
+    cross_power: torch.Tensor
+    knot_variance: torch.Tensor
+    temporal: torch.Tensor | None
+
+
+def _band_masks(height: int, width: int, device: torch.device) -> torch.Tensor:
+    fy = torch.fft.fftfreq(height, dtype=torch.float64, device=device)
+    fx = torch.fft.rfftfreq(width, dtype=torch.float64, device=device)
+    radius = torch.sqrt(fy[:, None] ** 2 + fx[None, :] ** 2)
+    return torch.stack([((radius >= low) & (radius < high)).to(torch.float64) for low, high in BANDS])
+
+
+def band_fields(noise: torch.Tensor) -> tuple[torch.Tensor, torch.Tensor]:
+    """The band-passed colour components of noise maps (..., 3, H, W) (or grey (..., 1, H, W)):
+    (..., OCTAVES, K, H, W) float64, K = 3 (or 1), each component minus its mean, and each band's share of the
+    frequency square (OCTAVES,), by which a white field's band power is that share of its variance."""
+    noise = noise.to(torch.float64)
+    channels = noise.shape[-3]
+    components = torch.einsum("ij,...jhw->...ihw", OPPONENT_BASIS.to(noise.device), noise) if channels == 3 else noise
+    components = components - components.mean(dim=(-2, -1), keepdim=True)
+    height, width = noise.shape[-2:]
+    masks = _band_masks(height, width, noise.device)
+    spectrum = torch.fft.rfft2(components)
+    fields = torch.stack([torch.fft.irfft2(spectrum * mask, s=(height, width)) for mask in masks], dim=-4)
+    weights = torch.full(masks.shape[-2:], 2.0, dtype=torch.float64, device=noise.device)
+    weights[:, 0] = 1.0
+    if width % 2 == 0:
+        weights[:, -1] = 1.0
+    share = (masks * weights).sum(dim=(-2, -1)) / float(height * width)
+    return fields, share
+
+
+def measure(
+    noise: torch.Tensor,
+    intensity: torch.Tensor,
+    mask: torch.Tensor | None = None,
+) -> SpectralStatistics:
+    """The statistics of noise maps ``noise`` (T, C, H, W) (a clip, or one frame with T = 1) whose pixels have the
+    clean or denoised intensity ``intensity`` (T, C, H, W); ``mask`` (H, W) or (T, H, W) in {0, 1} selects the
+    pixels averaged over (all when None)."""
+    frames, channels, height, width = noise.shape
+    weight = torch.ones(frames, height, width, dtype=torch.float64, device=noise.device)
+    if mask is not None:
+        weight = weight * mask.to(weight)
+    total = weight.sum().clamp_min(1.0)
+    fields, share = band_fields(noise)  # (T, OCTAVES, K, H, W)
+    products = torch.einsum("tbihw,tbjhw,thw->bij", fields, fields, weight) / total
+    cross_power = products / share.clamp_min(1e-12)[:, None, None]
+    temporal = None
+    if frames > 1:
+        pair_weight = weight[:-1] * weight[1:]
+        lagged = (fields[:-1] * fields[1:] * pair_weight[:, None, None]).sum(dim=(0, 2, 3, 4))
+        energy = (fields.square() * weight[:, None, None]).sum(dim=(0, 2, 3, 4)) * (pair_weight.sum() / total)
+        temporal = lagged / energy.clamp_min(1e-30)
+    # The level is read on the same frequencies as the bands (above 1/128 cycles/px): slow drifts between a noisy
+    # image and its clean reference (exposure, illumination) are not noise the model could put anywhere.
+    banded = fields.sum(dim=1)
+    if channels == 3:
+        banded = torch.einsum("ji,tjhw->tihw", OPPONENT_BASIS.to(banded.device), banded)
+    return SpectralStatistics(cross_power, knot_variances(banded, intensity, weight), temporal)
+
+
+def knot_weights(intensity: torch.Tensor) -> torch.Tensor:
+    """Hat weights (..., 8) of the level-curve knots at intensities ``intensity`` (...)."""
+    knots = torch.tensor(LEVEL_KNOTS, dtype=torch.float64, device=intensity.device)
+    x = intensity.to(torch.float64).clamp(0.0, 1.0)[..., None]
+    left = torch.cat([knots[:1] - 1.0, knots[:-1]])
+    right = torch.cat([knots[1:], knots[-1:] + 1.0])
+    rising = (x - left) / (knots - left)
+    falling = (right - x) / (right - knots)
+    return torch.minimum(rising, falling).clamp(0.0, 1.0)
+
+
+def knot_variances(noise: torch.Tensor, intensity: torch.Tensor, weight: torch.Tensor) -> torch.Tensor:
+    """(C, 8) hat-weighted variance of ``noise`` (T, C, H, W) per channel and knot of ``intensity``; pixels weighted
+    by ``weight`` (T, H, W); nan where a knot's weights sum to less than :data:`MIN_KNOT_WEIGHT`."""
+    hats = knot_weights(intensity) * weight[:, None, ..., None]  # (T, C, H, W, 8)
+    centred = noise.to(torch.float64) - noise.to(torch.float64).mean(dim=(0, 2, 3), keepdim=True)
+    mass = hats.sum(dim=(0, 2, 3))
+    variance = torch.einsum("tchw,tchwk->ck", centred.square(), hats) / mass.clamp_min(1e-12)
+    return torch.where(mass >= MIN_KNOT_WEIGHT, variance, torch.full_like(variance, math.nan))
+
+
+def fill_knots(values: torch.Tensor) -> torch.Tensor:
+    """Knot values (C, 8) with every nan replaced by its nearest measured knot's value in the same channel (a
+    channel with none takes the mean of the others' measured values)."""
+    filled = values.clone()
+    measured = ~torch.isnan(values)
+    fallback = values[measured].mean() if bool(measured.any()) else torch.tensor(0.0, dtype=values.dtype)
+    for channel in range(values.shape[0]):
+        known = measured[channel].nonzero().flatten()
+        if known.numel() == 0:
+            filled[channel] = fallback
+            continue
+        for knot in range(values.shape[1]):
+            if not bool(measured[channel, knot]):
+                filled[channel, knot] = values[channel, known[(known - knot).abs().argmin()]]
+    return filled
+
+
+def _sqrtm(matrix: torch.Tensor, inverse: bool = False) -> torch.Tensor:
+    eigenvalues, eigenvectors = torch.linalg.eigh(0.5 * (matrix + matrix.transpose(-1, -2)))
+    floor = 1e-6 * eigenvalues[..., -1:].clamp_min(1e-30)
+    root = torch.maximum(eigenvalues, floor).sqrt()
+    if inverse:
+        root = 1.0 / root
+    result: torch.Tensor = eigenvectors @ torch.diag_embed(root) @ eigenvectors.transpose(-1, -2)
+    return result
+
+
+@dataclass
+class SpectralParameters:
+    """The spectral model's parameters while a fit moves them (the table's form is :class:`NoiseValues`)."""
+
+    covariances: torch.Tensor  # (OCTAVES, 3, 3) colour basis
+    curve: torch.Tensor  # (3, 8) std per channel and knot
+    temporal: torch.Tensor  # (OCTAVES,)
+
+    def as_values(self) -> dict[str, torch.Tensor]:
+        """The table's parameters (``level_curve``, ``octave_power``, ``octave_correlation``,
+        ``temporal_correlation``), clipped to their bounds."""
+        power, correlation = covariance_parameters(self.covariances)
+        scale = power.reshape(OCTAVES, 3).mean()
+        return {
+            "level_curve": self.curve.reshape(-1).clamp(0.0, 1.0),
+            # Only the shape of the spectrum matters (the unit noise is normalised): the mean power is set to 1.
+            "octave_power": (power / scale.clamp_min(1e-30)).clamp(1e-6, 1.0e4),
+            "octave_correlation": correlation,
+            "temporal_correlation": self.temporal.clamp(0.0, 0.99),
+        }
+
+
+def initial_parameters(statistics: SpectralStatistics) -> SpectralParameters:
+    """A start for the fit: the measured cross-powers as the octaves' covariances, the measured stds as the
+    curve, the measured frame-to-frame correlations (0 for a single frame)."""
+    variance = fill_knots(statistics.knot_variance)
+    if variance.shape[0] == 1:
+        variance = variance.expand(3, -1)
+    temporal = statistics.temporal if statistics.temporal is not None else torch.zeros(OCTAVES, dtype=torch.float64)
+    return SpectralParameters(
+        covariances=statistics.cross_power.clone(),
+        curve=variance.clamp_min(0.0).sqrt(),
+        temporal=temporal.clamp(0.0, 0.99),
+    )
+
+
+def corrected(
+    parameters: SpectralParameters, target: SpectralStatistics, simulated: SpectralStatistics
+) -> SpectralParameters:
+    """One step of the fit: each octave's covariance by ``T C T^T`` with ``T = P_target^1/2 P_sim^-1/2`` (so the
+    simulated band cross-power would become the target's), each knot's std by the ratio of the stds where both
+    are measured, each AR(1) coefficient by the gap of the correlations."""
+    transform = _sqrtm(target.cross_power) @ _sqrtm(simulated.cross_power, inverse=True)
+    channels = target.cross_power.shape[-1]
+    covariances = parameters.covariances.clone()
+    if channels == 3:
+        covariances = transform @ covariances @ transform.transpose(-1, -2)
+    else:
+        covariances[:, 0, 0] = covariances[:, 0, 0] * transform[:, 0, 0].square()
+    ratio = (target.knot_variance / simulated.knot_variance.clamp_min(1e-30)).sqrt()
+    if ratio.shape[0] == 1:
+        ratio = ratio.expand(3, -1)
+    # Knots measured in one map only keep their value; a ratio is bounded so a noisy knot cannot run away.
+    ratio = torch.where(torch.isnan(ratio), torch.ones_like(ratio), ratio.clamp(0.25, 4.0))
+    temporal = parameters.temporal
+    if target.temporal is not None and simulated.temporal is not None:
+        temporal = (temporal + (target.temporal - simulated.temporal)).clamp(0.0, 0.99)
+    return SpectralParameters(covariances=covariances, curve=parameters.curve * ratio, temporal=temporal)
+
+
+def average(statistics: list[SpectralStatistics]) -> SpectralStatistics:
+    """The mean of the statistics of several simulations (knots measured in all of them)."""
+    temporal = None
+    if statistics[0].temporal is not None:
+        temporal = torch.stack([s.temporal for s in statistics if s.temporal is not None]).mean(0)
+    return SpectralStatistics(
+        torch.stack([s.cross_power for s in statistics]).mean(0),
+        torch.stack([s.knot_variance for s in statistics]).mean(0),
+        temporal,
+    )
+
+
+def mismatch(target: SpectralStatistics, simulated: SpectralStatistics) -> float:
+    """Mean squared log ratio of the simulated to the target band powers (each component's) and knot variances:
+    0 for a perfect match."""
+    ratios = [
+        (simulated.cross_power.diagonal(dim1=-2, dim2=-1) / target.cross_power.diagonal(dim1=-2, dim2=-1)).flatten(),
+        (simulated.knot_variance / target.knot_variance).flatten(),
+    ]
+    logs = torch.cat(ratios).clamp_min(1e-12).log()
+    return float(logs[torch.isfinite(logs)].square().mean())
+
+
+def fit_by_resynthesis(
+    target: SpectralStatistics,
+    simulate_and_measure: Callable[[SpectralParameters, int], SpectralStatistics],
+    *,
+    start: SpectralParameters | None = None,
+    iterations: int = 4,
+    draws: int = 2,
+) -> tuple[SpectralParameters, float]:
+    """Indirect inference: from ``start`` (the measurement itself by default), ``iterations`` corrections, each
+    from the mean statistics of ``draws`` simulations (``simulate_and_measure(parameters, seed)``). Returns the
+    parameters and the :func:`mismatch` of the simulations of the last step (before its correction)."""
+    parameters = start if start is not None else initial_parameters(target)
+    left = math.inf
+    for _ in range(iterations):
+        # The same draws at every step (common random numbers): the step is then a fixed map, which converges,
+        # rather than chasing the sampling error of a new draw each time.
+        simulated = average([simulate_and_measure(parameters, d) for d in range(draws)])
+        left = mismatch(target, simulated)
+        parameters = corrected(parameters, target, simulated)
+    return parameters, left
+
+
+def spectral_covariances_of(values: dict[str, torch.Tensor]) -> torch.Tensor:
+    """(OCTAVES, 3, 3) covariances of the table's ``octave_power`` and ``octave_correlation``."""
+    return octave_covariances(values["octave_power"], values["octave_correlation"])
+
+
+def quantised(image: torch.Tensor) -> torch.Tensor:
+    """An image on 8-bit levels, as a camera writes it and as the real maps are measured."""
+    return (image.clamp(0.0, 1.0) * 255.0).round() / 255.0
+
+
+def oracle_spectral_fit(
+    noisy: torch.Tensor,
+    clean: torch.Tensor,
+    *,
+    iterations: int = 4,
+    draws: int = 2,
+    seed: int = 0,
+    compressions: tuple[float, ...] = COMPRESSION_CANDIDATES,
+) -> dict[str, torch.Tensor]:
+    """The spectral model's parameters fitted with the clean image: the statistics of ``noisy - clean`` reproduced
+    by simulations on ``clean`` through the one composer.
+
+    Args:
+        noisy, clean: (C, H, W) images or (T, C, H, W) clips on the [0, 1] scale (8-bit levels).
+        iterations, draws: see :func:`fit_by_resynthesis`.
+        seed: the simulations' seeds start here.
+        compressions: the JPEG stage's strengths tried (the model's output stage): each is fitted, the one whose
+            last simulations match best (:func:`mismatch`) is kept and returned as ``compression``.
+
+    Returns:
+        The table's spectral parameters by name (for :meth:`NoiseValues.from_values`).
+    """
+    from darksynth.noise.simulate import add_noise
+    from darksynth.noise.values import NoiseValues
+
+    if clean.dim() == 3:
+        noisy, clean = noisy[None], clean[None]
+    target = measure(noisy - clean, clean)
+
+    best: tuple[float, dict[str, torch.Tensor]] | None = None
+    for compression in compressions:
+
+        def simulate_and_measure(
+            parameters: SpectralParameters, draw: int, strength: float = compression
+        ) -> SpectralStatistics:
+            values = NoiseValues.from_values(parameters.as_values() | {"compression": strength}, dtype=torch.float32)
+            generator = torch.Generator(device=clean.device).manual_seed(seed * 1009 + draw)
+            synthetic = quantised(add_noise(clean.to(torch.float32)[None], values, generator=generator)[0])
+            return measure(synthetic - clean, clean)
+
+        fitted, left = fit_by_resynthesis(target, simulate_and_measure, iterations=iterations, draws=draws)
+        if best is None or left < best[0]:
+            best = (left, fitted.as_values() | {"compression": torch.tensor([compression], dtype=torch.float64)})
+    assert best is not None
+    return best[1]

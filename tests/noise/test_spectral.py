@@ -1,0 +1,164 @@
+"""noise/spectral.py and noise/spectral_fit.py: the measured-spectrum model, its statistics and its fit."""
+
+from __future__ import annotations
+
+import math
+
+import pytest
+import torch
+
+from darksynth.noise.simulate import add_noise
+from darksynth.noise.spectral import LEVEL_KNOTS, OCTAVES, OPPONENT_BASIS, level_std, octave_covariances
+from darksynth.noise.spectral_fit import (
+    SpectralStatistics,
+    fit_by_resynthesis,
+    measure,
+    oracle_spectral_fit,
+    quantised,
+)
+from darksynth.noise.values import NoiseValues
+
+
+def _values(**spectral: object) -> NoiseValues:
+    base: dict[str, object] = {"level_curve": [0.05] * 24}
+    base.update(spectral)
+    return NoiseValues.from_values(base, dtype=torch.float32)  # type: ignore[arg-type]
+
+
+def _noise(values: NoiseValues, shape: tuple[int, ...], seed: int, level: float = 0.5) -> torch.Tensor:
+    signal = torch.full(shape, level)
+    return add_noise(signal, values, generator=torch.Generator().manual_seed(seed)) - signal
+
+
+def test_neutral_shape_is_white_noise_with_the_curves_std_and_independent_channels() -> None:
+    noise = _noise(_values(), (1, 4, 3, 256, 256), seed=0)[0]
+    std = noise.std(dim=(0, 2, 3))
+    assert torch.allclose(std, torch.full((3,), 0.05), rtol=0.02)
+    correlation = torch.corrcoef(noise.permute(1, 0, 2, 3).reshape(3, -1))
+    assert (correlation - torch.eye(3)).abs().max() < 0.02
+    statistics = measure(noise, torch.full_like(noise, 0.5))
+    # White noise has the power of white noise in every band, in every component, and no cross-power.
+    relative = statistics.cross_power / 0.05**2
+    # (The coarsest band of four 256-px frames holds about 300 frequencies: its sampling error is about 8 %.)
+    diagonal = relative.diagonal(dim1=-2, dim2=-1)
+    assert torch.allclose(diagonal[:5], torch.ones(5, 3, dtype=torch.float64), rtol=0.12)
+    assert torch.allclose(diagonal[5], torch.ones(3, dtype=torch.float64), rtol=0.3)
+    assert (relative - torch.diag_embed(relative.diagonal(dim1=-2, dim2=-1))).abs().max() < 0.1
+
+
+def test_coarse_colour_power_lands_in_the_coarse_colour_bands_and_keeps_each_channels_std() -> None:
+    power = torch.ones(OCTAVES, 3)
+    power[3:, 1:] = 30.0  # colour mottle at 23-90 px
+    noise = _noise(_values(octave_power=power.flatten()), (1, 2, 3, 384, 384), seed=1)[0]
+    assert torch.allclose(noise.std(dim=(0, 2, 3)), torch.full((3,), 0.05), rtol=0.05)
+    diagonal = measure(noise, torch.full_like(noise, 0.5)).cross_power.diagonal(dim1=-2, dim2=-1)
+    colour_over_brightness = diagonal[:, 1:].mean(1) / diagonal[:, 0]
+    assert colour_over_brightness[4] > 15.0 and colour_over_brightness[0] < 2.0
+    # Channels are less alike at coarse scales: the colour dominates there.
+    assert diagonal[5, 1] > 10 * diagonal[0, 1]
+
+
+def test_octave_correlation_correlates_brightness_and_colour_as_the_normalised_covariance_says() -> None:
+    correlation = torch.zeros(OCTAVES, 3)
+    correlation[:, 0] = 0.8
+    noise = _noise(_values(octave_correlation=correlation.flatten()), (1, 2, 3, 256, 256), seed=2)[0]
+    cross = measure(noise, torch.full_like(noise, 0.5)).cross_power
+    measured = cross[:, 0, 1] / (cross[:, 0, 0] * cross[:, 1, 1]).sqrt()
+    # The covariance is that of the spectrum before each RGB channel is scaled to unit variance; the scaling
+    # (here the same at every octave) changes the correlation to what this computes.
+    covariance = octave_covariances(torch.ones(OCTAVES * 3), correlation.flatten())[0]
+    rgb = OPPONENT_BASIS.T @ covariance @ OPPONENT_BASIS
+    scale = rgb.diagonal().rsqrt()
+    opponent = OPPONENT_BASIS @ (rgb * scale[:, None] * scale[None, :]) @ OPPONENT_BASIS.T
+    expected = float(opponent[0, 1] / (opponent[0, 0] * opponent[1, 1]).sqrt())
+    assert expected > 0.3
+    assert torch.allclose(measured[:4], torch.full((4,), expected, dtype=torch.float64), atol=0.05)
+
+
+def test_level_curve_is_piecewise_linear_between_its_knots() -> None:
+    curve = torch.linspace(0.01, 0.08, 24)
+    knots = torch.tensor(LEVEL_KNOTS)
+    midpoints = torch.cat([(knots[:-1] + knots[1:]) * 0.5, torch.ones(1)])
+    image = torch.stack([knots, midpoints]).reshape(1, 2, 8).expand(3, 2, 8)
+    std = level_std(image, curve)
+    table = curve.reshape(3, 8)
+    assert torch.allclose(std[:, 0], table)
+    assert torch.allclose(std[:, 1, :7], 0.5 * (table[:, :-1] + table[:, 1:]))
+    grey = level_std(image[:1], curve)
+    assert torch.allclose(grey[0, 0], table[1])
+
+
+def test_temporal_correlation_is_the_ar1_coefficient_and_a_stream_draws_the_clips_bits() -> None:
+    values = _values(temporal_correlation=[0.7] * OCTAVES)
+    clip = _noise(values, (8, 3, 128, 128), seed=3)
+    temporal = measure(clip, torch.full_like(clip, 0.5)).temporal
+    assert temporal is not None
+    assert torch.allclose(temporal[:4], torch.full((4,), 0.7, dtype=torch.float64), atol=0.05)
+    # Frame by frame, holding the state, as the streaming synthesizer does: the same numbers.
+    generator = torch.Generator().manual_seed(3)
+    held: dict[str, object] = {}
+    signal = torch.full((1, 3, 128, 128), 0.5)
+    frames = [add_noise(signal, values, generator=generator, held=held)[0] - 0.5 for _ in range(8)]
+    assert torch.allclose(torch.stack(frames), clip, atol=1e-6)
+    # Without the held state every frame is independent.
+    independent = _noise(_values(), (8, 3, 128, 128), seed=3)
+    lagged = measure(independent, torch.full_like(independent, 0.5)).temporal
+    assert lagged is not None and lagged[:4].abs().max() < 0.03
+
+
+def test_the_unit_variance_does_not_depend_on_the_frame_size() -> None:
+    power = torch.ones(OCTAVES, 3)
+    power[:3] = 0.2  # most power in the coarse octaves, the hardest case for a small frame
+    values = _values(octave_power=power.flatten())
+    large = _noise(values, (1, 3, 512, 512), seed=4).std()
+    small = torch.stack([_noise(values, (1, 3, 96, 96), seed=s).std() for s in range(8)]).pow(2).mean().sqrt()
+    # The small frame misses the part of the coarsest octave that does not fit in it, nothing else.
+    assert 0.85 < float(small / large) <= 1.02
+
+
+def test_inconsistent_correlations_are_repaired_to_a_valid_covariance() -> None:
+    correlation = torch.tensor([0.99, 0.99, -0.99] * OCTAVES)
+    covariances = octave_covariances(torch.ones(OCTAVES * 3), correlation)
+    assert bool((torch.linalg.eigvalsh(covariances) > -1e-9).all())
+    assert torch.allclose(covariances.diagonal(dim1=-2, dim2=-1), torch.ones(OCTAVES, 3, dtype=torch.float64))
+
+
+@pytest.mark.parametrize("seed", [0, 1])
+def test_round_trip_of_a_random_spectrum_through_the_clean_aided_fit(seed: int) -> None:
+    generator = torch.Generator().manual_seed(100 + seed)
+    truth = {
+        "level_curve": (0.01 + 0.04 * torch.rand(24, generator=generator)).tolist(),
+        "octave_power": (torch.rand(OCTAVES * 3, generator=generator) * 4 - 1.5).exp().tolist(),
+        "octave_correlation": (torch.rand(OCTAVES * 3, generator=generator) * 0.8 - 0.4).tolist(),
+    }
+    clean = (torch.rand(1, 3, 1, 1, generator=generator) * 0.4 + 0.1).expand(1, 3, 256, 256)
+    gradient = torch.linspace(0.0, 0.5, 256).reshape(1, 1, 1, 256)
+    clean = quantised(clean + gradient)
+    truth_values = NoiseValues.from_values(truth, dtype=torch.float32)  # type: ignore[arg-type]
+    noisy = quantised(add_noise(clean[None], truth_values, generator=torch.Generator().manual_seed(7))[0])
+    fitted = NoiseValues.from_values(oracle_spectral_fit(noisy[0], clean[0], compressions=(0.0,)))
+    check = quantised(
+        add_noise(clean[None], fitted.to(dtype=torch.float32), generator=torch.Generator().manual_seed(99))[0]
+    )
+    real, synthetic = measure(noisy - clean, clean), measure(check - clean, clean)
+    ratio = synthetic.cross_power.diagonal(dim1=-2, dim2=-1) / real.cross_power.diagonal(dim1=-2, dim2=-1)
+    # Every octave's power of every component within 10 % in the median, within 35 % at worst, from another draw
+    # (the coarse bands of a 256-px image hold a few hundred frequencies: their own sampling error is ~10 %).
+    assert float(ratio[:5].log().abs().median()) < math.log(1.1)
+    assert float(ratio[:5].log().abs().max()) < math.log(1.35)
+
+
+def test_the_fit_converges_on_its_own_simulator() -> None:
+    """fit_by_resynthesis moves a wrong start onto the target when the simulator is exact (common draws)."""
+    target_parameters = torch.diag_embed(torch.tensor([[2.0, 0.5, 0.5]] * OCTAVES, dtype=torch.float64))
+
+    def simulate(parameters: object, draw: int) -> SpectralStatistics:
+        covariances = parameters.covariances  # type: ignore[attr-defined]
+        curve = parameters.curve  # type: ignore[attr-defined]
+        return SpectralStatistics(covariances * 1.3, curve.square() * 0.8, None)
+
+    target = SpectralStatistics(target_parameters * 1.3, torch.full((3, 8), 0.01 * 0.8, dtype=torch.float64), None)
+    fitted, left = fit_by_resynthesis(target, simulate, iterations=3, draws=1)
+    assert torch.allclose(fitted.covariances, target_parameters, rtol=1e-6)
+    assert torch.allclose(fitted.curve, torch.full((3, 8), 0.1, dtype=torch.float64), rtol=1e-6)
+    assert left >= 0.0
