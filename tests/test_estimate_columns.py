@@ -15,7 +15,9 @@ import pytest
 import torch
 
 from darksynth.darkening import darken
-from darksynth.estimate import COLUMN_RATIO, column_presence, estimate, load_reference
+from darksynth.estimation.assemble import estimate
+from darksynth.estimation.columns import COLUMN_RATIO, column_presence
+from darksynth.estimation.reference import load_reference
 from darksynth.models.den import DEN
 from darksynth.noise.simulate import add_noise
 from darksynth.noise.values import NoiseValues

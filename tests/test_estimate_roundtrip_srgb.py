@@ -13,7 +13,7 @@ import pytest
 import torch
 
 from darksynth.darkening import Darkening
-from darksynth.estimate import estimate
+from darksynth.estimation.assemble import estimate
 from darksynth.models.den import DEN
 from darksynth.noise.components import model_parameters, noise_parameter
 from darksynth.noise.values import NoiseValues
