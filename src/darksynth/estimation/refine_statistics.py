@@ -23,7 +23,7 @@ from darksynth.noise.correlated import filter_valid, gaussian_kernel1d
 from darksynth.noise.fit import central_crop
 
 DENOISE_SIGMA = 3.0
-"""Std (pixels) of the Gaussian denoiser, chosen on a synthetic reference (tests/test_refine.py's scene,
+"""Std (pixels) of the Gaussian denoiser, chosen on a synthetic reference (tests/estimation/test_refine.py's scene,
 noise of length 1.2 px): the noise D leaves in x_hat reappears in every simulation, and a wider filter leaves less
 (level error -31% at 1 px, -12% at 2 px, -6% at 3 px); the texture a wider filter removes is kept out of the
 statistics by the smooth-pixel mask."""
