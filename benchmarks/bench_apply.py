@@ -28,7 +28,8 @@ import torch
 from PIL import Image
 
 from darksynth.darkening import Darkening
-from darksynth.estimate import estimate, load_reference
+from darksynth.estimation.assemble import estimate
+from darksynth.estimation.reference import load_reference
 from darksynth.noise.values import NoiseValues
 from darksynth.synthesize import ClipParameters, ClipSynthesizer
 from darksynth.training.weights import default_weights_path, load_weights

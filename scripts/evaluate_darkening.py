@@ -1,4 +1,4 @@
-"""Measure the darkening estimate (darksynth.darkening_estimate) and make its tone prior.
+"""Measure the darkening estimate (darksynth.estimation.darkening) and make its tone prior.
 
     .venv/bin/python scripts/evaluate_darkening.py prior      # the TONE_PRIOR_LOG_QUANTILES table
     .venv/bin/python scripts/evaluate_darkening.py evaluate   # the figures in docs/darkening-estimate.md
@@ -20,7 +20,8 @@ import numpy as np
 import torch
 
 from darksynth.darkening import ALPHA_RANGE, GAMMA_RANGE, Darkening, darken
-from darksynth.darkening_estimate import (
+from darksynth.errors import DarksynthError
+from darksynth.estimation.darkening import (
     BLOCK,
     PROBABILITIES,
     TONE_PRIOR_LOG_QUANTILES,
@@ -28,8 +29,7 @@ from darksynth.darkening_estimate import (
     estimate_darkening_spread,
     tone_quantiles,
 )
-from darksynth.errors import DarksynthError
-from darksynth.estimate import load_reference
+from darksynth.estimation.reference import load_reference
 from darksynth.noise.components import model_parameters
 from darksynth.noise.sampling import random_noise_values
 from darksynth.noise.simulate import add_noise

@@ -17,7 +17,7 @@ from pathlib import Path
 import numpy as np
 import torch
 
-from darksynth.estimate import estimate
+from darksynth.estimation.assemble import estimate
 from darksynth.io.arrays import hwc_to_chw
 from darksynth.io.images import read_image
 from darksynth.noise.level import mean_noise_variance

@@ -25,7 +25,7 @@ import numpy as np
 import torch
 
 from darksynth.darkening import darken
-from darksynth.estimate import estimate
+from darksynth.estimation.assemble import estimate
 from darksynth.evaluation.metrics import kl_divergence_noise_flow
 from darksynth.io.arrays import hwc_to_chw
 from darksynth.io.images import read_image

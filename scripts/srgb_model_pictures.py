@@ -28,7 +28,8 @@ import matplotlib.pyplot as plt
 import numpy as np
 import torch
 
-from darksynth.estimate import estimate, load_reference
+from darksynth.estimation.assemble import estimate
+from darksynth.estimation.reference import load_reference
 from darksynth.io.images import read_image
 from darksynth.noise.simulate import add_noise
 from darksynth.noise.values import NoiseValues

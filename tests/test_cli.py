@@ -24,7 +24,7 @@ from darksynth.apply import ApplyOptions, ApplyReport
 from darksynth.cli import app
 from darksynth.datasets import ConversionReport, ConvertOptions, Shard
 from darksynth.errors import DarksynthError
-from darksynth.estimate import EstimateOptions
+from darksynth.estimation.assemble import EstimateOptions
 from darksynth.evaluation.job import EvaluationRun
 from darksynth.evaluation.options import EvaluationOptions
 from darksynth.models.den import DENConfig

@@ -7,16 +7,21 @@ sibling of its own layer):
 1. ``io`` (files, videos, atomic writes), ``darkening``, ``commands`` (the command line's shape, without its code)
    and ``console_progress`` (how a command shows its progress);
 2. ``noise``: the components, their table, the carrier of values, the composer;
-3. ``profile``, ``darkening_estimate``;
+3. ``profile``;
 4. ``synthesize``, ``models``;
-5. ``apply``, ``refine``, ``training``, ``transforms``;
-6. ``baselines``, ``datasets``, ``estimate`` (it may refine), ``preview`` (it runs ``apply``'s synthesis);
+5. ``apply``, ``training``, ``transforms``;
+6. ``baselines``, ``datasets``, ``estimation`` (reference -> profile, one module per stage, see below), ``preview``
+   (it runs ``apply``'s synthesis);
 7. ``evaluation``, ``demo``;
 8. ``cli``, the package ``__init__``; 9. ``main``, the entry point (the light app, or the cli); 10. ``__main__``,
    which only calls it.
 
 The pure core (``tensors``, ``darkening``, ``noise``) also never imports ``io``: reading and writing files is
 for the edges, so the core runs on tensors alone.
+
+Inside ``estimation`` the stages have layers of their own: the reading of the reference, the column decision, the
+darkening and the refinement's statistics import no other stage; the network reads the crop grid and the
+refinement its statistics; ``assemble`` alone runs them all.
 """
 
 from __future__ import annotations
@@ -39,16 +44,14 @@ LAYERS: dict[str, int] = {
     "darkening": 1,
     "noise": 2,
     "profile": 3,
-    "darkening_estimate": 3,
     "synthesize": 4,
     "models": 4,
     "apply": 5,
-    "estimate": 6,
-    "refine": 5,
     "training": 5,
     "transforms": 5,
     "baselines": 6,
     "datasets": 6,
+    "estimation": 6,
     "preview": 6,
     "evaluation": 7,
     "demo": 7,
@@ -59,6 +62,18 @@ LAYERS: dict[str, int] = {
 }
 
 PURE_CORE = frozenset({"tensors", "darkening", "noise"})
+
+ESTIMATION_STAGES: dict[str, int] = {
+    "__init__": 0,
+    "reference": 0,
+    "columns": 0,
+    "darkening": 0,
+    "refine_statistics": 0,
+    "network": 1,
+    "refine": 1,
+    "assemble": 2,
+}
+"""The layer of every module of the ``estimation`` package among its siblings."""
 
 
 def _unit(path: Path) -> str:
@@ -85,7 +100,29 @@ def _imported_units(path: Path) -> set[str]:
     return units
 
 
+def _imported_stages(path: Path) -> set[str]:
+    """The modules of the ``estimation`` package a source file imports."""
+    stages = set()
+    for node in ast.walk(ast.parse(path.read_text(encoding="utf-8"))):
+        if isinstance(node, ast.ImportFrom) and node.module == "darksynth.estimation" and node.level == 0:
+            # `from darksynth.estimation import x`: x is the stage.
+            stages.update(alias.name for alias in node.names)
+            continue
+        if isinstance(node, ast.ImportFrom) and node.module and node.level == 0:
+            names = [node.module]
+        elif isinstance(node, ast.Import):
+            names = [alias.name for alias in node.names]
+        else:
+            continue
+        for name in names:
+            parts = name.split(".")
+            if parts[:2] == ["darksynth", "estimation"] and len(parts) > 2:
+                stages.add(parts[2])
+    return stages
+
+
 SOURCES = sorted(p for p in SOURCE.rglob("*.py"))
+STAGES = sorted((SOURCE / "estimation").glob("*.py"))
 
 
 def test_every_module_has_a_layer() -> None:
@@ -109,8 +146,37 @@ def test_imports_only_go_down(path: Path) -> None:
     assert not wrong, f"{path.relative_to(SOURCE)} (layer {LAYERS[unit]}) imports upward or sideways: {wrong}"
 
 
+def test_every_estimation_module_has_a_stage_layer() -> None:
+    stages = {p.stem for p in STAGES}
+    assert stages == set(ESTIMATION_STAGES), f"stages without a layer: {sorted(stages - set(ESTIMATION_STAGES))}"
+
+
+@pytest.mark.parametrize("path", STAGES, ids=lambda p: p.name)
+def test_estimation_stages_import_only_lower_stages(path: Path) -> None:
+    wrong = [
+        f"{stage} (stage {ESTIMATION_STAGES[stage]})"
+        for stage in _imported_stages(path) - {path.stem}
+        if ESTIMATION_STAGES.get(stage, 0) >= ESTIMATION_STAGES[path.stem]
+    ]
+    assert not wrong, (
+        f"estimation/{path.name} (stage {ESTIMATION_STAGES[path.stem]}) imports upward or sideways: {wrong}"
+    )
+
+
 def test_the_check_sees_an_upward_import(tmp_path: Path) -> None:
     """The control: a module of the noise layer importing the profile is caught."""
     module = tmp_path / "bad.py"
     module.write_text("from darksynth.profile import load_profile\nimport darksynth.io.arrays\n", encoding="utf-8")
     assert _imported_units(module) == {"profile", "io"}
+
+
+def test_the_stage_check_sees_a_stage_import(tmp_path: Path) -> None:
+    """The control: a module importing stages in each of the three forms is seen to."""
+    module = tmp_path / "bad.py"
+    module.write_text(
+        "from darksynth.estimation.assemble import estimate\n"
+        "import darksynth.estimation.network\n"
+        "from darksynth.estimation import columns\n",
+        encoding="utf-8",
+    )
+    assert _imported_stages(module) == {"assemble", "network", "columns"}

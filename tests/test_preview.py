@@ -12,7 +12,8 @@ import pytest
 from PIL import Image
 
 from darksynth.darkening import Darkening
-from darksynth.estimate import estimate, load_reference
+from darksynth.estimation.assemble import estimate
+from darksynth.estimation.reference import load_reference
 from darksynth.io.video import VideoWriter
 from darksynth.models.den import DEN
 from darksynth.preview import (

@@ -21,7 +21,7 @@ from darksynth.console_progress import progress_display
 from darksynth.darkening import Darkening
 from darksynth.datasets import FORMATS, ConversionReport, ConvertOptions, DatasetFormat, Shard
 from darksynth.errors import DarksynthError, error_reason
-from darksynth.estimate import EstimateOptions
+from darksynth.estimation.assemble import EstimateOptions
 from darksynth.evaluation.options import EvaluationOptions
 from darksynth.models.den import DENConfig, Variant
 from darksynth.noise.components import NOISE_MODELS, NoiseModel
@@ -430,7 +430,7 @@ def estimate_command(
 ) -> None:
     import json
 
-    from darksynth.estimate import estimate_file
+    from darksynth.estimation.assemble import estimate_file
     from darksynth.profile import profile_to_dict, save_profile
     from darksynth.training.weights import load_weights
 

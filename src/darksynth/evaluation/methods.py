@@ -94,7 +94,7 @@ def load_den_weights(name: str, weights: Path, device: str) -> DEN:
 
 
 def _den_method(name: str, weights: Path, device: str, *, refine: bool = True) -> NoiseMethod:
-    from darksynth.estimate import estimate, refines
+    from darksynth.estimation.assemble import estimate, refines
 
     model = load_den_weights(name, weights, device)
     refined = refines(model.noise_model, refine)

@@ -25,7 +25,7 @@ float64 (3, H, W) on the [0, 1] scale:
 
 Every value is clipped to its parameter's bounds in the table (:class:`~darksynth.noise.components.Parameter`).
 The pure statistics (steps 1-3) live in :mod:`darksynth.noise.fit`, shared with the blind refinement
-(:mod:`darksynth.refine`).
+(:mod:`darksynth.estimation.refine`).
 """
 
 from __future__ import annotations

@@ -2,8 +2,8 @@
 
 Given a noisy image and an image taken as its clean version (the real clean image for the oracle,
 :mod:`darksynth.evaluation.srgb_fit`; a denoised copy of the reference for the blind refinement,
-:mod:`darksynth.refine`), these functions read the per-channel variance law var = a_c x + b_c, turn it into the
-table's green shot and read and red's and blue's gains, and measure the normalised residual's spatial
+:mod:`darksynth.estimation.refine`), these functions read the per-channel variance law var = a_c x + b_c, turn it into
+the table's green shot and read and red's and blue's gains, and measure the normalised residual's spatial
 autocorrelation and cross-channel correlation. Images are (3, H, W) on the [0, 1] scale; every value returned is
 clipped to its parameter's bounds in the table (:class:`~darksynth.noise.components.Parameter`).
 """

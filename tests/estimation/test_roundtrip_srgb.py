@@ -13,13 +13,13 @@ import pytest
 import torch
 
 from darksynth.darkening import Darkening
-from darksynth.estimate import estimate
+from darksynth.estimation.assemble import estimate
 from darksynth.models.den import DEN
 from darksynth.noise.components import model_parameters, noise_parameter
 from darksynth.noise.values import NoiseValues
 from darksynth.synthesize import ClipParameters, ClipSynthesizer
 from darksynth.training.weights import default_weights_path, load_weights
-from tests.test_estimate_roundtrip import _clean_scene
+from tests.estimation.test_roundtrip import _clean_scene
 
 
 def _reference(noise: dict[str, tuple[float, ...]], frames: int, seed: int) -> torch.Tensor:

@@ -7,7 +7,8 @@ import pytest
 import torch
 
 from darksynth.darkening import Darkening, darken
-from darksynth.darkening_estimate import (
+from darksynth.errors import DarksynthError
+from darksynth.estimation.darkening import (
     PROBABILITIES,
     TONE_PRIOR_LOG_QUANTILES,
     TONE_PRIOR_LOG_SPREAD,
@@ -17,7 +18,6 @@ from darksynth.darkening_estimate import (
     fit_darkening,
     tone_quantiles,
 )
-from darksynth.errors import DarksynthError
 from darksynth.noise.simulate import add_noise
 from darksynth.noise.values import NoiseValues
 
@@ -165,8 +165,8 @@ def test_prior_share_grows_as_the_tones_say_less() -> None:
 
 
 def test_the_pooled_and_per_frame_estimate_equals_the_separate_calls() -> None:
-    from darksynth.darkening_estimate import estimate_darkening, estimate_darkening_pooled_and_per_frame
     from darksynth.errors import DarksynthError
+    from darksynth.estimation.darkening import estimate_darkening, estimate_darkening_pooled_and_per_frame
 
     generator = torch.Generator().manual_seed(0)
     frames = (0.2 * torch.rand(3, 3, 96, 128, generator=generator) ** 2 * 255).round() / 255

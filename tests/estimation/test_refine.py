@@ -8,10 +8,11 @@ import math
 import pytest
 import torch
 
+from darksynth.estimation.refine import plain_fit, refine_profile
+from darksynth.estimation.refine_statistics import analyse, gaussian_denoise, residual_statistics
 from darksynth.noise.correlated import correlated_normal
 from darksynth.noise.simulate import add_noise
 from darksynth.noise.values import NoiseValues
-from darksynth.refine import analyse, gaussian_denoise, plain_fit, refine_profile, residual_statistics
 from darksynth.tensors import to_8bit_levels
 from tests.evaluation.test_classical import smooth_scene
 

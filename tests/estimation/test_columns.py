@@ -15,16 +15,18 @@ import pytest
 import torch
 
 from darksynth.darkening import darken
-from darksynth.estimate import COLUMN_RATIO, column_presence, estimate, load_reference
+from darksynth.estimation.assemble import estimate
+from darksynth.estimation.columns import COLUMN_RATIO, column_presence
+from darksynth.estimation.reference import load_reference
 from darksynth.models.den import DEN
 from darksynth.noise.simulate import add_noise
 from darksynth.noise.values import NoiseValues
 from darksynth.profile import validate_profile
 from darksynth.training.weights import default_weights_path, load_weights
-from tests.test_estimate_roundtrip import _clean_scene
+from tests.estimation.test_roundtrip import _clean_scene
 
 COLUMN_NAMES = ("banding", "temporal_banding", "periodic")
-STARLIGHT = Path(__file__).resolve().parents[2] / "shared" / "data" / "real-lowlight" / "videos"
+STARLIGHT = Path(__file__).resolve().parents[3] / "shared" / "data" / "real-lowlight" / "videos"
 
 
 def _reference(noise: dict[str, float], *, frames: int = 1, seed: int = 0) -> torch.Tensor:

@@ -12,7 +12,7 @@ import pytest
 import torch
 
 from darksynth.darkening import Darkening
-from darksynth.estimate import estimate
+from darksynth.estimation.assemble import estimate
 from darksynth.noise.values import NoiseValues
 from darksynth.synthesize import ClipParameters, ClipSynthesizer
 from darksynth.training.weights import default_weights_path, load_weights

@@ -11,7 +11,7 @@ import torch
 from PIL import Image
 
 from darksynth.errors import DarksynthError
-from darksynth.estimate import MAX_FRAMES, MIN_SIDE, crop_grid, load_reference
+from darksynth.estimation.reference import MAX_FRAMES, MIN_SIDE, crop_grid, load_reference
 from darksynth.io.video import VideoWriter
 from tests.clean_images import smooth_rgb, write_png
 
@@ -179,7 +179,7 @@ def test_number_of_crops_is_bounded_and_spread_over_the_grid(max_crops: int) -> 
 
 
 def test_crop_grid_has_no_duplicate_crops_when_the_frame_barely_exceeds_the_crop() -> None:
-    from darksynth.estimate import crop_grid
+    from darksynth.estimation.reference import crop_grid
 
     rows = torch.arange(131, dtype=torch.float32).view(131, 1)
     columns = torch.arange(130, dtype=torch.float32).view(1, 130)

@@ -9,7 +9,7 @@ import pytest
 import torch
 
 from darksynth.darkening import darken
-from darksynth.estimate import estimate
+from darksynth.estimation.assemble import estimate
 from darksynth.models.den import DEN
 from darksynth.noise.components import model_parameters, noise_parameter, vector_size
 from darksynth.noise.values import NoiseValues
@@ -206,7 +206,7 @@ def test_the_refinement_carries_the_ranges_to_its_values(tiny_model: Callable[..
 
 
 def test_moved_ranges_scale_levels_and_shift_the_rest() -> None:
-    from darksynth.estimate import moved_ranges
+    from darksynth.estimation.assemble import moved_ranges
 
     before = NoiseValues.from_values({"shot": 0.01, "correlation_length": 0.5})
     after = before.replace(shot=0.03, correlation_length=1.0)
@@ -371,7 +371,7 @@ def test_a_clean_daylight_photo_warns_that_its_texture_is_read_as_noise() -> Non
 
 
 def test_only_the_srgb_model_is_refined_and_only_when_asked() -> None:
-    from darksynth.estimate import refines
+    from darksynth.estimation.assemble import refines
 
     assert refines("srgb") and refines("srgb", True)
     assert not refines("srgb", False) and not refines("paper") and not refines("paper", True)
