@@ -36,7 +36,8 @@ CROP = (slice(16, 80), slice(32, 96))  # 64x64 out of a 96x128 "whole image"
 def _entry(
     kld: float, kld_srgb: float, fid: float | None, kid: float | None, cameras: dict[str, Any], level: float = 1.0
 ) -> dict[str, Any]:
-    """The NAFlow KLD is twice the Noise Flow one and the AKLD that plus 0.1; ``level`` is the red level ratio."""
+    """The NAFlow KLD is twice the Noise Flow one, the AKLD that plus 0.1, the band RMS log error three times it and
+    the channel correlation gap it plus 0.02; ``level`` is the red level ratio and the fine band ratios."""
     ratio = {"r": level, "g": 1.1 * level, "b": 0.9 * level}
     return {
         "kld": kld,
@@ -50,6 +51,10 @@ def _entry(
         "noise_std": {channel: 0.02 * value for channel, value in ratio.items()},
         "level_ratio": ratio,
         "channel_correlation": {"rg": 0.1, "gb": 0.2, "rb": -0.05},
+        "channel_correlation_gap": kld + 0.02,
+        "band_rms_log_error": 3 * kld,
+        "band_ratio": {"brightness": [level, level, 1.0, 1.0, 0.5], "colour": [level, 1.0, 0.5, 0.25, None]},
+        "band_power": {"brightness": [4e-4 * level] * 5, "colour": [1e-4, 2e-4, 4e-4, 8e-4, None]},
         "fid": fid,
         "kid": kid,
         "kid_std": None if kid is None else 0.001,
@@ -89,6 +94,11 @@ def make_results() -> dict[str, Any]:
                 "real": {
                     "noise_std": {"r": 0.02, "g": 0.02, "b": 0.02},
                     "channel_correlation": {"rg": 0.3, "gb": 0.25, "rb": 0.2},
+                    "band_power": {
+                        "brightness": [4e-4, 4e-4, 5e-4, 6e-4, 8e-4],
+                        "colour": [1e-4, 3e-4, 1e-3, 3e-3, 6e-3],
+                    },
+                    "band_white_ratio": {"brightness": [0.9, 1.0, 1.25, 1.5, 2.0], "colour": [0.5, 1.5, 8, 30, 75]},
                 },
                 "methods": {
                     "den": _entry(0.05, 0.09, 12.5, 0.004, polyu_cameras, level=0.5),
@@ -143,8 +153,9 @@ def make_examples() -> list[ReportExample]:
 
 
 def images_expected(examples: list[ReportExample], sets: int) -> int:
-    # per set a radar; per example the clean crop, noisy + noise crops of real and each method, two charts
-    return sets + sum(1 + 2 * len(example.noisy) + 2 for example in examples)
+    # per set a radar and the band powers; per example the clean crop, noisy + noise crops of real and each method,
+    # two charts
+    return 2 * sets + sum(1 + 2 * len(example.noisy) + 2 for example in examples)
 
 
 # ----------------------------------------------------------------------------------------------------------------
@@ -244,31 +255,36 @@ def test_markdown_tables_bold_best_blind_label_oracles_and_format_intervals(tmp_
 
     polyu = table_rows(text, "## polyu (12 pairs)")
     assert list(polyu) == ["method", ":--", "den", "awgn", "pg-oracle (oracle)"]
+    # The measures of recent work lead, the paper's KLD comes later.
     assert polyu["method"] == [
-        "KLD [95% CI]",
-        "KLD sRGB [95% CI]",
         "KLD NAFlow [95% CI]",
         "AKLD [95% CI]",
+        "band RMS log error",
+        "channel correlation gap",
+        "KLD sRGB [95% CI]",
+        "KLD (paper) [95% CI]",
         "FID",
         "KID ± std",
     ]
     # The oracle is lowest everywhere, yet the best *blind* method is the one in bold.
     assert polyu["den"] == [
-        "**0.05** [0.04, 0.06]",
-        "**0.09** [0.072, 0.108]",
         "**0.1** [0.075, 0.125]",
         "**0.15** [0.05, 0.25]",
+        "**0.15**",
+        "**0.07**",
+        "**0.09** [0.072, 0.108]",
+        "**0.05** [0.04, 0.06]",
         "**12.5**",
         "**0.004** ± 0.001",
     ]
     assert "**" not in " ".join(polyu["awgn"] + polyu["pg-oracle (oracle)"])
-    assert polyu["pg-oracle (oracle)"][0] == "0.01 [0.008, 0.012]"
+    assert polyu["pg-oracle (oracle)"][5] == "0.01 [0.008, 0.012]"
     assert "Not evaluated on this set: starlight (see Problems)." in text
 
     sidd = table_rows(text, "## sidd (8 pairs)")
-    assert sidd["awgn"][1].startswith("**0.25**")  # best blind sRGB KLD is awgn's, the best KLD den's
-    assert sidd["den"][0].startswith("**0.12**")
-    assert sidd["starlight"][4:] == ["—", "—"]  # FID and KID not computed
+    assert sidd["awgn"][4].startswith("**0.25**")  # best blind sRGB KLD is awgn's, the best KLD den's
+    assert sidd["den"][5].startswith("**0.12**")
+    assert sidd["starlight"][6:] == ["—", "—"]  # FID and KID not computed
 
     channels = table_rows(text, "### polyu: noise level and channel correlation")
     assert channels["method"] == [
@@ -285,7 +301,16 @@ def test_markdown_tables_bold_best_blind_label_oracles_and_format_intervals(tmp_
     assert "**" not in " ".join(" ".join(row) for row in channels.values())  # nothing is ranked here
     assert "### sidd: noise level and channel correlation" in text  # methods only: no real entry in that set
 
-    cameras = table_rows(text, "### polyu per camera: KLD [95% CI]")
+    bands = table_rows(text, "### polyu: noise power per spatial frequency band")
+    assert bands["method"] == [
+        f"{c} {b}" for c in "BC" for b in ("1.4-4 px", "4-8 px", "8-16 px", "16-32 px", "32-64 px")
+    ]
+    assert list(bands)[2:] == ["real (× white)", "den", "awgn", "pg-oracle (oracle)"]
+    assert bands["real (× white)"] == ["0.9", "1", "1.25", "1.5", "2", "0.5", "1.5", "8", "30", "75"]
+    assert bands["den"] == ["0.5", "0.5", "1", "1", "0.5", "0.5", "1", "0.5", "0.25", "—"]
+    assert "**" not in " ".join(" ".join(row) for row in bands.values())  # nearest 1 is best: nothing is bold
+
+    cameras = table_rows(text, "### polyu per camera: KLD (paper) [95% CI]")
     assert cameras["method"] == ["Canon5D2 (8 pairs)", "Sony\\_A7II (4 pairs)"]
     assert cameras["den"] == ["**0.04** [0.036, 0.044]", "**0.07** [0.063, 0.077]"]
     assert cameras["awgn"] == ["0.3 [0.27, 0.33]", "—"]
@@ -405,10 +430,12 @@ def test_html_structure(report: Path) -> None:
     assert "oracle" in rows["pg-oracle"].attrs["class"].split()
     assert rows["pg-oracle"].find(class_="oracle-label").text() == "oracle"
     assert [td.attrs["data-metric"] for td in rows["den"].find_all("td", class_="best")] == [
-        "kld",
-        "kld_srgb",
         "kld_naflow",
         "akld",
+        "band_rms_log_error",
+        "channel_correlation_gap",
+        "kld_srgb",
+        "kld",
         "fid",
         "kid",
     ]
@@ -423,6 +450,10 @@ def test_html_structure(report: Path) -> None:
     assert den_channels.find("td", data_metric="level_ratio_g").text() == "0.55(σ 2.81)"
     assert den_channels.find("td", data_metric="correlation_rb").text() == "-0.05"
     assert not channels.find_all("td", class_="best")
+    bands = polyu.find("table", class_="bands")
+    assert bands.find("tr", class_="reference").find("td", data_metric="colour_4").text() == "75"
+    assert bands.find("tr", data_method="den").find("td", data_metric="brightness_0").text() == "0.5"
+    assert polyu.find("figure", class_="bands").find("img").attrs["alt"].startswith("Noise power per spatial")
     assert polyu.find("figure", class_="radar").find("img").attrs["alt"].startswith("Radar chart for polyu")
     assert "best / value" in polyu.find("figure", class_="radar").text()
     assert polyu.find_all("table", class_="per-camera")
@@ -446,7 +477,9 @@ def test_html_without_examples_downstream_or_inception_metrics() -> None:
     results["downstream"] = None
     for entry in results["sets"].values():
         for row in entry["methods"].values():
-            row.update(fid=None, kid=None, kid_std=None, kld_naflow=None, akld=None)
+            row.update(fid=None, kid=None, kid_std=None, kld_naflow=None, akld=None, band_rms_log_error=None)
+            row.pop("band_power")
+        entry.get("real", {}).pop("band_power", None)  # no band powers: no band figure
     dom = parse(render_html(results, []))
     assert not dom.find_all("img") and not dom.find_all("section", id="downstream")
     assert "needs three metrics" in dom.find("section", id="set-polyu").find("p", class_="radar-missing").text()

@@ -4,7 +4,13 @@ from __future__ import annotations
 
 import math
 
-from darksynth.evaluation.results_model import CameraScores, ChannelStatistics, MethodScores, parse_results
+from darksynth.evaluation.results_model import (
+    BandStatistics,
+    CameraScores,
+    ChannelStatistics,
+    MethodScores,
+    parse_results,
+)
 from tests.evaluation.test_report import make_results
 
 
@@ -27,6 +33,8 @@ def test_parse_keeps_the_runners_values() -> None:
         kld_naflow_ci95=(1.5 * 0.05, 2.5 * 0.05),
         akld=0.05 + 0.1,
         akld_ci95=(0.05, 0.05 + 0.2),
+        band_rms_log_error=3 * 0.05,
+        channel_correlation_gap=0.05 + 0.02,
         fid=12.5,
         kid=0.004,
         kid_std=0.001,
@@ -40,12 +48,19 @@ def test_parse_keeps_the_runners_values() -> None:
             level_ratio={"r": 0.5, "g": 1.1 * 0.5, "b": 0.9 * 0.5},
             correlation={"rg": 0.1, "gb": 0.2, "rb": -0.05},
         ),
+        bands=BandStatistics(
+            power={"brightness": (4e-4 * 0.5,) * 5, "colour": (1e-4, 2e-4, 4e-4, 8e-4, None)},
+            white_ratio={},
+            ratio={"brightness": (0.5, 0.5, 1.0, 1.0, 0.5), "colour": (0.5, 1.0, 0.5, 0.25, None)},
+        ),
     )
     real = results.sets["polyu"].real
     assert real == ChannelStatistics(
         noise_std={"r": 0.02, "g": 0.02, "b": 0.02}, level_ratio={}, correlation={"rg": 0.3, "gb": 0.25, "rb": 0.2}
     )
-    assert results.sets["sidd"].real is None
+    assert results.sets["polyu"].real_bands is not None
+    assert results.sets["polyu"].real_bands.white_ratio["colour"] == (0.5, 1.5, 8.0, 30.0, 75.0)
+    assert results.sets["sidd"].real is None and results.sets["sidd"].real_bands is None
     assert results.sets["sidd"].methods["starlight"].fid is None
 
 

@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+import math
+
 import pytest
 import torch
 
@@ -78,3 +80,29 @@ def test_channel_statistics_of_copied_and_doubled_real_noise(
     assert double["kld_naflow"] > 0.2
     assert set(double["per_camera"]["camA"]) >= {"kld_naflow", "kld_naflow_ci95", "akld", "akld_ci95"}
     assert set(outcome.results["metrics"]) >= {"kld_naflow", "akld", "noise_std", "level_ratio", "channel_correlation"}
+
+
+def test_band_statistics_of_copied_and_doubled_real_noise(
+    make_pair_set: MakeSet, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    methods = {"copy": _scaled_real_noise("copy", 1.0), "double": _scaled_real_noise("double", 2.0)}
+    monkeypatch.setattr(runner, "build_methods", lambda names, **kwargs: (methods, []))
+    root = make_pair_set("white", count=4, sigma=8.0, size=128)
+    outcome = runner.evaluate_pairs([root], EvaluationOptions(methods=list(methods), inception=False))
+    report = outcome.results["sets"]["white"]
+    real = report["real"]
+    # White noise: as much power in every band as white noise of its variance (the coarsest band of a 128-pixel
+    # image holds few frequencies, hence the wider bound there).
+    for component in ("brightness", "colour"):
+        assert real["band_white_ratio"][component][:4] == pytest.approx([1.0] * 4, rel=0.12)
+        assert real["band_white_ratio"][component][4] == pytest.approx(1.0, rel=0.3)
+        assert real["band_power"][component][0] == pytest.approx((8.0 / 255.0) ** 2, rel=0.1)
+    copy, double = report["methods"]["copy"], report["methods"]["double"]
+    assert copy["band_ratio"] == {"brightness": [1.0] * 5, "colour": [1.0] * 5}
+    assert copy["band_rms_log_error"] == 0.0 and copy["channel_correlation_gap"] == 0.0
+    # Twice the std is four times the power in every band: the RMS log error is ln 4.
+    for component in ("brightness", "colour"):
+        assert double["band_ratio"][component] == pytest.approx([4.0] * 5, rel=0.03)
+    assert double["band_rms_log_error"] == pytest.approx(math.log(4.0), abs=0.02)
+    assert double["channel_correlation_gap"] < 0.01
+    assert set(outcome.results["metrics"]) >= {"band_ratio", "band_rms_log_error", "band_white_ratio"}

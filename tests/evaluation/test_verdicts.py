@@ -50,7 +50,16 @@ def test_best_per_metric_skips_oracles_flagged_or_named_so() -> None:
         )
     )
     assert results.oracles == {"pg-oracle", "fitted"}
-    best = {"kld": {"awgn"}, "kld_srgb": {"den"}, "kld_naflow": set(), "akld": set(), "fid": {"den"}, "kid": {"awgn"}}
+    best = {
+        "kld_naflow": set(),
+        "akld": set(),
+        "band_rms_log_error": set(),
+        "channel_correlation_gap": set(),
+        "kld_srgb": {"den"},
+        "kld": {"awgn"},
+        "fid": {"den"},
+        "kid": {"awgn"},
+    }
     assert best_per_metric(results, "s") == best
 
 

@@ -22,6 +22,7 @@ from matplotlib.projections.polar import PolarAxes
 __all__ = [
     "HISTOGRAM_LEVELS",
     "REAL_COLOUR",
+    "band_power_png",
     "histogram_png",
     "method_colours",
     "noise_histogram",
@@ -339,3 +340,65 @@ def _spectrum_or_none(noise: np.ndarray | None) -> tuple[np.ndarray, np.ndarray]
         return radial_power_spectrum(noise)
     except ValueError:
         return None
+
+
+def band_power_png(
+    real: Mapping[str, Sequence[float | None]],
+    methods: Mapping[str, Mapping[str, Sequence[float | None]]],
+    band_labels: Sequence[str],
+    colours: Mapping[str, str],
+    labels: Mapping[str, str],
+    dashed: Collection[str] = (),
+    title: str = "",
+) -> bytes:
+    """Two panels, brightness and colour: band power against band (fine to coarse), log y; real black, methods
+    in their colours.
+
+    Args:
+        real: ``"brightness"`` and ``"colour"`` -> one band power per band (None: not computed), [0, 1] scale squared.
+        methods: method name -> the same for its synthetic noise.
+        band_labels: One label per band, in order.
+        colours: method name -> colour.
+        labels: method name -> legend label.
+        dashed: Methods drawn dashed (the oracles).
+        title: Title above the panels.
+
+    Returns:
+        PNG bytes.
+    """
+    figure = Figure(figsize=(8.4, 3.3), layout="constrained")
+    axes = figure.subplots(1, 2, sharey=True, squeeze=True)
+    positions = np.arange(len(band_labels))
+    for ax, component in zip(axes, ("brightness", "colour"), strict=True):
+        curves = [("real", real, REAL_COLOUR, "-", 2.2)]
+        curves += [
+            (labels.get(name, name), row, colours.get(name, "#555555"), "--" if name in dashed else "-", 1.5)
+            for name, row in methods.items()
+        ]
+        for label, row, colour, style, width in curves:
+            values = np.array([np.nan if v is None else v for v in row.get(component, ())], dtype=np.float64)
+            if values.size != len(band_labels) or not np.isfinite(values).any():
+                continue
+            # 8-bit levels squared: the axis then reads like the spectra of the examples.
+            ax.plot(
+                positions,
+                values * 255.0**2,
+                style,
+                color=colour,
+                linewidth=width,
+                marker="o",
+                markersize=3.5,
+                label=label,
+            )
+        ax.set_yscale("log")
+        ax.set_xticks(positions, list(band_labels), fontsize=8)
+        ax.set_title(component, fontsize=10)
+        ax.tick_params(labelsize=8)
+        ax.grid(alpha=0.25, linewidth=0.6, which="both")
+    axes[0].set_ylabel("band power (levels²)", fontsize=9)
+    if axes[1].lines:
+        axes[1].legend(fontsize=7.5, loc="best", frameon=False, handlelength=1.6)
+    figure.supxlabel("band, fine → coarse (period in pixels)", fontsize=9)
+    if title:
+        figure.suptitle(title, fontsize=11)
+    return _png(figure)

@@ -25,6 +25,7 @@ from PIL import Image as PILImage
 
 from darksynth.errors import DarksynthError
 from darksynth.evaluation.results_model import (
+    BAND_COMPONENTS,
     CAMERA_METRICS,
     CHANNEL_PAIRS,
     CHANNELS,
@@ -34,6 +35,7 @@ from darksynth.evaluation.results_model import (
     Interval,
     parse_results,
 )
+from darksynth.evaluation.structure import BAND_LABELS
 from darksynth.evaluation.verdicts import (
     BeyondPaperCheck,
     best_per_camera,
@@ -66,34 +68,45 @@ MIN_CROP_DISPLAY = 160
 MISSING = "—"
 
 SET_TITLES = {
-    "kld": "KLD",
-    "kld_srgb": "KLD sRGB",
     "kld_naflow": "KLD NAFlow",
     "akld": "AKLD",
+    "band_rms_log_error": "band RMS log error",
+    "channel_correlation_gap": "channel correlation gap",
+    "kld_srgb": "KLD sRGB",
+    "kld": "KLD (paper)",
     "fid": "FID",
     "kid": "KID",
 }
 SET_HEADERS = {
-    "kld": "KLD [95% CI]",
-    "kld_srgb": "KLD sRGB [95% CI]",
     "kld_naflow": "KLD NAFlow [95% CI]",
     "akld": "AKLD [95% CI]",
+    "band_rms_log_error": "band RMS log error",
+    "channel_correlation_gap": "channel correlation gap",
+    "kld_srgb": "KLD sRGB [95% CI]",
+    "kld": "KLD (paper) [95% CI]",
     "fid": "FID",
     "kid": "KID ± std",
 }
 DOWNSTREAM_HEADERS = {"psnr": "PSNR (dB)", "ssim": "SSIM", "pairs": "pairs"}
-RADAR_METRICS = ("kld", "kld_srgb", "kld_naflow", "akld", "fid", "kid")
+RADAR_METRICS = ("kld_naflow", "akld", "band_rms_log_error", "kld_srgb", "kld", "fid", "kid")
 CHANNEL_HEADERS = {
     **{f"level_ratio_{c}": f"level ratio {c.upper()}" for c in CHANNELS},
     **{f"correlation_{p}": f"correlation {p[0].upper()}-{p[1].upper()}" for p in CHANNEL_PAIRS},
+}
+BAND_HEADERS = {
+    f"{component}_{index}": f"{component[0].upper()} {label}"
+    for component in BAND_COMPONENTS
+    for index, label in enumerate(BAND_LABELS)
 }
 REAL = "real"
 """The reference row of the channel tables: the real noise."""
 
 LEGEND = (
-    "Lower is better for every metric. Bold: the best blind method in each column; oracle methods, which are "
-    "given the clean image, are labelled (oracle) and never bold. Brackets: 95% confidence interval; KID ± its "
-    f"standard deviation; {MISSING}: not computed."
+    "Lower is better for every metric. KLD NAFlow and AKLD are the measures recent work reports; the band RMS log "
+    "error and the channel correlation gap measure the noise's structure (scales, colour); KLD (paper) is the Noise "
+    "Flow recipe, kept for comparison with the paper. Bold: the best blind method in each column; oracle methods, "
+    "which are given the clean image, are labelled (oracle) and never bold. Brackets: 95% confidence interval; KID "
+    f"± its standard deviation; {MISSING}: not computed."
 )
 DOWNSTREAM_LEGEND = (
     "PSNR and SSIM of a denoiser trained on each method's synthetic noise, on the real pairs; the noisy input row "
@@ -103,6 +116,12 @@ CHANNEL_LEGEND = (
     "Level ratio: the method's noise standard deviation per channel, pooled over the set's pairs, divided by the "
     "real noise's on the same pairs (1 is the right level; σ: the std in 8-bit levels). Correlation: the mean over "
     "pairs of the correlation coefficient of the noise between two channels. The real row is the reference."
+)
+BAND_LEGEND = (
+    "Noise power per band of spatial frequency, fine to coarse (period in pixels), for brightness (B) and colour (C). "
+    "Method rows: the median over pairs of the method's band power over the real noise's (1 is right, 2 twice too "
+    "much). The real row: the real noise's band power over that of white noise of the same variance (1 for "
+    "pixel-independent noise)."
 )
 HEADLINE_TITLE = "Headline: does den have a lower kld than awgn and pg?"
 BEYOND_TITLE = "Beyond the paper: den against every blind method, the oracle and the paper's model"
@@ -300,6 +319,30 @@ class _Layout:
         caption = f"{set_name}: noise level and channel correlation. {CHANNEL_LEGEND}"
         return _Table("channels", caption, headers, rows, {"set": set_name}, set_name)
 
+    def band_table(self, set_name: str) -> _Table | None:
+        """Per band and component, each method's median band power ratio to the real noise; the real row holds the
+        real noise's power relative to white noise. None when nothing has band statistics."""
+        entry = self.results.sets[set_name]
+        sources = []
+        if entry.real_bands is not None and entry.real_bands.white_ratio:
+            sources.append((_Method(f"{REAL} (× white)", False, True, "#888888"), entry.real_bands.white_ratio))
+        for name in _ordered(entry.methods, self.order):
+            bands = entry.methods[name].bands
+            if bands is not None and bands.ratio:
+                sources.append((self.method(name), bands.ratio))
+        if not sources:
+            return None
+        rows = []
+        for method, values in sources:
+            cells = []
+            for component in BAND_COMPONENTS:
+                row = values.get(component, (None,) * len(BAND_LABELS))
+                cells += [_Cell(f"{component}_{i}", _num(value, 3), "", False) for i, value in enumerate(row)]
+            rows.append(_Row(method, cells))
+        headers = [_Header(key, title) for key, title in BAND_HEADERS.items()]
+        caption = f"{set_name}: noise power per spatial frequency band. {BAND_LEGEND}"
+        return _Table("bands", caption, headers, rows, {"set": set_name}, set_name)
+
     def camera_tables(self, set_name: str) -> list[_Table]:
         """One table per per-pair metric that has values: a column per camera (its pair count in the header), a row
         per method."""
@@ -406,6 +449,7 @@ def _common(results: EvaluationResults) -> dict[str, Any]:
         "legend": LEGEND,
         "downstream_legend": DOWNSTREAM_LEGEND,
         "channel_legend": CHANNEL_LEGEND,
+        "band_legend": BAND_LEGEND,
         "headline_title": HEADLINE_TITLE,
         "beyond_title": BEYOND_TITLE,
         "headlines": headline_lines(results),
@@ -428,6 +472,7 @@ def render_markdown(results: EvaluationResults | Mapping[str, Any]) -> str:
             "entry": entry,
             "table": layout.set_table(name),
             "channels": layout.channel_table(name),
+            "bands": layout.band_table(name),
             "missing": typed.not_evaluated(name),
             "cameras": layout.camera_tables(name),
         }
@@ -444,9 +489,11 @@ def render_markdown(results: EvaluationResults | Mapping[str, Any]) -> str:
 def write_markdown(results: Mapping[str, Any], path: Path) -> None:
     """Write the Markdown summary of ``darksynth evaluate``, atomically.
 
-    Per set: a table of the methods (oracle ones labelled) with the KLD (Noise Flow, sRGB and NAFlow recipes) and
-    the AKLD with their 95% intervals, FID and KID ± std, the best blind value of each column in bold; a table of
-    the noise level ratio per channel and the channel correlations, real row first; per-camera tables; then the
+    Per set: a table of the methods (oracle ones labelled) with the KLD NAFlow and AKLD first, the band RMS log
+    error and the channel correlation gap, the KLD sRGB and the paper's KLD (Noise Flow recipe), all with 95%
+    intervals where per pair, FID and KID ± std, the best blind value of each column in bold; a table of the noise
+    level ratio per channel and the channel correlations, real row first; a table of the band power ratios, real
+    row (relative to white noise) first; per-camera tables; then the
     downstream denoising table if any, the problems, the methods, metric recipes, provenance and the command.
 
     Args:
@@ -575,6 +622,24 @@ class _HtmlPage:
         alt = f"Radar chart for {set_name}: {axes} of each method, normalised so that outward is better."
         return _Radar(_Image(_data_uri(png), alt), axes)
 
+    def band_figure(self, set_name: str) -> _Image | None:
+        """Band power of the real noise and of each method's, brightness and colour; None without band powers."""
+        entry = self.results.sets[set_name]
+        real = entry.real_bands.power if entry.real_bands is not None else {}
+        methods = {
+            name: bands.power
+            for name in _ordered(entry.methods, self.order)
+            if (bands := entry.methods[name].bands) is not None and bands.power
+        }
+        if not real and not methods:
+            return None
+        labels = {name: self.label(name) for name in methods}
+        png = self.figures.band_power_png(
+            real, methods, BAND_LABELS, self.layout.colours, labels, dashed=self.results.oracles, title=set_name
+        )
+        alt = f"Noise power per spatial frequency band in {set_name}: real versus each method, brightness and colour."
+        return _Image(_data_uri(png), alt)
+
     def example(self, example: ReportExample) -> _Example:
         where = f"{example.set_name}/{example.pair_name}"
         clean = np.asarray(example.clean)
@@ -618,6 +683,8 @@ class _HtmlPage:
                     "entry": entry,
                     "table": self.layout.set_table(name),
                     "channels": self.layout.channel_table(name),
+                    "bands": self.layout.band_table(name),
+                    "band_figure": self.band_figure(name),
                     "missing": results.not_evaluated(name),
                     "radar": self.radar(name),
                     "cameras": self.layout.camera_tables(name),
@@ -649,7 +716,8 @@ def write_html_report(results: Mapping[str, Any], examples: Sequence[ReportExamp
     """Write one self-contained HTML page of ``darksynth evaluate`` results, atomically.
 
     The page shows the command and provenance; the methods; per set the metrics table (oracle methods labelled,
-    best blind values bold), the channel table (level ratio, channel correlations, real row first), a radar chart
+    best blind values bold), the channel table (level ratio, channel correlations, real row first), the band table
+    and a figure of the band powers (real vs each method, brightness and colour), a radar chart
     of the normalised metrics, per-camera tables and the examples (for
     each: clean, real noisy and synthetic noisy crops with their amplified noise, noise histograms and noise power
     spectra, real vs each method); the downstream denoising tables if any; the problems; the metric recipes.

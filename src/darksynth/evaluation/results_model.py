@@ -17,12 +17,14 @@ from dataclasses import dataclass, field
 from typing import Any
 
 __all__ = [
+    "BAND_COMPONENTS",
     "CAMERA_METRICS",
     "CHANNELS",
     "CHANNEL_PAIRS",
     "DOWNSTREAM_METRICS",
     "NOISY_INPUT",
     "SET_METRICS",
+    "BandStatistics",
     "CameraScores",
     "ChannelStatistics",
     "Downstream",
@@ -41,14 +43,26 @@ Interval = tuple[float, float]
 NOISY_INPUT = "noisy input"
 """The downstream reference row: the unprocessed real noisy images."""
 
-SET_METRICS = ("kld", "kld_srgb", "kld_naflow", "akld", "fid", "kid")
-"""Per set and method, all lower-is-better."""
-INTERVAL_METRICS = ("kld", "kld_srgb", "kld_naflow", "akld")
+SET_METRICS = (
+    "kld_naflow",
+    "akld",
+    "band_rms_log_error",
+    "channel_correlation_gap",
+    "kld_srgb",
+    "kld",
+    "fid",
+    "kid",
+)
+"""Per set and method, all lower-is-better, in the tables' order: the NAFlow KLD and the AKLD (the measures most
+recent work reports) lead, the noise structure follows, the Noise Flow KLD is kept to compare with the paper."""
+INTERVAL_METRICS = ("kld_naflow", "akld", "kld_srgb", "kld")
 """The per-pair metrics: each has a 95% interval."""
 CAMERA_METRICS = INTERVAL_METRICS
 """Per camera and method."""
 CHANNELS = ("r", "g", "b")
 CHANNEL_PAIRS = ("rg", "gb", "rb")
+BAND_COMPONENTS = ("brightness", "colour")
+BAND_COUNT = 5
 DOWNSTREAM_METRICS = ("psnr", "ssim", "pairs")
 """Per set and downstream row: PSNR and SSIM are higher-is-better, pairs is a count."""
 
@@ -172,6 +186,45 @@ class ChannelStatistics:
         )
 
 
+def _bands(value: object) -> dict[str, tuple[float | None, ...]]:
+    """``{"brightness": [5], "colour": [5]}`` as tuples of :data:`BAND_COUNT` numbers; a malformed part is left out."""
+    entry = _mapping(value)
+    parsed = {}
+    for component in BAND_COMPONENTS:
+        values = entry.get(component)
+        if isinstance(values, list | tuple) and len(values) == BAND_COUNT:
+            parsed[component] = tuple(_number(v) for v in values)
+    return parsed
+
+
+@dataclass(frozen=True)
+class BandStatistics:
+    """Noise power in five spatial frequency bands, fine to coarse (see :mod:`darksynth.evaluation.structure`).
+
+    Each attribute maps ``"brightness"`` and ``"colour"`` to 5 values (None: not computed); a component missing from
+    the document is missing here.
+
+    Attributes:
+        power: Median over pairs of the band power, [0, 1] scale squared.
+        white_ratio: The real noise's band power over white noise of the same variance (empty for a method).
+        ratio: A method's median over pairs of its band power over the real one's (empty for the real noise).
+    """
+
+    power: Mapping[str, tuple[float | None, ...]]
+    white_ratio: Mapping[str, tuple[float | None, ...]]
+    ratio: Mapping[str, tuple[float | None, ...]]
+
+    @classmethod
+    def parse(cls, document: Mapping[str, Any]) -> BandStatistics | None:
+        """None when ``document`` (a set's ``real`` entry, or a method's) holds none of the three."""
+        parsed = cls(
+            power=_bands(document.get("band_power")),
+            white_ratio=_bands(document.get("band_white_ratio")),
+            ratio=_bands(document.get("band_ratio")),
+        )
+        return parsed if parsed.power or parsed.white_ratio or parsed.ratio else None
+
+
 @dataclass(frozen=True)
 class MethodScores:
     """One method's metrics on one set (lower is better for all of them); None: not computed.
@@ -180,11 +233,14 @@ class MethodScores:
         kld, kld_srgb, kld_naflow: Mean histogram KL divergence over the pairs (Noise Flow, sRGB and NAFlow recipes).
         akld: Mean average KL divergence of local Gaussians over the pairs (DANet).
         kld_ci95, kld_srgb_ci95, kld_naflow_ci95, akld_ci95: Their 95% confidence intervals.
+        band_rms_log_error: RMS over the 10 bands (brightness, colour) of the log of the median band power ratio.
+        channel_correlation_gap: The absolute gap of the mean channel correlation to the real noise's.
         fid, kid: Inception distances between the real and the synthetic noise maps; KID can be slightly negative.
         kid_std: KID's standard deviation over subsets.
         oracle: The runner's flag (the method uses the clean image), if it wrote one.
         per_camera: camera name -> the per-pair divergences over that camera's pairs.
         channels: The synthetic noise's level per channel, its ratio to the real one's, and its channel correlations.
+        bands: The synthetic noise's band powers and their ratios to the real ones.
     """
 
     kld: float | None = None
@@ -195,12 +251,15 @@ class MethodScores:
     kld_naflow_ci95: Interval | None = None
     akld: float | None = None
     akld_ci95: Interval | None = None
+    band_rms_log_error: float | None = None
+    channel_correlation_gap: float | None = None
     fid: float | None = None
     kid: float | None = None
     kid_std: float | None = None
     oracle: bool | None = None
     per_camera: Mapping[str, CameraScores] = field(default_factory=dict)
     channels: ChannelStatistics | None = None
+    bands: BandStatistics | None = None
 
     def value(self, metric: str) -> float | None:
         """One of :data:`SET_METRICS`."""
@@ -217,29 +276,39 @@ class MethodScores:
         entry = _mapping(document)
         return cls(
             **_divergences(entry),
+            band_rms_log_error=_number(entry.get("band_rms_log_error")),
+            channel_correlation_gap=_number(entry.get("channel_correlation_gap")),
             fid=_number(entry.get("fid")),
             kid=_number(entry.get("kid")),
             kid_std=_number(entry.get("kid_std")),
             oracle=_flag(entry),
             per_camera={name: CameraScores.parse(c) for name, c in _mapping(entry.get("per_camera")).items()},
             channels=ChannelStatistics.parse(entry),
+            bands=BandStatistics.parse(entry),
         )
 
 
 @dataclass(frozen=True)
 class SetResults:
-    """One set of real pairs: how many pairs were evaluated, each method's metrics, the real noise's channels."""
+    """One set of real pairs: how many pairs were evaluated, each method's metrics, the real noise's channels and
+    band powers."""
 
     pairs: int | None
     methods: Mapping[str, MethodScores]
     real: ChannelStatistics | None = None
+    real_bands: BandStatistics | None = None
 
     @classmethod
     def parse(cls, document: object) -> SetResults:
         entry = _mapping(document)
         methods = {name: MethodScores.parse(row) for name, row in _mapping(entry.get("methods")).items()}
-        real = ChannelStatistics.parse(_mapping(entry.get("real")))
-        return cls(pairs=_count(entry.get("pairs")), methods=methods, real=real)
+        real = _mapping(entry.get("real"))
+        return cls(
+            pairs=_count(entry.get("pairs")),
+            methods=methods,
+            real=ChannelStatistics.parse(real),
+            real_bands=BandStatistics.parse(real),
+        )
 
 
 @dataclass(frozen=True)

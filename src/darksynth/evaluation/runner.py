@@ -3,7 +3,9 @@
 For each pair the real noise map is noisy - clean; each method makes a synthetic noisy image from the clean
 one (8-bit, like the real one) and its noise map is synthetic - clean. Histogram KL divergences and the AKLD are
 computed per pair and summarised by their mean and a 95% interval; the noise level per channel is pooled over a
-set's pairs (and divided by the real one's) and the channel correlations averaged over them; FID and KID compare,
+set's pairs (and divided by the real one's) and the channel correlations averaged over them; the noise's power
+in five spatial frequency bands (brightness and colour, :mod:`darksynth.evaluation.structure`) is compared per pair
+with the real one's and summarised by the median ratio per band and its RMS log error; FID and KID compare,
 per set, the Inception features of crops of all real noise maps with those of all of a method's maps.
 """
 
@@ -36,6 +38,7 @@ from darksynth.evaluation.metrics import (
 from darksynth.evaluation.options import EvaluationOptions
 from darksynth.evaluation.pairs import LoadedPair, PairSet, list_pair_sets, load_pair
 from darksynth.evaluation.report import ReportExample
+from darksynth.evaluation.structure import band_medians, band_powers, band_ratios, band_summary, relative_to_white
 from darksynth.seeding import derive_seed, seeded_generator
 
 METRIC_DESCRIPTIONS = {
@@ -55,6 +58,18 @@ METRIC_DESCRIPTIONS = {
     "pairs: 1 is the right level, 2 twice too much noise",
     "channel_correlation": "Mean over pairs of the Pearson correlation of the noise between channels (rg, gb, rb); "
     "the set's real entry holds the real noise's",
+    "channel_correlation_gap": "Absolute difference between the method's and the real noise's channel correlation, "
+    "each averaged over rg, gb and rb, on the same pairs",
+    "band_power": "Median over pairs of the noise's power in 5 spatial frequency bands, fine to coarse (periods "
+    "1.4-4, 4-8, 8-16, 16-32, 32-64 px), for brightness (R+G+B)/sqrt3 and colour (mean of (R-B)/sqrt2 and "
+    "(R-2G+B)/sqrt6): each component minus its mean, P = |FFT2|^2 / pixels, mean of P over the radial frequencies "
+    "of the band; [0, 1] scale squared",
+    "band_white_ratio": "The real noise's band powers over those of white noise of the same variance (the "
+    "component's variance), median over pairs: 1 in every band for pixel-independent noise",
+    "band_ratio": "Per band (fine to coarse) and component (brightness, colour), the median over pairs of the "
+    "method's band power over the real noise's: 1 is the right power at that scale",
+    "band_rms_log_error": "sqrt(mean over the 10 bands of ln(band_ratio)^2): 0 when every band has the real power, "
+    "0.69 when every band is off by a factor of 2",
     "fid": "Frechet distance between InceptionV3 pool features of crops of the real and of the synthetic noise maps",
     "kid": "Kernel Inception distance (unbiased MMD^2, cubic polynomial kernel) on the same features",
 }
@@ -78,7 +93,7 @@ def _summary(values: list[float]) -> tuple[float, list[float]]:
     return float(mean), [float(low), float(high)]
 
 
-PAIR_METRICS = ("kld", "kld_srgb", "kld_naflow", "akld")
+PAIR_METRICS = ("kld_naflow", "akld", "kld_srgb", "kld")
 """Computed per pair, summarised per set and per camera by their mean and 95% interval."""
 
 CHANNELS = ("r", "g", "b")
@@ -97,6 +112,11 @@ def _pair_metrics(real: torch.Tensor, synthetic: torch.Tensor) -> dict[str, floa
 def _optional(value: float) -> float | None:
     """JSON has no NaN: a value that could not be computed is null."""
     return float(value) if np.isfinite(value) else None
+
+
+def _mean_correlation(correlation: dict[str, float | None]) -> float:
+    values = [value for value in correlation.values() if value is not None]
+    return float(np.mean(values)) if values else float("nan")
 
 
 class _ChannelStatistics:
@@ -130,6 +150,8 @@ class _ChannelStatistics:
             "channel_correlation": correlation,
         }
         if reference is not None:
+            gap = abs(_mean_correlation(correlation) - _mean_correlation(reference.summary()["channel_correlation"]))
+            summary["channel_correlation_gap"] = _optional(gap)
             reference_std = reference.std()
             with np.errstate(divide="ignore", invalid="ignore"):
                 ratio = std / reference_std
@@ -206,6 +228,9 @@ def _evaluate_set(
     real_channels = _ChannelStatistics()
     # Per method, the real noise of the pairs that method was evaluated on and its own noise.
     channels = {name: (_ChannelStatistics(), _ChannelStatistics()) for name in methods}
+    # Band powers of the real noise per pair; per method, its own and its ratios to the real ones.
+    real_bands: list[dict[str, Any]] = []
+    bands: dict[str, tuple[list[dict[str, Any]], list[dict[str, Any]]]] = {name: ([], []) for name in methods}
     examples: list[ReportExample] = []
     evaluated = 0
     # Inception features cost ~0.1 s a tile on this CPU: a fixed budget per set keeps the run short.
@@ -220,6 +245,9 @@ def _evaluate_set(
         evaluated += 1
         real = loaded.noise
         real_channels.add(real)
+        pair_bands = band_powers(_noise_array(real)) if real.shape[0] == len(CHANNELS) else None
+        if pair_bands is not None:
+            real_bands.append(pair_bands)
         if features is not None:
             features.add("real", real, crops_per_pair)
         keep_example = len(examples) < options.examples_per_set
@@ -237,6 +265,10 @@ def _evaluate_set(
             rows[name].append((pair.camera, _pair_metrics(real, noise)))
             channels[name][0].add(real)
             channels[name][1].add(noise)
+            if pair_bands is not None:
+                synthetic_bands = band_powers(_noise_array(noise))
+                bands[name][0].append(synthetic_bands)
+                bands[name][1].append(band_ratios(synthetic_bands, pair_bands))
             if features is not None:
                 features.add(name, noise, crops_per_pair)
             if keep_example:
@@ -253,6 +285,9 @@ def _evaluate_set(
                 )
             )
     report: dict[str, Any] = {"pairs": evaluated, "real": real_channels.summary(), "methods": {}}
+    if real_bands:
+        report["real"]["band_power"] = band_medians(real_bands)
+        report["real"]["band_white_ratio"] = band_medians([relative_to_white(row) for row in real_bands])
     for name, method_rows in rows.items():
         if not method_rows:
             continue
@@ -260,6 +295,10 @@ def _evaluate_set(
         entry.update(features.distances(name) if features is not None else {"fid": None, "kid": None, "kid_std": None})
         real_on_these, synthetic_channels = channels[name]
         entry.update(synthetic_channels.summary(reference=real_on_these))
+        own_bands, ratios = bands[name]
+        if own_bands:
+            entry["band_power"] = band_medians(own_bands)
+            entry.update(band_summary(ratios))
         entry["oracle"] = methods[name].oracle
         cameras: dict[str, list[dict[str, float]]] = {}
         for camera, row in method_rows:
