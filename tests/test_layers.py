@@ -69,6 +69,7 @@ ESTIMATION_STAGES: dict[str, int] = {
     "columns": 0,
     "darkening": 0,
     "refine_statistics": 0,
+    "spectrum": 0,
     "network": 1,
     "refine": 1,
     "assemble": 2,

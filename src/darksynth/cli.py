@@ -24,12 +24,12 @@ from darksynth.errors import DarksynthError, error_reason
 from darksynth.estimation.assemble import EstimateOptions
 from darksynth.evaluation.options import EvaluationOptions
 from darksynth.models.den import DENConfig, Variant
-from darksynth.noise.components import NOISE_MODELS, NoiseModel
+from darksynth.noise.components import NoiseModel
 from darksynth.preview import PANEL_SIZE
 from darksynth.profile import load_profile
 from darksynth.synthesize import DarkeningChoice
 from darksynth.training.loop import TrainConfig
-from darksynth.training.weights import LOG_LEVELS, DENChoice
+from darksynth.training.weights import LOG_LEVELS, NETWORK_MODELS, DENChoice
 
 app = new_app()
 console = Console(stderr=True)
@@ -355,7 +355,7 @@ def train_command(
     from darksynth.training.loop import train
 
     try:
-        noise_model = cast(NoiseModel, checked_choice("--model", model, NOISE_MODELS))
+        noise_model = cast(NoiseModel, checked_choice("--model", model, NETWORK_MODELS))
         config = TrainConfig(
             den=DENConfig(
                 variant=cast(Variant, checked_choice("--variant", variant, VARIANTS)),
@@ -426,6 +426,15 @@ def estimate_command(
             "stronger, closer to the real pairs' noise, see docs/refine.md); --no-refine keeps the network's values.",
         ),
     ] = default_of(EstimateOptions, "refine"),
+    spectrum: Annotated[
+        bool,
+        typer.Option(
+            "--spectrum/--no-spectrum",
+            help="With the sRGB model and --refine, measure the noise's spectrum on the reference (per octave, in "
+            "brightness and colour, per intensity, frame to frame; default, docs/spectral-noise.md); --no-spectrum "
+            "gives the version-3 profile (one length per part, refined as in docs/refine.md).",
+        ),
+    ] = default_of(EstimateOptions, "spectrum"),
     quiet: Annotated[bool, typer.Option("--quiet", "-q", help=QUIET_HELP)] = False,
 ) -> None:
     import json
@@ -437,10 +446,10 @@ def estimate_command(
     try:
         choice = DENChoice(
             weights=weights,
-            noise_model=checked_choice("--model", model, NOISE_MODELS),
+            noise_model=checked_choice("--model", model, NETWORK_MODELS),
             variant=checked_choice("--variant", variant, VARIANTS),
         )
-        options = EstimateOptions(clip=clip, device=device, refine=refine)
+        options = EstimateOptions(clip=clip, device=device, refine=refine, spectrum=spectrum)
         network = load_weights(choice.path(), device=options.device)
         result = estimate_file(reference, network, options)
     except DarksynthError as error:

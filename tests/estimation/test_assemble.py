@@ -168,17 +168,18 @@ def test_nearly_noise_free_estimate_warns(tiny_model: Callable[..., DEN]) -> Non
     assert not any("noise-free" in w for w in noisy.warnings)
 
 
+@pytest.mark.parametrize(("spectrum", "record"), [(True, "spectrum"), (False, "refined")])
 def test_the_refinement_overrules_a_network_that_calls_a_noisy_reference_noise_free(
-    tiny_model: Callable[..., DEN],
+    tiny_model: Callable[..., DEN], spectrum: bool, record: str
 ) -> None:
     # White noise of std 0.03 (7.65 8-bit levels) on a level of 0.2: plainly visible.
     network = _rigged(tiny_model(), torch.full((vector_size(),), 0.001))
     noise = 0.03 * torch.randn(1, 3, 128, 128, generator=torch.Generator().manual_seed(0))
-    result = estimate((0.2 + noise).clamp(0, 1), network, source="dim.png")
+    result = estimate((0.2 + noise).clamp(0, 1), network, source="dim.png", spectrum=spectrum)
     assert not any("noise-free" in w for w in result.warnings), result.warnings
     network_only = estimate((0.2 + noise).clamp(0, 1), network, source="dim.png", refine=False)
     assert network_only.profile.meta["noise_std_8bit"] < 1.0
-    assert "network_values" in result.profile.meta["refined"]
+    assert "network_values" in result.profile.meta[record]
     assert 0.8 < result.profile.meta["noise_std_8bit"] / 7.65 < 1.2
 
 
@@ -195,7 +196,7 @@ def test_the_refinement_carries_the_ranges_to_its_values(tiny_model: Callable[..
     # apply draws every ranged parameter within its range: ranges left at the network's values would undo the
     # refinement.
     network = _rigged(tiny_model(), torch.full((vector_size(),), 0.001))
-    profile = estimate(_reference(1, 128, 128), network).profile
+    profile = estimate(_reference(1, 128, 128), network, spectrum=False).profile
     for name, intervals in profile.ranges.items():
         if name in ("alpha", "gamma"):
             continue
@@ -203,6 +204,19 @@ def test_the_refinement_carries_the_ranges_to_its_values(tiny_model: Callable[..
             assert low <= value <= high, (name, low, value, high)
     (compression,) = profile.ranges["compression"]
     assert compression[0] == compression[1] == profile.noise.scalar("compression")
+
+
+def test_the_measured_spectrum_drops_the_ranges_of_what_it_replaces(tiny_model: Callable[..., DEN]) -> None:
+    # apply --jitter draws ranged parameters: a range left on the network's shot or compression would add the
+    # network's noise back on top of the measured spectrum.
+    from darksynth.estimation.assemble import SPECTRUM_REPLACES
+
+    network = _rigged(tiny_model(), torch.full((vector_size(),), 0.3))
+    profile = estimate(_reference(1, 128, 128), network).profile
+    assert not set(profile.ranges) & {*SPECTRUM_REPLACES, "compression"}, profile.ranges
+    for name in SPECTRUM_REPLACES:
+        assert profile.noise.is_neutral(noise_parameter(name)), name
+    assert not profile.noise.is_neutral(noise_parameter("octave_power"))
 
 
 def test_moved_ranges_scale_levels_and_shift_the_rest() -> None:

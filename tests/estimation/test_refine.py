@@ -103,11 +103,12 @@ def test_gaussian_denoise_keeps_a_constant_and_smooths_noise() -> None:
     assert gaussian_denoise(noise).std() < 0.3 * noise.std()
 
 
-def test_the_den_method_is_refined_and_reads_the_noisy_image_only() -> None:
+@pytest.mark.parametrize(("name", "summary"), [("den-srgb", "refined"), ("den", "spectrum measured")])
+def test_the_den_methods_read_the_noisy_image_only(name: str, summary: str) -> None:
     from darksynth.evaluation.methods import build_method
 
-    method = build_method("den")
-    assert "refined" in method.summary
+    method = build_method(name)
+    assert summary in method.summary
     noisy = _reference(KNOWN)[0, :, :96, :96]
     clean = 0.4 * smooth_scene(256)[:, :96, :96]
     with_clean = method.fit(noisy, clean)

@@ -3,7 +3,8 @@
 The sRGB model's own figures (docs/den.md) set what is asked: the overall level is its training target and is
 checked against the truth; each structure parameter is checked for direction and separation (off against on
 moves the estimate by a clear share of its training range), which is what its held-out R^2 supports. The estimate
-is ``estimate``'s default, the network refined on the reference (docs/refine.md), unless a test says otherwise.
+is the version-3 path, the network refined on the reference (docs/refine.md, ``spectrum=False``), unless a test
+says otherwise; the spectral estimate has its own round trip (tests/estimation/test_spectrum.py).
 """
 
 from __future__ import annotations
@@ -38,7 +39,8 @@ def model() -> DEN:
 
 def _estimated(model: DEN, noise: dict[str, tuple[float, ...]], seed: int, frames: int = 1) -> dict[str, list[float]]:
     return {
-        name: values.tolist() for name, values in estimate(_reference(noise, frames, seed), model).profile.noise.items()
+        name: values.tolist()
+        for name, values in estimate(_reference(noise, frames, seed), model, spectrum=False).profile.noise.items()
     }
 
 
@@ -93,7 +95,9 @@ def test_the_network_alone_does_not_recover_channel_gains_and_the_refinement_doe
     low, high = noise_parameter("channel_gain").training_range
     moves = {}
     for refine in (False, True):
-        off = estimate(_reference(base, 1, 21), model, refine=refine).profile.noise["channel_gain"]
-        with_it = estimate(_reference(base | on, 1, 21), model, refine=refine).profile.noise["channel_gain"]
+        off = estimate(_reference(base, 1, 21), model, refine=refine, spectrum=False).profile.noise["channel_gain"]
+        with_it = estimate(_reference(base | on, 1, 21), model, refine=refine, spectrum=False).profile.noise[
+            "channel_gain"
+        ]
         moves[refine] = float((with_it - off).mean()) / (high - low)
     assert moves[False] < 0.3 < moves[True], moves

@@ -96,6 +96,7 @@ def test_every_den_method_uses_a_shipped_den_of_its_noise_model_and_variant() ->
 
     assert DEN_METHODS == {
         "den": ("srgb", "v3"),
+        "den-srgb": ("srgb", "v3"),
         "den-network": ("srgb", "v3"),
         "den-paper": ("paper", "v3"),
         "den-v2": ("paper", "v2"),
@@ -107,8 +108,10 @@ def test_every_den_method_uses_a_shipped_den_of_its_noise_model_and_variant() ->
         assert method.details["weights"].endswith(SHIPPED_WEIGHTS[noise_model, variant])
 
 
-def test_den_is_refined_and_den_network_is_not() -> None:
-    assert "refined on it" in build_method("den").summary
+def test_den_measures_the_spectrum_den_srgb_is_refined_and_den_network_is_not() -> None:
+    assert "spectrum measured on it" in build_method("den").summary
+    assert "refined on it" in build_method("den-srgb").summary
+    assert "spectrum" not in build_method("den-srgb").summary
     assert "refined" not in build_method("den-network").summary
     assert "refined" not in build_method("den-paper").summary
 

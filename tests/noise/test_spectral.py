@@ -31,7 +31,7 @@ def _noise(values: NoiseValues, shape: tuple[int, ...], seed: int, level: float 
 
 
 def test_neutral_shape_is_white_noise_with_the_curves_std_and_independent_channels() -> None:
-    noise = _noise(_values(), (1, 4, 3, 256, 256), seed=0)[0]
+    noise = _noise(_values(), (1, 8, 3, 256, 256), seed=0)[0]
     std = noise.std(dim=(0, 2, 3))
     assert torch.allclose(std, torch.full((3,), 0.05), rtol=0.02)
     correlation = torch.corrcoef(noise.permute(1, 0, 2, 3).reshape(3, -1))
@@ -39,11 +39,14 @@ def test_neutral_shape_is_white_noise_with_the_curves_std_and_independent_channe
     statistics = measure(noise, torch.full_like(noise, 0.5))
     # White noise has the power of white noise in every band, in every component, and no cross-power.
     relative = statistics.cross_power / 0.05**2
-    # (The coarsest band of four 256-px frames holds about 300 frequencies: its sampling error is about 8 %.)
+    # (The second-coarsest band of eight 256-px frames holds about 600 independent frequencies: its sampling error
+    # is about 4 %; the coarsest's about 8 %.)
     diagonal = relative.diagonal(dim1=-2, dim2=-1)
     assert torch.allclose(diagonal[:5], torch.ones(5, 3, dtype=torch.float64), rtol=0.12)
     assert torch.allclose(diagonal[5], torch.ones(3, dtype=torch.float64), rtol=0.3)
-    assert (relative - torch.diag_embed(relative.diagonal(dim1=-2, dim2=-1))).abs().max() < 0.1
+    off_diagonal = (relative - torch.diag_embed(diagonal)).abs()
+    assert off_diagonal[:5].max() < 0.1
+    assert off_diagonal[5].max() < 0.25  # about 300 frequencies: a cross-power's sampling error is about 6 %
 
 
 def test_coarse_colour_power_lands_in_the_coarse_colour_bands_and_keeps_each_channels_std() -> None:

@@ -44,6 +44,7 @@ from darksynth.estimation.reference import (
 )
 from darksynth.estimation.refine import refine_profile
 from darksynth.estimation.refine_statistics import ANALYSIS_FRAMES
+from darksynth.estimation.spectrum import estimate_spectrum
 from darksynth.models.den import DEN
 from darksynth.noise.components import NoiseModel, noise_parameter
 from darksynth.noise.level import mean_noise_variance
@@ -76,6 +77,9 @@ class EstimateOptions:
     device: str = "cpu"
     max_frames: int = MAX_FRAMES
     batch: int = 16
+    spectrum: bool = True
+    """With ``refine``, measure the spectral model on the reference (docs/spectral-noise.md) instead of refining
+    the sRGB network's structure."""
     refine: bool = True
     """After the sRGB network, refine the noise on the reference itself by analysis by synthesis
     (:func:`darksynth.estimation.refine.refine_profile`, docs/refine.md): on the real pairs it divides the histogram
@@ -87,7 +91,13 @@ def estimate_file(path: Path, network: DEN, options: EstimateOptions) -> Estimat
     """Read a reference file or frame folder and estimate its profile (the ``estimate`` job)."""
     frames = load_reference(path, clip=options.clip, max_frames=options.max_frames)
     return estimate(
-        frames, network, source=str(path), batch=options.batch, device=options.device, refine=options.refine
+        frames,
+        network,
+        source=str(path),
+        batch=options.batch,
+        device=options.device,
+        refine=options.refine,
+        spectrum=options.spectrum,
     )
 
 
@@ -110,10 +120,15 @@ def estimate(
     batch: int = 16,
     device: torch.device | str = "cpu",
     refine: bool = True,
+    spectrum: bool = True,
 ) -> Estimate:
     """Estimate a noise profile from reference frames (T, 3, H, W) in [0, 1].
 
     Args:
+        spectrum: with ``refine`` and a network of the sRGB model, measure the spectral model on the reference
+            (:func:`darksynth.estimation.spectrum.estimate_spectrum`) instead of refining the network's sRGB
+            structure: the network's heteroscedastic values and compression are replaced by the spectrum's, its
+            column components kept.
         refine: for a network of the sRGB model, refine its values on the reference itself
             (:func:`darksynth.estimation.refine.refine_profile`); skipped, with a warning, on a reference smaller
             than :data:`REFINE_MIN_SIDE`. The paper's model is never refined (the refinement moves the sRGB structure).
@@ -150,7 +165,10 @@ def estimate(
             f"the first {ANALYSIS_FRAMES} frames, the darkening several spread over the clip); give one shot"
         )
     if refines(noise_model, refine) and len(uniform) < reference.shape[0]:
-        noise = _refine(reference, noise, ranges, meta, warnings, name)
+        if spectrum and min(reference.shape[-2:]) >= REFINE_MIN_SIDE:
+            noise = _measure_spectrum(reference, noise, ranges, meta, warnings, name)
+        else:
+            noise = _refine(reference, noise, ranges, meta, warnings, name)
     level = float(reference.mean())
     if level > BRIGHT_MEAN:
         warnings.append(
@@ -211,6 +229,33 @@ def _refine(
         "network_values": {name: [round(float(v), 5) for v in noise[name].tolist()] for name in noise},
     }
     return refined
+
+
+SPECTRUM_REPLACES = ("shot", "read", "channel_gain", "correlation_length", "channel_correlation", "chroma_length")
+"""The network's sRGB values the measured spectrum replaces: its level curve and octaves hold the level and the
+structure (and its ``compression`` the JPEG stage); the column components stay the network's."""
+
+
+def _measure_spectrum(
+    reference: torch.Tensor,
+    noise: NoiseValues,
+    ranges: dict[str, tuple[tuple[float, float], ...]],
+    meta: dict[str, Any],
+    warnings: list[str],
+    source: str,
+) -> NoiseValues:
+    """The network's values with the heteroscedastic part and compression replaced by the measured spectrum; the
+    replaced parameters lose their ranges (``apply --jitter`` would otherwise add the network's noise back)."""
+    found = estimate_spectrum(reference, name=source)
+    neutral = {name: noise_parameter(name).neutral for name in SPECTRUM_REPLACES}
+    measured = noise.replace(**neutral, **{name: value for name, value in found.values.items()})
+    for name in (*SPECTRUM_REPLACES, "compression"):
+        ranges.pop(name, None)
+    warnings.extend(found.warnings)
+    meta["spectrum"] = found.meta | {
+        "network_values": {name: [round(float(v), 5) for v in noise[name].tolist()] for name in SPECTRUM_REPLACES}
+    }
+    return measured
 
 
 def moved_ranges(

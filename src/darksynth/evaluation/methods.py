@@ -93,14 +93,15 @@ def load_den_weights(name: str, weights: Path, device: str) -> DEN:
         raise MethodUnavailableError(f"{name}: {error}") from None
 
 
-def _den_method(name: str, weights: Path, device: str, *, refine: bool = True) -> NoiseMethod:
+def _den_method(name: str, weights: Path, device: str, *, refine: bool = True, spectrum: bool = True) -> NoiseMethod:
     from darksynth.estimation.assemble import estimate, refines
 
     model = load_den_weights(name, weights, device)
     refined = refines(model.noise_model, refine)
 
     def fit(noisy: torch.Tensor, clean: torch.Tensor) -> NoiseValues:
-        return estimate(noisy.to(torch.float32)[None], model, device=device, refine=refine).profile.noise
+        reference = noisy.to(torch.float32)[None]
+        return estimate(reference, model, device=device, refine=refine, spectrum=spectrum).profile.noise
 
     def synthesize(clean: torch.Tensor, values: NoiseValues, generator: torch.Generator) -> torch.Tensor:
         # The paper's model f(v) on the clean image as it is: it already has the reference's brightness.
@@ -109,7 +110,11 @@ def _den_method(name: str, weights: Path, device: str, *, refine: bool = True) -
     return NoiseMethod(
         name=name,
         summary=f"DEN {model.config.variant}, {model.noise_model} noise model ({weights.name}): v from the noisy "
-        + ("image, refined on it by analysis by synthesis" if refined else "image")
+        + (
+            ("image, its spectrum measured on it" if spectrum else "image, refined on it by analysis by synthesis")
+            if refined
+            else "image"
+        )
         + ", f(v) added to the clean",
         fit=fit,
         synthesize=synthesize,
@@ -217,8 +222,26 @@ def _srgb_method(name: str) -> NoiseMethod:
     )
 
 
+def _spectral_oracle_method() -> NoiseMethod:
+    from darksynth.evaluation.srgb_fit import synthesize_image
+    from darksynth.noise.spectral_fit import oracle_spectral_fit
+
+    def fit(noisy: torch.Tensor, clean: torch.Tensor) -> NoiseValues:
+        return NoiseValues.from_values(oracle_spectral_fit(noisy.to(torch.float32), clean.to(torch.float32)))
+
+    return NoiseMethod(
+        name="spectral-oracle",
+        summary="the spectral model (per-octave colour covariances, level curves, JPEG stage) fitted with the "
+        "clean image by re-synthesis (docs/spectral-noise.md)",
+        fit=fit,
+        synthesize=synthesize_image,
+        oracle=True,
+    )
+
+
 DEN_METHODS: dict[str, tuple[str, str]] = {
     "den": ("srgb", "v3"),
+    "den-srgb": ("srgb", "v3"),
     "den-network": ("srgb", "v3"),
     "den-paper": ("paper", "v3"),
     "den-v2": ("paper", "v2"),
@@ -228,6 +251,9 @@ what ``darksynth estimate`` gives (the sRGB DEN, refined on the reference); ``de
 values without the refinement (its ablation)."""
 
 UNREFINED_DEN_METHODS = frozenset({"den-network"})
+UNMEASURED_SPECTRUM_METHODS = frozenset({"den-srgb"})
+"""``den-srgb``: the version-3 profile (the sRGB structure refined by analysis by synthesis, docs/refine.md), as
+``estimate --no-spectrum`` gives it."""
 
 DEFAULT_METHODS: tuple[str, ...] = (
     "den",
@@ -250,6 +276,9 @@ METHOD_NAMES: tuple[str, ...] = (
     *_SRGB_ORACLES,
     # The sRGB DEN without the refinement on the reference (docs/refine.md), run by name only.
     "den-network",
+    # The version-3 estimate (sRGB structure refined, no spectrum) and the spectral model's clean-aided fit.
+    "den-srgb",
+    "spectral-oracle",
 )
 
 
@@ -267,7 +296,13 @@ def build_method(name: str, *, weights: dict[str, Path] | None = None, device: s
     if name in DEN_METHODS:
         noise_model, variant = DEN_METHODS[name]
         path = DENChoice(weights.get(name), noise_model=noise_model, variant=variant).path()
-        return _den_method(name, path, device, refine=name not in UNREFINED_DEN_METHODS)
+        return _den_method(
+            name,
+            path,
+            device,
+            refine=name not in UNREFINED_DEN_METHODS,
+            spectrum=name not in UNMEASURED_SPECTRUM_METHODS,
+        )
     if name == "den-v1":
         return _den_v1_method(weights.get(name), device)
     if name == "awgn":
@@ -299,6 +334,8 @@ def build_method(name: str, *, weights: dict[str, Path] | None = None, device: s
         return _starlight_method(device)
     if name in _SRGB_ORACLES:
         return _srgb_method(name)
+    if name == "spectral-oracle":
+        return _spectral_oracle_method()
     raise MethodUnavailableError(f"{name}: unknown method (known: {', '.join(METHOD_NAMES)})")
 
 

@@ -27,6 +27,10 @@ SHIPPED_WEIGHTS: Final[Mapping[tuple[str, str], str]] = {
 """The DENs shipped in ``darksynth/data``, by (noise model, variant): the sRGB model as the full v3, the paper's
 model as v3 and as its v2 ablation (encoder and head only). docs/den.md gives the command that made each."""
 
+NETWORK_MODELS: Final[tuple[NoiseModel, ...]] = ("paper", "srgb")
+"""The noise models a DEN predicts (and ``train`` trains): the ``spectral`` model's parameters are measured on the
+reference instead (:mod:`darksynth.estimation.spectrum`), on top of the ``srgb`` network's estimate."""
+
 LOG_LEVELS: Final[Mapping[NoiseModel, bool]] = {"srgb": True, "paper": False}
 """Whether a noise model's DEN predicts the noise levels on a log scale: the sRGB model does (docs/den.md); the
 paper's model keeps the linear scale its shipped weights were trained on."""
