@@ -207,6 +207,11 @@ def estimate_spectrum(reference: torch.Tensor, *, seed: int = 0, name: str = "re
         meta["still_flat_blocks"] = int(both.sum())
         if int(both.sum()) >= MIN_STILL_BLOCKS:
             temporal_mask = _blocks_to_mask(both, height, width)
+            if frames.shape[0] == 2:
+                warnings.append(
+                    f"{name}: 2 frames: the frame-to-frame correlation of the noise is read on one pair of frames "
+                    "(uncertain; give more frames)"
+                )
         else:
             warnings.append(
                 f"{name}: only {int(both.sum())} flat blocks stay still over {frames.shape[0]} frames (the camera "

@@ -1,0 +1,134 @@
+"""The blind spectral estimate (estimation/spectrum.py): round trips of known spectra on drawn scenes, the
+frame-to-frame correlation of clips, and the references that cannot show what is asked (warnings and priors)."""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pytest
+import torch
+
+from darksynth.estimation.spectrum import estimate_spectrum
+from darksynth.evaluation.structure import band_powers, band_ratios
+from darksynth.noise.simulate import add_noise
+from darksynth.noise.spectral import OCTAVES
+from darksynth.noise.spectral_fit import quantised
+from darksynth.noise.values import NoiseValues
+
+
+def _scene(size: int = 320, seed: int = 0) -> torch.Tensor:
+    """A dark scene (3, H, W) of smooth shading with a few flat-shaded rectangles: flat regions, edges between
+    them, no fine texture."""
+    generator = torch.Generator().manual_seed(seed)
+    y, x = torch.meshgrid(torch.linspace(0, 1, size), torch.linspace(0, 1, size), indexing="ij")
+    scene = torch.stack([0.10 + 0.10 * x, 0.08 + 0.12 * y, 0.12 + 0.05 * (x + y)])
+    patch = size // 4
+    for _ in range(6):
+        top, left = (torch.randint(0, size - patch, (2,), generator=generator)).tolist()
+        scene[:, top : top + patch, left : left + patch] = 0.05 + 0.2 * torch.rand(3, 1, 1, generator=generator)
+    return scene
+
+
+def _spectral(octave_power: list[float], level: float = 0.03, temporal: float = 0.0) -> NoiseValues:
+    return NoiseValues.from_values(
+        {
+            "level_curve": [level] * 24,
+            "octave_power": octave_power,
+            "temporal_correlation": [temporal] * OCTAVES,
+        },
+        dtype=torch.float32,
+    )
+
+
+def _noisy(clean: torch.Tensor, values: NoiseValues, seed: int) -> torch.Tensor:
+    """(T, 3, H, W) clean frames with the values' noise, on 8-bit levels."""
+    return quantised(add_noise(clean[None], values, generator=torch.Generator().manual_seed(seed))[0])
+
+
+# Coarse colour blotches over a fine brightness grain, as real sRGB noise has (docs/spectral-noise.md).
+MOTTLED = [1.0, 0.3, 0.3] * 2 + [1.0, 1.5, 1.5] * 2 + [0.5, 4.0, 4.0] * 2
+
+
+def _band_ratio(values: NoiseValues, truth: NoiseValues, clean: torch.Tensor) -> dict[str, np.ndarray]:
+    synthetic = _noisy(clean[None], values, 91)[0] - clean
+    real = _noisy(clean[None], truth, 92)[0] - clean
+    as_array = lambda noise: noise.permute(1, 2, 0).double().numpy()  # noqa: E731
+    return band_ratios(band_powers(as_array(synthetic)), band_powers(as_array(real)))
+
+
+def test_a_mottled_spectrum_on_a_drawn_scene_comes_back_band_by_band() -> None:
+    clean = quantised(_scene())
+    truth = _spectral(MOTTLED)
+    found = estimate_spectrum(_noisy(clean[None], truth, 0), name="mottled.png")
+    assert not found.warnings, found.warnings
+    ratio = _band_ratio(NoiseValues.from_values(found.values, dtype=torch.float32), truth, clean)
+    # The three finer bands (2-16 px) within 25 %, the 16-32 px band within a factor of 2 (0.6-0.7 here). The
+    # coarsest band (32-64 px) is the open shortfall of the blind route (0.36 brightness, 0.14 colour here): the
+    # denoiser leaves nearly all of it in the scene it returns, and the residual's coarse power comes from the
+    # finer noise, so re-synthesis cannot read it (docs/spectral-noise.md); it is not asserted.
+    for component in ("brightness", "colour"):
+        assert np.abs(np.log(ratio[component][:3])).max() < math.log(1.25), (component, ratio[component])
+        assert abs(math.log(ratio[component][3])) < math.log(2.0), (component, ratio[component])
+
+
+def test_a_single_image_gets_the_temporal_prior_and_says_so() -> None:
+    clean = quantised(_scene())
+    found = estimate_spectrum(_noisy(clean[None], _spectral([1.0] * 18), 1), name="one.png")
+    assert torch.equal(found.values["temporal_correlation"], torch.zeros(OCTAVES, dtype=torch.float64))
+    assert "prior 0" in found.meta["temporal_prior"]
+
+
+def test_a_still_clip_gives_its_frame_to_frame_correlation() -> None:
+    clean = quantised(_scene(256)).expand(4, 3, 256, 256)
+    found = estimate_spectrum(_noisy(clean, _spectral([1.0] * 18, temporal=0.6), 2), name="clip")
+    assert not found.warnings, found.warnings
+    temporal = found.values["temporal_correlation"]
+    assert torch.allclose(temporal[:4], torch.full((4,), 0.6, dtype=torch.float64), atol=0.12), temporal
+    independent = estimate_spectrum(_noisy(clean, _spectral([1.0] * 18), 3), name="clip")
+    assert independent.values["temporal_correlation"][:4].abs().max() < 0.1
+
+
+def test_a_clip_whose_camera_moves_in_every_frame_gets_the_prior_with_a_warning() -> None:
+    # Coarse texture everywhere (a 24-px sinusoid of 25 levels), panned 8 px a frame: no block stays still.
+    # (Flat regions would stay "still" under a pan and rightly show the sensor's noise persisting.)
+    y, x = torch.meshgrid(torch.arange(320.0), torch.arange(320.0), indexing="ij")
+    pattern = 0.15 + 0.05 * torch.sin(2 * math.pi * x / 24) * torch.cos(2 * math.pi * y / 24)
+    scene = quantised(pattern.expand(3, 320, 320))
+    moving = torch.stack([scene[:, 8 * t : 8 * t + 256, 8 * t : 8 * t + 256] for t in range(4)])
+    found = estimate_spectrum(_noisy(moving, _spectral([1.0] * 18, temporal=0.6), 4), name="pan.mp4")
+    assert any(w.startswith("pan.mp4: only") and "prior 0" in w for w in found.warnings), found.warnings
+    assert torch.equal(found.values["temporal_correlation"], torch.zeros(OCTAVES, dtype=torch.float64))
+
+
+def test_a_clip_of_two_frames_is_read_on_its_one_pair_and_says_so() -> None:
+    clean = quantised(_scene(256)).expand(2, 3, 256, 256)
+    found = estimate_spectrum(_noisy(clean, _spectral([1.0] * 18, temporal=0.6), 5), name="two")
+    assert any(w.startswith("two: 2 frames") for w in found.warnings), found.warnings
+    assert 0.4 < float(found.values["temporal_correlation"][:4].mean()) < 0.8
+
+
+def test_a_reference_with_no_flat_region_warns_that_texture_may_be_read_as_noise() -> None:
+    # A mosaic of 8-px tiles of random brightness (up to 75 levels apart) everywhere, as foliage or a crowd.
+    generator = torch.Generator().manual_seed(6)
+    tiles = 0.05 + 0.3 * torch.rand(1, 1, 32, 32, generator=generator)
+    mosaic = quantised(torch.nn.functional.interpolate(tiles, scale_factor=8, mode="nearest")[0].expand(3, 256, 256))
+    found = estimate_spectrum(_noisy(mosaic[None], _spectral([1.0] * 18, level=0.01), 6), name="bark.jpg")
+    assert any(w.startswith("bark.jpg: no flat region") for w in found.warnings), found.warnings
+
+
+def test_a_clean_daylight_photo_gets_next_to_no_noise() -> None:
+    # Bright, noise-free apart from its 8-bit rounding (std 0.29 levels): the measured curve stays about one 8-bit
+    # level or below (0.6-1.0 here: the rounding of smooth shading is read as noise), invisible on a bright image,
+    # where estimate warns besides that the reference is not a low-light one.
+    clean = quantised(0.55 + 0.4 * (_scene() - 0.12))
+    found = estimate_spectrum(clean[None], name="day.jpg")
+    assert float(found.values["level_curve"].max()) < 1.25 / 255, found.values["level_curve"]
+
+
+@pytest.mark.parametrize("side", [64, 100])
+def test_small_references_are_measured_without_error(side: int) -> None:
+    clean = quantised(_scene(side))
+    found = estimate_spectrum(_noisy(clean[None], _spectral([1.0] * 18), 7), name="small.png")
+    curve = found.values["level_curve"]
+    assert bool(torch.isfinite(curve).all()) and 0.5 * 0.03 < float(curve.median()) < 2.0 * 0.03
