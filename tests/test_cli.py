@@ -1,5 +1,5 @@
-"""cli.py: each command builds its job's options once, with the library's defaults (no flag, the options'
-default); the installed entry point exits with a real status and one error line."""
+"""The command line (darksynth.cli): each command builds its job's options once, with the library's defaults (no
+flag, the options' default); the installed entry point exits with a real status and one error line."""
 
 from __future__ import annotations
 
@@ -19,9 +19,8 @@ import darksynth.evaluation.job
 import darksynth.training.corpus
 import darksynth.training.loop
 import darksynth.training.weights
-from darksynth import cli
 from darksynth.apply import ApplyOptions, ApplyReport
-from darksynth.cli import app
+from darksynth.cli import app, synthesis
 from darksynth.datasets import ConversionReport, ConvertOptions, Shard
 from darksynth.errors import DarksynthError
 from darksynth.estimation.assemble import EstimateOptions
@@ -113,7 +112,7 @@ def test_apply_without_flags_builds_the_default_options(
         built.append(options)
         return ApplyReport()
 
-    monkeypatch.setattr(cli, "run_with_progress", run)
+    monkeypatch.setattr(synthesis, "run_with_progress", run)
     code, _, err = run_cli("apply", rgb_image, tmp_path / "out.png", "-p", profile_file)
     assert code == 0, err
     (options,) = built

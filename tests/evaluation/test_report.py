@@ -14,13 +14,8 @@ import numpy as np
 import pytest
 from PIL import Image as PILImage
 
-from darksynth.evaluation.report import (
-    ReportExample,
-    render_html,
-    render_markdown,
-    write_html_report,
-    write_markdown,
-)
+from darksynth.evaluation.report import render_markdown, write_markdown
+from darksynth.evaluation.report_html import ReportExample, render_html, write_html_report
 from darksynth.evaluation.results_model import parse_results
 
 needs_matplotlib = pytest.mark.skipif(

@@ -19,13 +19,12 @@ It holds no times and no absolute output paths, so it does not depend on interru
 
 from __future__ import annotations
 
-import dataclasses
 import hashlib
 import json
 import shutil
 import time
 from collections.abc import Callable, Mapping
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 from pathlib import Path
 from typing import Any, Final
 
@@ -33,13 +32,19 @@ import torch
 
 from darksynth import __version__
 from darksynth.apply import MANIFEST_NAME, ApplyOptions, check_video_options, execute, run_task
-from darksynth.datasets.formats import FORMATS, CarriedFile, DatasetFormat, DatasetPlan, MediaItem, plan_dataset
+from darksynth.datasets.convert_options import (
+    SCHEDULING_OPTIONS,
+    ConversionReport,
+    ConvertOptions,
+    Shard,
+    shard_of,
+)
+from darksynth.datasets.formats import CarriedFile, DatasetPlan, MediaItem, plan_dataset
 from darksynth.datasets.formats import rewrite_yolo_yaml as _rewrite_yolo_yaml
 from darksynth.errors import DarksynthError, error_reason
 from darksynth.io.atomic import atomic_output, write_text_atomic
 from darksynth.io.atomic import remove_stale_temps as remove_temps_of
-from darksynth.io.discover import check_output_location
-from darksynth.profile import Profile, profile_to_dict
+from darksynth.profile import profile_to_dict
 from darksynth.synthesize import fixed_darkening
 
 __all__ = [
@@ -69,143 +74,6 @@ _RECORDS: Final = "records"
 
 ProgressCallback = Callable[[int, int], None]
 """Called with (items finished, items of this run) as each item ends (already done items count at the start)."""
-
-
-def shard_of(key: str, count: int) -> int:
-    """The 1-based shard that owns a key: a hash of the relative path, so adding files reshuffles no other file."""
-    digest = hashlib.sha256(f"darksynth-shard:{key}".encode()).digest()
-    return int.from_bytes(digest[:8], "little") % count + 1
-
-
-@dataclass(frozen=True)
-class Shard:
-    """Shard ``index`` (1-based) of ``count``: the items, carried files and problems whose key it owns."""
-
-    index: int
-    count: int
-
-    def __post_init__(self) -> None:
-        if self.count < 1 or not 1 <= self.index <= self.count:
-            raise DarksynthError(f"--shard must be K/N with 1 <= K <= N, got {self.index}/{self.count}")
-
-    @classmethod
-    def parse(cls, text: str) -> Shard:
-        """Read ``"K/N"``."""
-        index, sep, count = text.partition("/")
-        if not sep or not index.strip().isdigit() or not count.strip().isdigit():
-            raise DarksynthError(f"--shard must be K/N, for example 2/8, got {text!r}")
-        return cls(int(index), int(count))
-
-    def owns(self, key: str) -> bool:
-        """Whether this shard handles ``key``."""
-        return shard_of(key, self.count) == self.index
-
-
-SCHEDULING_OPTIONS: Final = frozenset({"output", "workers", "shard", "overwrite"})
-"""The options of :class:`ConvertOptions` that do not change a single output byte, so that a run may resume with
-other values of them: where the output is, how the work is split, and whether an earlier run's state is kept."""
-
-
-@dataclass(frozen=True)
-class ConvertOptions:
-    """Everything a conversion needs, and the defaults of ``darksynth convert``; picklable, so that a Ray or
-    process-pool worker can receive it. :meth:`checked` makes the paths absolute; the functions that take
-    options after it (:func:`convert_item`, :func:`prepare_output`, ...) expect checked options.
-
-    Attributes:
-        dataset: the dataset root.
-        output: the output root (never the dataset or inside it).
-        profile: the noise profile.
-        format: the dataset format, one of :data:`darksynth.datasets.formats.FORMATS`.
-        seed: run seed; each item's seed derives from it and the item's relative path.
-        jitter: draw parameters per item within the profile's ranges; otherwise every item gets the profile's
-            values (see :func:`fixed_darkening` for the darkening).
-        workers: processes on this machine.
-        shard: the part of the dataset this run handles, or None for all of it.
-        images_root: COCO: the folder ``file_name`` entries are relative to (tried first).
-        overwrite: start over in an output written with other options.
-        codec, crf, pix_fmt, device: as for ``apply``.
-    """
-
-    dataset: Path
-    output: Path
-    profile: Profile
-    format: DatasetFormat
-    seed: int = 0
-    jitter: bool = False
-    workers: int = 1
-    shard: Shard | None = None
-    images_root: Path | None = None
-    overwrite: bool = False
-    codec: str | None = None
-    crf: int | None = None
-    pix_fmt: str | None = None
-    device: str = "cpu"
-
-    def checked(self) -> ConvertOptions:
-        """These options with absolute paths, once checked.
-
-        Raises:
-            DarksynthError: an unknown format, fewer than one worker, an output that is the dataset or inside it.
-        """
-        if self.format not in FORMATS:
-            raise DarksynthError(f"unknown dataset format {self.format!r}; use one of {', '.join(FORMATS)}")
-        if self.workers < 1:
-            raise DarksynthError(f"--workers must be at least 1, got {self.workers}")
-        check_output_location(self.dataset, self.output)
-        return dataclasses.replace(self, dataset=self.dataset.resolve(), output=self.output.resolve())
-
-    def apply_options(self) -> ApplyOptions:
-        """The ``apply`` options of each item (``jitter`` means the same for both commands)."""
-        return ApplyOptions(
-            profile=self.profile,
-            seed=self.seed,
-            jitter=self.jitter,
-            workers=self.workers,
-            codec=self.codec,
-            crf=self.crf,
-            pix_fmt=self.pix_fmt,
-            device=self.device,
-        )
-
-    def fingerprint(self) -> dict[str, Any]:
-        """The options that decide the output bytes: all but those of :data:`SCHEDULING_OPTIONS`."""
-        fingerprint: dict[str, Any] = {}
-        for option in dataclasses.fields(self):
-            if option.name in SCHEDULING_OPTIONS:
-                continue
-            value = getattr(self, option.name)
-            if isinstance(value, Profile):
-                value = profile_to_dict(value)
-            elif isinstance(value, Path):
-                value = str(value)
-            fingerprint[option.name] = value
-        return fingerprint
-
-
-@dataclass
-class ConversionReport:
-    """What one run did (this shard only).
-
-    Attributes:
-        converted: items converted by this run.
-        already_done: items found complete from an earlier run and skipped.
-        carried: files copied or rewritten by this run (those already in place are not counted).
-        failures: one line per failed item, bad input found while planning, or file that could not be carried.
-        other_shards: items left to other shards.
-        pending: items of any shard without a record yet (the manifest waits for them).
-        manifest: the manifest path once every item has a record, else None.
-        seconds: wall time of the run.
-    """
-
-    converted: int = 0
-    already_done: int = 0
-    carried: int = 0
-    failures: list[str] = field(default_factory=list)
-    other_shards: int = 0
-    pending: int = 0
-    manifest: Path | None = None
-    seconds: float = 0.0
 
 
 def record_path(output: Path, key: str) -> Path:

@@ -14,7 +14,8 @@ from typing import Any, Final
 
 from darksynth.errors import DarksynthError, error_reason
 from darksynth.evaluation.options import EvaluationOptions
-from darksynth.evaluation.report import write_html_report, write_markdown
+from darksynth.evaluation.report import write_markdown
+from darksynth.evaluation.report_html import write_html_report
 from darksynth.io.atomic import write_text_atomic
 
 Progress = Callable[[str], None]

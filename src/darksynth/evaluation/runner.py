@@ -37,7 +37,7 @@ from darksynth.evaluation.metrics import (
 )
 from darksynth.evaluation.options import EvaluationOptions
 from darksynth.evaluation.pairs import LoadedPair, PairSet, list_pair_sets, load_pair
-from darksynth.evaluation.report import ReportExample
+from darksynth.evaluation.report_html import ReportExample
 from darksynth.evaluation.structure import band_medians, band_powers, band_ratios, band_summary, relative_to_white
 from darksynth.seeding import derive_seed, seeded_generator
 

@@ -1,0 +1,136 @@
+"""How a noise component is declared: the records of the component table and their vocabulary.
+
+The table itself is :data:`darksynth.noise.components.NOISE_COMPONENTS`; the components are declared by noise
+model in :mod:`~darksynth.noise.paper_components`, :mod:`~darksynth.noise.srgb_components` and
+:mod:`~darksynth.noise.spectral_components`.
+
+All values are on the [0, 1] intensity scale of the image.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable, Mapping
+from dataclasses import dataclass
+from typing import Any, Literal
+
+import torch
+
+from darksynth.noise.statistics import PAPER_STATISTICS, EstimatorStatistics
+
+Structure = Literal["pixel", "column", "output"]
+"""How a component varies in the frame.
+
+``pixel``: a new value at every pixel of every frame. ``column``: one value per channel and column, the same
+down the whole column, so the component can be drawn as a (..., T or 1, C, 1, W) row and broadcast.
+``output``: not added but applied to the finished noisy image (after summing and clipping), like a camera's
+compression; its ``draw`` returns the transformed image instead of noise.
+"""
+
+NoiseModel = Literal["paper", "srgb", "spectral"]
+"""``paper``: the paper's five components (profile version 1, DEN model version 1). ``srgb``: those plus the
+structure of real sRGB noise (per-channel gains, spatial and cross-channel correlation, JPEG), measured in
+docs/srgb-noise.md (profile version 2, DEN model version 2). ``spectral``: those plus the measured spectrum
+(per-octave colour covariances, level curves, temporal correlation; docs/spectral-noise.md, profile version 4),
+estimated by measurement on the reference rather than by the network."""
+
+Role = Literal["amplitude", "shape"]
+"""``amplitude``: the component draws nothing when all its amplitude parameters are neutral. ``shape``: shapes
+what the amplitudes draw (a correlation length, a channel gain) and draws nothing by itself."""
+
+FastPath = Literal["fused_8bit", "structured_8bit"]
+"""A specialised implementation of part of f(v). ``fused_8bit``: :mod:`darksynth.noise.kernel8`, one pass over
+an 8-bit frame that draws white heteroscedastic and quantization noise and adds the column components.
+``structured_8bit``: the same pass fed with the sRGB model's structured unit noise (channel gains, spatial and
+colour correlation, drawn by the composer's own function) instead of its counter-based normal, then the
+compression stage: the default path of a profile from ``estimate``."""
+
+FUSED_PATHS: frozenset[FastPath] = frozenset({"fused_8bit", "structured_8bit"})
+"""Both 8-bit kernels: the levels (shot, read), quantization, which they draw themselves, and the column components,
+which the composer draws and they add."""
+
+STRUCTURED_PATHS: frozenset[FastPath] = frozenset({"structured_8bit"})
+"""The sRGB structure (gains, spatial and colour correlation) and compression: the structured path only."""
+
+DrawFunction = Callable[[torch.Tensor, Mapping[str, torch.Tensor], torch.Generator | None], torch.Tensor]
+"""``draw(signal, values, generator) -> noise``: ``signal`` is the darkened clean clip (..., T, C, H, W),
+``values`` maps each of the component's parameter names to a tensor shaped (*batch, size), where *batch are
+the clip's leading dimensions. The noise broadcasts against ``signal``."""
+
+StreamDrawFunction = Callable[
+    [torch.Tensor, Mapping[str, torch.Tensor], torch.Generator | None, dict[str, Any]], torch.Tensor
+]
+"""``draw_in_stream(signal, values, generator, held) -> noise`` for a component whose frames depend on the frames
+before them (temporal correlation): ``held`` is the stream's dict of per-clip objects, the same for every frame
+of a clip, where the component keeps its state."""
+
+VarianceFunction = Callable[[Mapping[str, torch.Tensor], torch.Tensor], torch.Tensor]
+"""``variance(values, channel_means) -> (B, C)``: the component's contribution to the mean noise variance of
+clips whose channels have the mean levels ``channel_means`` (B, C), with ``values`` shaped (B, size)."""
+
+
+@dataclass(frozen=True)
+class Parameter:
+    """One named entry of the noise parameter vector v.
+
+    Attributes:
+        name: key in the profile's ``noise`` object.
+        size: number of values (1 is a JSON number, more is a JSON list of that length).
+        unit: what the value measures, for documentation and error messages.
+        maximum: largest valid value; every value must lie in [0, maximum].
+        training_range: the range drawn from when training the estimator or jittering without a profile range.
+        minimum: smallest valid value.
+        neutral: the value that changes nothing (0 for most, 1 for a gain): what a profile of an older version
+            or a model without the parameter means.
+        noise_model: the first noise model that has the parameter (see :data:`NoiseModel`).
+        since_version: the profile version the parameter arrived in. Parameters of version 1 are required in
+            every profile; later ones are optional (neutral when absent) and refused in older documents.
+        role: see :data:`Role`.
+        training_off_probability: when set, training sets this parameter alone to its neutral value with this
+            probability (shape parameters, so the estimator also sees white, uncompressed noise).
+        log_floor: for a noise level spanning decades: with a log level prior, training draws it log-uniformly
+            over [log_floor, training high] and the estimator predicts its logarithm (values below the floor
+            read as the floor), so a level of 0.005 is estimated as precisely, relatively, as one of 0.05.
+            This is also the scale of the estimator's output head for the parameter.
+        statistics: the fixed statistics that reveal the parameter to the estimator; the head of a noise model
+            reads those of all its parameters (:func:`model_statistics`).
+        fast_paths: the fast paths that draw this parameter at any value; every other fast path is taken only
+            while the parameter is neutral (:meth:`darksynth.noise.values.NoiseValues.covered_by`).
+    """
+
+    name: str
+    size: int
+    unit: str
+    maximum: float
+    training_range: tuple[float, float]
+    minimum: float = 0.0
+    neutral: float = 0.0
+    noise_model: NoiseModel = "paper"
+    since_version: int = 1
+    role: Role = "amplitude"
+    training_off_probability: float | None = None
+    log_floor: float | None = None
+    statistics: EstimatorStatistics = PAPER_STATISTICS
+    fast_paths: frozenset[FastPath] = frozenset()
+
+
+@dataclass(frozen=True)
+class NoiseComponent:
+    """One term of f(v) with the parameters it reads, the function that draws it and its variance."""
+
+    name: str
+    parameters: tuple[Parameter, ...]
+    structure: Structure
+    draw: DrawFunction
+    reference: str
+    variance: VarianceFunction | None
+    """Its term of the mean noise variance (:func:`darksynth.noise.level.mean_noise_variance`); None for an
+    output stage, which transforms the image instead of adding to it."""
+    per_clip: bool = False
+    """True when one draw is held over all frames of a clip: a frame-by-frame stream draws it once."""
+    draw_in_stream: StreamDrawFunction | None = None
+    """How a frame-by-frame stream draws it, for a component with memory from frame to frame; None: ``draw``."""
+
+
+def shapes_neutral(parameters: tuple[Parameter, ...], values: Mapping[str, torch.Tensor]) -> bool:
+    """Whether none of ``parameters``' shape parameters is set: what they shape is the paper's white noise."""
+    return all(bool((values[p.name] == p.neutral).all()) for p in parameters if p.role == "shape")

@@ -1,0 +1,137 @@
+"""The measured-spectrum model's component: noise with the reference's spectrum per octave, its level curve per
+channel and its correlation from frame to frame (docs/spectral-noise.md).
+
+All values are on the [0, 1] intensity scale of the image.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Mapping
+from typing import Any
+
+import torch
+
+from darksynth.noise.component_types import NoiseComponent, Parameter
+from darksynth.noise.spectral import LEVEL_KNOTS, OCTAVES, level_std, octave_covariances, spectral_clip_noise
+from darksynth.noise.statistics import SRGB_STATISTICS
+
+# The measured-spectrum model (docs/spectral-noise.md): real sRGB noise has a fine brightness grain over coarse
+# colour mottle (colour 8-75x white noise's power at 16-64 px on the real pairs) and, in video, persists from
+# frame to frame. Its structure is a covariance of brightness and colour per octave, its level a curve per channel.
+_SPECTRAL_PARAMETERS: tuple[Parameter, ...] = (
+    Parameter(
+        "level_curve",
+        3 * len(LEVEL_KNOTS),
+        "noise std of red, green and blue (8 values each) at the intensities "
+        + ", ".join(f"{k:.3f}" for k in LEVEL_KNOTS)
+        + ", linear between them",
+        1.0,
+        (0.0, 0.08),
+        noise_model="spectral",
+        since_version=4,
+        statistics=SRGB_STATISTICS,
+    ),
+    Parameter(
+        "octave_power",
+        3 * OCTAVES,
+        "per octave (finest first: wavelengths 2.8, 5.7, 11, 23, 45, 90 px) the power of brightness, colour "
+        "(red-blue) and colour (magenta-green) noise relative to white noise (1: white)",
+        1.0e4,
+        (0.2, 20.0),
+        neutral=1.0,
+        noise_model="spectral",
+        since_version=4,
+        statistics=SRGB_STATISTICS,
+        role="shape",
+    ),
+    Parameter(
+        "octave_correlation",
+        3 * OCTAVES,
+        "per octave the correlation of brightness-colour1, brightness-colour2 and colour1-colour2 noise",
+        0.99,
+        (-0.3, 0.3),
+        minimum=-0.99,
+        noise_model="spectral",
+        since_version=4,
+        statistics=SRGB_STATISTICS,
+        role="shape",
+    ),
+    Parameter(
+        "temporal_correlation",
+        OCTAVES,
+        "per octave the correlation of a frame's noise with the previous frame's (AR(1); 0 for independent frames)",
+        0.99,
+        (0.0, 0.9),
+        noise_model="spectral",
+        since_version=4,
+        statistics=SRGB_STATISTICS,
+        role="shape",
+        training_off_probability=0.5,
+    ),
+)
+
+
+def _spectral_clips(
+    signal: torch.Tensor,
+    values: Mapping[str, torch.Tensor],
+    generator: torch.Generator | None,
+    held: dict[str, Any] | None,
+) -> torch.Tensor:
+    if generator is None:
+        generator = torch.default_generator
+    # A single frame (C, H, W), as streaming passes it, is a clip of one frame.
+    clips = signal if signal.dim() >= 4 else signal[None]
+    batch = tuple(clips.shape[:-4])
+    flat = clips.reshape(-1, *clips.shape[-4:])
+    names = ("level_curve", "octave_power", "octave_correlation", "temporal_correlation")
+    flat_values = [
+        values[name].expand(*batch, values[name].shape[-1]).reshape(-1, values[name].shape[-1]) for name in names
+    ]
+    noise = []
+    for index, clip in enumerate(flat):
+        curve, power, correlation, temporal = (v[index] for v in flat_values)
+        noise.append(
+            spectral_clip_noise(
+                clip,
+                curve,
+                octave_covariances(power, correlation),
+                temporal,
+                generator=generator,
+                # A stream is one clip; a batch of clips never shares one clip's state.
+                state=held if flat.shape[0] == 1 else None,
+            )
+        )
+    return torch.stack(noise).reshape(signal.shape)
+
+
+def _draw_spectral(
+    signal: torch.Tensor, values: Mapping[str, torch.Tensor], generator: torch.Generator | None
+) -> torch.Tensor:
+    return _spectral_clips(signal, values, generator, None)
+
+
+def _draw_spectral_in_stream(
+    signal: torch.Tensor, values: Mapping[str, torch.Tensor], generator: torch.Generator | None, held: dict[str, Any]
+) -> torch.Tensor:
+    return _spectral_clips(signal, values, generator, held)
+
+
+def _spectral_variance(values: Mapping[str, torch.Tensor], channel_means: torch.Tensor) -> torch.Tensor:
+    # The unit noise has unit variance per channel; the level curve at each channel's mean gives its std.
+    rows = [
+        level_std(means[:, None, None], curve)
+        for means, curve in zip(channel_means, values["level_curve"], strict=True)
+    ]
+    return torch.stack(rows)[..., 0, 0].square()
+
+
+SPECTRAL = NoiseComponent(
+    name="spectral",
+    parameters=_SPECTRAL_PARAMETERS,
+    structure="pixel",
+    draw=_draw_spectral,
+    draw_in_stream=_draw_spectral_in_stream,
+    variance=_spectral_variance,
+    reference="Lebrun, Colom and Morel 2015, The Noise Clinic; Norkin and Birkbeck 2018, AV1 film grain; "
+    "docs/spectral-noise.md",
+)
