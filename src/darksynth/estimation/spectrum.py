@@ -24,6 +24,7 @@ blocks is measured on its least textured ones, with a warning that texture may b
 from __future__ import annotations
 
 import math
+from collections.abc import Callable
 from dataclasses import dataclass, field
 from typing import Any
 
@@ -38,6 +39,7 @@ from darksynth.noise.spectral_fit import (
     COMPRESSION_CANDIDATES,
     SpectralParameters,
     SpectralStatistics,
+    continue_octaves,
     fit_by_resynthesis,
     initial_parameters,
     measure,
@@ -77,6 +79,17 @@ NLM_STRENGTH = 1.0
 
 START_ITERATIONS, FINAL_ITERATIONS = 2, 3
 """Corrections with each JPEG candidate (one draw), then with the best one (two draws)."""
+
+PROBED_OCTAVES = range(2, OCTAVES)
+"""Octaves whose visibility is probed (11 px and coarser); the two finest are always in the denoiser's residual."""
+
+PROBE_BOOST = 4.0
+"""Factor by which a probe raises one octave's power over white noise."""
+
+MIN_RESPONSE = 0.35
+"""An octave is measured when its band's statistic follows its power with at least this exponent (1: in
+proportion; 0: not at all). Below it the band holds mostly other octaves' leakage and the scene, a fit would
+read noise of its own sampling error (on a 384-px LOL reference the 90-px octave came out 1000x the others')."""
 
 
 @dataclass
@@ -149,14 +162,23 @@ def flat_mask(denoised: torch.Tensor) -> tuple[torch.Tensor, float]:
     return _blocks_to_mask(flat, *denoised.shape[-2:]), float(gradient[flat].mean())
 
 
+def _plane_projection(side: int) -> torch.Tensor:
+    """(side^2, side^2) least-squares projection of a side x side block onto planes a + b x + c y."""
+    y, x = torch.meshgrid(torch.linspace(-1, 1, side), torch.linspace(-1, 1, side), indexing="ij")
+    basis = torch.stack([torch.ones(side * side), x.flatten(), y.flatten()], dim=1)
+    return basis @ torch.linalg.pinv(basis)
+
+
 def flat_block_std(frames: torch.Tensor) -> float:
     """Std in 8-bit levels of the noise on the flattest blocks of the first frame of (T, 3, H, W): per block and
-    channel the std about the block's mean, the median over the blocks, averaged over the channels. It holds every
-    scale of the noise below the block size (the finest detail alone misses correlated noise) and little texture:
-    the strength the denoiser is set from."""
+    channel the std about the block's least-squares plane (shading across a flat wall is not noise: about its
+    mean, a clean 8-bit ramp read as 3.7 levels of noise), the median over the blocks, averaged over the channels.
+    It holds every scale of the noise below the block size (the finest detail alone misses correlated noise) and
+    little texture: the strength the denoiser is set from."""
     frame = frames[0]
     blocks = F.unfold(frame[:, None], BLOCK, stride=BLOCK)  # (3, BLOCK^2, blocks)
-    std = blocks.std(dim=1)  # (3, blocks)
+    detrended = blocks - torch.einsum("ij,cjn->cin", _plane_projection(BLOCK).to(blocks), blocks)
+    std = (detrended.square().sum(dim=1) / (BLOCK * BLOCK - 3)).sqrt()  # (3, blocks)
     smooth = F.avg_pool2d(frame[None], 5, stride=1, padding=2)[0]
     gradient = block_gradient(smooth).flatten()[: std.shape[1]]
     count = max(1, round(FLAT_SHARE * gradient.numel()))
@@ -168,6 +190,25 @@ def _still_mask(denoised: torch.Tensor) -> torch.Tensor:
     """Blocks (H // BLOCK, W // BLOCK) whose denoised content stays within STILL_CHANGE of the first frame's."""
     change = (denoised - denoised[:1]).abs().mean(dim=(0, 1))[None, None]
     return F.avg_pool2d(change, BLOCK)[0, 0] < STILL_CHANGE
+
+
+def octave_responses(
+    simulate_and_measure: Callable[[SpectralParameters, int], SpectralStatistics], start: SpectralParameters
+) -> torch.Tensor:
+    """How much each octave's band statistic follows that octave's power on this reference: white noise at the
+    measured level, then each probed octave's power times :data:`PROBE_BOOST`, through the same simulation; the
+    exponent ``log(band ratio) / log(boost)`` per octave (1 for the unprobed fine ones)."""
+    identity = torch.eye(3, dtype=torch.float64).expand(OCTAVES, 3, 3)
+    white = SpectralParameters(covariances=identity.clone(), curve=start.curve, temporal=start.temporal)
+    base = simulate_and_measure(white, 0).cross_power.diagonal(dim1=-2, dim2=-1).sum(-1)
+    responses = torch.ones(OCTAVES, dtype=torch.float64)
+    for octave in PROBED_OCTAVES:
+        covariances = identity.clone()
+        covariances[octave] = covariances[octave] * PROBE_BOOST
+        boosted = SpectralParameters(covariances=covariances, curve=start.curve, temporal=start.temporal)
+        power = simulate_and_measure(boosted, 0).cross_power.diagonal(dim1=-2, dim2=-1).sum(-1)
+        responses[octave] = torch.log(power[octave] / base[octave].clamp_min(1e-30)) / math.log(PROBE_BOOST)
+    return responses
 
 
 def estimate_spectrum(reference: torch.Tensor, *, seed: int = 0, name: str = "reference") -> SpectrumEstimate:
@@ -236,15 +277,27 @@ def estimate_spectrum(reference: torch.Tensor, *, seed: int = 0, name: str = "re
         return simulate_and_measure
 
     start = initial_parameters(target)
+    responses = octave_responses(simulator(0.0), start)
+    first_unmeasured = next((k for k in PROBED_OCTAVES if responses[k] < MIN_RESPONSE), OCTAVES)
+    meta["octave_response"] = [round(float(r), 3) for r in responses]
+    if first_unmeasured < OCTAVES:
+        meta["octave_prior"] = (
+            f"octaves {first_unmeasured + 1}-{OCTAVES} (wavelengths from {2 ** (first_unmeasured + 1.5):.0f} px) "
+            "barely move this reference's statistics: they continue the finer octaves' spectrum"
+        )
+
+    def constrain(parameters: SpectralParameters) -> SpectralParameters:
+        return continue_octaves(parameters, first_unmeasured)
+
     scores: dict[float, float] = {}
     fits: dict[float, SpectralParameters] = {}
     for compression in COMPRESSION_CANDIDATES:
         fits[compression], scores[compression] = fit_by_resynthesis(
-            target, simulator(compression), start=start, iterations=START_ITERATIONS, draws=1
+            target, simulator(compression), start=start, iterations=START_ITERATIONS, draws=1, constrain=constrain
         )
     chosen = min(scores, key=lambda c: scores[c])
     fitted, left_over = fit_by_resynthesis(
-        target, simulator(chosen), start=fits[chosen], iterations=FINAL_ITERATIONS, draws=2
+        target, simulator(chosen), start=fits[chosen], iterations=FINAL_ITERATIONS, draws=2, constrain=constrain
     )
     if target.temporal is None:
         fitted.temporal = torch.zeros(OCTAVES, dtype=torch.float64)

@@ -258,11 +258,16 @@ def fit_by_resynthesis(
     start: SpectralParameters | None = None,
     iterations: int = 4,
     draws: int = 2,
+    constrain: Callable[[SpectralParameters], SpectralParameters] | None = None,
 ) -> tuple[SpectralParameters, float]:
     """Indirect inference: from ``start`` (the measurement itself by default), ``iterations`` corrections, each
     from the mean statistics of ``draws`` simulations (``simulate_and_measure(parameters, seed)``). Returns the
-    parameters and the :func:`mismatch` of the simulations of the last step (before its correction)."""
+    parameters and the :func:`mismatch` of the simulations of the last step (before its correction).
+    ``constrain`` is applied to the start and after every correction (a prior holding what the statistics
+    cannot move, e.g. :func:`continue_octaves`)."""
     parameters = start if start is not None else initial_parameters(target)
+    if constrain is not None:
+        parameters = constrain(parameters)
     left = math.inf
     for _ in range(iterations):
         # The same draws at every step (common random numbers): the step is then a fixed map, which converges,
@@ -270,7 +275,23 @@ def fit_by_resynthesis(
         simulated = average([simulate_and_measure(parameters, d) for d in range(draws)])
         left = mismatch(target, simulated)
         parameters = corrected(parameters, target, simulated)
+        if constrain is not None:
+            parameters = constrain(parameters)
     return parameters, left
+
+
+def continue_octaves(parameters: SpectralParameters, first_unmeasured: int) -> SpectralParameters:
+    """The prior for octaves a reference cannot show: from ``first_unmeasured`` on (coarser), every octave's
+    covariance relative to white and its frame-to-frame correlation are those of the finest octave before it, i.e.
+    the spectrum measured so far is continued flat instead of being read from statistics that do not respond to it
+    (a band that holds mostly the still scene's leakage reads as noise persisting fully from frame to frame)."""
+    if first_unmeasured >= OCTAVES or first_unmeasured < 1:
+        return parameters
+    covariances = parameters.covariances.clone()
+    covariances[first_unmeasured:] = covariances[first_unmeasured - 1]
+    temporal = parameters.temporal.clone()
+    temporal[first_unmeasured:] = temporal[first_unmeasured - 1]
+    return SpectralParameters(covariances=covariances, curve=parameters.curve, temporal=temporal)
 
 
 def spectral_covariances_of(values: dict[str, torch.Tensor]) -> torch.Tensor:
