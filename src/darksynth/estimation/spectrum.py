@@ -166,7 +166,8 @@ def _plane_projection(side: int) -> torch.Tensor:
     """(side^2, side^2) least-squares projection of a side x side block onto planes a + b x + c y."""
     y, x = torch.meshgrid(torch.linspace(-1, 1, side), torch.linspace(-1, 1, side), indexing="ij")
     basis = torch.stack([torch.ones(side * side), x.flatten(), y.flatten()], dim=1)
-    return basis @ torch.linalg.pinv(basis)
+    projection: torch.Tensor = basis @ torch.linalg.pinv(basis)
+    return projection
 
 
 def flat_block_std(frames: torch.Tensor) -> float:
