@@ -249,11 +249,12 @@ def _measure_spectrum(
     found = estimate_spectrum(reference, name=source)
     neutral = {name: noise_parameter(name).neutral for name in SPECTRUM_REPLACES}
     measured = noise.replace(**neutral, **{name: value for name, value in found.values.items()})
-    for name in (*SPECTRUM_REPLACES, "compression"):
+    replaced = (*SPECTRUM_REPLACES, "compression")
+    for name in replaced:
         ranges.pop(name, None)
     warnings.extend(found.warnings)
     meta["spectrum"] = found.meta | {
-        "network_values": {name: [round(float(v), 5) for v in noise[name].tolist()] for name in SPECTRUM_REPLACES}
+        "network_values": {name: [round(float(v), 5) for v in noise[name].tolist()] for name in replaced}
     }
     return measured
 
