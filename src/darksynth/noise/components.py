@@ -47,19 +47,30 @@ Role = Literal["amplitude", "shape"]
 """``amplitude``: the component draws nothing when all its amplitude parameters are neutral. ``shape``: shapes
 what the amplitudes draw (a correlation length, a channel gain) and draws nothing by itself."""
 
-FastPath = Literal["fused_8bit", "structured_8bit"]
+FastPath = Literal["fused_8bit", "structured_8bit", "spectral_8bit"]
 """A specialised implementation of part of f(v). ``fused_8bit``: :mod:`darksynth.noise.kernel8`, one pass over
 an 8-bit frame that draws white heteroscedastic and quantization noise and adds the column components.
 ``structured_8bit``: the same pass fed with the sRGB model's structured unit noise (channel gains, spatial and
 colour correlation, drawn by the composer's own function) instead of its counter-based normal, then the
-compression stage: the default path of a profile from ``estimate``."""
+compression stage: the compiled path of an sRGB profile. ``spectral_8bit``: :mod:`darksynth.noise.spectral_8bit`,
+the spectral model's unit noise scaled by the level curve's std read from a table of the 256 input levels, then
+the composer's quantization, column components and compression: the default path of a profile from ``estimate``."""
 
 _FUSED: frozenset[FastPath] = frozenset({"fused_8bit", "structured_8bit"})
 """Both 8-bit kernels: the levels (shot, read), quantization, which they draw themselves, and the column components,
 which the composer draws and they add."""
 
 _STRUCTURED: frozenset[FastPath] = frozenset({"structured_8bit"})
-"""The sRGB structure (gains, spatial and colour correlation) and compression: the structured path only."""
+"""The sRGB structure (gains, spatial and colour correlation): the structured path only."""
+
+_SPECTRAL: frozenset[FastPath] = frozenset({"spectral_8bit"})
+"""The spectrum and the level curve: the spectral path only."""
+
+_ALL_8BIT: frozenset[FastPath] = _FUSED | _SPECTRAL
+"""Quantization and the column components, which every 8-bit path draws as the composer does."""
+
+_COMPRESSION: frozenset[FastPath] = _STRUCTURED | _SPECTRAL
+"""The compression stage, which the structured and the spectral path run after their per-pixel pass."""
 
 DrawFunction = Callable[[torch.Tensor, Mapping[str, torch.Tensor], torch.Generator | None], torch.Tensor]
 """``draw(signal, values, generator) -> noise``: ``signal`` is the darkened clean clip (..., T, C, H, W),
@@ -330,6 +341,7 @@ _SPECTRAL_PARAMETERS: tuple[Parameter, ...] = (
         1.0,
         (0.0, 0.08),
         noise_model="spectral",
+        fast_paths=_SPECTRAL,
         since_version=4,
         statistics=SRGB_STATISTICS,
     ),
@@ -342,6 +354,7 @@ _SPECTRAL_PARAMETERS: tuple[Parameter, ...] = (
         (0.2, 20.0),
         neutral=1.0,
         noise_model="spectral",
+        fast_paths=_SPECTRAL,
         since_version=4,
         statistics=SRGB_STATISTICS,
         role="shape",
@@ -354,6 +367,7 @@ _SPECTRAL_PARAMETERS: tuple[Parameter, ...] = (
         (-0.3, 0.3),
         minimum=-0.99,
         noise_model="spectral",
+        fast_paths=_SPECTRAL,
         since_version=4,
         statistics=SRGB_STATISTICS,
         role="shape",
@@ -365,6 +379,7 @@ _SPECTRAL_PARAMETERS: tuple[Parameter, ...] = (
         0.99,
         (0.0, 0.9),
         noise_model="spectral",
+        fast_paths=_SPECTRAL,
         since_version=4,
         statistics=SRGB_STATISTICS,
         role="shape",
@@ -459,7 +474,7 @@ NOISE_COMPONENTS: tuple[NoiseComponent, ...] = (
                 1.0,
                 (0.0, 0.02),
                 log_floor=0.0002,
-                fast_paths=_FUSED,
+                fast_paths=_ALL_8BIT,
             ),
         ),
         structure="pixel",
@@ -477,7 +492,7 @@ NOISE_COMPONENTS: tuple[NoiseComponent, ...] = (
                 1.0,
                 (0.0, 0.03),
                 log_floor=0.0003,
-                fast_paths=_FUSED,
+                fast_paths=_ALL_8BIT,
             ),
         ),
         structure="column",
@@ -495,7 +510,7 @@ NOISE_COMPONENTS: tuple[NoiseComponent, ...] = (
                 1.0,
                 (0.0, 0.03),
                 log_floor=0.0003,
-                fast_paths=_FUSED,
+                fast_paths=_ALL_8BIT,
             ),
         ),
         structure="column",
@@ -514,7 +529,7 @@ NOISE_COMPONENTS: tuple[NoiseComponent, ...] = (
                 1.0,
                 (0.0, 0.02),
                 log_floor=0.0002,
-                fast_paths=_FUSED,
+                fast_paths=_ALL_8BIT,
             ),
         ),
         structure="column",
@@ -532,7 +547,7 @@ NOISE_COMPONENTS: tuple[NoiseComponent, ...] = (
                 0.95,
                 (0.0, 0.7),
                 noise_model="srgb",
-                fast_paths=_STRUCTURED,
+                fast_paths=_COMPRESSION,
                 since_version=2,
                 statistics=SRGB_STATISTICS,
                 training_off_probability=0.4,
@@ -592,6 +607,14 @@ def model_statistics(noise_model: NoiseModel = "srgb", version: int | None = Non
         if parameter.statistics not in found:
             found.append(parameter.statistics)
     return tuple(found)
+
+
+def noise_component(name: str) -> NoiseComponent:
+    """The component called ``name``; raises KeyError naming the known ones."""
+    for component in NOISE_COMPONENTS:
+        if component.name == name:
+            return component
+    raise KeyError(f"unknown noise component {name!r}; known: {', '.join(c.name for c in NOISE_COMPONENTS)}")
 
 
 def noise_parameter(name: str) -> Parameter:
