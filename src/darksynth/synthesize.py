@@ -266,9 +266,10 @@ class ClipSynthesizer:
         compressed = apply_output_stages(out.to(torch.float32)[None] / FULL_SCALE, values, generator=self.generator)
         return _to_dtype(compressed[0], frame.dtype)
 
-    def _spectral_8bit(self, frame: torch.Tensor) -> torch.Tensor:
-        """The frame through the spectral path: the composer's draws in the composer's order (columns, the
-        spectral unit noise, quantization, the output stages), the level and std read from 8-bit tables."""
+    def _spectral_8bit(self, frame: torch.Tensor, *, rounded: bool = True) -> torch.Tensor:
+        """The uint8 frame through the spectral path: the composer's draws in the composer's order (columns, the
+        spectral unit noise, quantization, the output stages), the level and std read from 8-bit tables. Not
+        ``rounded``: the float32 result in [0, 1], before the rounding to 8 bits."""
         values = self._values
         columns = None
         if column_components_active(values):
@@ -296,10 +297,14 @@ class ClipSynthesizer:
         )
         generator = self.generator if self.generator is not None else torch.default_generator
         compressed = not values.is_neutral(noise_parameter("compression"))
-        noisy = self._spectral_pass.noisy(frame, grid.frame(generator), columns, generator, rounded=not compressed)
-        if not compressed:
-            return noisy
-        return to_8bit(apply_output_stages(noisy[None], values, generator=self.generator)[0])
+        noisy = self._spectral_pass.noisy(
+            frame, grid.frame(generator), columns, generator, rounded=rounded and not compressed
+        )
+        if compressed:
+            noisy = apply_output_stages(noisy[None], values, generator=self.generator)[0]
+            return to_8bit(noisy) if rounded else noisy
+        # Not rounded, the result is the pass's own array, which the next frame overwrites.
+        return noisy if rounded else noisy.clone()
 
 
 def _full_scale(dtype: torch.dtype) -> float | None:
@@ -386,12 +391,31 @@ def synthesize(
 
 
 def _synthesize_clip(clip: torch.Tensor, parameters: ClipParameters, generator: torch.Generator | None) -> torch.Tensor:
+    if clip.shape[0] == 1 and clip.dtype.is_floating_point:
+        # A float image of 8-bit levels (``ToTensor`` of a PNG or JPEG, as training loops pass them) has the
+        # 8-bit path's tables: the composer's draws in the composer's order, so the same result.
+        synthesizer = ClipSynthesizer(parameters, generator=generator, device=clip.device)
+        levels = _eight_bit_levels(clip[0]) if synthesizer._spectral else None
+        if levels is not None:
+            return _to_dtype(synthesizer._spectral_8bit(levels, rounded=False)[None], clip.dtype)
     scale = _full_scale(clip.dtype)
     clean = clip.to(torch.float32) / scale if scale else clip.to(torch.float32)
     darkening = parameters.darkening
     signal = clean if darkening is None else darken(clean, darkening.alpha, darkening.gamma)
     noisy = add_noise(signal, parameters.noise, generator=generator)
     return _to_dtype(noisy, clip.dtype)
+
+
+def _eight_bit_levels(frame: torch.Tensor) -> torch.Tensor | None:
+    """The uint8 levels of a float frame whose every value is a level ``k / 255`` as float32 computes it, else
+    None."""
+    values = frame.to(torch.float32)
+    # The first row first: a frame of other values is usually told from it at once.
+    for part in (values[..., :1, :], values):
+        levels = (part * 255.0).round_().clamp_(0.0, 255.0)
+        if not torch.equal(levels / 255.0, part):
+            return None
+    return levels.to(torch.uint8)
 
 
 def _from_numpy(array: np.ndarray) -> tuple[torch.Tensor, str]:

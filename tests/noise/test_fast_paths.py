@@ -8,13 +8,15 @@ import sys
 import pytest
 import torch
 
-from darksynth.darkening import Darkening
+from darksynth.darkening import Darkening, darken
 from darksynth.noise import kernel8
 from darksynth.noise.kernel8 import FAST_PATH, STRUCTURED_PATH
+from darksynth.noise.simulate import add_noise
 from darksynth.noise.spectral import OCTAVES
 from darksynth.noise.spectral_8bit import read_levels, read_levels_by_index
 from darksynth.noise.values import NoiseValues
-from darksynth.synthesize import ClipParameters, ClipSynthesizer
+from darksynth.profile import Profile
+from darksynth.synthesize import ClipParameters, ClipSynthesizer, draw_clip_parameters, synthesize
 
 PAPER = {"shot": 0.05, "read": 0.01, "quantization": 0.004, "banding": 0.003, "temporal_banding": 0.002}
 
@@ -225,3 +227,23 @@ def test_the_level_tables_read_by_opencv_and_by_torch_indexing_agree() -> None:
     expected = torch.stack([table[channel][frame[channel].long()] for channel in range(3)])
     assert torch.equal(read_levels(frame, table, torch.empty(3, 33, 47)), expected)
     assert torch.equal(read_levels_by_index(frame, table, torch.empty(3, 33, 47)), expected)
+
+
+@pytest.mark.parametrize("compression", [0.0, 0.3])
+def test_a_float_image_of_8bit_levels_takes_the_spectral_path_with_the_composers_bits(compression: float) -> None:
+    values = NoiseValues.from_values(SPECTRAL | {"compression": compression, "banding": 0.002})  # type: ignore[arg-type]
+    profile = Profile(noise=values, darkening=Darkening(0.3, 0.7))
+    levels = torch.randint(0, 256, (3, 40, 56), dtype=torch.uint8, generator=torch.Generator().manual_seed(0))
+    image = levels.float() / 255.0
+    taken = synthesize(image, profile, generator=torch.Generator().manual_seed(2)).image
+    generator = torch.Generator().manual_seed(2)
+    parameters = draw_clip_parameters(profile, generator=generator)
+    assert parameters.darkening is not None
+    signal = darken(image[None], parameters.darkening.alpha, parameters.darkening.gamma)
+    composed = add_noise(signal, parameters.noise.to(dtype=torch.float32), generator=generator)[0]
+    assert isinstance(taken, torch.Tensor) and taken.dtype == torch.float32
+    assert torch.equal(taken, composed)
+    # Off the 8-bit levels the composer runs; the law is the same.
+    off_grid = synthesize(image + 1e-4, profile, generator=torch.Generator().manual_seed(2)).image
+    assert isinstance(off_grid, torch.Tensor)
+    assert (off_grid - taken).abs().mean() < 0.02
