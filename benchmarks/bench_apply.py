@@ -4,7 +4,8 @@ Run: ``.venv/bin/python benchmarks/bench_apply.py [--rounds N] [--block K]``. Ea
 frames of each method in turn (a stream of frames, as in a video), so that a slow moment of the machine hits
 all of them alike; medians over all timed frames are printed. The first line is the CPU and its vector
 extensions. The last line is ``apply_ms=<a> floor_ms=<b> albumentations_gauss_ms=<c> default_ms=<d>
-srgb_ms=<d3> srgb_floor_ms=<e> albumentations_chain_ms=<f> synthesize_ms=<s> synthesize_float_ms=<sf>``:
+srgb_ms=<d3> srgb_floor_ms=<e> albumentations_chain_ms=<f> synthesize_ms=<s> synthesize_float_ms=<sf>
+spectral_floor_ms=<g>``:
 
 - a: the paper's model, every component on, darkening on, compiled kernel; b: ``torch.randn`` + ``torch.rand`` of
   the frame; c: albumentations ``GaussNoise``;
@@ -17,7 +18,7 @@ srgb_ms=<d3> srgb_floor_ms=<e> albumentations_chain_ms=<f> synthesize_ms=<s> syn
 - s: one image (uint8 tensor) through ``darksynth.synthesize`` with the default profile, no compile step, what a
   training transform runs on 8-bit input in a DataLoader worker (drawing the parameters and a new synthesizer per
   call); sf: the same image as float in [0, 1] (on the 8-bit levels, as ``ToTensor`` gives it);
-- the spectral path's floor: ``normal_`` of its FFT grid, the ``irfft2`` and the quantization bytes of the frame.
+- g: the spectral path's floor, ``normal_`` of its FFT grid, the ``irfft2`` and the quantization bytes of the frame.
 
 ``--device cuda`` runs the darksynth figures on that device (the floors and albumentations stay on the CPU).
 """
