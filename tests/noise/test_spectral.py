@@ -15,9 +15,7 @@ from darksynth.noise.spectral import (
     TABLE_CACHE_SIZE,
     SpectralGrid,
     level_std,
-    lower_triangular_factor,
     octave_covariances,
-    radial_factor,
     spectral_tables,
 )
 from darksynth.noise.spectral_fit import (
@@ -127,21 +125,6 @@ def test_level_std_by_arithmetic_equals_the_curve_found_by_search(channels: int)
     darkened = 0.2 * levels.pow(1 / 0.7)
     for signal in (continuous, knots, levels, darkened):
         assert torch.allclose(level_std(signal, curve).double(), _level_std_by_search(signal, curve), atol=1e-7)
-
-
-def test_the_triangular_factor_has_the_covariance_of_the_eigen_factor_even_when_singular() -> None:
-    correlation = torch.tensor([0.99, 0.99, -0.99] * OCTAVES)
-    power = torch.tensor([1.0, 30.0, 0.2] * OCTAVES)
-    for covariances in (octave_covariances(power, correlation), octave_covariances(power, torch.zeros(18))):
-        factor = radial_factor(covariances, 3)
-        lower = lower_triangular_factor(factor)
-        assert torch.equal(lower, lower.tril())
-        expected = factor @ factor.transpose(-1, -2)
-        assert torch.allclose(lower @ lower.transpose(-1, -2), expected, atol=1e-12 * float(expected.abs().max()))
-    # Singular: brightness and colour fully correlated.
-    singular = torch.ones(3, 3, dtype=torch.float64)
-    lower = lower_triangular_factor(singular)
-    assert torch.allclose(lower @ lower.T, singular @ singular.T, atol=1e-12)
 
 
 def test_grids_of_one_spectrum_share_their_tables_and_the_cache_stays_small() -> None:

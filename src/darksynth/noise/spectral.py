@@ -180,9 +180,8 @@ class SpectralTables:
     Attributes:
         grid_height: rows of the FFT grid (the frame's height plus the margins, rounded up to a fast size).
         grid_width: columns of the FFT grid, of which the rfft grid keeps ``grid_width // 2 + 1``.
-        terms: the (target, source) channel of each factor entry, in the order :meth:`SpectralGrid.frame` mixes
-            them: for each target channel from the last to the first, its diagonal entry, then the sources
-            before it (the factor is lower triangular, so a target reads only sources not yet overwritten).
+        terms: the (target, source) channel of each factor entry, in the order :meth:`SpectralGrid.frame` sums
+            them: for each target channel, its sources in order.
         factors: (terms, rows, 2 * rfft columns) each entry's value at each bin, repeated for the bin's real
             and imaginary parts so that the mixing runs over contiguous memory; scaled for irfft2's 1/N.
         rho: (rows, 2 * rfft columns) AR(1) coefficient per bin, likewise repeated; None without temporal
@@ -198,17 +197,8 @@ class SpectralTables:
     innovation: torch.Tensor | None
 
 
-def lower_triangular_factor(factor: torch.Tensor) -> torch.Tensor:
-    """A lower-triangular ``L`` with ``L L^T = F F^T`` for factors ``F`` (..., C, C): ``R^T`` of the QR
-    decomposition of ``F^T`` (``F F^T = R^T Q^T Q R``). It exists for singular covariances too, and it draws
-    the same law with 6 multiply-adds per frequency bin instead of 9."""
-    _, upper = torch.linalg.qr(factor.transpose(-1, -2))
-    lower: torch.Tensor = upper.transpose(-1, -2)
-    return lower
-
-
 def _mixing_terms(channels: int) -> tuple[tuple[int, int], ...]:
-    return tuple((target, source) for target in reversed(range(channels)) for source in (target, *range(target)))
+    return tuple((target, source) for target in range(channels) for source in range(channels))
 
 
 def _repeat_for_real_and_imaginary(table: torch.Tensor, index: torch.Tensor) -> torch.Tensor:
@@ -231,7 +221,7 @@ def _build_tables(
     # irfft2 divides by the bin count N; a white field of unit variance has coefficients of mean square N,
     # i.e. N / 2 in each of the real and imaginary parts drawn here.
     scale = math.sqrt(grid_height * grid_width / 2.0)
-    factor = lower_triangular_factor(radial_factor(covariances.to(device), channels)) * scale
+    factor = radial_factor(covariances.to(device), channels) * scale
     terms = _mixing_terms(channels)
     factors = torch.stack(
         [_repeat_for_real_and_imaginary(factor[:, target, source].to(dtype), index) for target, source in terms]
@@ -329,9 +319,8 @@ class SpectralGrid:
         self.dtype = dtype
         # The real and imaginary parts of each rfft bin, side by side: (C, rows, 2 * rfft columns).
         self._white = torch.empty((channels, rows, values), dtype=dtype, device=device)
-        # With temporal correlation the white field is the state carried to the next frame, so the mixing
-        # writes elsewhere.
-        self._mixed = torch.empty_like(self._white) if self.temporal else self._white
+        self._mixed = torch.empty_like(self._white)
+        # With temporal correlation the white field is the state carried to the next frame.
         self._state: torch.Tensor | None = torch.empty_like(self._white) if self.temporal else None
         self._started = False
         self._block_rows = max(1, ROW_BLOCK_VALUES // values)
@@ -340,21 +329,23 @@ class SpectralGrid:
         """The unit noise of the next frame, (C, height, width)."""
         tables = self.tables
         rows = self._white.shape[1]
+        # One draw over the whole field, as the first version of this model drew it: the same numbers, on which
+        # its estimates and their tests were made.
+        self._white.normal_(generator=generator)
         for start in range(0, rows, self._block_rows):
             block = slice(start, start + self._block_rows)
-            white = self._white[:, block]
-            for channel in range(self.channels):
-                white[channel].normal_(generator=generator)
-            source, mixed = white, self._mixed[:, block]
+            source, mixed = self._white[:, block], self._mixed[:, block]
             if self._state is not None and tables.rho is not None and tables.innovation is not None:
-                source = self._state[:, block]
+                state = self._state[:, block]
                 if self._started:
-                    source.mul_(tables.rho[block]).addcmul_(white, tables.innovation[block])
+                    # Two products and a sum, not addcmul, whose fused multiply-add rounds differently.
+                    state.mul_(tables.rho[block]).add_(source.mul_(tables.innovation[block]))
                 else:
-                    source.copy_(white)
+                    state.copy_(source)
+                source = state
             for factor, (target, term_source) in zip(tables.factors[:, block], tables.terms, strict=True):
-                if target == term_source:
-                    torch.mul(source[target], factor, out=mixed[target])
+                if term_source == 0:
+                    torch.mul(factor, source[0], out=mixed[target])
                 else:
                     mixed[target].addcmul_(factor, source[term_source])
         self._started = True
