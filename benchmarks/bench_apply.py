@@ -2,14 +2,23 @@
 
 Run: ``.venv/bin/python benchmarks/bench_apply.py [--rounds N] [--block K]``. Each round times K consecutive
 frames of each method in turn (a stream of frames, as in a video), so that a slow moment of the machine hits
-all of them alike; medians over all timed frames are printed. The last line is
-``apply_ms=<a> floor_ms=<b> albumentations_gauss_ms=<c> srgb_ms=<d> srgb_floor_ms=<e> albumentations_chain_ms=<f>``:
+all of them alike; medians over all timed frames are printed. The first line is the CPU and its vector
+extensions. The last line is ``apply_ms=<a> floor_ms=<b> albumentations_gauss_ms=<c> default_ms=<d>
+srgb_ms=<d3> srgb_floor_ms=<e> albumentations_chain_ms=<f> synthesize_ms=<s> synthesize_float_ms=<sf>
+spectral_floor_ms=<g>``:
 
 - a: the paper's model, every component on, darkening on, compiled kernel; b: ``torch.randn`` + ``torch.rand`` of
   the frame; c: albumentations ``GaussNoise``;
-- d: the default path, the sRGB profile ``estimate`` writes for the shipped demo reference (compression included),
-  darkening on, as ``apply`` runs it; e: its floor, ``torch.randn`` + ``torch.rand`` of the frame and a Pillow JPEG
-  encode and decode of it at quality 75; f: albumentations ``Compose([GaussNoise, ImageCompression])`` at quality 75.
+- d: the default path: the profile ``estimate`` writes for the shipped demo reference (the spectral model,
+  profile version 4, compression included when it has one), darkening on, through ``ClipSynthesizer`` as
+  ``apply`` runs it (the spectral path has no compiled kernel: a stream and a single image run the same code);
+- d3: the version-3 sRGB profile of the same reference (``estimate`` without the spectrum), compiled, for
+  comparison; e: the floor of a JPEG path, ``torch.randn`` + ``torch.rand`` of the frame and a Pillow JPEG encode
+  and decode of it at quality 75; f: albumentations ``Compose([GaussNoise, ImageCompression])`` at quality 75;
+- s: one image (uint8 tensor) through ``darksynth.synthesize`` with the default profile, no compile step, what a
+  training transform runs on 8-bit input in a DataLoader worker (drawing the parameters and a new synthesizer per
+  call); sf: the same image as float in [0, 1] (on the 8-bit levels, as ``ToTensor`` gives it);
+- g: the spectral path's floor, ``normal_`` of its FFT grid, the ``irfft2`` and the quantization bytes of the frame.
 
 ``--device cuda`` runs the darksynth figures on that device (the floors and albumentations stay on the CPU).
 """
@@ -30,8 +39,11 @@ from PIL import Image
 from darksynth.darkening import Darkening
 from darksynth.estimation.assemble import estimate
 from darksynth.estimation.reference import load_reference
+from darksynth.noise.components import noise_component
+from darksynth.noise.spectral import SpectralGrid, octave_covariances
 from darksynth.noise.values import NoiseValues
-from darksynth.synthesize import ClipParameters, ClipSynthesizer
+from darksynth.profile import Profile
+from darksynth.synthesize import ClipParameters, ClipSynthesizer, synthesize
 from darksynth.training.weights import default_weights_path, load_weights
 from machine import cpu_summary
 
@@ -54,11 +66,16 @@ ALL_COMPONENTS = ClipParameters(
 DEMO_REFERENCE = Path(__file__).resolve().parents[1] / "src" / "darksynth" / "data" / "sample" / "reference.png"
 
 
-def demo_srgb_parameters() -> ClipParameters:
-    """The profile ``estimate`` writes for the demo reference (default model, refined), with the paper example's
-    darkening: the path a user's ``apply`` takes."""
-    found = estimate(load_reference(DEMO_REFERENCE, clip=False, max_frames=1), load_weights(default_weights_path()))
-    return ClipParameters(noise=found.profile.noise, darkening=ALL_COMPONENTS.darkening)
+def demo_profile(*, spectrum: bool) -> Profile:
+    """The profile ``estimate`` writes for the demo reference: with ``spectrum`` the default (the spectral model),
+    without it the version-3 sRGB refinement (``estimate --no-spectrum``)."""
+    reference = load_reference(DEMO_REFERENCE, clip=False, max_frames=1)
+    return estimate(reference, load_weights(default_weights_path()), spectrum=spectrum).profile
+
+
+def demo_parameters(profile: Profile) -> ClipParameters:
+    """A demo profile's values with the paper example's darkening: the path a user's ``apply`` takes."""
+    return ClipParameters(noise=profile.noise, darkening=ALL_COMPONENTS.darkening)
 
 
 def jpeg_round_trip(frame_hwc: np.ndarray, quality: int = 75) -> np.ndarray:
@@ -91,17 +108,27 @@ def main() -> None:
     frame_hwc = np.clip(ramp + rng.normal(0, 20, (HEIGHT, WIDTH, 3)), 0, 255).astype(np.uint8)
     frame = torch.from_numpy(frame_hwc).permute(2, 0, 1).contiguous().to(args.device)
     generator = torch.Generator().manual_seed(0)
-    srgb = demo_srgb_parameters()
-    print(f"demo profile: compression {srgb.noise.scalar('compression'):.2f}, shot {srgb.noise.scalar('shot'):.4f}")
+    default_profile, srgb_profile = demo_profile(spectrum=True), demo_profile(spectrum=False)
+    default, srgb = demo_parameters(default_profile), demo_parameters(srgb_profile)
+    print(
+        f"default profile (estimate): spectral model "
+        f"{'active' if default.noise.is_active(noise_component('spectral')) else 'NOT active'}, compression "
+        f"{default.noise.scalar('compression'):.2f}, temporal correlation "
+        f"{max(default.noise['temporal_correlation'].tolist()):.2f}; version-3 profile (estimate --no-spectrum): "
+        f"compression {srgb.noise.scalar('compression'):.2f}, shot {srgb.noise.scalar('shot'):.4f}"
+    )
 
     started = time.perf_counter()
     compiled = ClipSynthesizer(ALL_COMPONENTS, generator=generator, compile=True, device=args.device)
     compiled(frame)
     first_call_s = time.perf_counter() - started
     eager = ClipSynthesizer(ALL_COMPONENTS, generator=generator, compile=False, device=args.device)
+    default_synthesizer = ClipSynthesizer(default, generator=generator, compile=False, device=args.device)
     srgb_synthesizer = ClipSynthesizer(srgb, generator=generator, compile=True, device=args.device)
-    # What a single image gets: no compilation (apply compiles only for long streams), the general composer.
+    # What a single image of the version-3 profile gets: no compilation, the general composer.
     srgb_single = ClipSynthesizer(srgb, generator=generator, compile=False, device=args.device)
+    frame_float = frame.to(torch.float32) / 255.0
+    darkening = ALL_COMPONENTS.darkening
     gauss = albumentations.GaussNoise(std_range=(0.05, 0.05), p=1.0)
     chain = albumentations.Compose(
         [
@@ -109,16 +136,32 @@ def main() -> None:
             albumentations.ImageCompression(quality_range=(75, 75), p=1.0),
         ]
     )
-    for _ in range(3):
-        compiled(frame), eager(frame), gauss(image=frame_hwc), srgb_synthesizer(frame), chain(image=frame_hwc)
-        srgb_single(frame)
 
     shape = (3, HEIGHT, WIDTH)
+    # The spectral path's own floor: the normals of its FFT grid, the inverse transform and the quantization
+    # bytes, which it cannot draw with less work.
+    grid = SpectralGrid(
+        octave_covariances(default.noise["octave_power"], default.noise["octave_correlation"]),
+        default.noise["temporal_correlation"],
+        3,
+        HEIGHT,
+        WIDTH,
+        device=args.device,
+    )
+    grid_white = torch.empty((3, grid.grid_height, grid.grid_width // 2 + 1, 2), device=args.device)
+    quantization_bytes = torch.empty(shape, dtype=torch.uint8, device=args.device)
+
+    def spectral_floor() -> object:
+        grid_white.normal_(generator=generator)
+        field = torch.fft.irfft2(torch.view_as_complex(grid_white), s=(grid.grid_height, grid.grid_width))
+        return field, quantization_bytes.random_(generator=generator)
+
     methods: dict[str, Callable[[], object]] = {
         "apply": lambda: compiled(frame),
         "floor": lambda: (torch.randn(shape, generator=generator), torch.rand(shape, generator=generator)),
         "gauss": lambda: gauss(image=frame_hwc),
         "eager": lambda: eager(frame),
+        "default": lambda: default_synthesizer(frame),
         "srgb": lambda: srgb_synthesizer(frame),
         "srgb_floor": lambda: (
             torch.randn(shape, generator=generator),
@@ -126,30 +169,57 @@ def main() -> None:
             jpeg_round_trip(frame_hwc),
         ),
         "chain": lambda: chain(image=frame_hwc),
+        "spectral_floor": spectral_floor,
         "srgb_single": lambda: srgb_single(frame),
+        "synthesize": lambda: synthesize(frame, default_profile, generator=generator, darkening=darkening),
+        "synthesize_float": lambda: synthesize(frame_float, default_profile, generator=generator, darkening=darkening),
     }
+    for _ in range(3):
+        for method in methods.values():
+            method()
     results: dict[str, list[float]] = {name: [] for name in methods}
     for _ in range(args.rounds):
         for name, method in methods.items():
             results[name].extend(timed(method, args.device) for _ in range(args.block))
     median = {name: statistics.median(values) for name, values in results.items()}
+    apply_ms, floor_ms, gauss_ms = median["apply"], median["floor"], median["gauss"]
+    default_ms, srgb_ms, srgb_floor_ms, chain_ms = (
+        median["default"],
+        median["srgb"],
+        median["srgb_floor"],
+        median["chain"],
+    )
+    synthesize_ms, synthesize_float_ms = median["synthesize"], median["synthesize_float"]
     print(f"torch {torch.__version__}, threads {torch.get_num_threads()}, frame {WIDTH}x{HEIGHT} RGB uint8")
     print(f"first compiled call (compile or cache load): {first_call_s:.2f} s")
-    print(f"eager (uncompiled) darksynth: {median['eager']:.2f} ms")
+    print(f"paper model, every component: compiled {apply_ms:.2f} ms, eager {median['eager']:.2f} ms")
     print(
-        f"single image, sRGB profile, no compile: {median['srgb_single']:.2f} ms"
-        f" ({median['srgb_single'] / median['srgb']:.2f}x the compiled srgb_ms; target <= 2)"
+        f"default path (spectral profile, ClipSynthesizer, no compile step): {default_ms:.2f} ms; "
+        f"albumentations GaussNoise + ImageCompression: {chain_ms:.2f} ms; "
+        f"chain / default = {chain_ms / default_ms:.2f} (target >= 1.2)"
     )
-    apply_ms, floor_ms, gauss_ms = median["apply"], median["floor"], median["gauss"]
-    srgb_ms, srgb_floor_ms, chain_ms = median["srgb"], median["srgb_floor"], median["chain"]
+    print(
+        f"one image through synthesize, no compile step: uint8 {synthesize_ms:.2f} ms "
+        f"({synthesize_ms / chain_ms:.2f}x the chain; target <= 2), float {synthesize_float_ms:.2f} ms "
+        f"({synthesize_float_ms / chain_ms:.2f}x the chain)"
+    )
+    print(
+        f"version-3 sRGB profile: compiled {srgb_ms:.2f} ms (chain / srgb = {chain_ms / srgb_ms:.2f}), "
+        f"single image without compiling {median['srgb_single']:.2f} ms"
+    )
+    print(
+        f"floors: randn + rand {floor_ms:.2f} ms; randn + rand + Pillow JPEG q75 {srgb_floor_ms:.2f} ms "
+        f"(default / that floor = {default_ms / srgb_floor_ms:.2f}); the spectral path's own (normals of its FFT "
+        f"grid, irfft2, quantization bytes) {median['spectral_floor']:.2f} ms "
+        f"(default / it = {default_ms / median['spectral_floor']:.2f}, chain / it = "
+        f"{chain_ms / median['spectral_floor']:.2f})"
+    )
     print(f"ratios: apply/floor = {apply_ms / floor_ms:.3f}, albumentations_gauss/apply = {gauss_ms / apply_ms:.2f}")
     print(
-        f"ratios: srgb/srgb_floor = {srgb_ms / srgb_floor_ms:.3f}, albumentations_chain/srgb = {chain_ms / srgb_ms:.2f}"
-        " (targets: apply <= 1.3 floor, gauss/apply >= 3, srgb <= srgb_floor, chain/srgb >= 1.2)"
-    )
-    print(
         f"apply_ms={apply_ms:.2f} floor_ms={floor_ms:.2f} albumentations_gauss_ms={gauss_ms:.2f} "
-        f"srgb_ms={srgb_ms:.2f} srgb_floor_ms={srgb_floor_ms:.2f} albumentations_chain_ms={chain_ms:.2f}"
+        f"default_ms={default_ms:.2f} srgb_ms={srgb_ms:.2f} srgb_floor_ms={srgb_floor_ms:.2f} "
+        f"albumentations_chain_ms={chain_ms:.2f} synthesize_ms={synthesize_ms:.2f} "
+        f"synthesize_float_ms={synthesize_float_ms:.2f} spectral_floor_ms={median['spectral_floor']:.2f}"
     )
 
 

@@ -21,7 +21,7 @@ import torch
 
 from darksynth.darkening import ALPHA_RANGE, GAMMA_RANGE, Darkening, darken
 from darksynth.io.arrays import numpy_to_tensor, tensor_to_numpy
-from darksynth.noise.components import noise_parameter, noise_parameters
+from darksynth.noise.components import noise_component, noise_parameter, noise_parameters
 from darksynth.noise.counter_rng import random_key
 from darksynth.noise.kernel8 import (
     FAST_PATH,
@@ -37,7 +37,9 @@ from darksynth.noise.kernel8 import (
     srgb_kernel_in_pieces,
 )
 from darksynth.noise.sampling import random_uniform
-from darksynth.noise.simulate import add_noise, apply_output_stages, column_noise
+from darksynth.noise.simulate import add_noise, apply_output_stages, column_components_active, column_noise
+from darksynth.noise.spectral import clip_grid, octave_covariances
+from darksynth.noise.spectral_8bit import SPECTRAL_PATH, SpectralPixelPass, to_8bit
 from darksynth.noise.values import NoiseValues
 from darksynth.profile import Profile
 from darksynth.tensors import CLIP_DIMS
@@ -115,7 +117,8 @@ class ClipSynthesizer:
     fused kernel covers (:data:`darksynth.noise.kernel8.FAST_PATH` in the table) take it for the per-pixel part;
     with ``compile``, those of the sRGB model (:data:`darksynth.noise.kernel8.STRUCTURED_PATH`) take the compiled
     sRGB kernel, which draws the structured unit noise and does the per-pixel pass in one function, and then the
-    compression stage.
+    compression stage. 8-bit frames of a spectral profile (:data:`darksynth.noise.spectral_8bit.SPECTRAL_PATH`)
+    read their darkened level and noise std from tables of the 256 levels and draw the composer's bits.
 
     Args:
         parameters: the clip's parameters (see :func:`draw_clip_parameters`).
@@ -147,7 +150,15 @@ class ClipSynthesizer:
         # (200 against 149 ms a 1080p frame; docs/performance.md).
         self._structured = compile and bool(uncovered) and self._values.covered_by(STRUCTURED_PATH)
         self._srgb_factors: tuple[torch.Tensor, ...] | None = None
-        if uncovered and not self._structured:
+        # A profile of the spectral model (its curve set) whose other values the spectral path draws; profiles of
+        # the earlier models never take it, so their frames keep their bits.
+        self._spectral = (
+            bool(uncovered)
+            and self._values.is_active(noise_component("spectral"))
+            and self._values.covered_by(SPECTRAL_PATH)
+        )
+        self._spectral_pass: SpectralPixelPass | None = None
+        if uncovered and not self._structured and not self._spectral:
             logger.debug("8-bit frames take the general composer: %s not covered by %s", uncovered, FAST_PATH)
         self._scalars: tuple[torch.Tensor, ...] | None = None
         self._frame_shape: torch.Size | None = None
@@ -168,6 +179,8 @@ class ClipSynthesizer:
             structured = self._fused_structured(frame)
             if structured is not None:
                 return structured
+        if frame.dtype == torch.uint8 and self._spectral:
+            return self._spectral_8bit(frame)
         scale = _full_scale(frame.dtype)
         clean = frame.to(torch.float32) / scale if scale else frame.to(torch.float32)
         darkening = self.parameters.darkening
@@ -190,7 +203,7 @@ class ClipSynthesizer:
             self._frames_done,
         )
         self._held.clear()
-        self._fusable = self._structured = False
+        self._fusable = self._structured = self._spectral = False
 
     def _kernel_scalars(self) -> tuple[torch.Tensor, ...]:
         if self._scalars is None:
@@ -252,6 +265,46 @@ class ClipSynthesizer:
             return out
         compressed = apply_output_stages(out.to(torch.float32)[None] / FULL_SCALE, values, generator=self.generator)
         return _to_dtype(compressed[0], frame.dtype)
+
+    def _spectral_8bit(self, frame: torch.Tensor, *, rounded: bool = True) -> torch.Tensor:
+        """The uint8 frame through the spectral path: the composer's draws in the composer's order (columns, the
+        spectral unit noise, quantization, the output stages), the level and std read from 8-bit tables. Not
+        ``rounded``: the float32 result in [0, 1], before the rounding to 8 bits."""
+        values = self._values
+        columns = None
+        if column_components_active(values):
+            columns = column_noise(
+                (1, *frame.shape), values, generator=self.generator, held=self._held, device=self.device
+            )[0]
+        if self._spectral_pass is None:
+            channels, height, width = frame.shape
+            self._spectral_pass = SpectralPixelPass(
+                channels,
+                height,
+                width,
+                self.parameters.darkening,
+                values["level_curve"],
+                values.scalar("quantization"),
+                device=self.device,
+            )
+        grid = clip_grid(
+            octave_covariances(values["octave_power"], values["octave_correlation"]),
+            values["temporal_correlation"],
+            frame.shape,
+            device=self.device,
+            dtype=torch.float32,
+            state=self._held,
+        )
+        generator = self.generator if self.generator is not None else torch.default_generator
+        compressed = not values.is_neutral(noise_parameter("compression"))
+        noisy = self._spectral_pass.noisy(
+            frame, grid.frame(generator), columns, generator, rounded=rounded and not compressed
+        )
+        if compressed:
+            noisy = apply_output_stages(noisy[None], values, generator=self.generator)[0]
+            return to_8bit(noisy) if rounded else noisy
+        # Not rounded, the result is the pass's own array, which the next frame overwrites.
+        return noisy if rounded else noisy.clone()
 
 
 def _full_scale(dtype: torch.dtype) -> float | None:
@@ -338,12 +391,31 @@ def synthesize(
 
 
 def _synthesize_clip(clip: torch.Tensor, parameters: ClipParameters, generator: torch.Generator | None) -> torch.Tensor:
+    if clip.shape[0] == 1 and clip.dtype.is_floating_point:
+        # A float image of 8-bit levels (``ToTensor`` of a PNG or JPEG, as training loops pass them) has the
+        # 8-bit path's tables: the composer's draws in the composer's order, so the same result.
+        synthesizer = ClipSynthesizer(parameters, generator=generator, device=clip.device)
+        levels = _eight_bit_levels(clip[0]) if synthesizer._spectral else None
+        if levels is not None:
+            return _to_dtype(synthesizer._spectral_8bit(levels, rounded=False)[None], clip.dtype)
     scale = _full_scale(clip.dtype)
     clean = clip.to(torch.float32) / scale if scale else clip.to(torch.float32)
     darkening = parameters.darkening
     signal = clean if darkening is None else darken(clean, darkening.alpha, darkening.gamma)
     noisy = add_noise(signal, parameters.noise, generator=generator)
     return _to_dtype(noisy, clip.dtype)
+
+
+def _eight_bit_levels(frame: torch.Tensor) -> torch.Tensor | None:
+    """The uint8 levels of a float frame whose every value is a level ``k / 255`` as float32 computes it, else
+    None."""
+    values = frame.to(torch.float32)
+    # The first row first: a frame of other values is usually told from it at once.
+    for part in (values[..., :1, :], values):
+        levels = (part * 255.0).round_().clamp_(0.0, 255.0)
+        if not torch.equal(levels / 255.0, part):
+            return None
+    return levels.to(torch.uint8)
 
 
 def _from_numpy(array: np.ndarray) -> tuple[torch.Tensor, str]:

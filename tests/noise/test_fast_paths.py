@@ -8,11 +8,15 @@ import sys
 import pytest
 import torch
 
-from darksynth.darkening import Darkening
+from darksynth.darkening import Darkening, darken
 from darksynth.noise import kernel8
 from darksynth.noise.kernel8 import FAST_PATH, STRUCTURED_PATH
+from darksynth.noise.simulate import add_noise
+from darksynth.noise.spectral import OCTAVES
+from darksynth.noise.spectral_8bit import read_levels, read_levels_by_index
 from darksynth.noise.values import NoiseValues
-from darksynth.synthesize import ClipParameters, ClipSynthesizer
+from darksynth.profile import Profile
+from darksynth.synthesize import ClipParameters, ClipSynthesizer, draw_clip_parameters, synthesize
 
 PAPER = {"shot": 0.05, "read": 0.01, "quantization": 0.004, "banding": 0.003, "temporal_banding": 0.002}
 
@@ -163,3 +167,83 @@ def test_a_failing_compiled_srgb_kernel_falls_back_to_the_general_composer_with_
     assert torch.allclose(std / expected, torch.ones(3, dtype=torch.float64), atol=0.15)
     warnings = [r for r in caplog.records if "compiled sRGB kernel failed" in r.getMessage()]
     assert len(warnings) == 1 and "no working C compiler" in warnings[0].getMessage()
+
+
+SPECTRAL = {
+    "level_curve": [0.004, 0.006, 0.008, 0.009, 0.01, 0.011, 0.012, 0.012] * 3,
+    "octave_power": [0.5, 0.3, 0.3] * 3 + [2.0, 20.0, 8.0] * 3,
+    "octave_correlation": [0.3, -0.2, 0.1] * OCTAVES,
+    "quantization": 0.002,
+}
+
+
+@pytest.mark.parametrize(
+    ("values", "taken"),
+    [
+        (SPECTRAL, True),
+        (SPECTRAL | {"compression": 0.2, "banding": 0.002}, True),
+        (SPECTRAL | {"shot": 0.02}, False),  # the heteroscedastic std would add to the curve's
+        (SPECTRAL | {"level_curve": [0.0] * 24, "compression": 0.2}, False),  # no spectrum: an sRGB profile
+        (PAPER, False),
+        (SRGB, False),
+    ],
+    ids=["spectral", "spectral-jpeg-columns", "spectral-shot", "no-curve", "paper", "srgb"],
+)
+def test_the_spectral_path_is_taken_for_spectral_profiles_only(values: dict[str, object], taken: bool) -> None:
+    parameters = ClipParameters(NoiseValues.from_values(values), None)  # type: ignore[arg-type]
+    assert ClipSynthesizer(parameters)._spectral is taken
+
+
+@pytest.mark.parametrize(
+    ("extra", "channels"),
+    [
+        ({}, 3),
+        ({"banding": 0.003, "temporal_banding": 0.002, "periodic": [0.001, 0.002, 0.001]}, 3),
+        ({"compression": 0.3}, 3),
+        ({"temporal_correlation": [0.8, 0.6, 0.5, 0.5, 0.4, 0.3]}, 3),
+        ({"banding": 0.003}, 1),
+    ],
+    ids=["plain", "columns", "jpeg", "temporal", "grey"],
+)
+def test_the_spectral_path_draws_the_general_composers_bits(extra: dict[str, object], channels: int) -> None:
+    """The 8-bit tables of the darkened level and of the curve's std, read per pixel, against the composer's
+    per-pixel darkening and curve, same generator: the same frames, bit for bit, over a stream."""
+    parameters = ClipParameters(NoiseValues.from_values(SPECTRAL | extra), Darkening(0.3, 0.7))  # type: ignore[arg-type]
+    frames = torch.randint(
+        0, 256, (3, channels, 72, 136), dtype=torch.uint8, generator=torch.Generator().manual_seed(0)
+    )
+    fast = ClipSynthesizer(parameters, generator=torch.Generator().manual_seed(5))
+    general = ClipSynthesizer(parameters, generator=torch.Generator().manual_seed(5))
+    general._spectral = False
+    assert fast._spectral
+    for frame in frames:
+        assert torch.equal(fast(frame), general(frame))
+    assert not torch.equal(fast(frames[0]), fast(frames[0]))  # new noise every frame
+
+
+def test_the_level_tables_read_by_opencv_and_by_torch_indexing_agree() -> None:
+    frame = torch.randint(0, 256, (3, 33, 47), dtype=torch.uint8, generator=torch.Generator().manual_seed(0))
+    table = torch.rand(3, 256, generator=torch.Generator().manual_seed(1))
+    expected = torch.stack([table[channel][frame[channel].long()] for channel in range(3)])
+    assert torch.equal(read_levels(frame, table, torch.empty(3, 33, 47)), expected)
+    assert torch.equal(read_levels_by_index(frame, table, torch.empty(3, 33, 47)), expected)
+
+
+@pytest.mark.parametrize("compression", [0.0, 0.3])
+def test_a_float_image_of_8bit_levels_takes_the_spectral_path_with_the_composers_bits(compression: float) -> None:
+    values = NoiseValues.from_values(SPECTRAL | {"compression": compression, "banding": 0.002})  # type: ignore[arg-type]
+    profile = Profile(noise=values, darkening=Darkening(0.3, 0.7))
+    levels = torch.randint(0, 256, (3, 40, 56), dtype=torch.uint8, generator=torch.Generator().manual_seed(0))
+    image = levels.float() / 255.0
+    taken = synthesize(image, profile, generator=torch.Generator().manual_seed(2)).image
+    generator = torch.Generator().manual_seed(2)
+    parameters = draw_clip_parameters(profile, generator=generator)
+    assert parameters.darkening is not None
+    signal = darken(image[None], parameters.darkening.alpha, parameters.darkening.gamma)
+    composed = add_noise(signal, parameters.noise.to(dtype=torch.float32), generator=generator)[0]
+    assert isinstance(taken, torch.Tensor) and taken.dtype == torch.float32
+    assert torch.equal(taken, composed)
+    # Off the 8-bit levels the composer runs; the law is the same.
+    off_grid = synthesize(image + 1e-4, profile, generator=torch.Generator().manual_seed(2)).image
+    assert isinstance(off_grid, torch.Tensor)
+    assert (off_grid - taken).abs().mean() < 0.02

@@ -8,7 +8,16 @@ import pytest
 import torch
 
 from darksynth.noise.simulate import add_noise
-from darksynth.noise.spectral import LEVEL_KNOTS, OCTAVES, OPPONENT_BASIS, level_std, octave_covariances
+from darksynth.noise.spectral import (
+    LEVEL_KNOTS,
+    OCTAVES,
+    OPPONENT_BASIS,
+    TABLE_CACHE_SIZE,
+    SpectralGrid,
+    level_std,
+    octave_covariances,
+    spectral_tables,
+)
 from darksynth.noise.spectral_fit import (
     SpectralStatistics,
     fit_by_resynthesis,
@@ -89,6 +98,49 @@ def test_level_curve_is_piecewise_linear_between_its_knots() -> None:
     assert torch.allclose(std[:, 1, :7], 0.5 * (table[:, :-1] + table[:, 1:]))
     grey = level_std(image[:1], curve)
     assert torch.allclose(grey[0, 0], table[1])
+
+
+def _level_std_by_search(signal: torch.Tensor, curve: torch.Tensor) -> torch.Tensor:
+    """The level curve the plain way, in float64: the knot segment by a search, linear within it."""
+    knots = torch.tensor(LEVEL_KNOTS, dtype=torch.float64)
+    table = curve.reshape(3, 8).to(torch.float64)
+    if signal.shape[-3] == 1:
+        table = table[1:2]
+    x = signal.to(torch.float64).clamp(0.0, 1.0)
+    index = torch.bucketize(x, knots[1:-1])
+    fraction = (x - knots[index]) / (knots[index + 1] - knots[index])
+    rows = torch.arange(table.shape[0]).reshape(-1, 1, 1).expand_as(x)
+    return table[rows, index] * (1.0 - fraction) + table[rows, index + 1] * fraction
+
+
+@pytest.mark.parametrize("channels", [3, 1])
+def test_level_std_by_arithmetic_equals_the_curve_found_by_search(channels: int) -> None:
+    """The piece is floor(49 x) (every knot lies on the 1/49 grid): the same curve as a search of the knots, on
+    continuous values, on the knots themselves, outside [0, 1] and on the 256 levels of an 8-bit image."""
+    generator = torch.Generator().manual_seed(0)
+    curve = 0.002 + 0.08 * torch.rand(24, generator=generator)
+    continuous = torch.rand(2, channels, 64, 64, generator=generator) * 1.2 - 0.1
+    knots = torch.tensor(LEVEL_KNOTS).reshape(1, 1, 1, 8).expand(1, channels, 1, 8)
+    levels = (torch.arange(256) / 255.0).reshape(1, 1, 1, 256).expand(1, channels, 1, 256)
+    darkened = 0.2 * levels.pow(1 / 0.7)
+    for signal in (continuous, knots, levels, darkened):
+        assert torch.allclose(level_std(signal, curve).double(), _level_std_by_search(signal, curve), atol=1e-7)
+
+
+def test_grids_of_one_spectrum_share_their_tables_and_the_cache_stays_small() -> None:
+    covariances = octave_covariances(torch.ones(OCTAVES * 3), torch.zeros(OCTAVES * 3))
+    temporal = torch.zeros(OCTAVES)
+    first = SpectralGrid(covariances, temporal, 3, 64, 80, device="cpu")
+    second = SpectralGrid(covariances.clone(), temporal.clone(), 3, 64, 80, device="cpu")
+    assert first.tables is second.tables
+    # Each grid has its own work arrays and state: two clips of one spectrum draw independently.
+    generator = torch.Generator().manual_seed(0)
+    assert not torch.equal(first.frame(generator), second.frame(generator))
+    others = [
+        spectral_tables(covariances * (2.0 + k), temporal, 3, 64, 80, device="cpu") for k in range(TABLE_CACHE_SIZE)
+    ]
+    assert others[-1] is spectral_tables(covariances * (1.0 + TABLE_CACHE_SIZE), temporal, 3, 64, 80, device="cpu")
+    assert spectral_tables(covariances, temporal, 3, 64, 80, device="cpu") is not first.tables
 
 
 def test_temporal_correlation_is_the_ar1_coefficient_and_a_stream_draws_the_clips_bits() -> None:

@@ -37,19 +37,30 @@ Role = Literal["amplitude", "shape"]
 """``amplitude``: the component draws nothing when all its amplitude parameters are neutral. ``shape``: shapes
 what the amplitudes draw (a correlation length, a channel gain) and draws nothing by itself."""
 
-FastPath = Literal["fused_8bit", "structured_8bit"]
+FastPath = Literal["fused_8bit", "structured_8bit", "spectral_8bit"]
 """A specialised implementation of part of f(v). ``fused_8bit``: :mod:`darksynth.noise.kernel8`, one pass over
 an 8-bit frame that draws white heteroscedastic and quantization noise and adds the column components.
 ``structured_8bit``: the same pass fed with the sRGB model's structured unit noise (channel gains, spatial and
 colour correlation, drawn by the composer's own function) instead of its counter-based normal, then the
-compression stage: the default path of a profile from ``estimate``."""
+compression stage: the compiled path of an sRGB profile. ``spectral_8bit``: :mod:`darksynth.noise.spectral_8bit`,
+the spectral model's unit noise scaled by the level curve's std read from a table of the 256 input levels, then
+the composer's quantization, column components and compression: the default path of a profile from ``estimate``."""
 
 FUSED_PATHS: frozenset[FastPath] = frozenset({"fused_8bit", "structured_8bit"})
 """Both 8-bit kernels: the levels (shot, read), quantization, which they draw themselves, and the column components,
 which the composer draws and they add."""
 
 STRUCTURED_PATHS: frozenset[FastPath] = frozenset({"structured_8bit"})
-"""The sRGB structure (gains, spatial and colour correlation) and compression: the structured path only."""
+"""The sRGB structure (gains, spatial and colour correlation): the structured path only."""
+
+SPECTRAL_PATHS: frozenset[FastPath] = frozenset({"spectral_8bit"})
+"""The spectrum and the level curve: the spectral path only."""
+
+ALL_8BIT_PATHS: frozenset[FastPath] = FUSED_PATHS | SPECTRAL_PATHS
+"""Quantization and the column components, which every 8-bit path draws as the composer does."""
+
+COMPRESSION_PATHS: frozenset[FastPath] = STRUCTURED_PATHS | SPECTRAL_PATHS
+"""The compression stage, which the structured and the spectral path run after their per-pixel pass."""
 
 DrawFunction = Callable[[torch.Tensor, Mapping[str, torch.Tensor], torch.Generator | None], torch.Tensor]
 """``draw(signal, values, generator) -> noise``: ``signal`` is the darkened clean clip (..., T, C, H, W),

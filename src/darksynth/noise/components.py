@@ -117,6 +117,14 @@ def model_statistics(noise_model: NoiseModel = "srgb", version: int | None = Non
     return tuple(found)
 
 
+def noise_component(name: str) -> NoiseComponent:
+    """The component called ``name``; raises KeyError naming the known ones."""
+    for component in NOISE_COMPONENTS:
+        if component.name == name:
+            return component
+    raise KeyError(f"unknown noise component {name!r}; known: {', '.join(c.name for c in NOISE_COMPONENTS)}")
+
+
 def noise_parameter(name: str) -> Parameter:
     """The parameter called ``name``; raises KeyError naming the known ones."""
     for parameter in noise_parameters():

@@ -11,7 +11,7 @@ from collections.abc import Mapping
 import torch
 
 from darksynth.noise.banding import banding_noise, temporal_banding_noise
-from darksynth.noise.component_types import FUSED_PATHS, NoiseComponent, Parameter, VarianceFunction
+from darksynth.noise.component_types import ALL_8BIT_PATHS, NoiseComponent, Parameter, VarianceFunction
 from darksynth.noise.periodic import periodic_noise
 from darksynth.noise.quantization import quantization_noise
 
@@ -65,7 +65,7 @@ QUANTIZATION = NoiseComponent(
             1.0,
             (0.0, 0.02),
             log_floor=0.0002,
-            fast_paths=FUSED_PATHS,
+            fast_paths=ALL_8BIT_PATHS,
         ),
     ),
     structure="pixel",
@@ -85,7 +85,7 @@ BANDING = NoiseComponent(
             1.0,
             (0.0, 0.03),
             log_floor=0.0003,
-            fast_paths=FUSED_PATHS,
+            fast_paths=ALL_8BIT_PATHS,
         ),
     ),
     structure="column",
@@ -105,7 +105,7 @@ TEMPORAL_BANDING = NoiseComponent(
             1.0,
             (0.0, 0.03),
             log_floor=0.0003,
-            fast_paths=FUSED_PATHS,
+            fast_paths=ALL_8BIT_PATHS,
         ),
     ),
     structure="column",
@@ -126,7 +126,7 @@ PERIODIC = NoiseComponent(
             1.0,
             (0.0, 0.02),
             log_floor=0.0002,
-            fast_paths=FUSED_PATHS,
+            fast_paths=ALL_8BIT_PATHS,
         ),
     ),
     structure="column",

@@ -24,6 +24,11 @@ def _active(values: NoiseValues, structure: str) -> tuple[NoiseComponent, ...]:
     return tuple(c for c in noise_components() if c.structure == structure and values.is_active(c))
 
 
+def column_components_active(values: NoiseValues) -> bool:
+    """Whether any column component draws anything for ``values``."""
+    return bool(_active(values, "column"))
+
+
 def column_noise(
     shape: torch.Size | tuple[int, ...],
     values: NoiseValues,

@@ -33,7 +33,10 @@ spectrum, intensity scaling curves, blind estimation from video).
 from __future__ import annotations
 
 import math
+import threading
+from collections import OrderedDict
 from collections.abc import MutableMapping
+from dataclasses import dataclass
 
 import torch
 
@@ -169,11 +172,133 @@ def _fft_size(size: int) -> int:
         candidate += 1
 
 
-class SpectralGrid:
-    """The per-frequency factor and AR(1) coefficient of one clip's spectrum on one frame size's FFT grid.
+@dataclass(frozen=True)
+class SpectralTables:
+    """What one spectrum needs on one FFT grid, the same for every frame and every clip of it (cached by
+    :func:`spectral_tables`): the factor of each frequency bin and the AR(1) coefficients.
 
-    Built once per clip and size (a stream reuses it for every frame); the white field of the previous frame is
-    its state for the temporal correlation."""
+    Attributes:
+        grid_height: rows of the FFT grid (the frame's height plus the margins, rounded up to a fast size).
+        grid_width: columns of the FFT grid, of which the rfft grid keeps ``grid_width // 2 + 1``.
+        terms: the (target, source) channel of each factor entry, in the order :meth:`SpectralGrid.frame` sums
+            them: for each target channel, its sources in order.
+        factors: (terms, rows, 2 * rfft columns) each entry's value at each bin, repeated for the bin's real
+            and imaginary parts so that the mixing runs over contiguous memory; scaled for irfft2's 1/N.
+        rho: (rows, 2 * rfft columns) AR(1) coefficient per bin, likewise repeated; None without temporal
+            correlation.
+        innovation: sqrt(1 - rho^2), likewise; None without temporal correlation.
+    """
+
+    grid_height: int
+    grid_width: int
+    terms: tuple[tuple[int, int], ...]
+    factors: torch.Tensor
+    rho: torch.Tensor | None
+    innovation: torch.Tensor | None
+
+
+def _mixing_terms(channels: int) -> tuple[tuple[int, int], ...]:
+    return tuple((target, source) for target in range(channels) for source in range(channels))
+
+
+def _repeat_for_real_and_imaginary(table: torch.Tensor, index: torch.Tensor) -> torch.Tensor:
+    """(rows, 2 * columns) of ``table`` (RADIAL_TABLE_SIZE,) read at ``index`` (rows, columns), each value twice."""
+    values = table[index]
+    return values[..., None].expand(*values.shape, 2).reshape(values.shape[0], -1)
+
+
+def _build_tables(
+    covariances: torch.Tensor,
+    temporal: torch.Tensor,
+    channels: int,
+    grid_height: int,
+    grid_width: int,
+    device: torch.device | str,
+    dtype: torch.dtype,
+) -> SpectralTables:
+    radius = _grid_radius(grid_height, grid_width, device)
+    index = (radius * ((RADIAL_TABLE_SIZE - 1) / _MAX_FREQUENCY)).round().long().clamp_max(RADIAL_TABLE_SIZE - 1)
+    # irfft2 divides by the bin count N; a white field of unit variance has coefficients of mean square N,
+    # i.e. N / 2 in each of the real and imaginary parts drawn here.
+    scale = math.sqrt(grid_height * grid_width / 2.0)
+    factor = radial_factor(covariances.to(device), channels) * scale
+    terms = _mixing_terms(channels)
+    factors = torch.stack(
+        [_repeat_for_real_and_imaginary(factor[:, target, source].to(dtype), index) for target, source in terms]
+    )
+    rho = radial_correlation(temporal.to(device))
+    if not bool((rho > 0).any()):
+        return SpectralTables(grid_height, grid_width, terms, factors, None, None)
+    innovation = (1.0 - rho.square()).sqrt()
+    return SpectralTables(
+        grid_height,
+        grid_width,
+        terms,
+        factors,
+        _repeat_for_real_and_imaginary(rho.to(dtype), index),
+        _repeat_for_real_and_imaginary(innovation.to(dtype), index),
+    )
+
+
+TABLE_CACHE_SIZE = 2
+"""Spectra (with their grid size) whose tables are kept: a stream, or training on crops of one size, builds them
+once instead of once per clip; each takes about 55 MB at 1080p, so only the last few are kept."""
+
+_table_cache: OrderedDict[tuple[object, ...], SpectralTables] = OrderedDict()
+_table_cache_lock = threading.Lock()
+
+
+def spectral_tables(
+    covariances: torch.Tensor,
+    temporal: torch.Tensor,
+    channels: int,
+    height: int,
+    width: int,
+    *,
+    device: torch.device | str,
+    dtype: torch.dtype = torch.float32,
+) -> SpectralTables:
+    """The tables of a spectrum (``covariances`` (OCTAVES, 3, 3), ``temporal`` (OCTAVES,)) for frames of
+    (``height``, ``width``), from a small cache of the last :data:`TABLE_CACHE_SIZE` ones (building them costs
+    about as much as drawing a frame)."""
+    grid_height, grid_width = _fft_size(height + 2 * MARGIN), _fft_size(width + 2 * MARGIN)
+    key = (
+        covariances.detach().to("cpu", torch.float64).numpy().tobytes(),
+        temporal.detach().to("cpu", torch.float64).numpy().tobytes(),
+        channels,
+        grid_height,
+        grid_width,
+        str(torch.device(device)),
+        dtype,
+    )
+    with _table_cache_lock:
+        found = _table_cache.get(key)
+        if found is not None:
+            _table_cache.move_to_end(key)
+            return found
+    tables = _build_tables(covariances, temporal, channels, grid_height, grid_width, device, dtype)
+    with _table_cache_lock:
+        _table_cache[key] = tables
+        while len(_table_cache) > TABLE_CACHE_SIZE:
+            _table_cache.popitem(last=False)
+    return tables
+
+
+ROW_BLOCK_VALUES = 1 << 15
+"""Values per channel in one block of rows of the frequency grid. The white field of a block is drawn, carried
+forward in time and mixed while it is in the processor's cache (whole-frame arrays would stream through memory
+once per mixing term), and each operation on a block is below torch's grain for splitting work between threads
+(32768 values), so it runs on the calling thread alone: with another process busy on a 2-core machine, 2-thread
+operations on blocks of 2^17 values waited for each other far longer than they worked (800 against 65 ms a
+1080p frame; 146 ms unblocked)."""
+
+
+class SpectralGrid:
+    """One clip's spectrum on one frame size's FFT grid, and the clip's state: the white field of the previous
+    frame, for the temporal correlation.
+
+    Built once per clip and size (a stream reuses it for every frame); its tables come from
+    :func:`spectral_tables`, its frame-sized work arrays are its own and reused from frame to frame."""
 
     def __init__(
         self,
@@ -187,54 +312,105 @@ class SpectralGrid:
         dtype: torch.dtype = torch.float32,
     ) -> None:
         self.channels, self.height, self.width = channels, height, width
-        self.grid_height = _fft_size(height + 2 * MARGIN)
-        self.grid_width = _fft_size(width + 2 * MARGIN)
-        radius = _grid_radius(self.grid_height, self.grid_width, device)
-        index = (radius * ((RADIAL_TABLE_SIZE - 1) / _MAX_FREQUENCY)).round().long().clamp_max(RADIAL_TABLE_SIZE - 1)
-        factor = radial_factor(covariances.to(device), channels)
-        # (C, C, h, w): one real matrix per frequency bin; the spectrum is real and symmetric, so it multiplies the
-        # real and imaginary parts of the white field alike.
-        # irfft2 divides by the bin count N; a white field of unit variance has coefficients of mean square N,
-        # i.e. N / 2 in each of the real and imaginary parts drawn here.
-        scale = math.sqrt(self.grid_height * self.grid_width / 2.0)
-        self.factor = (factor[index].permute(2, 3, 0, 1) * scale).to(dtype).contiguous()
-        rho = radial_correlation(temporal.to(device))
-        self.temporal = bool((rho > 0).any())
-        self.rho = rho[index].to(dtype)[..., None]
-        self.innovation = (1.0 - rho[index].square()).sqrt().to(dtype)[..., None]
-        self.previous: torch.Tensor | None = None
+        self.tables = spectral_tables(covariances, temporal, channels, height, width, device=device, dtype=dtype)
+        self.grid_height, self.grid_width = self.tables.grid_height, self.tables.grid_width
+        self.temporal = self.tables.rho is not None
+        rows, values = self.tables.factors.shape[-2:]
         self.dtype = dtype
+        # The real and imaginary parts of each rfft bin, side by side: (C, rows, 2 * rfft columns).
+        self._white = torch.empty((channels, rows, values), dtype=dtype, device=device)
+        self._mixed = torch.empty_like(self._white)
+        # With temporal correlation the white field is the state carried to the next frame.
+        self._state: torch.Tensor | None = torch.empty_like(self._white) if self.temporal else None
+        self._started = False
+        self._block_rows = max(1, ROW_BLOCK_VALUES // values)
 
     def frame(self, generator: torch.Generator) -> torch.Tensor:
         """The unit noise of the next frame, (C, height, width)."""
-        shape = (self.channels, *self.factor.shape[-2:], 2)
-        white = torch.randn(shape, generator=generator, dtype=self.dtype, device=self.factor.device)
-        if self.temporal:
-            if self.previous is not None:
-                white = self.previous * self.rho + white * self.innovation
-            self.previous = white
-        coloured = self.factor[:, 0, ..., None] * white[0]
-        for source in range(1, self.channels):
-            coloured.addcmul_(self.factor[:, source, ..., None], white[source])
-        field = torch.fft.irfft2(torch.view_as_complex(coloured), s=(self.grid_height, self.grid_width))
+        tables = self.tables
+        rows = self._white.shape[1]
+        # One draw over the whole field, as the first version of this model drew it: the same numbers, on which
+        # its estimates and their tests were made.
+        self._white.normal_(generator=generator)
+        for start in range(0, rows, self._block_rows):
+            block = slice(start, start + self._block_rows)
+            source, mixed = self._white[:, block], self._mixed[:, block]
+            if self._state is not None and tables.rho is not None and tables.innovation is not None:
+                state = self._state[:, block]
+                if self._started:
+                    # Two products and a sum, not addcmul, whose fused multiply-add rounds differently.
+                    state.mul_(tables.rho[block]).add_(source.mul_(tables.innovation[block]))
+                else:
+                    state.copy_(source)
+                source = state
+            for factor, (target, term_source) in zip(tables.factors[:, block], tables.terms, strict=True):
+                if term_source == 0:
+                    torch.mul(factor, source[0], out=mixed[target])
+                else:
+                    mixed[target].addcmul_(factor, source[term_source])
+        self._started = True
+        spectrum = torch.view_as_complex(self._mixed.view(self.channels, rows, -1, 2))
+        # Not into a kept array: irfft2's out= computes into a new one and copies it (15 ms more a 1080p frame).
+        field = torch.fft.irfft2(spectrum, s=(self.grid_height, self.grid_width))
         unit: torch.Tensor = field[:, MARGIN : MARGIN + self.height, MARGIN : MARGIN + self.width]
         return unit
+
+
+LEVEL_GRID_STEPS = 49
+"""The knots (j / 7)^2 = j^2 / 49 all lie on the uniform grid of step 1/49, so the level curve is linear between
+neighbouring points of that grid: a value's piece is floor(49 x), found by arithmetic instead of a search."""
+
+
+def level_pieces(curve: torch.Tensor, channels: int, dtype: torch.dtype = torch.float32) -> torch.Tensor:
+    """(C, LEVEL_GRID_STEPS, 2) intercept and slope of the level curve ``curve`` (24,) on each step of the uniform
+    grid, in the variable u = 49 x: the std at x is ``intercept + slope * u`` of piece ``floor(u)``."""
+    table = curve.reshape(3, len(LEVEL_KNOTS)).to(torch.float64)
+    if channels == 1:
+        table = table[1:2]
+    steps = torch.arange(LEVEL_GRID_STEPS + 1, dtype=torch.float64, device=curve.device)
+    # Grid point j = x * 49 lies in the knot segment k = floor(sqrt(j)) (knot k is at k^2 / 49).
+    segment = steps.sqrt().floor().clamp_max(len(LEVEL_KNOTS) - 2).long()
+    fraction = (steps - segment.square()) / (2 * segment + 1)
+    values = table[:, segment] * (1.0 - fraction) + table[:, segment + 1] * fraction
+    slope = values[:, 1:] - values[:, :-1]
+    intercept = values[:, :-1] - slope * steps[:-1]
+    return torch.stack([intercept, slope], dim=-1).to(dtype)
 
 
 def level_std(signal: torch.Tensor, curve: torch.Tensor) -> torch.Tensor:
     """The noise std of each pixel of ``signal`` (..., C, H, W) from ``level_curve`` (3 * 8: red's, green's, then
     blue's std at :data:`LEVEL_KNOTS`), piecewise linear between knots, held beyond them; a grey signal takes
     green's curve."""
-    knots = torch.tensor(LEVEL_KNOTS, dtype=signal.dtype, device=signal.device)
-    table = curve.reshape(3, len(LEVEL_KNOTS)).to(signal.dtype)
-    if signal.shape[-3] == 1:
-        table = table[1:2]
-    x = signal.clamp(0.0, 1.0).contiguous()
-    index = torch.bucketize(x, knots[1:-1])  # the segment each value falls in, 0..6
-    low, high = knots[index], knots[index + 1]
-    fraction = (x - low) / (high - low)
-    rows = torch.arange(table.shape[0], device=signal.device).reshape(-1, 1, 1).expand_as(x)
-    return table[rows, index] * (1.0 - fraction) + table[rows, index + 1] * fraction
+    channels = signal.shape[-3]
+    pieces = level_pieces(curve, channels, signal.dtype).to(signal.device)
+    position = signal.clamp(0.0, 1.0).mul_(float(LEVEL_GRID_STEPS))
+    piece = position.to(torch.int32).clamp_max_(LEVEL_GRID_STEPS - 1)
+    # Each channel reads its own rows of the flattened (C * steps) tables.
+    offsets = torch.arange(channels, dtype=torch.int32, device=signal.device) * LEVEL_GRID_STEPS
+    index = piece.add_(offsets.reshape(-1, 1, 1)).reshape(-1)
+    intercept = pieces[..., 0].reshape(-1).index_select(0, index).view(position.shape)
+    slope = pieces[..., 1].reshape(-1).index_select(0, index).view(position.shape)
+    return intercept.addcmul_(slope, position)
+
+
+def clip_grid(
+    covariances: torch.Tensor,
+    temporal: torch.Tensor,
+    frame_shape: torch.Size | tuple[int, ...],
+    *,
+    device: torch.device | str,
+    dtype: torch.dtype,
+    state: MutableMapping[str, SpectralGrid] | None,
+) -> SpectralGrid:
+    """The grid of a clip with frames (C, H, W) ``frame_shape``: the one a stream holds in ``state`` under
+    ``"spectral"`` (a new one, kept there, at the first frame or a new frame size), a new one without a state."""
+    channels, height, width = frame_shape
+    grid = None if state is None else state.get("spectral")
+    if grid is None or (grid.channels, grid.height, grid.width) != (channels, height, width):
+        grid = SpectralGrid(covariances, temporal, channels, height, width, device=device, dtype=dtype)
+        if state is not None:
+            state["spectral"] = grid
+    return grid
 
 
 def spectral_clip_noise(
@@ -257,11 +433,8 @@ def spectral_clip_noise(
         state: a stream's held objects; the grid (and the previous frame's white field) is kept there under
             ``"spectral"`` so the next call continues the clip. None: a clip of its own.
     """
-    frames, channels, height, width = signal.shape
-    grid = None if state is None else state.get("spectral")
-    if grid is None or (grid.channels, grid.height, grid.width) != (channels, height, width):
-        grid = SpectralGrid(covariances, temporal, channels, height, width, device=signal.device, dtype=signal.dtype)
-        if state is not None:
-            state["spectral"] = grid
-    unit = torch.stack([grid.frame(generator) for _ in range(frames)])
-    return level_std(signal, curve) * unit
+    grid = clip_grid(covariances, temporal, signal.shape[-3:], device=signal.device, dtype=signal.dtype, state=state)
+    noise = level_std(signal, curve)
+    for frame in noise:
+        frame.mul_(grid.frame(generator))
+    return noise

@@ -11,7 +11,7 @@ from typing import Any
 
 import torch
 
-from darksynth.noise.component_types import NoiseComponent, Parameter
+from darksynth.noise.component_types import SPECTRAL_PATHS, NoiseComponent, Parameter
 from darksynth.noise.spectral import LEVEL_KNOTS, OCTAVES, level_std, octave_covariances, spectral_clip_noise
 from darksynth.noise.statistics import SRGB_STATISTICS
 
@@ -28,6 +28,7 @@ _SPECTRAL_PARAMETERS: tuple[Parameter, ...] = (
         1.0,
         (0.0, 0.08),
         noise_model="spectral",
+        fast_paths=SPECTRAL_PATHS,
         since_version=4,
         statistics=SRGB_STATISTICS,
     ),
@@ -40,6 +41,7 @@ _SPECTRAL_PARAMETERS: tuple[Parameter, ...] = (
         (0.2, 20.0),
         neutral=1.0,
         noise_model="spectral",
+        fast_paths=SPECTRAL_PATHS,
         since_version=4,
         statistics=SRGB_STATISTICS,
         role="shape",
@@ -52,6 +54,7 @@ _SPECTRAL_PARAMETERS: tuple[Parameter, ...] = (
         (-0.3, 0.3),
         minimum=-0.99,
         noise_model="spectral",
+        fast_paths=SPECTRAL_PATHS,
         since_version=4,
         statistics=SRGB_STATISTICS,
         role="shape",
@@ -63,6 +66,7 @@ _SPECTRAL_PARAMETERS: tuple[Parameter, ...] = (
         0.99,
         (0.0, 0.9),
         noise_model="spectral",
+        fast_paths=SPECTRAL_PATHS,
         since_version=4,
         statistics=SRGB_STATISTICS,
         role="shape",

@@ -10,7 +10,14 @@ from collections.abc import Mapping, Sequence
 
 import torch
 
-from darksynth.noise.component_types import FUSED_PATHS, STRUCTURED_PATHS, NoiseComponent, Parameter, shapes_neutral
+from darksynth.noise.component_types import (
+    COMPRESSION_PATHS,
+    FUSED_PATHS,
+    STRUCTURED_PATHS,
+    NoiseComponent,
+    Parameter,
+    shapes_neutral,
+)
 from darksynth.noise.correlated import jpeg_compress_clips, structured_normal
 from darksynth.noise.heteroscedastic import heteroscedastic_noise, heteroscedastic_std
 from darksynth.noise.statistics import SRGB_STATISTICS
@@ -168,7 +175,7 @@ COMPRESSION = NoiseComponent(
             0.95,
             (0.0, 0.7),
             noise_model="srgb",
-            fast_paths=STRUCTURED_PATHS,
+            fast_paths=COMPRESSION_PATHS,
             since_version=2,
             statistics=SRGB_STATISTICS,
             training_off_probability=0.4,
