@@ -107,6 +107,17 @@ def test_a_still_clip_gives_its_frame_to_frame_correlation() -> None:
     assert independent.values["temporal_correlation"][:4].abs().max() < 0.1
 
 
+def test_a_still_clip_whose_brightness_pulses_is_still_read_as_still() -> None:
+    # Auto-exposure or flicker moves the whole frame by 3 levels a frame (the starlight video: 7 levels in 4
+    # frames); no block moves, and the noise's persistence is read as in a steady clip.
+    scene = quantised(_scene(256))
+    clip = torch.stack([scene + 3.0 * t / 255 for t in range(4)])
+    found = estimate_spectrum(_noisy(clip, _spectral([1.0] * 18, temporal=0.6), 2), name="flicker")
+    assert not found.warnings, found.warnings
+    temporal = found.values["temporal_correlation"]
+    assert torch.allclose(temporal[:2], torch.full((2,), 0.6, dtype=torch.float64), atol=0.12), temporal
+
+
 def test_a_clip_whose_camera_moves_in_every_frame_gets_the_prior_with_a_warning() -> None:
     # Coarse texture everywhere (a 24-px sinusoid of 25 levels), panned 8 px a frame: no block stays still.
     # (Flat regions would stay "still" under a pan and rightly show the sensor's noise persisting.)

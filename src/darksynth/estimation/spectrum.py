@@ -65,7 +65,13 @@ TEMPORAL_FRAMES = 4
 """Consecutive frames a clip is analysed on for the frame-to-frame correlation."""
 
 STILL_CHANGE = 2.0 / 255
-"""A block is still when the mean absolute change of the denoised frames, from the first, is below this."""
+"""A block is still when the mean absolute change of the denoised frames, from the first, is below this or below
+:data:`STILL_NOISE_FACTOR` times the change the noise alone leaves in a still simulation, whichever is larger."""
+
+STILL_NOISE_FACTOR = 1.5
+"""How far above the noise-only change (the median over blocks of a still simulation's) a still block may go.
+Strong noise leaves a change of its own in the denoised frames (the starlight video, 4 levels of noise: every
+block above 2 levels, so no block was still and its persistence was not read)."""
 
 MIN_STILL_BLOCKS = 4
 """Fewer still flat blocks than this: the clip's temporal correlation is not measured (the prior, 0)."""
@@ -187,10 +193,23 @@ def flat_block_std(frames: torch.Tensor) -> float:
     return float(std[:, flattest].median(dim=1).values.mean()) * 255.0
 
 
-def _still_mask(denoised: torch.Tensor) -> torch.Tensor:
-    """Blocks (H // BLOCK, W // BLOCK) whose denoised content stays within STILL_CHANGE of the first frame's."""
-    change = (denoised - denoised[:1]).abs().mean(dim=(0, 1))[None, None]
-    return F.avg_pool2d(change, BLOCK)[0, 0] < STILL_CHANGE
+def block_change(denoised: torch.Tensor) -> torch.Tensor:
+    """Mean absolute change (H // BLOCK, W // BLOCK) of each block of denoised frames (T, 3, H, W) from the first
+    frame, over the frames and channels, after each frame's median change per channel: a change of the whole
+    frame's brightness (auto-exposure, flicker: the starlight video dims by 7 levels in 4 frames) moves nothing."""
+    difference = denoised - denoised[:1]
+    global_change = difference.flatten(-2).median(dim=-1).values[..., None, None]
+    change = (difference - global_change).abs().mean(dim=(0, 1))[None, None]
+    return F.avg_pool2d(change, BLOCK)[0, 0]
+
+
+def noise_only_change(denoised_first: torch.Tensor, values: NoiseValues, frames: int, strength: float) -> float:
+    """The median block change (see :func:`block_change`) of a still clip made of the first denoised frame
+    (1, 3, H, W) and independent noise of ``values`` in each of ``frames`` frames, denoised like the reference."""
+    generator = torch.Generator(device=denoised_first.device).manual_seed(7919)
+    still = denoised_first.expand(frames, -1, -1, -1)
+    synthetic = quantised(add_noise(still[None], values, generator=generator)[0])
+    return float(block_change(nlm_denoise(synthetic, strength)).median())
 
 
 def octave_responses(
@@ -243,7 +262,13 @@ def estimate_spectrum(reference: torch.Tensor, *, seed: int = 0, name: str = "re
         )
     temporal_mask: torch.Tensor | None = None
     if clip:
-        still = _still_mask(denoised)
+        first = initial_parameters(measure(frames[:1] - denoised[:1], denoised[:1], mask))
+        first_values = NoiseValues.from_values(first.as_values(), dtype=torch.float32)
+        threshold = max(
+            STILL_CHANGE, STILL_NOISE_FACTOR * noise_only_change(denoised[:1], first_values, frames.shape[0], strength)
+        )
+        meta["still_threshold_8bit"] = round(threshold * 255, 3)
+        still = block_change(denoised) < threshold
         flat_blocks = F.avg_pool2d(mask[None, None], BLOCK)[0, 0] > 0.5
         both = still[: flat_blocks.shape[0], : flat_blocks.shape[1]] & flat_blocks
         meta["still_flat_blocks"] = int(both.sum())
