@@ -421,3 +421,27 @@ def test_audio_is_interleaved_as_frames_are_written(tmp_path: Path, monkeypatch:
             assert (index + 1) / fps - 0.2 < audio_end < (index + 1) / fps
     assert writer.audio_codecs == ("pcm_s16le",)
     assert audio_packets(tmp_path / "out.mkv") == audio_packets(source)
+
+
+def test_a_repeated_decoding_time_is_moved_past_the_last_and_the_video_still_closes(tmp_path: Path) -> None:
+    # x265 can hand out, at its flush, a decoding time equal to the previous packet's (a flaky EINVAL from the
+    # muxer on short clips); the writer moves it just past the last, as FFmpeg's command line does.
+    path = tmp_path / "clip.mkv"
+    frames = _gradient_frames(3)
+    with VideoWriter(path, width=64, height=48, fps=Fraction(25), codec="ffv1") as writer:
+        writer.write(frames[0])
+        container, stream = writer._container, writer._stream  # the writer's own muxing path, fed by hand
+        assert container is not None and stream is not None
+        frame = av.VideoFrame.from_ndarray(frames[1], format="rgb24").reformat(format=stream.codec_context.pix_fmt)
+        frame.pts = 1
+        packets = stream.encode(frame)
+        for packet in packets:
+            packet.dts = 0  # the first frame's decoding time again
+        writer._mux_video(container, packets)
+        # One frame past the last, in the stream's time base once muxed (matroska's 1/1000 s: 40).
+        assert stream.time_base is not None
+        assert [packet.dts for packet in packets] == [int(Fraction(1, 25) / stream.time_base)]
+        writer._frames_written += 1
+        writer.write(frames[2])
+    with av.open(str(path)) as video:
+        assert sum(1 for _ in video.decode(video=0)) == 3

@@ -254,6 +254,7 @@ class VideoWriter:
         self._container: OutputContainer | None = None
         self._stream: VideoStream | None = None
         self._frames_written = 0
+        self._last_dts: int | None = None
 
     def __enter__(self) -> Self:
         if self.path.suffix.lower() not in VIDEO_SUFFIXES:
@@ -312,7 +313,7 @@ class VideoWriter:
         if self._audio is not None:
             self._audio.mux_until(self._container, (self._frames_written + 1) / self.fps)
         try:
-            self._container.mux(self._stream.encode(video_frame))
+            self._mux_video(self._container, self._stream.encode(video_frame))
         except av.FFmpegError as err:
             raise DarksynthError(
                 f"{self.path}: encoding frame {self._frames_written} failed ({error_reason(err)})"
@@ -337,7 +338,7 @@ class VideoWriter:
                 raise DarksynthError(f"{self.path}: no frames were written")
             if container is None or stream is None:
                 raise RuntimeError("VideoWriter lost its container")
-            container.mux(stream.encode(None))
+            self._mux_video(container, stream.encode(None))
             if audio is not None:
                 audio.mux_until(container, None)
         except BaseException as err:
@@ -374,6 +375,22 @@ class VideoWriter:
             stream.codec_context.global_quality = _MPEG4_QSCALE
         stream.options = options
         return stream
+
+    def _mux_video(self, container: OutputContainer, packets: list[av.Packet[VideoStream]]) -> None:
+        """Mux encoded video packets, each decoding time after the last one's.
+
+        x265 (B-frames, its lookahead on a thread pool) can hand out a decoding time equal to the previous one when
+        it is flushed, which the muxer refuses with EINVAL: a flaky failure on short clips. As FFmpeg's own command
+        line does, such a time is moved just past the last (and the presentation time with it if it would fall
+        before)."""
+        for packet in packets:
+            if packet.dts is not None:
+                if self._last_dts is not None and packet.dts <= self._last_dts:
+                    packet.dts = self._last_dts + 1
+                    if packet.pts is not None and packet.pts < packet.dts:
+                        packet.pts = packet.dts
+                self._last_dts = packet.dts
+            container.mux(packet)
 
     def _describe(self) -> str:
         return f"{self.width}x{self.height} at {self.fps} fps with {self.codec} in {self.pix_fmt}"
