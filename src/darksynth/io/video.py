@@ -382,13 +382,16 @@ class VideoWriter:
         x265 (B-frames, its lookahead on a thread pool) can hand out a decoding time equal to the previous one when
         it is flushed, which the muxer refuses with EINVAL: a flaky failure on short clips. As FFmpeg's own command
         line does, such a time is moved just past the last (and the presentation time with it if it would fall
-        before)."""
+        before); a missing one is set there too."""
         for packet in packets:
+            floor = None if self._last_dts is None else self._last_dts + 1
+            if packet.dts is None and floor is not None:
+                packet.dts = floor
             if packet.dts is not None:
-                if self._last_dts is not None and packet.dts <= self._last_dts:
-                    packet.dts = self._last_dts + 1
-                    if packet.pts is not None and packet.pts < packet.dts:
-                        packet.pts = packet.dts
+                if floor is not None and packet.dts < floor:
+                    packet.dts = floor
+                if packet.pts is None or packet.pts < packet.dts:
+                    packet.pts = packet.dts
                 self._last_dts = packet.dts
             container.mux(packet)
 
