@@ -229,3 +229,17 @@ def test_counter_normals_and_bytes_have_their_laws_and_are_independent() -> None
     assert scipy.stats.chisquare(histogram.numpy()).pvalue > 1e-3
     for a, b in ((z[1:], z[:-1]), (z, byte.double()), (z, other.double())):
         assert abs(torch.corrcoef(torch.stack([a, b]))[0, 1].item()) < 5 / math.sqrt(n)
+
+
+def test_counter_normal_is_finite_at_both_ends_of_the_words() -> None:
+    """The top 24 bits all ones once gave u = 1 in float32 and an infinite normal (one word in 2^24: a hot pixel
+    in the fused kernels, a whole frame of NaN in the spectral one); both extreme words give finite tails."""
+    from darksynth.noise.counter_rng import normal_from_word
+
+    # Top 24 bits (the normal's): all ones twice, all zeros twice, then just above and just below the middle.
+    words = torch.tensor([-1, -256, 0, 255, -(1 << 31), (1 << 31) - 1], dtype=torch.int32)
+    normal, _ = normal_from_word(words)
+    assert bool(torch.isfinite(normal).all())
+    assert 5.0 < normal[0].item() < 6.0 and 5.0 < normal[1].item() < 6.0
+    assert -6.0 < normal[2].item() < -5.0 and -6.0 < normal[3].item() < -5.0
+    assert abs(normal[4].item()) < 1e-6 and abs(normal[5].item()) < 1e-6

@@ -35,6 +35,7 @@ def _signed32(value: int) -> int:
 _MIX1 = _signed32(0x7FEB352D)
 _MIX2 = _signed32(0x846CA68B)
 _UNIT_24 = 1.0 / (1 << 24)
+_BELOW_ONE = 1.0 - _UNIT_24
 KEY_WORDS = 2
 """A key is (base, stream), two int32 words."""
 
@@ -96,10 +97,13 @@ def normal_from_word(word: torch.Tensor) -> tuple[torch.Tensor, torch.Tensor]:
     of three), and a logarithm and a square root instead of a logarithm, a square root and a cosine, whose
     vector forms are several times slower on AVX2 than on AVX-512 (docs/performance.md). z = sqrt(2)
     erfinv(2u - 1), with 1 - (2u - 1)^2 written as 4 u (1 - u) so that the tails keep their precision; |z| is
-    at most 5.3 (a 1e-7 tail mass, invisible in 8-bit output) and the approximation's relative error is below
+    at most 5.5 (a 1e-7 tail mass, invisible in 8-bit output) and the approximation's relative error is below
     1e-6.
     """
-    uniform = (_shift_right(word, 8).to(torch.float32) + 0.5) * _UNIT_24
+    # The top value's u, (2^24 - 1/2) / 2^24, is not a float32: it rounds to 1, whose normal is infinite (one word
+    # in 2^24, i.e. a 1080p frame's draws hit it about every third frame). It is held at the largest float32
+    # below 1; every other word keeps its value.
+    uniform = ((_shift_right(word, 8).to(torch.float32) + 0.5) * _UNIT_24).clamp_max(_BELOW_ONE)
     centred = 2.0 * uniform - 1.0
     w = -torch.log(4.0 * uniform * (1.0 - uniform))
     central = _polynomial(_ERFINV_CENTRAL, w - 2.5)
