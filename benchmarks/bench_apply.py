@@ -5,20 +5,22 @@ frames of each method in turn (a stream of frames, as in a video), so that a slo
 all of them alike; medians over all timed frames are printed. The first line is the CPU and its vector
 extensions. The last line is ``apply_ms=<a> floor_ms=<b> albumentations_gauss_ms=<c> default_ms=<d>
 srgb_ms=<d3> srgb_floor_ms=<e> albumentations_chain_ms=<f> synthesize_ms=<s> synthesize_float_ms=<sf>
-spectral_floor_ms=<g>``:
+spectral_floor_ms=<g> default_eager_ms=<de> irfft2_ms=<i>``:
 
 - a: the paper's model, every component on, darkening on, compiled kernel; b: ``torch.randn`` + ``torch.rand`` of
   the frame; c: albumentations ``GaussNoise``;
 - d: the default path: the profile ``estimate`` writes for the shipped demo reference (the spectral model,
-  profile version 4, compression included when it has one), darkening on, through ``ClipSynthesizer`` as
-  ``apply`` runs it (the spectral path has no compiled kernel: a stream and a single image run the same code);
+  profile version 4, compression included when it has one), darkening on, through ``ClipSynthesizer`` compiled,
+  as ``apply`` runs a stream (:mod:`darksynth.noise.spectral_kernel`); de: the same eagerly, as ``apply`` runs a
+  short clip or one image (:mod:`darksynth.noise.spectral_8bit`);
 - d3: the version-3 sRGB profile of the same reference (``estimate`` without the spectrum), compiled, for
   comparison; e: the floor of a JPEG path, ``torch.randn`` + ``torch.rand`` of the frame and a Pillow JPEG encode
   and decode of it at quality 75; f: albumentations ``Compose([GaussNoise, ImageCompression])`` at quality 75;
 - s: one image (uint8 tensor) through ``darksynth.synthesize`` with the default profile, no compile step, what a
   training transform runs on 8-bit input in a DataLoader worker (drawing the parameters and a new synthesizer per
   call); sf: the same image as float in [0, 1] (on the 8-bit levels, as ``ToTensor`` gives it);
-- g: the spectral path's floor, ``normal_`` of its FFT grid, the ``irfft2`` and the quantization bytes of the frame.
+- g: the eager spectral path's floor, ``normal_`` of its FFT grid, the ``irfft2`` and the quantization bytes of
+  the frame; i: the ``irfft2`` alone, which both paths run (the compiled one draws in its own kernels).
 
 ``--device cuda`` runs the darksynth figures on that device (the floors and albumentations stay on the CPU).
 """
@@ -123,7 +125,11 @@ def main() -> None:
     compiled(frame)
     first_call_s = time.perf_counter() - started
     eager = ClipSynthesizer(ALL_COMPONENTS, generator=generator, compile=False, device=args.device)
-    default_synthesizer = ClipSynthesizer(default, generator=generator, compile=False, device=args.device)
+    started = time.perf_counter()
+    default_synthesizer = ClipSynthesizer(default, generator=generator, compile=True, device=args.device)
+    default_synthesizer(frame)
+    default_first_call_s = time.perf_counter() - started
+    default_eager = ClipSynthesizer(default, generator=generator, compile=False, device=args.device)
     srgb_synthesizer = ClipSynthesizer(srgb, generator=generator, compile=True, device=args.device)
     # What a single image of the version-3 profile gets: no compilation, the general composer.
     srgb_single = ClipSynthesizer(srgb, generator=generator, compile=False, device=args.device)
@@ -151,6 +157,9 @@ def main() -> None:
     grid_white = torch.empty((3, grid.grid_height, grid.grid_width // 2 + 1, 2), device=args.device)
     quantization_bytes = torch.empty(shape, dtype=torch.uint8, device=args.device)
 
+    def irfft2() -> object:
+        return torch.fft.irfft2(torch.view_as_complex(grid_white), s=(grid.grid_height, grid.grid_width))
+
     def spectral_floor() -> object:
         grid_white.normal_(generator=generator)
         field = torch.fft.irfft2(torch.view_as_complex(grid_white), s=(grid.grid_height, grid.grid_width))
@@ -162,6 +171,8 @@ def main() -> None:
         "gauss": lambda: gauss(image=frame_hwc),
         "eager": lambda: eager(frame),
         "default": lambda: default_synthesizer(frame),
+        "default_eager": lambda: default_eager(frame),
+        "irfft2": irfft2,
         "srgb": lambda: srgb_synthesizer(frame),
         "srgb_floor": lambda: (
             torch.randn(shape, generator=generator),
@@ -191,12 +202,17 @@ def main() -> None:
     )
     synthesize_ms, synthesize_float_ms = median["synthesize"], median["synthesize_float"]
     print(f"torch {torch.__version__}, threads {torch.get_num_threads()}, frame {WIDTH}x{HEIGHT} RGB uint8")
-    print(f"first compiled call (compile or cache load): {first_call_s:.2f} s")
+    print(
+        f"first compiled call (compile or cache load): paper kernel {first_call_s:.2f} s, spectral kernels "
+        f"{default_first_call_s:.2f} s"
+    )
     print(f"paper model, every component: compiled {apply_ms:.2f} ms, eager {median['eager']:.2f} ms")
     print(
-        f"default path (spectral profile, ClipSynthesizer, no compile step): {default_ms:.2f} ms; "
+        f"default path (spectral profile, ClipSynthesizer compiled, as apply runs a stream): {default_ms:.2f} ms; "
         f"albumentations GaussNoise + ImageCompression: {chain_ms:.2f} ms; "
-        f"chain / default = {chain_ms / default_ms:.2f} (target >= 1.2)"
+        f"chain / default = {chain_ms / default_ms:.2f} (target >= 1.2); eagerly (a short clip, one image) "
+        f"{median['default_eager']:.2f} ms (chain / it = {chain_ms / median['default_eager']:.2f}); the irfft2 "
+        f"both run {median['irfft2']:.2f} ms"
     )
     print(
         f"one image through synthesize, no compile step: uint8 {synthesize_ms:.2f} ms "
@@ -209,9 +225,9 @@ def main() -> None:
     )
     print(
         f"floors: randn + rand {floor_ms:.2f} ms; randn + rand + Pillow JPEG q75 {srgb_floor_ms:.2f} ms "
-        f"(default / that floor = {default_ms / srgb_floor_ms:.2f}); the spectral path's own (normals of its FFT "
-        f"grid, irfft2, quantization bytes) {median['spectral_floor']:.2f} ms "
-        f"(default / it = {default_ms / median['spectral_floor']:.2f}, chain / it = "
+        f"(default / that floor = {default_ms / srgb_floor_ms:.2f}); the eager spectral path's own (normals of its "
+        f"FFT grid, irfft2, quantization bytes) {median['spectral_floor']:.2f} ms "
+        f"(eager default / it = {median['default_eager'] / median['spectral_floor']:.2f}, chain / it = "
         f"{chain_ms / median['spectral_floor']:.2f})"
     )
     print(f"ratios: apply/floor = {apply_ms / floor_ms:.3f}, albumentations_gauss/apply = {gauss_ms / apply_ms:.2f}")
@@ -219,7 +235,8 @@ def main() -> None:
         f"apply_ms={apply_ms:.2f} floor_ms={floor_ms:.2f} albumentations_gauss_ms={gauss_ms:.2f} "
         f"default_ms={default_ms:.2f} srgb_ms={srgb_ms:.2f} srgb_floor_ms={srgb_floor_ms:.2f} "
         f"albumentations_chain_ms={chain_ms:.2f} synthesize_ms={synthesize_ms:.2f} "
-        f"synthesize_float_ms={synthesize_float_ms:.2f} spectral_floor_ms={median['spectral_floor']:.2f}"
+        f"synthesize_float_ms={synthesize_float_ms:.2f} spectral_floor_ms={median['spectral_floor']:.2f} "
+        f"default_eager_ms={median['default_eager']:.2f} irfft2_ms={median['irfft2']:.2f}"
     )
 
 

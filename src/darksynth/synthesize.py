@@ -40,6 +40,7 @@ from darksynth.noise.sampling import random_uniform
 from darksynth.noise.simulate import add_noise, apply_output_stages, column_components_active, column_noise
 from darksynth.noise.spectral import clip_grid, octave_covariances
 from darksynth.noise.spectral_8bit import SPECTRAL_PATH, SpectralPixelPass, to_8bit
+from darksynth.noise.spectral_kernel import SpectralKernelStream, compiled_spectral_kernels
 from darksynth.noise.values import NoiseValues
 from darksynth.profile import Profile
 from darksynth.tensors import CLIP_DIMS
@@ -158,6 +159,9 @@ class ClipSynthesizer:
             and self._values.covered_by(SPECTRAL_PATH)
         )
         self._spectral_pass: SpectralPixelPass | None = None
+        # Compiled, a spectral stream takes the fused kernels (the same law, counter-based draws).
+        self._spectral_compiled = compile and self._spectral
+        self._spectral_stream: SpectralKernelStream | None = None
         if uncovered and not self._structured and not self._spectral:
             logger.debug("8-bit frames take the general composer: %s not covered by %s", uncovered, FAST_PATH)
         self._scalars: tuple[torch.Tensor, ...] | None = None
@@ -179,6 +183,10 @@ class ClipSynthesizer:
             structured = self._fused_structured(frame)
             if structured is not None:
                 return structured
+        if frame.dtype == torch.uint8 and self._spectral_compiled:
+            compiled = self._spectral_kernels(frame)
+            if compiled is not None:
+                return compiled
         if frame.dtype == torch.uint8 and self._spectral:
             return self._spectral_8bit(frame)
         scale = _full_scale(frame.dtype)
@@ -203,7 +211,7 @@ class ClipSynthesizer:
             self._frames_done,
         )
         self._held.clear()
-        self._fusable = self._structured = self._spectral = False
+        self._fusable = self._structured = self._spectral = self._spectral_compiled = False
 
     def _kernel_scalars(self) -> tuple[torch.Tensor, ...]:
         if self._scalars is None:
@@ -261,6 +269,37 @@ class ClipSynthesizer:
             self._structured = False
             return None
         values = self._values
+        if values.is_neutral(noise_parameter("compression")):
+            return out
+        compressed = apply_output_stages(out.to(torch.float32)[None] / FULL_SCALE, values, generator=self.generator)
+        return _to_dtype(compressed[0], frame.dtype)
+
+    def _spectral_kernels(self, frame: torch.Tensor) -> torch.Tensor | None:
+        """The uint8 frame through the compiled spectral kernels and the output stages; None once they have failed
+        (the stream then goes on through the eager spectral path, which has the same law)."""
+        values = self._values
+        columns = self._columns_8bit(frame) if column_components_active(values) else None
+        try:
+            if self._spectral_stream is None:
+                mix, ar_mix, pixel = compiled_spectral_kernels()
+                self._spectral_stream = SpectralKernelStream(
+                    (frame.shape[0], frame.shape[1], frame.shape[2]),
+                    octave_covariances(values["octave_power"], values["octave_correlation"]),
+                    values["temporal_correlation"],
+                    self.parameters.darkening,
+                    values["level_curve"],
+                    values.scalar("quantization"),
+                    mix=mix,
+                    ar_mix=ar_mix,
+                    pixel=pixel,
+                    device=self.device,
+                )
+            out = self._spectral_stream(frame, self.generator, columns)
+        except Exception as error:
+            # A platform without a working compiler (as for the other kernels).
+            logger.warning("compiled spectral kernels failed (%s); using the eager spectral path", error)
+            self._spectral_compiled = False
+            return None
         if values.is_neutral(noise_parameter("compression")):
             return out
         compressed = apply_output_stages(out.to(torch.float32)[None] / FULL_SCALE, values, generator=self.generator)

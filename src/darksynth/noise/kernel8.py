@@ -19,6 +19,7 @@ from __future__ import annotations
 
 import logging
 from collections.abc import Callable
+from typing import Any
 
 import torch
 
@@ -266,10 +267,10 @@ def pixel_kernel_in_pieces(
     return out
 
 
-_compiled: dict[str, PixelKernel] = {}
+_compiled: dict[str, Callable[..., Any]] = {}
 
 
-def _compiled_kernel(kernel: PixelKernel) -> PixelKernel:
+def compiled_function(kernel: Callable[..., Any]) -> Callable[..., Any]:
     """``kernel`` through ``torch.compile``, once per process, or ``kernel`` itself where compilation is
     unavailable (with one logged line)."""
     name = kernel.__name__
@@ -288,9 +289,9 @@ def compiled_pixel_kernel() -> PixelKernel:
     Compiling costs seconds once per process and frame size (less with the on-disk cache of later runs), so
     callers use it for streams of many same-sized frames and the eager kernel for a single image.
     """
-    return _compiled_kernel(pixel_kernel_8bit)
+    return compiled_function(pixel_kernel_8bit)
 
 
 def compiled_srgb_kernel() -> PixelKernel:
     """:func:`srgb_pixel_kernel_8bit` through ``torch.compile`` (the eager one where that is unavailable)."""
-    return _compiled_kernel(srgb_pixel_kernel_8bit)
+    return compiled_function(srgb_pixel_kernel_8bit)

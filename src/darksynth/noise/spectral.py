@@ -116,7 +116,7 @@ def _radial_frequencies(device: torch.device | str = "cpu") -> torch.Tensor:
     return torch.linspace(0.0, _MAX_FREQUENCY, RADIAL_TABLE_SIZE, dtype=torch.float64, device=device)
 
 
-def _grid_radius(height: int, width: int, device: torch.device | str) -> torch.Tensor:
+def grid_radius(height: int, width: int, device: torch.device | str) -> torch.Tensor:
     """Radial frequency (cycles/px) of each bin of an rfft2 grid of (height, width): (height, width // 2 + 1)."""
     fy = torch.fft.fftfreq(height, dtype=torch.float64, device=device)
     fx = torch.fft.rfftfreq(width, dtype=torch.float64, device=device)
@@ -138,7 +138,7 @@ def radial_factor(covariances: torch.Tensor, channels: int) -> torch.Tensor:
 
     The unit variance is each channel's integral of its spectral density over the frequency square, evaluated on
     a fixed :data:`NORMALISATION_GRID` grid, so it is the same for every frame size."""
-    grid = _grid_radius(NORMALISATION_GRID, NORMALISATION_GRID, covariances.device)
+    grid = grid_radius(NORMALISATION_GRID, NORMALISATION_GRID, covariances.device)
     # rfft grid: the columns other than 0 and Nyquist stand for two bins of the full square.
     weights = torch.full(grid.shape, 2.0, dtype=torch.float64, device=grid.device)
     weights[:, 0] = weights[:, -1] = 1.0
@@ -159,7 +159,7 @@ def radial_correlation(temporal: torch.Tensor) -> torch.Tensor:
     return octave_weights(_radial_frequencies(temporal.device)) @ temporal.to(torch.float64).clamp(0.0, 0.999)
 
 
-def _fft_size(size: int) -> int:
+def fft_size(size: int) -> int:
     """The smallest size >= ``size`` with no prime factor above 5, which FFT libraries transform fastest."""
     candidate = size
     while True:
@@ -197,6 +197,18 @@ class SpectralTables:
     innovation: torch.Tensor | None
 
 
+def radial_index(grid_height: int, grid_width: int, device: torch.device | str) -> torch.Tensor:
+    """(rows, rfft columns) int64 entry of the radial tables nearest to each bin's radial frequency."""
+    radius = grid_radius(grid_height, grid_width, device)
+    return (radius * ((RADIAL_TABLE_SIZE - 1) / _MAX_FREQUENCY)).round().long().clamp_max(RADIAL_TABLE_SIZE - 1)
+
+
+def grid_size(height: int, width: int) -> tuple[int, int]:
+    """The FFT grid of frames of (``height``, ``width``): the frame plus :data:`MARGIN` on each side, each side
+    rounded up to a fast size."""
+    return fft_size(height + 2 * MARGIN), fft_size(width + 2 * MARGIN)
+
+
 def _mixing_terms(channels: int) -> tuple[tuple[int, int], ...]:
     return tuple((target, source) for target in range(channels) for source in range(channels))
 
@@ -216,8 +228,7 @@ def _build_tables(
     device: torch.device | str,
     dtype: torch.dtype,
 ) -> SpectralTables:
-    radius = _grid_radius(grid_height, grid_width, device)
-    index = (radius * ((RADIAL_TABLE_SIZE - 1) / _MAX_FREQUENCY)).round().long().clamp_max(RADIAL_TABLE_SIZE - 1)
+    index = radial_index(grid_height, grid_width, device)
     # irfft2 divides by the bin count N; a white field of unit variance has coefficients of mean square N,
     # i.e. N / 2 in each of the real and imaginary parts drawn here.
     scale = math.sqrt(grid_height * grid_width / 2.0)
@@ -261,7 +272,7 @@ def spectral_tables(
     """The tables of a spectrum (``covariances`` (OCTAVES, 3, 3), ``temporal`` (OCTAVES,)) for frames of
     (``height``, ``width``), from a small cache of the last :data:`TABLE_CACHE_SIZE` ones (building them costs
     about as much as drawing a frame)."""
-    grid_height, grid_width = _fft_size(height + 2 * MARGIN), _fft_size(width + 2 * MARGIN)
+    grid_height, grid_width = grid_size(height, width)
     key = (
         covariances.detach().to("cpu", torch.float64).numpy().tobytes(),
         temporal.detach().to("cpu", torch.float64).numpy().tobytes(),
