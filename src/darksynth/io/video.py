@@ -90,6 +90,16 @@ _PIX_FMT: Final[dict[str, str]] = {
 _WHOLE_CHROMA_CODECS: Final[frozenset[str]] = frozenset({"libx264", "libx265"})
 _ODD_SIZE_PIX_FMT: Final = "yuv444p"
 
+# x265 (4.2, as bundled with PyAV) computes its first packets' decoding times as pts - m_bframeDelayTime, a field it
+# sets only once it has received b-frame-delay + 1 frames (the delay is 2 with B-frames and their pyramid, the
+# defaults, 1 or 0 otherwise) and never initialises: a clip of at most 2 frames gets a decoding time offset by
+# whatever the heap held (x265 issue #781, fixed upstream by PR #936). That garbage depends on what the process
+# allocated before (cv2, torch...), so the muxer refused it (EINVAL, pts < dts) in about 1 full test run in 3,
+# never in a fresh process. Such a clip is coded without reordering (the first frame is the keyframe, decoded
+# first) and comes out whole at the flush, so its decoding times are set to its presentation times, as the fixed
+# x265 gives. (Moving a bad decoding time past the last one hid the error but wrote absurd presentation times.)
+_X265_MAX_BFRAME_DELAY: Final = 2
+
 # Fixed quantiser for MPEG-4 Part 2, whose default 200 kb/s bit rate would be far too low (2 is near the best).
 _MPEG4_QSCALE: Final = 2
 
@@ -254,7 +264,6 @@ class VideoWriter:
         self._container: OutputContainer | None = None
         self._stream: VideoStream | None = None
         self._frames_written = 0
-        self._last_dts: int | None = None
 
     def __enter__(self) -> Self:
         if self.path.suffix.lower() not in VIDEO_SUFFIXES:
@@ -313,7 +322,7 @@ class VideoWriter:
         if self._audio is not None:
             self._audio.mux_until(self._container, (self._frames_written + 1) / self.fps)
         try:
-            self._mux_video(self._container, self._stream.encode(video_frame))
+            self._container.mux(self._stream.encode(video_frame))
         except av.FFmpegError as err:
             raise DarksynthError(
                 f"{self.path}: encoding frame {self._frames_written} failed ({error_reason(err)})"
@@ -338,7 +347,11 @@ class VideoWriter:
                 raise DarksynthError(f"{self.path}: no frames were written")
             if container is None or stream is None:
                 raise RuntimeError("VideoWriter lost its container")
-            self._mux_video(container, stream.encode(None))
+            packets = stream.encode(None)
+            if self.codec == "libx265" and self._frames_written <= _X265_MAX_BFRAME_DELAY:
+                for packet in packets:
+                    packet.dts = packet.pts
+            container.mux(packets)
             if audio is not None:
                 audio.mux_until(container, None)
         except BaseException as err:
@@ -375,25 +388,6 @@ class VideoWriter:
             stream.codec_context.global_quality = _MPEG4_QSCALE
         stream.options = options
         return stream
-
-    def _mux_video(self, container: OutputContainer, packets: list[av.Packet[VideoStream]]) -> None:
-        """Mux encoded video packets, each decoding time after the last one's.
-
-        x265 (B-frames, its lookahead on a thread pool) can hand out a decoding time equal to the previous one when
-        it is flushed, which the muxer refuses with EINVAL: a flaky failure on short clips. As FFmpeg's own command
-        line does, such a time is moved just past the last (and the presentation time with it if it would fall
-        before); a missing one is set there too."""
-        for packet in packets:
-            floor = None if self._last_dts is None else self._last_dts + 1
-            if packet.dts is None and floor is not None:
-                packet.dts = floor
-            if packet.dts is not None:
-                if floor is not None and packet.dts < floor:
-                    packet.dts = floor
-                if packet.pts is None or packet.pts < packet.dts:
-                    packet.pts = packet.dts
-                self._last_dts = packet.dts
-            container.mux(packet)
 
     def _describe(self) -> str:
         return f"{self.width}x{self.height} at {self.fps} fps with {self.codec} in {self.pix_fmt}"
