@@ -243,3 +243,16 @@ def test_counter_normal_is_finite_at_both_ends_of_the_words() -> None:
     assert 5.0 < normal[0].item() < 6.0 and 5.0 < normal[1].item() < 6.0
     assert -6.0 < normal[2].item() < -5.0 and -6.0 < normal[3].item() < -5.0
     assert abs(normal[4].item()) < 1e-6 and abs(normal[5].item()) < 1e-6
+
+
+def test_counter_triangular_draws_have_unit_variance_and_the_triangular_shape() -> None:
+    from darksynth.noise.counter_rng import first_word, flat_index, triangular_from_word
+
+    count = 1 << 20
+    z = triangular_from_word(first_word(flat_index((count,), torch.device("cpu")), random_key())).double()
+    n = float(count)
+    assert abs(z.mean().item()) < 5 / math.sqrt(n)
+    assert abs(z.var().item() - 1.0) < 5 * math.sqrt(0.8 / n)  # fourth moment 2.4 for the triangular law
+    assert abs(scipy.stats.kurtosis(z.numpy()) + 0.6) < 0.02
+    assert z.abs().max().item() <= math.sqrt(6.0)
+    assert abs(torch.corrcoef(torch.stack([z[1:], z[:-1]]))[0, 1].item()) < 5 / math.sqrt(n)

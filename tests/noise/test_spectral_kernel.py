@@ -6,16 +6,16 @@ import logging
 import sys
 
 import pytest
+import scipy.stats
 import torch
 
 from darksynth.darkening import Darkening
 from darksynth.noise.counter_rng import random_key
-from darksynth.noise.spectral import OCTAVES, octave_covariances
+from darksynth.noise.spectral import OCTAVES, octave_covariances, spectral_tables
 from darksynth.noise.spectral_8bit import level_tables
 from darksynth.noise.spectral_fit import measure
 from darksynth.noise.spectral_kernel import (
     crop_unit,
-    kernel_tables,
     spectral_ar_mix_kernel,
     spectral_mix_kernel,
     spectral_pixel_kernel,
@@ -38,23 +38,27 @@ def _eager_kernels(monkeypatch: pytest.MonkeyPatch) -> None:
     monkeypatch.setattr(sys.modules["darksynth.synthesize"], "compiled_spectral_kernels", lambda: EAGER_KERNELS)
 
 
+def _field(mixed: torch.Tensor, height: int, width: int) -> torch.Tensor:
+    return torch.fft.irfft2(torch.view_as_complex(mixed.view(*mixed.shape[:2], -1, 2)), s=(height, width))
+
+
 def test_the_kernels_give_the_same_values_eagerly_and_compiled() -> None:
     values = NoiseValues.from_values(SPECTRAL | {"temporal_correlation": [0.6] * OCTAVES})  # type: ignore[arg-type]
     covariances = octave_covariances(values["octave_power"], values["octave_correlation"])
-    tables = kernel_tables(covariances, values["temporal_correlation"], 3, 40, 56, device=torch.device("cpu"))
+    tables = spectral_tables(covariances, values["temporal_correlation"], 3, 40, 56, device="cpu")
     assert tables.rho is not None and tables.innovation is not None
     generator = torch.Generator().manual_seed(4)
     key = random_key(generator)
-    mixed = spectral_mix_kernel(key, tables.index, tables.factors)
-    compiled_mixed = torch.compile(spectral_mix_kernel, dynamic=False)(key, tables.index, tables.factors)
+    mixed = spectral_mix_kernel(key, tables.factors)
+    compiled_mixed = torch.compile(spectral_mix_kernel, dynamic=False)(key, tables.factors)
     assert torch.allclose(mixed, compiled_mixed, rtol=1e-5, atol=1e-3 * mixed.abs().max().item())
     state = torch.randn_like(mixed)
-    arguments = (key, tables.index, tables.factors, tables.rho, tables.innovation, state, torch.tensor(True))
+    arguments = (key, tables.factors, tables.rho, tables.innovation, state, torch.tensor(True))
     carried, carried_state = spectral_ar_mix_kernel(*arguments)
     compiled_carried, compiled_state = torch.compile(spectral_ar_mix_kernel, dynamic=False)(*arguments)
     assert torch.allclose(carried_state, compiled_state, rtol=1e-5, atol=1e-5)
     assert torch.allclose(carried, compiled_carried, rtol=1e-5, atol=1e-3 * carried.abs().max().item())
-    unit = crop_unit(torch.fft.irfft2(torch.view_as_complex(mixed), s=(tables.grid_height, tables.grid_width)), 40, 56)
+    unit = crop_unit(_field(mixed, tables.grid_height, tables.grid_width), 40, 56)
     signal, std = level_tables(3, Darkening(0.2, 0.6), values["level_curve"], device="cpu")
     frame = torch.randint(0, 256, (3, 40, 56), dtype=torch.uint8, generator=generator)
     pixel_arguments = (
@@ -73,6 +77,25 @@ def test_the_kernels_give_the_same_values_eagerly_and_compiled() -> None:
     assert (eager_frame != compiled_frame).double().mean() < 1e-3
 
 
+def test_the_unit_noise_is_normal_though_its_frequency_draws_are_triangular() -> None:
+    """Even a spectrum whose power sits in the coarse octaves (few frequency bins) on a small grid: the inverse
+    FFT's sums are normal (the eager path's law), with unit variance per channel."""
+    power = torch.tensor([[0.3, 0.3, 0.3]] * 3 + [[6.0, 20.0, 20.0]] * 3).flatten()
+    covariances = octave_covariances(power, torch.zeros(3 * OCTAVES))
+    tables = spectral_tables(covariances, torch.zeros(OCTAVES), 3, 96, 128, device="cpu")
+    generator = torch.Generator().manual_seed(8)
+    units = []
+    for _ in range(24):
+        mixed = spectral_mix_kernel(random_key(generator), tables.factors)
+        units.append(crop_unit(_field(mixed, tables.grid_height, tables.grid_width), 96, 128))
+    unit = torch.stack(units).double()
+    assert torch.allclose(unit.var(dim=(0, 2, 3)), torch.ones(3, dtype=torch.float64), rtol=0.1)
+    values = unit.permute(1, 0, 2, 3).reshape(3, -1).numpy()
+    # 24 frames of coarse noise hold few independent values: the kurtosis's sampling error is about 0.03.
+    assert abs(scipy.stats.kurtosis(values, axis=1)).max() < 0.12
+    assert abs(scipy.stats.skew(values, axis=1)).max() < 0.08
+
+
 def _frames(synthesizer: ClipSynthesizer, frame: torch.Tensor, count: int) -> torch.Tensor:
     return torch.stack([synthesizer(frame).double() for _ in range(count)])
 
@@ -87,11 +110,11 @@ def test_the_compiled_path_draws_the_eager_paths_law(monkeypatch: pytest.MonkeyP
     compiled stream against the eager spectral path's, on a mid-grey 8-bit clip."""
     _eager_kernels(monkeypatch)
     parameters = ClipParameters(NoiseValues.from_values(SPECTRAL | extra), Darkening(0.3, 0.8))  # type: ignore[arg-type]
-    frame = torch.full((3, 192, 192), 150, dtype=torch.uint8)
+    frame = torch.full((3, 256, 256), 150, dtype=torch.uint8)
     compiled = ClipSynthesizer(parameters, generator=torch.Generator().manual_seed(1), compile=True)
     eager = ClipSynthesizer(parameters, generator=torch.Generator().manual_seed(2), compile=False)
     assert compiled._spectral_compiled and not eager._spectral_compiled and eager._spectral
-    ours, theirs = _frames(compiled, frame, 8), _frames(eager, frame, 8)
+    ours, theirs = _frames(compiled, frame, 12), _frames(eager, frame, 12)
     assert compiled._spectral_stream is not None  # the compiled path drew them
     assert not torch.equal(ours[0], ours[1])
     assert torch.allclose(ours.mean(dim=(0, 2, 3)), theirs.mean(dim=(0, 2, 3)), atol=0.3)
@@ -100,9 +123,10 @@ def test_the_compiled_path_draws_the_eager_paths_law(monkeypatch: pytest.MonkeyP
     assert torch.allclose(stds[0], stds[1], rtol=0.08)
     measured = [measure(n, torch.full_like(n, 0.5)) for n in noise]
     power = [m.cross_power.diagonal(dim1=-2, dim2=-1) for m in measured]
-    # Eight 192-px frames: the finer four bands hold thousands of frequencies each, the coarse ones few.
-    assert torch.allclose(power[0][:4], power[1][:4], rtol=0.2)
-    assert torch.allclose(power[0][4:], power[1][4:], rtol=0.6)
+    # Twelve 256-px frames: over five seeds each path's band powers vary by at most 6% (relative std) in the five
+    # finer bands and by up to 14% in the coarsest, which holds few frequencies: its total is compared.
+    assert torch.allclose(power[0][:5], power[1][:5], rtol=0.25)
+    assert torch.allclose(power[0][5].sum(), power[1][5].sum(), rtol=0.4)
     correlations = [torch.corrcoef(n.permute(1, 0, 2, 3).reshape(3, -1)) for n in noise]
     assert (correlations[0] - correlations[1]).abs().max() < 0.06
     temporal = [m.temporal for m in measured]

@@ -36,6 +36,7 @@ _MIX1 = _signed32(0x7FEB352D)
 _MIX2 = _signed32(0x846CA68B)
 _UNIT_24 = 1.0 / (1 << 24)
 _BELOW_ONE = 1.0 - _UNIT_24
+_TRIANGULAR_SCALE = math.sqrt(6.0 / (65536.0**2 - 1.0))
 KEY_WORDS = 2
 """A key is (base, stream), two int32 words."""
 
@@ -110,6 +111,22 @@ def normal_from_word(word: torch.Tensor) -> tuple[torch.Tensor, torch.Tensor]:
     tail = _polynomial(_ERFINV_TAIL, torch.sqrt(w) - 3.0)
     normal = math.sqrt(2.0) * torch.where(w < 5.0, central, tail) * centred
     return normal, byte_from_word(word)
+
+
+def triangular_from_word(word: torch.Tensor) -> torch.Tensor:
+    """A zero-mean, unit-variance float32 from one word: the sum of its two 16-bit halves, centred and scaled (a
+    triangular law on [-sqrt 6, sqrt 6], excess kurtosis -0.6).
+
+    For draws that are summed by thousands before anyone sees them, as the frequency coefficients of a noise
+    field are by its inverse FFT: the field's covariance depends only on the draws' variance, and its values are
+    normal by the central limit theorem (their excess kurtosis is -0.6 / the effective number of coefficients).
+    Two integer-to-float conversions instead of :func:`normal_from_word`'s logarithm, square root and two
+    polynomials: 4 against 21 ms for the 7 million draws of a 1080p frame's grid on AVX2 (3 against 16 on
+    AVX-512)."""
+    low = (word & 0xFFFF).to(torch.float32)
+    high = _shift_right(word, 16).to(torch.float32)
+    # Each half is uniform on 0..65535 (variance (65536^2 - 1) / 12); their sum's mean is 65535.
+    return (low + high - 65535.0) * _TRIANGULAR_SCALE
 
 
 def byte_from_word(word: torch.Tensor) -> torch.Tensor:

@@ -2,37 +2,38 @@
 
 The eager spectral path (:mod:`darksynth.noise.spectral`, :mod:`darksynth.noise.spectral_8bit`) is bounded by
 what it writes to memory: the white field of its FFT grid drawn from ``torch.Generator``'s serial stream (about
-7 million normals a 1080p frame), nine frame-sized factor arrays read to mix it, and the quantization bytes.
+7 million normals a 1080p frame), and the mixing and the per-pixel pass in many small eager operations.
 Here two ``torch.compile`` kernels do the work in vectorised loops on every core:
 
 * the **mixing kernel** computes each frequency bin's white values from a counter-based hash of the bin's index
-  (:mod:`darksynth.noise.counter_rng`, nothing written to memory), carries them forward in time (AR(1), the
-  clip's state), and mixes them into the channels with the factor of the bin's radial frequency, gathered from
-  the small radial table (1024 entries) instead of read from frame-sized arrays;
+  (:mod:`darksynth.noise.counter_rng`, nothing written to memory; triangular draws of unit variance, which the
+  inverse FFT sums into a normal field, at a fifth of the inverse normal CDF's cost), carries them forward in
+  time (AR(1), the clip's state), and mixes them into the channels with each bin's factor (the eager path's
+  cached tables);
 * one inverse FFT (torch's own, not compiled);
 * the **pixel kernel** reads the darkened level and the noise std of each 8-bit value from the clip's 256-entry
   tables, adds the unit noise times the std, a counter-based quantization draw and the column pattern, and
   rounds.
 
 It draws the same law as the eager path (same spectrum, same colour covariance per octave, same AR(1) in time,
-same level curve), not the same bits: the white values come from a hash, not from the generator, as the sRGB
-model's compiled kernel already does (:func:`darksynth.noise.kernel8.srgb_pixel_kernel_8bit`). Eagerly these
-functions give the compiled one's values (the tests run them both ways), only slower; they are used compiled.
+same level curve, normal values), not the same bits: the white values come from a hash, not from the
+generator, as the sRGB model's compiled kernel already does (:func:`darksynth.noise.kernel8.srgb_pixel_kernel_8bit`).
+Eagerly these functions give the compiled ones' values (the tests run them both ways), only slower; they are
+used compiled.
 """
 
 from __future__ import annotations
 
 import math
 from collections.abc import Callable
-from dataclasses import dataclass
 
 import torch
 
 from darksynth.darkening import Darkening
-from darksynth.noise.counter_rng import byte_from_word, first_word, flat_index, normal_from_word, random_key
+from darksynth.noise.counter_rng import byte_from_word, first_word, flat_index, random_key, triangular_from_word
 from darksynth.noise.kernel8 import compiled_function
 from darksynth.noise.quantization import QUANTIZATION_LEVELS
-from darksynth.noise.spectral import MARGIN, grid_size, radial_correlation, radial_factor, radial_index
+from darksynth.noise.spectral import MARGIN, spectral_tables
 from darksynth.noise.spectral_8bit import level_tables
 
 FULL_SCALE = 255.0
@@ -40,96 +41,58 @@ FULL_SCALE = 255.0
 LEVELS = 256
 
 
-@dataclass(frozen=True)
-class KernelTables:
-    """One clip's spectrum on one frame size's grid, in the form the mixing kernel reads.
-
-    Attributes:
-        grid_height, grid_width: the FFT grid (:func:`darksynth.noise.spectral.grid_size`).
-        index: (rows, rfft columns) int32, each bin's entry of the radial tables.
-        factors: (RADIAL_TABLE_SIZE, C, C) float32 factor of the unit spectral covariance at each radial entry,
-            scaled for irfft2's 1/N and the split of a bin's variance between its real and imaginary parts.
-        rho: (RADIAL_TABLE_SIZE,) float32 AR(1) coefficient, None without temporal correlation.
-        innovation: sqrt(1 - rho^2), likewise.
-    """
-
-    grid_height: int
-    grid_width: int
-    index: torch.Tensor
-    factors: torch.Tensor
-    rho: torch.Tensor | None
-    innovation: torch.Tensor | None
+def _white(key: torch.Tensor, channels: int, rows: int, values: int) -> torch.Tensor:
+    """(C, rows, values) zero-mean unit-variance draws, the real and imaginary parts of each bin side by side:
+    value i (C order) is the triangular draw of the counter-based word of index i under ``key``
+    (:func:`darksynth.noise.counter_rng.triangular_from_word`: the inverse FFT sums them into a normal field)."""
+    return triangular_from_word(first_word(flat_index((channels, rows, values), key.device), key))
 
 
-def kernel_tables(
-    covariances: torch.Tensor, temporal: torch.Tensor, channels: int, height: int, width: int, *, device: torch.device
-) -> KernelTables:
-    """The tables of a spectrum (``covariances`` (OCTAVES, 3, 3), ``temporal`` (OCTAVES,)) for frames of
-    (``height``, ``width``), as :func:`darksynth.noise.spectral.spectral_tables` builds them for the eager path."""
-    grid_height, grid_width = grid_size(height, width)
-    # A white field of unit variance has coefficients of mean square N (irfft2 divides by N), N / 2 in each of
-    # the real and imaginary parts.
-    scale = math.sqrt(grid_height * grid_width / 2.0)
-    factors = (radial_factor(covariances.to(device), channels) * scale).to(torch.float32).contiguous()
-    index = radial_index(grid_height, grid_width, device).to(torch.int32)
-    rho = radial_correlation(temporal.to(device))
-    if not bool((rho > 0).any()):
-        return KernelTables(grid_height, grid_width, index, factors, None, None)
-    innovation = (1.0 - rho.square()).sqrt()
-    return KernelTables(grid_height, grid_width, index, factors, rho.to(torch.float32), innovation.to(torch.float32))
-
-
-def _white(key: torch.Tensor, channels: int, rows: int, columns: int) -> torch.Tensor:
-    """(C, rows, columns, 2) standard normals, the real and imaginary parts of each bin: value i (C order) is
-    the normal of the counter-based word of index i under ``key``."""
-    normal, _ = normal_from_word(first_word(flat_index((channels, rows, columns, 2), key.device), key))
-    return normal
-
-
-def _mix(white: torch.Tensor, index: torch.Tensor, factors: torch.Tensor) -> torch.Tensor:
-    # Each bin's (target, source) factor, gathered from the radial table: (C_t, C_s, rows, columns, 1).
-    factor = factors[index].permute(2, 3, 0, 1)[..., None]
-    mixed: torch.Tensor = (factor * white[None]).sum(1)
+def _mix(white: torch.Tensor, factors: torch.Tensor) -> torch.Tensor:
+    channels = white.shape[0]
+    # factors (C_t * C_s, rows, values), target-major, as SpectralTables keeps them.
+    mixed: torch.Tensor = (factors.view(channels, channels, *factors.shape[1:]) * white[None]).sum(1)
     return mixed
 
 
-def spectral_mix_kernel(key: torch.Tensor, index: torch.Tensor, factors: torch.Tensor) -> torch.Tensor:
-    """One frame's spectrum without temporal correlation: (C, rows, rfft columns, 2), real and imaginary parts.
+def spectral_mix_kernel(key: torch.Tensor, factors: torch.Tensor) -> torch.Tensor:
+    """One frame's spectrum without temporal correlation: (C, rows, 2 * rfft columns), the real and imaginary
+    part of each bin side by side.
 
     Args:
         key: (2,) int32 key of the frame (:func:`darksynth.noise.counter_rng.random_key`).
-        index: (rows, rfft columns) int32, :attr:`KernelTables.index`.
-        factors: (entries, C, C) float32, :attr:`KernelTables.factors`.
+        factors: (C * C, rows, 2 * rfft columns) float32 mixing factor of each bin,
+            :attr:`darksynth.noise.spectral.SpectralTables.factors` (read per value, not gathered from the radial
+            table: the compiled gathers cost 9 ms a 1080p frame, the reads of the cached array 3).
     """
-    rows, columns = index.shape
-    return _mix(_white(key, factors.shape[-1], rows, columns), index, factors)
+    channels = math.isqrt(factors.shape[0])
+    return _mix(_white(key, channels, *factors.shape[1:]), factors)
 
 
 def spectral_ar_mix_kernel(
     key: torch.Tensor,
-    index: torch.Tensor,
     factors: torch.Tensor,
     rho: torch.Tensor,
     innovation: torch.Tensor,
     state: torch.Tensor,
     started: torch.Tensor,
 ) -> tuple[torch.Tensor, torch.Tensor]:
-    """One frame's spectrum with AR(1) in time: (mixed, new state), both (C, rows, rfft columns, 2).
+    """One frame's spectrum with AR(1) in time: (mixed, new state), both (C, rows, 2 * rfft columns).
 
     The state is the white field behind the spectrum: ``w_t = rho w_{t-1} + sqrt(1 - rho^2) e_t`` per bin, with
     ``rho`` of the bin's radial frequency; the first frame (``started`` a 0-dim False) takes ``e_t`` itself.
 
     Args:
-        key, index, factors: as :func:`spectral_mix_kernel`.
-        rho, innovation: (entries,) float32, :attr:`KernelTables.rho` and :attr:`KernelTables.innovation`.
-        state: the previous frame's white field (ignored at the first frame).
+        key, factors: as :func:`spectral_mix_kernel`.
+        rho, innovation: (rows, 2 * rfft columns) float32, :attr:`darksynth.noise.spectral.SpectralTables.rho`
+            and ``innovation``.
+        state: the previous frame's white field (not read at the first frame).
         started: 0-dim bool, whether ``state`` holds a previous frame.
     """
-    rows, columns = index.shape
-    fresh = _white(key, factors.shape[-1], rows, columns)
-    carried = rho[index][..., None] * state + innovation[index][..., None] * fresh
-    white = torch.where(started, carried, fresh)
-    return _mix(white, index, factors), white
+    channels = math.isqrt(factors.shape[0])
+    fresh = _white(key, channels, *factors.shape[1:])
+    white = torch.where(started, rho * state + innovation * fresh, fresh)
+    return _mix(white, factors), white
 
 
 def spectral_pixel_kernel(
@@ -203,7 +166,8 @@ class SpectralKernelStream:
         device: torch.device,
     ) -> None:
         channels, self.height, self.width = shape
-        self.tables = kernel_tables(covariances, temporal, channels, self.height, self.width, device=device)
+        # The eager path's cached tables: a stream of either kind builds them once.
+        self.tables = spectral_tables(covariances, temporal, channels, self.height, self.width, device=device)
         self.signal_table, self.std_table = level_tables(channels, darkening, curve, device=device)
         # As the eager path: the step a float32, its 1/256 exact.
         self.quantization_step = torch.tensor(quantization, dtype=torch.float32) / QUANTIZATION_LEVELS
@@ -220,25 +184,16 @@ class SpectralKernelStream:
         tables = self.tables
         key = random_key(generator).to(frame.device)
         if tables.rho is None or tables.innovation is None:
-            mixed = self._mix(key, tables.index, tables.factors)
+            mixed = self._mix(key, tables.factors)
         else:
             started = self._state is not None
             # The first frame's state is not read (the kernel takes the fresh draw), only its shape matters.
-            state = (
-                self._state
-                if self._state is not None
-                else torch.empty((frame.shape[0], *tables.index.shape, 2), device=frame.device)
-            )
+            state = self._state if self._state is not None else torch.empty_like(tables.factors[: frame.shape[0]])
             mixed, self._state = self._ar_mix(
-                key,
-                tables.index,
-                tables.factors,
-                tables.rho,
-                tables.innovation,
-                state,
-                torch.tensor(started, device=frame.device),
+                key, tables.factors, tables.rho, tables.innovation, state, torch.tensor(started, device=frame.device)
             )
-        field = torch.fft.irfft2(torch.view_as_complex(mixed), s=(tables.grid_height, tables.grid_width))
+        spectrum = torch.view_as_complex(mixed.view(*mixed.shape[:2], -1, 2))
+        field = torch.fft.irfft2(spectrum, s=(tables.grid_height, tables.grid_width))
         columns = self.no_columns if column_pattern is None else column_pattern
         return self._pixel(
             frame.contiguous(),
@@ -262,11 +217,9 @@ def compiled_spectral_kernels() -> tuple[Kernel, Callable[..., tuple[torch.Tenso
 
 
 __all__ = [
-    "KernelTables",
     "SpectralKernelStream",
     "compiled_spectral_kernels",
     "crop_unit",
-    "kernel_tables",
     "spectral_ar_mix_kernel",
     "spectral_mix_kernel",
     "spectral_pixel_kernel",
