@@ -25,6 +25,7 @@ from __future__ import annotations
 
 import math
 from collections.abc import Callable
+from concurrent.futures import ThreadPoolExecutor
 from dataclasses import dataclass, field
 from typing import Any
 
@@ -112,14 +113,55 @@ def _to_uint8(frame: torch.Tensor) -> np.ndarray:
     return np.ascontiguousarray(array)
 
 
+NLM_OVERLAP = 16
+"""Rows of overlap between the bands a frame's denoising is split into: a pixel's result reads the pixels within
+the search radius plus the patch radius (6 + 2 rows), so with 8 or more the bands give the whole frame's bits."""
+
+_nlm_pool: ThreadPoolExecutor | None = None
+
+
+def _nlm_workers() -> int:
+    return max(1, torch.get_num_threads())
+
+
+def _nlm(image: np.ndarray, strength: float) -> np.ndarray:
+    result: np.ndarray = cv2.fastNlMeansDenoisingColored(image, None, strength, strength, NLM_TEMPLATE, NLM_SEARCH)
+    return result
+
+
 def nlm_denoise(frames: torch.Tensor, strength: float) -> torch.Tensor:
     """Non-local means (OpenCV) of each frame of (T, 3, H, W) in [0, 1] on 8-bit levels, strength ``h`` in 8-bit
-    levels for brightness and colour alike; float32 on the input's device."""
+    levels for brightness and colour alike; float32 on the input's device.
+
+    OpenCV's colour non-local means runs on one core: each frame is cut into bands of rows (one per torch thread,
+    overlapping by :data:`NLM_OVERLAP`) denoised side by side in threads (OpenCV releases the GIL), which gives the
+    whole frame's result exactly (tested) in about half the time on two cores."""
+    global _nlm_pool
+    workers = _nlm_workers()
+    if workers > 1 and _nlm_pool is None:
+        _nlm_pool = ThreadPoolExecutor(max_workers=workers, thread_name_prefix="darksynth-nlm")
     out = []
     for frame in frames:
-        denoised = cv2.fastNlMeansDenoisingColored(
-            _to_uint8(frame), None, float(strength), float(strength), NLM_TEMPLATE, NLM_SEARCH
-        )
+        image = _to_uint8(frame)
+        height = image.shape[0]
+        band = -(-height // workers)
+        if workers == 1 or band <= 2 * NLM_OVERLAP or _nlm_pool is None:
+            denoised = _nlm(image, float(strength))
+        else:
+            starts = range(0, height, band)
+            jobs = [
+                _nlm_pool.submit(
+                    _nlm,
+                    np.ascontiguousarray(image[max(0, top - NLM_OVERLAP) : min(height, top + band + NLM_OVERLAP)]),
+                    float(strength),
+                )
+                for top in starts
+            ]
+            pieces = [
+                job.result()[top - max(0, top - NLM_OVERLAP) :][: min(band, height - top)]
+                for top, job in zip(starts, jobs, strict=True)
+            ]
+            denoised = np.concatenate(pieces)
         out.append(torch.from_numpy(denoised).permute(2, 0, 1).to(torch.float32) / 255.0)
     return torch.stack(out).to(frames.device)
 
