@@ -22,8 +22,10 @@ from darksynth.noise.spectral_fit import (
     SpectralStatistics,
     band_fields,
     fit_by_resynthesis,
+    knot_binning,
     knot_variances,
     measure,
+    measure_weight,
     oracle_spectral_fit,
     quantised,
 )
@@ -251,3 +253,8 @@ def test_knot_variances_and_band_products_equal_their_definitions() -> None:
     products = torch.einsum("tbihw,tbjhw,thw->bij", fields, fields, weight) / weight.sum()
     statistics = measure(noise, intensity, weight)
     assert torch.allclose(statistics.cross_power, products / share.clamp_min(1e-12)[:, None, None], rtol=1e-10)
+    # The knots found once for many measurements give the same variances.
+    binning = knot_binning(intensity, measure_weight(2, 48, 40, weight, noise.device))
+    again = measure(noise, intensity, weight, binning=binning).knot_variance
+    assert torch.equal(torch.isnan(again), torch.isnan(statistics.knot_variance))
+    assert torch.allclose(again.nan_to_num(), statistics.knot_variance.nan_to_num(), rtol=1e-12)

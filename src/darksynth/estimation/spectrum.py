@@ -38,12 +38,15 @@ from darksynth.noise.simulate import add_noise
 from darksynth.noise.spectral import OCTAVES
 from darksynth.noise.spectral_fit import (
     COMPRESSION_CANDIDATES,
+    KnotBinning,
     SpectralParameters,
     SpectralStatistics,
     continue_octaves,
     fit_by_resynthesis,
     initial_parameters,
+    knot_binning,
     measure,
+    measure_weight,
     quantised,
 )
 from darksynth.noise.values import NoiseValues
@@ -140,16 +143,16 @@ def nlm_denoise(frames: torch.Tensor, strength: float) -> torch.Tensor:
     workers = _nlm_workers()
     if workers > 1 and _nlm_pool is None:
         _nlm_pool = ThreadPoolExecutor(max_workers=workers, thread_name_prefix="darksynth-nlm")
-    out = []
-    for frame in frames:
-        image = _to_uint8(frame)
-        height = image.shape[0]
-        band = -(-height // workers)
-        if workers == 1 or band <= 2 * NLM_OVERLAP or _nlm_pool is None:
-            denoised = _nlm(image, float(strength))
-        else:
-            starts = range(0, height, band)
-            jobs = [
+    images = [_to_uint8(frame) for frame in frames]
+    height = images[0].shape[0]
+    band = -(-height // workers)
+    if workers == 1 or band <= 2 * NLM_OVERLAP or _nlm_pool is None:
+        results = [_nlm(image, float(strength)) for image in images]
+    else:
+        # Every band of every frame is queued at once, so neither thread waits for the other's last band of a frame.
+        starts = range(0, height, band)
+        jobs = [
+            [
                 _nlm_pool.submit(
                     _nlm,
                     np.ascontiguousarray(image[max(0, top - NLM_OVERLAP) : min(height, top + band + NLM_OVERLAP)]),
@@ -157,12 +160,18 @@ def nlm_denoise(frames: torch.Tensor, strength: float) -> torch.Tensor:
                 )
                 for top in starts
             ]
-            pieces = [
-                job.result()[top - max(0, top - NLM_OVERLAP) :][: min(band, height - top)]
-                for top, job in zip(starts, jobs, strict=True)
-            ]
-            denoised = np.concatenate(pieces)
-        out.append(torch.from_numpy(denoised).permute(2, 0, 1).to(torch.float32) / 255.0)
+            for image in images
+        ]
+        results = [
+            np.concatenate(
+                [
+                    job.result()[top - max(0, top - NLM_OVERLAP) :][: min(band, height - top)]
+                    for top, job in zip(starts, frame_jobs, strict=True)
+                ]
+            )
+            for frame_jobs in jobs
+        ]
+    out = [torch.from_numpy(result).permute(2, 0, 1).to(torch.float32) / 255.0 for result in results]
     return torch.stack(out).to(frames.device)
 
 
@@ -334,15 +343,22 @@ def estimate_spectrum(reference: torch.Tensor, *, seed: int = 0, name: str = "re
     analysed_denoised = denoised if temporal_mask is not None else denoised[:1]
     target = measure(analysed - analysed_denoised, analysed_denoised, measured_mask)
 
+    binnings: dict[int, KnotBinning] = {}
+
     def simulator(compression: float, frame_count: int = analysed.shape[0]) -> Any:
         base = analysed_denoised[:frame_count]
+        if frame_count not in binnings:
+            # Every simulation is measured on the same denoised frames and mask: their knots are found once.
+            weight = measure_weight(frame_count, height, width, measured_mask, base.device)
+            binnings[frame_count] = knot_binning(base, weight)
+        binning = binnings[frame_count]
 
         def simulate_and_measure(parameters: SpectralParameters, draw: int) -> SpectralStatistics:
             values = NoiseValues.from_values(parameters.as_values() | {"compression": compression}, dtype=torch.float32)
             generator = torch.Generator(device=analysed.device).manual_seed(seed * 1009 + draw)
             synthetic = quantised(add_noise(base[None], values, generator=generator)[0])
             again = nlm_denoise(synthetic, strength)
-            return measure(synthetic - again, base, measured_mask)
+            return measure(synthetic - again, base, measured_mask, binning=binning)
 
         return simulate_and_measure
 

@@ -90,18 +90,27 @@ def band_fields(noise: torch.Tensor) -> tuple[torch.Tensor, torch.Tensor]:
     return fields, share
 
 
+def measure_weight(
+    frames: int, height: int, width: int, mask: torch.Tensor | None, device: torch.device
+) -> torch.Tensor:
+    """The pixel weights (T, H, W) float64 :func:`measure` averages with: ``mask`` on every frame, or all ones."""
+    weight = torch.ones(frames, height, width, dtype=torch.float64, device=device)
+    return weight if mask is None else weight * mask.to(weight)
+
+
 def measure(
     noise: torch.Tensor,
     intensity: torch.Tensor,
     mask: torch.Tensor | None = None,
+    *,
+    binning: KnotBinning | None = None,
 ) -> SpectralStatistics:
     """The statistics of noise maps ``noise`` (T, C, H, W) (a clip, or one frame with T = 1) whose pixels have the
     clean or denoised intensity ``intensity`` (T, C, H, W); ``mask`` (H, W) or (T, H, W) in {0, 1} selects the
-    pixels averaged over (all when None)."""
+    pixels averaged over (all when None). ``binning``: :func:`knot_binning` of ``intensity`` and the mask's
+    :func:`measure_weight`, when a caller measures many noise maps on the same intensity (a fit)."""
     frames, channels, height, width = noise.shape
-    weight = torch.ones(frames, height, width, dtype=torch.float64, device=noise.device)
-    if mask is not None:
-        weight = weight * mask.to(weight)
+    weight = measure_weight(frames, height, width, mask, noise.device)
     total = weight.sum().clamp_min(1.0)
     fields, share = band_fields(noise)  # (T, OCTAVES, K, H, W)
     # Per band, the weighted sum of the components' products over every pixel of every frame, as one batched
@@ -121,7 +130,7 @@ def measure(
     banded = fields.sum(dim=1)
     if channels == 3:
         banded = torch.einsum("ji,tjhw->tihw", OPPONENT_BASIS.to(banded.device), banded)
-    return SpectralStatistics(cross_power, knot_variances(banded, intensity, weight), temporal)
+    return SpectralStatistics(cross_power, knot_variances(banded, intensity, weight, binning), temporal)
 
 
 def knot_pieces(intensity: torch.Tensor) -> tuple[torch.Tensor, torch.Tensor]:
@@ -136,21 +145,51 @@ def knot_pieces(intensity: torch.Tensor) -> tuple[torch.Tensor, torch.Tensor]:
     return index, ((x - low) / (high - low)).clamp(0.0, 1.0)
 
 
-def knot_variances(noise: torch.Tensor, intensity: torch.Tensor, weight: torch.Tensor) -> torch.Tensor:
-    """(C, 8) hat-weighted variance of ``noise`` (T, C, H, W) per channel and knot of ``intensity``; pixels weighted
-    by ``weight`` (T, H, W); nan where a knot's weights sum to less than :data:`MIN_KNOT_WEIGHT`."""
-    channels, knots = noise.shape[1], len(LEVEL_KNOTS)
-    centred = noise.to(torch.float64) - noise.to(torch.float64).mean(dim=(0, 2, 3), keepdim=True)
+@dataclass(frozen=True)
+class KnotBinning:
+    """Where each pixel of a (T, C, H, W) intensity map adds to the level curve's knots, with the pixel weights:
+    built once for a reference's denoised frames and its mask, read by every simulation measured on them.
+
+    Attributes:
+        bins: (T * C * H * W,) int64, channel * 8 + the knot below each value.
+        below, above: (T * C * H * W,) float64, the pixel's weight times the hat of the knot below and above.
+        mass: (C, 8) float64, each knot's summed weights.
+    """
+
+    bins: torch.Tensor
+    below: torch.Tensor
+    above: torch.Tensor
+    mass: torch.Tensor
+
+
+def knot_binning(intensity: torch.Tensor, weight: torch.Tensor) -> KnotBinning:
+    """The :class:`KnotBinning` of ``intensity`` (T, C, H, W) with pixel weights ``weight`` (T, H, W)."""
+    channels, knots = intensity.shape[1], len(LEVEL_KNOTS)
     index, fraction = knot_pieces(intensity)
-    pixel_weight = weight[:, None].expand_as(centred)
+    pixel_weight = weight[:, None].to(torch.float64).expand_as(fraction)
     # Each pixel adds to two knots (its piece's ends): sums per (channel, knot) by counting into C * 8 bins.
     bins = (index + torch.arange(channels, device=index.device).reshape(1, -1, 1, 1) * knots).flatten()
     below, above = (pixel_weight * (1.0 - fraction)).flatten(), (pixel_weight * fraction).flatten()
     size = channels * knots
-    squares = centred.square().flatten()
     mass = torch.bincount(bins, below, minlength=size) + torch.bincount(bins + 1, above, minlength=size)
-    total = torch.bincount(bins, below * squares, minlength=size) + torch.bincount(bins + 1, above * squares, size)
-    mass, variance = mass.reshape(channels, knots), (total / mass.clamp_min(1e-12)).reshape(channels, knots)
+    return KnotBinning(bins, below, above, mass.reshape(channels, knots))
+
+
+def knot_variances(
+    noise: torch.Tensor, intensity: torch.Tensor, weight: torch.Tensor, binning: KnotBinning | None = None
+) -> torch.Tensor:
+    """(C, 8) hat-weighted variance of ``noise`` (T, C, H, W) per channel and knot of ``intensity``; pixels weighted
+    by ``weight`` (T, H, W); nan where a knot's weights sum to less than :data:`MIN_KNOT_WEIGHT`. ``binning``: the
+    :func:`knot_binning` of ``intensity`` and ``weight``, when already built."""
+    if binning is None:
+        binning = knot_binning(intensity, weight)
+    size = binning.mass.numel()
+    centred = noise.to(torch.float64) - noise.to(torch.float64).mean(dim=(0, 2, 3), keepdim=True)
+    squares = centred.square().flatten()
+    total = torch.bincount(binning.bins, binning.below * squares, minlength=size)
+    total += torch.bincount(binning.bins + 1, binning.above * squares, minlength=size)
+    mass = binning.mass
+    variance = total.reshape(mass.shape) / mass.clamp_min(1e-12)
     return torch.where(mass >= MIN_KNOT_WEIGHT, variance, torch.full_like(variance, math.nan))
 
 
