@@ -258,3 +258,31 @@ def test_knot_variances_and_band_products_equal_their_definitions() -> None:
     again = measure(noise, intensity, weight, binning=binning).knot_variance
     assert torch.equal(torch.isnan(again), torch.isnan(statistics.knot_variance))
     assert torch.allclose(again.nan_to_num(), statistics.knot_variance.nan_to_num(), rtol=1e-12)
+
+
+def test_unmeasured_octaves_continue_the_colour_roll_off_of_a_gaussian_low_pass() -> None:
+    from darksynth.noise.spectral import OCTAVE_FREQUENCIES
+    from darksynth.noise.spectral_fit import SpectralParameters, continue_octaves
+
+    # Octaves 0-2 measured: white noise through a Gaussian low-pass of f0 = 0.1 cycles/px in colour 1, a falling
+    # colour 2, a rising brightness; octaves 3-5 unmeasured (garbage that must be replaced).
+    frequency = torch.tensor(OCTAVE_FREQUENCIES, dtype=torch.float64)
+    low_pass = 5.0 * torch.exp(-((frequency / 0.1) ** 2))
+    power = torch.stack([torch.linspace(1.0, 3.0, OCTAVES), low_pass, torch.linspace(4.0, 1.0, OCTAVES)], dim=-1)
+    correlation = torch.tensor([[1.0, 0.3, -0.2], [0.3, 1.0, 0.1], [-0.2, 0.1, 1.0]], dtype=torch.float64)
+    covariances = correlation * power.sqrt()[:, :, None] * power.sqrt()[:, None, :]
+    covariances[3:] = 77.0 * torch.eye(3, dtype=torch.float64)
+    temporal = torch.tensor([0.1, 0.2, 0.3, 0.9, 0.9, 0.9], dtype=torch.float64)
+    parameters = SpectralParameters(covariances, torch.ones(3, 8, dtype=torch.float64), temporal)
+    continued = continue_octaves(parameters, 3)
+    diagonal = continued.covariances.diagonal(dim1=-2, dim2=-1)
+    # The low-pass is recovered exactly from its two last measured octaves; its coarse limit is 5.
+    assert torch.allclose(diagonal[3:, 1], low_pass[3:], rtol=1e-9)
+    assert bool((diagonal[3:, 1] < 5.0).all()) and bool((diagonal[3:, 1] > power[2, 1]).all())
+    # Brightness and a colour falling toward coarse scales are held at the last measured octave.
+    assert torch.allclose(diagonal[3:, 0], power[2, 0].expand(3))
+    assert torch.allclose(diagonal[3:, 2], power[2, 2].expand(3))
+    std = diagonal.sqrt()
+    assert torch.allclose(continued.covariances[4] / (std[4][:, None] * std[4][None, :]), correlation)
+    assert torch.allclose(continued.temporal[3:], torch.full((3,), 0.3, dtype=torch.float64))
+    assert torch.equal(continued.covariances[:3], covariances[:3])
