@@ -12,10 +12,11 @@ import av
 import pytest
 
 from darksynth.datasets import MANIFEST_NAME, ConvertOptions, convert_dataset
+from darksynth.datasets.convert import STATE_FOLDER
 from darksynth.errors import DarksynthError
 from darksynth.profile import load_profile
 from tests.command_line import run_cli
-from tests.datasets.conftest import write_image, write_video
+from tests.datasets.conftest import tree_bytes, write_image, write_video
 
 
 def _convert(dataset: Path, output: Path, profile: Path, fmt: str, *extra: str) -> tuple[int, str]:
@@ -189,3 +190,46 @@ def test_bad_options(
 def test_output_inside_dataset_is_refused(folder_dataset: Path, profile_path: Path) -> None:
     with pytest.raises(DarksynthError, match="inside the input folder"):
         convert_dataset(ConvertOptions(folder_dataset, folder_dataset / "out", load_profile(profile_path), "folder"))
+
+
+def test_video_options_do_not_block_the_resume_of_an_image_dataset(
+    folder_dataset: Path, profile_path: Path, tmp_path: Path
+) -> None:
+    output = tmp_path / "out"
+    assert _convert(folder_dataset, output, profile_path, "folder", "--pix-fmt", "yuv444p", "--crf", "4")[0] == 0
+
+    def media(root: Path) -> dict[str, bytes]:
+        return {k: v for k, v in tree_bytes(root).items() if k != MANIFEST_NAME and not k.startswith(STATE_FOLDER)}
+
+    before = media(output)
+    # Other video options cannot change an image: the same conversion, resumed with nothing to do.
+    code, err = _convert(folder_dataset, output, profile_path, "folder", "--codec", "ffv1")
+    assert code == 0, err
+    assert "0 new" in err and media(output) == before
+
+
+def test_a_conversion_recorded_before_an_option_existed_resumes_at_its_default(
+    folder_dataset: Path, profile_path: Path, tmp_path: Path
+) -> None:
+    output = tmp_path / "out"
+    assert _convert(folder_dataset, output, profile_path, "folder", "--seed", "4")[0] == 0
+    state_path = output / STATE_FOLDER / "convert-state.json"
+    state = json.loads(state_path.read_text())
+    # As an earlier version wrote it: without the newer options, and hashed over what it had.
+    del state["options"]["images_root"]
+    state["hash"] = "written-by-an-earlier-version"
+    state_path.write_text(json.dumps(state))
+    code, err = _convert(folder_dataset, output, profile_path, "folder", "--seed", "4")
+    assert code == 0 and "0 new" in err, err
+    assert json.loads(state_path.read_text())["options"]["images_root"] is None  # rewritten in this version's form
+    code, err = _convert(folder_dataset, output, profile_path, "folder", "--seed", "5")
+    assert code == 1 and "other options (seed)" in err
+
+
+def test_video_options_still_decide_a_video_datasets_resume(
+    video_dataset: Path, profile_path: Path, tmp_path: Path
+) -> None:
+    output = tmp_path / "out"
+    assert _convert(video_dataset, output, profile_path, "video-folder", "--crf", "10")[0] == 0
+    code, err = _convert(video_dataset, output, profile_path, "video-folder", "--crf", "20")
+    assert code == 1 and "other options (crf)" in err and len(_error_lines(err)) == 1

@@ -228,7 +228,7 @@ def start_conversion(options: ConvertOptions, on_failure: Callable[[str], None] 
     videos = [item for item in plan.items if item.kind == "video"]
     if videos:
         check_video_options(options.apply_options(), options.output / videos[0].inputs[0])
-    prepare_output(options)
+    prepare_output(options, has_videos=bool(videos))
     owns = options.shard.owns if options.shard is not None else (lambda key: True)
     items = [i for i in plan.items if owns(i.key)]
     remove_stale_temps(options, plan, owns)
@@ -253,10 +253,13 @@ def start_conversion(options: ConvertOptions, on_failure: Callable[[str], None] 
     return StartedConversion(options, plan, report, items, todo, failed)
 
 
-def prepare_output(options: ConvertOptions) -> None:
+def prepare_output(options: ConvertOptions, *, has_videos: bool = True) -> None:
     """Check that the output can be written and belongs to this run; record the run's options.
 
-    Call once per run before converting (every shard may call it; it writes the same state).
+    Call once per run before converting (every shard may call it; it writes the same state). A conversion is
+    resumed when every option that can change its outputs is the same: the video options do not count for a
+    dataset without videos (``has_videos`` False), and an option the earlier run's state does not record (made
+    before the option existed) counts at its default.
 
     Raises:
         DarksynthError: the output cannot be written, holds a conversion with other options, or is a non-empty
@@ -264,7 +267,7 @@ def prepare_output(options: ConvertOptions) -> None:
     """
     output = options.output
     state_path = output / STATE_FOLDER / _STATE_NAME
-    fingerprint = options.fingerprint()
+    fingerprint = options.fingerprint(has_videos=has_videos)
     digest = hashlib.sha256(json.dumps(fingerprint, sort_keys=True).encode()).hexdigest()
     document = {"format": "darksynth-convert-state", "version": 1, "hash": digest, "options": fingerprint}
     try:
@@ -272,13 +275,22 @@ def prepare_output(options: ConvertOptions) -> None:
             previous = _read_json(state_path)
             if previous.get("hash") == digest:
                 return
+            recorded = previous.get("options")
+            old: dict[str, Any] = recorded if isinstance(recorded, dict) else {}
+            changed = sorted(
+                name
+                for name, value in fingerprint.items()
+                if old.get(name, ConvertOptions.default_fingerprint_value(name)) != value
+            )
+            if not changed and isinstance(recorded, dict):
+                # The same conversion, recorded in an earlier form: resumed, its state rewritten in this one.
+                write_text_atomic(state_path, json.dumps(document, indent=2, sort_keys=True) + "\n")
+                return
             if not options.overwrite:
-                recorded = previous.get("options")
-                old: dict[str, Any] = recorded if isinstance(recorded, dict) else {}
-                changed = sorted(k for k in fingerprint if old.get(k) != fingerprint[k]) or ["state"]
                 raise DarksynthError(
-                    f"{output}: holds a conversion made with other options ({', '.join(changed)}); rerun the same "
-                    "command to resume it, add --overwrite to start over, or choose another output folder"
+                    f"{output}: holds a conversion made with other options ({', '.join(changed or ['state'])}); "
+                    "rerun the same command to resume it, add --overwrite to start over, or choose another output "
+                    "folder"
                 )
             shutil.rmtree(output / STATE_FOLDER / _RECORDS, ignore_errors=True)
             (output / MANIFEST_NAME).unlink(missing_ok=True)
