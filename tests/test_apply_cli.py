@@ -369,8 +369,53 @@ def test_existing_outputs_are_refused_unless_overwrite(rgb_image: Path, profile_
     (tmp_path / "tree" / "sub" / "b.jpg").unlink()  # one output missing, two and the manifest still there
     before = {p: p.read_bytes() for p in (tmp_path / "tree").rglob("*") if p.is_file()}
     code, _, err = run_cli("apply", root, tmp_path / "tree", "-p", profile_file, "--seed", "2")
-    _assert_one_line_error(code, err, "exists (and 2 more of this run's outputs)")
+    # The folder holds an earlier run's state: the rerun with another seed is refused, naming it.
+    _assert_one_line_error(code, err, "holds an apply run made with other options (seed)", "--overwrite")
     assert {p: p.read_bytes() for p in (tmp_path / "tree").rglob("*") if p.is_file()} == before
+    # Files that no darksynth run wrote are refused as before.
+    (tmp_path / "other" / "sub").mkdir(parents=True)
+    (tmp_path / "other" / "a.png").write_bytes(b"someone else's file")
+    code, _, err = run_cli("apply", root, tmp_path / "other", "-p", profile_file, "--seed", "2")
+    _assert_one_line_error(code, err, "a.png: exists", "--overwrite")
+    assert (tmp_path / "other" / "a.png").read_bytes() == b"someone else's file"
+
+
+def _tree(root: Path) -> dict[str, bytes]:
+    return {
+        p.relative_to(root).as_posix(): p.read_bytes()
+        for p in root.rglob("*")
+        if p.is_file() and ".darksynth" not in p.parts and p.name != "darksynth-manifest.json"
+    }
+
+
+def test_a_killed_folder_run_resumes_to_the_same_bytes(tmp_path: Path, profile_file: Path) -> None:
+    """What a kill leaves: finished files with their records, one file written without its record, one not
+    written, no manifest. The rerun keeps the finished ones, redoes the rest, and equals an uninterrupted run."""
+    root = _folder(tmp_path)
+    full, resumed = tmp_path / "full", tmp_path / "resumed"
+    assert run_cli("apply", root, full, "-p", profile_file, "--seed", "5")[0] == 0
+    assert run_cli("apply", root, resumed, "-p", profile_file, "--seed", "5")[0] == 0
+    records = sorted((resumed / ".darksynth" / "apply-records").iterdir())
+    assert len(records) == 3
+    (resumed / "darksynth-manifest.json").unlink()
+    # Which record is whose does not matter here: drop one record and one other task's output with its record.
+    manifest = json.loads((full / "darksynth-manifest.json").read_text())
+    by_key = {r["input"]: r for r in manifest["files"]}
+    assert len(by_key) == 3
+    (resumed / "sub" / "b.jpg").write_bytes(b"stale bytes of a killed run")
+    for record in records:
+        if json.loads(record.read_text())["input"] in ("sub/b.jpg", "sub/deeper/c.bmp"):
+            record.unlink()
+    (resumed / "sub" / "deeper" / "c.bmp").unlink()
+    code, _, err = run_cli("apply", root, resumed, "-p", profile_file, "--seed", "5")
+    assert code == 0, err
+    assert "wrote 3 file(s) (2 new, 1 already done)" in err
+    assert _tree(resumed) == _tree(full)
+    again = json.loads((resumed / "darksynth-manifest.json").read_text())
+    assert sorted(r["input"] for r in again["files"]) == sorted(by_key)
+    # Finished: a rerun has nothing to do; with workers (no byte changes) too.
+    code, _, err = run_cli("apply", root, resumed, "-p", profile_file, "--seed", "5", "--workers", "2")
+    assert code == 0 and "(0 new, 3 already done)" in err, err
 
 
 def test_an_unwritable_output_is_refused_once_before_any_work(tmp_path: Path, profile_file: Path) -> None:

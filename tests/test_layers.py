@@ -8,7 +8,7 @@ sibling of its own layer):
    and ``console_progress`` (how a command shows its progress);
 2. ``noise``: the components, their table, the carrier of values, the composer;
 3. ``profile``;
-4. ``synthesize``, ``models``;
+4. ``synthesize``, ``models``, ``apply_outputs`` (what ``apply`` may write where: claiming outputs, resuming);
 5. ``apply``, ``training``, ``transforms``;
 6. ``baselines``, ``datasets``, ``estimation`` (reference -> profile, one module per stage, see below), ``preview``
    (it runs ``apply``'s synthesis);
@@ -46,6 +46,7 @@ LAYERS: dict[str, int] = {
     "profile": 3,
     "synthesize": 4,
     "models": 4,
+    "apply_outputs": 4,
     "apply": 5,
     "training": 5,
     "transforms": 5,

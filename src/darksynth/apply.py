@@ -12,7 +12,6 @@ import json
 import logging
 import os
 import sys
-import tempfile
 import threading
 import time
 from collections.abc import Callable, Iterator
@@ -28,9 +27,10 @@ import torch
 from PIL import Image as PILImage
 
 from darksynth import __version__
+from darksynth.apply_outputs import claim_outputs, read_state, write_record, write_state
 from darksynth.errors import DarksynthError, error_reason
 from darksynth.io.arrays import chw_to_hwc, hwc_to_chw
-from darksynth.io.atomic import remove_stale_temps, write_text_atomic
+from darksynth.io.atomic import write_text_atomic
 from darksynth.io.discover import check_output_location, classify_input, scan_folder
 from darksynth.io.images import IMAGE_SUFFIXES, Image, read_image, write_image
 from darksynth.io.video import VIDEO_SUFFIXES, VideoWriter, iter_video_frames, probe_video
@@ -132,6 +132,8 @@ class ApplyReport:
     skipped: list[str] = field(default_factory=list)
     manifest: Path | None = None
     seconds: float = 0.0
+    already_done: int = 0
+    """Files an earlier, killed run with the same options finished (their records are in ``records``)."""
 
 
 def task_seed(run_seed: int, key: str) -> int:
@@ -408,31 +410,6 @@ def write_manifest(path: Path, input_path: Path, output_path: Path, options: App
         raise DarksynthError(f"{error.filename or path}: cannot write the manifest ({error_reason(error)})") from None
 
 
-def claim_outputs(outputs: list[Path], root: Path, *, folder: bool, overwrite: bool) -> None:
-    """Check, before any work, that a run may write its outputs; remove what a killed run left for them.
-
-    Refused without ``overwrite``: any output (manifest included) that exists already. Refused always: an
-    output location that cannot be written (read-only file system, no permission, a file where a folder should
-    be), found by creating the folder and a file in it, so that it fails once instead of once per file.
-
-    Raises:
-        DarksynthError: one line naming the first existing output and the count, or the unwritable location.
-    """
-    if not overwrite:
-        existing = [path for path in outputs if path.exists()]
-        if existing:
-            more = f" (and {len(existing) - 1} more of this run's outputs)" if len(existing) > 1 else ""
-            raise DarksynthError(f"{existing[0]}: exists{more}; add --overwrite to replace, or choose another output")
-    location = root if folder else root.parent
-    try:
-        location.mkdir(parents=True, exist_ok=True)
-        with tempfile.NamedTemporaryFile(dir=location, prefix=".darksynth-probe-"):
-            pass
-    except OSError as error:
-        raise DarksynthError(f"{location}: cannot write the output here ({error_reason(error)})") from None
-    remove_stale_temps(outputs)
-
-
 def apply(
     input_path: Path,
     output_path: Path,
@@ -461,18 +438,28 @@ def apply(
     tasks, skipped, output_path = plan(input_path, output_path, clip=options.clip)
     folder = input_path.is_dir()
     manifest = manifest_path(output_path, folder=folder)
-    outputs = [path for task in tasks for path in task.outputs]
     videos = [task.outputs[0] for task in tasks if task.kind == "video"]
     if videos:
         check_video_options(options, videos[0])
-    claim_outputs([*outputs, manifest], output_path, folder=folder, overwrite=options.overwrite)
+    report = ApplyReport(skipped=skipped)
+    resume = None
+    if folder:
+        # A folder run resumes an earlier one with the same options (docs in darksynth.apply_resume).
+        resume = read_state(output_path, options, {t.key: t.outputs for t in tasks}, has_videos=bool(videos))
+        report.records.extend(resume.done.values())
+        report.already_done = len(resume.done)
+        tasks = [task for task in tasks if task.key not in resume.done]
+    outputs = [path for task in tasks for path in task.outputs]
+    overwrite = options.overwrite or (resume is not None and resume.owned)
+    claim_outputs([*outputs, manifest], output_path, folder=folder, overwrite=overwrite)
     total_frames = sum(_frame_estimate(t) for t in tasks)
     if on_start:
         on_start(tasks, total_frames)
-    report = ApplyReport(skipped=skipped)
-    if folder:
+    if resume is not None:
+        write_state(resume)
         for task, record, error in execute(tasks, options, on_frames=on_frames):
             if record is not None:
+                write_record(resume, task.key, record)
                 report.records.append(record)
             if error is not None:
                 report.failures.append(error)

@@ -15,7 +15,8 @@ import torch
 from PIL import Image as PILImage
 from PIL import ImageDraw
 
-from darksynth.apply import ApplyOptions, claim_outputs, synthesize_image
+from darksynth.apply import ApplyOptions, synthesize_image
+from darksynth.apply_outputs import claim_outputs
 from darksynth.darkening import Darkening, darken
 from darksynth.errors import DarksynthError
 from darksynth.io.discover import check_output_location, classify_input, scan_folder

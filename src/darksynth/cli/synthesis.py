@@ -99,9 +99,10 @@ def apply_command(
         raise fail(str(error)) from None
     frames = sum(int(r["frames"]) for r in report.records)
     if not quiet:
+        resumed = f" ({len(report.records) - report.already_done} new, {report.already_done} already done)"
         say(
-            f"wrote {len(report.records)} file(s), {frames} frame(s) in {report.seconds:.1f} s; "
-            f"seed {options.seed}; manifest {report.manifest}"
+            f"wrote {len(report.records)} file(s){resumed if report.already_done else ''}, {frames} frame(s) in "
+            f"{report.seconds:.1f} s; seed {options.seed}; manifest {report.manifest}"
         )
     if report.skipped and not quiet:
         say(f"skipped {len(report.skipped)} file(s) that are not images or videos: {', '.join(report.skipped)}")

@@ -1,0 +1,180 @@
+"""What ``apply`` may write where: claiming a run's outputs, and resuming a folder run that was killed (its
+options and each finished file's record, kept in the output folder).
+
+A folder run writes, in ``OUTPUT/.darksynth/``, the options that decide its bytes (``apply-state.json``) before any
+work, and a record per task as each one finishes (``apply-records/``). Rerun with the same options, it keeps the
+tasks whose record and outputs exist ("already done") and redoes the rest, replacing what a killed run left of
+them (outputs are written atomically, so a file is either whole or absent, but one written without its record is
+redone, as its record may not have been kept). Rerun with other options it is refused, naming them, unless
+``--overwrite``; an output folder that holds files but no state is refused as before. As for ``convert``: the
+options that change no byte (workers, where the profile came from) may differ, the video options count only for
+a folder with videos, and an option an earlier version did not record counts at its default.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import hashlib
+import json
+import shutil
+import tempfile
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any, Final
+
+from darksynth.errors import DarksynthError, error_reason
+from darksynth.io.atomic import remove_stale_temps, write_text_atomic
+from darksynth.profile import Profile, profile_to_dict
+
+STATE_FOLDER: Final = ".darksynth"
+"""The folder of a run's state inside its output folder (``apply`` and ``convert`` alike)."""
+
+STATE_NAME: Final = "apply-state.json"
+RECORDS: Final = "apply-records"
+
+UNRECORDED_OPTIONS: Final = frozenset({"overwrite", "workers", "profile_source"})
+"""Options of :class:`~darksynth.apply.ApplyOptions` that change no output byte: a run may resume with others."""
+
+VIDEO_OPTIONS: Final = frozenset({"codec", "crf", "pix_fmt"})
+"""Options that change only videos: they do not decide the resume of a folder without videos."""
+
+
+def options_fingerprint(options: Any, *, has_videos: bool) -> dict[str, Any]:
+    """The options (an :class:`~darksynth.apply.ApplyOptions`; this module lies below it) that decide a folder
+    run's bytes, as JSON values."""
+    fingerprint: dict[str, Any] = {}
+    for option in dataclasses.fields(options):
+        if option.name in UNRECORDED_OPTIONS or (option.name in VIDEO_OPTIONS and not has_videos):
+            continue
+        value = getattr(options, option.name)
+        if isinstance(value, Profile):
+            value = profile_to_dict(value)
+        elif dataclasses.is_dataclass(value) and not isinstance(value, type):
+            value = dataclasses.asdict(value)
+        fingerprint[option.name] = value
+    return fingerprint
+
+
+def _default(options: Any, name: str) -> Any:
+    option = next(f for f in dataclasses.fields(options) if f.name == name)
+    return None if option.default is dataclasses.MISSING else option.default
+
+
+@dataclass
+class ResumeState:
+    """What a folder run found of an earlier one in its output folder.
+
+    Attributes:
+        root: the output folder.
+        document: the state this run records.
+        done: the records of tasks an earlier run with the same options finished, by task key.
+        owned: the output folder holds this run's state: its outputs without a record may be replaced.
+    """
+
+    root: Path
+    document: dict[str, Any]
+    done: dict[str, dict[str, Any]] = field(default_factory=dict)
+    owned: bool = False
+
+
+def _record_path(root: Path, key: str) -> Path:
+    return root / STATE_FOLDER / RECORDS / f"{hashlib.sha256(key.encode()).hexdigest()[:32]}.json"
+
+
+def read_state(root: Path, options: Any, keys: dict[str, tuple[Path, ...]], *, has_videos: bool) -> ResumeState:
+    """The earlier run found in ``root`` for tasks ``keys`` (task key -> its output paths); nothing is written.
+
+    Raises:
+        DarksynthError: ``root`` holds a run made with other options and ``options.overwrite`` is off.
+    """
+    fingerprint = options_fingerprint(options, has_videos=has_videos)
+    digest = hashlib.sha256(json.dumps(fingerprint, sort_keys=True).encode()).hexdigest()
+    document = {"format": "darksynth-apply-state", "version": 1, "hash": digest, "options": fingerprint}
+    state = ResumeState(root, document)
+    path = root / STATE_FOLDER / STATE_NAME
+    if not path.is_file() or options.overwrite:
+        return state
+    try:
+        previous = json.loads(path.read_text(encoding="utf-8"))
+    except (OSError, ValueError):
+        previous = {}
+    recorded = previous.get("options") if isinstance(previous, dict) else None
+    old: dict[str, Any] = recorded if isinstance(recorded, dict) else {}
+    changed = sorted(name for name, value in fingerprint.items() if old.get(name, _default(options, name)) != value)
+    if changed or not isinstance(recorded, dict):
+        raise DarksynthError(
+            f"{root}: holds an apply run made with other options ({', '.join(changed or ['state'])}); rerun the "
+            "same command to resume it, add --overwrite to start over, or choose another output folder"
+        )
+    state.owned = True
+    for key, outputs in keys.items():
+        record = _read_record(_record_path(root, key))
+        if record is not None and all(path.is_file() for path in outputs):
+            state.done[key] = record
+    return state
+
+
+def _read_record(path: Path) -> dict[str, Any] | None:
+    try:
+        record = json.loads(path.read_text(encoding="utf-8"))
+    except (OSError, ValueError):
+        return None
+    return record if isinstance(record, dict) else None
+
+
+def write_state(state: ResumeState) -> None:
+    """Record the run's options in its output folder (after its outputs were claimed), clearing the records of
+    an earlier run that is not resumed.
+
+    Raises:
+        DarksynthError: the state cannot be written.
+    """
+    folder = state.root / STATE_FOLDER
+    try:
+        if not state.owned:
+            shutil.rmtree(folder / RECORDS, ignore_errors=True)
+        write_text_atomic(folder / STATE_NAME, json.dumps(state.document, indent=2, sort_keys=True) + "\n")
+    except OSError as error:
+        raise DarksynthError(
+            f"{error.filename or folder}: cannot write the run's state ({error_reason(error)})"
+        ) from None
+
+
+def write_record(state: ResumeState, key: str, record: dict[str, Any]) -> None:
+    """Record that task ``key`` finished (after its outputs were written).
+
+    Raises:
+        DarksynthError: the record cannot be written.
+    """
+    path = _record_path(state.root, key)
+    try:
+        write_text_atomic(path, json.dumps(record, indent=2) + "\n")
+    except OSError as error:
+        raise DarksynthError(
+            f"{error.filename or path}: cannot write the run's record ({error_reason(error)})"
+        ) from None
+
+
+def claim_outputs(outputs: list[Path], root: Path, *, folder: bool, overwrite: bool) -> None:
+    """Check, before any work, that a run may write its outputs; remove what a killed run left for them.
+
+    Refused without ``overwrite``: any output (manifest included) that exists already. Refused always: an
+    output location that cannot be written (read-only file system, no permission, a file where a folder should
+    be), found by creating the folder and a file in it, so that it fails once instead of once per file.
+
+    Raises:
+        DarksynthError: one line naming the first existing output and the count, or the unwritable location.
+    """
+    if not overwrite:
+        existing = [path for path in outputs if path.exists()]
+        if existing:
+            more = f" (and {len(existing) - 1} more of this run's outputs)" if len(existing) > 1 else ""
+            raise DarksynthError(f"{existing[0]}: exists{more}; add --overwrite to replace, or choose another output")
+    location = root if folder else root.parent
+    try:
+        location.mkdir(parents=True, exist_ok=True)
+        with tempfile.NamedTemporaryFile(dir=location, prefix=".darksynth-probe-"):
+            pass
+    except OSError as error:
+        raise DarksynthError(f"{location}: cannot write the output here ({error_reason(error)})") from None
+    remove_stale_temps(outputs)
