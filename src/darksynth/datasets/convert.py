@@ -32,6 +32,7 @@ import torch
 
 from darksynth import __version__
 from darksynth.apply import MANIFEST_NAME, ApplyOptions, check_video_options, execute, run_task
+from darksynth.apply_outputs import STATE_FOLDER
 from darksynth.datasets.convert_options import (
     SCHEDULING_OPTIONS,
     ConversionReport,
@@ -68,7 +69,6 @@ __all__ = [
     "write_manifest_if_complete",
 ]
 
-STATE_FOLDER: Final = ".darksynth"
 _STATE_NAME: Final = "convert-state.json"
 _RECORDS: Final = "records"
 
