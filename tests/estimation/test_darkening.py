@@ -176,3 +176,26 @@ def test_the_pooled_and_per_frame_estimate_equals_the_separate_calls() -> None:
     assert [e.darkening if e else None for e in per_frame] == [estimate_darkening(f).darkening for f in frames]
     with pytest.raises(DarksynthError, match="too dark or too flat"):
         estimate_darkening_pooled_and_per_frame(torch.zeros(2, 3, 64, 64))
+
+
+@pytest.mark.parametrize(("alpha", "gamma"), [(0.1, 0.5), (0.2, 0.7), (0.3, 1.0)])
+def test_matching_a_reference_recovers_the_darkening_of_its_own_scene(alpha: float, gamma: float) -> None:
+    """Round trip: a scene darkened with known (alpha, gamma) and made noisy is the reference; matched against
+    the clean scene (and against another scene, shifted in tone: the fit then follows that scene's tones)."""
+    from darksynth.estimation.darkening import match_darkening, median_noise
+
+    clean = _scene(3)
+    reference = _noisy(clean, Darkening(alpha, gamma), read=0.004, seed=1)
+    quantiles, noise = tone_quantiles(reference), median_noise(reference)
+    found = match_darkening(quantiles, noise, clean).darkening
+    assert found.alpha == pytest.approx(alpha, rel=0.08) and found.gamma == pytest.approx(gamma, rel=0.08)
+    # Another, darker scene gets a brighter curve, so that its darkened tones are the reference's (read where the
+    # reference's 8-bit rounding leaves them a few levels apart).
+    darker = _scene(4, shift=-0.3)
+    matched = match_darkening(quantiles, noise, darker).darkening
+    ours = tone_quantiles(darken(darker, matched.alpha, matched.gamma))
+    usable = (quantiles > 0.02) & (quantiles < 0.95)
+    assert usable.sum() >= 10
+    assert np.abs(np.log(ours[usable]) - np.log(quantiles[usable])).mean() < 0.08
+    unmatched = tone_quantiles(darken(darker, alpha, gamma))
+    assert np.abs(np.log(unmatched[usable]) - np.log(quantiles[usable])).mean() > 0.2

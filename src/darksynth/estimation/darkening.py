@@ -394,6 +394,43 @@ def estimate_darkening(
     return fit_darkening(quantiles, median_noise(frames, block), prior=prior, use_prior=use_prior, source=source)
 
 
+def match_darkening(
+    reference_quantiles: np.ndarray,
+    reference_noise: float,
+    clean: torch.Tensor,
+    *,
+    block: int = BLOCK,
+    source: str = "reference",
+) -> DarkeningEstimate:
+    """Alpha and gamma that darken ``clean`` to the tones of a reference: the fit of :func:`fit_darkening` with the
+    clean input's own log tone quantiles in place of the prior of average scenes (and no pull to the paper's
+    ranges), so the darkened input's block-median quantiles follow the reference's. The exposure is then "as dark
+    as the reference" for this input, which one (alpha, gamma) read off the reference against average scenes is
+    not (issue 25: the luminance quantiles of `apply`'s output were 0.137 from the reference's, median).
+
+    Args:
+        reference_quantiles: the reference's :func:`tone_quantiles` at :data:`PROBABILITIES`.
+        reference_noise: the noise in the reference's block medians (:func:`median_noise`).
+        clean: the clean input (..., C, H, W) in [0, 1] (a clip's first frame is enough).
+        block: as for :func:`tone_quantiles`.
+        source: the name error messages start with.
+
+    Raises:
+        DarksynthError: as :func:`fit_darkening`: the reference is too dark or too flat to match.
+    """
+    clean_quantiles = tone_quantiles(clean, block=block)
+    # Black input quantiles have no logarithm: floored, as the prior's were, at half an 8-bit level.
+    log_clean = np.log(np.maximum(clean_quantiles, 0.5 / 255.0))
+    return fit_darkening(
+        reference_quantiles,
+        reference_noise,
+        prior=log_clean,
+        spread=np.ones_like(log_clean),
+        use_prior=False,
+        source=source,
+    )
+
+
 def estimate_darkening_spread(
     frames: torch.Tensor, *, regions: int = 2, block: int = BLOCK, source: str = "reference"
 ) -> list[DarkeningEstimate]:
