@@ -199,3 +199,14 @@ def test_matching_a_reference_recovers_the_darkening_of_its_own_scene(alpha: flo
     assert np.abs(np.log(ours[usable]) - np.log(quantiles[usable])).mean() < 0.08
     unmatched = tone_quantiles(darken(darker, alpha, gamma))
     assert np.abs(np.log(unmatched[usable]) - np.log(quantiles[usable])).mean() > 0.2
+
+
+def test_matching_against_a_uniform_input_is_refused_naming_why() -> None:
+    from darksynth.estimation.darkening import match_darkening, median_noise
+
+    reference = _noisy(_scene(3), Darkening(0.2, 0.7), read=0.004, seed=1)
+    grey = torch.full((3, 96, 96), 0.4)
+    with pytest.raises(
+        DarksynthError, match=r"^input: its usable tone quantiles \(\d+\) face tones that span a factor"
+    ):
+        match_darkening(tone_quantiles(reference), median_noise(reference), grey, source="input")

@@ -334,10 +334,17 @@ def fit_darkening(
             f"lie between the noise floor {floor:.4f} and saturation (at least {MIN_QUANTILES} are needed)"
         )
     x, y = prior[usable], np.log(quantiles[usable])
-    if np.ptp(x) < 0.2 or np.ptp(y) < MIN_LOG_SPAN:
+    if np.ptp(y) < MIN_LOG_SPAN:
         raise DarksynthError(
             f"{source}: too flat to estimate its darkening: its usable tone quantiles span a factor of only "
             f"{math.exp(float(np.ptp(y))):.3f} (at least {math.exp(MIN_LOG_SPAN):.3f} is needed)"
+        )
+    if np.ptp(x) < 0.2:
+        # Usable quantiles that the tones they are fitted against barely tell apart (with match_darkening: a
+        # nearly uniform input), so no slope can be read.
+        raise DarksynthError(
+            f"{source}: its usable tone quantiles ({used}) face tones that span a factor of only "
+            f"{math.exp(float(np.ptp(x))):.3f} (at least {math.exp(0.2):.3f} is needed) to fit a darkening to"
         )
     log_alpha, exponent, shares = _fit_line(x, y, np.asarray(spread, dtype=np.float64)[usable], use_prior=use_prior)
     gamma = 1.0 / exponent if exponent > 0 else math.inf
