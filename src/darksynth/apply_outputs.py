@@ -39,25 +39,30 @@ VIDEO_OPTIONS: Final = frozenset({"codec", "crf", "pix_fmt"})
 """Options that change only videos: they do not decide the resume of a folder without videos."""
 
 
-def options_fingerprint(options: Any, *, has_videos: bool) -> dict[str, Any]:
-    """The options (an :class:`~darksynth.apply.ApplyOptions`; this module lies below it) that decide a folder
-    run's bytes, as JSON values."""
+def options_fingerprint(options: Any, *, left_out: frozenset[str] | set[str]) -> dict[str, Any]:
+    """The fields of an options dataclass (:class:`~darksynth.apply.ApplyOptions`,
+    :class:`~darksynth.datasets.ConvertOptions`) but those ``left_out``, as JSON values: what decides a run's
+    bytes, recorded so that a rerun can tell whether it continues the same run."""
     fingerprint: dict[str, Any] = {}
     for option in dataclasses.fields(options):
-        if option.name in UNRECORDED_OPTIONS or (option.name in VIDEO_OPTIONS and not has_videos):
+        if option.name in left_out:
             continue
         value = getattr(options, option.name)
         if isinstance(value, Profile):
             value = profile_to_dict(value)
+        elif isinstance(value, Path):
+            value = str(value)
         elif dataclasses.is_dataclass(value) and not isinstance(value, type):
             value = dataclasses.asdict(value)
         fingerprint[option.name] = value
     return fingerprint
 
 
-def _default(options: Any, name: str) -> Any:
-    option = next(f for f in dataclasses.fields(options) if f.name == name)
-    return None if option.default is dataclasses.MISSING else option.default
+def changed_options(options: Any, fingerprint: dict[str, Any], recorded: dict[str, Any]) -> list[str]:
+    """The names whose value in ``fingerprint`` differs from the earlier run's ``recorded`` one; an option the
+    earlier run did not record (it did not exist then) counts at its default."""
+    defaults = {f.name: None if f.default is dataclasses.MISSING else f.default for f in dataclasses.fields(options)}
+    return sorted(name for name, value in fingerprint.items() if recorded.get(name, defaults.get(name)) != value)
 
 
 @dataclass
@@ -87,7 +92,8 @@ def read_state(root: Path, options: Any, keys: dict[str, tuple[Path, ...]], *, h
     Raises:
         DarksynthError: ``root`` holds a run made with other options and ``options.overwrite`` is off.
     """
-    fingerprint = options_fingerprint(options, has_videos=has_videos)
+    left_out = UNRECORDED_OPTIONS if has_videos else UNRECORDED_OPTIONS | VIDEO_OPTIONS
+    fingerprint = options_fingerprint(options, left_out=left_out)
     digest = hashlib.sha256(json.dumps(fingerprint, sort_keys=True).encode()).hexdigest()
     document = {"format": "darksynth-apply-state", "version": 1, "hash": digest, "options": fingerprint}
     state = ResumeState(root, document)
@@ -100,7 +106,7 @@ def read_state(root: Path, options: Any, keys: dict[str, tuple[Path, ...]], *, h
         previous = {}
     recorded = previous.get("options") if isinstance(previous, dict) else None
     old: dict[str, Any] = recorded if isinstance(recorded, dict) else {}
-    changed = sorted(name for name, value in fingerprint.items() if old.get(name, _default(options, name)) != value)
+    changed = changed_options(options, fingerprint, old)
     if changed or not isinstance(recorded, dict):
         raise DarksynthError(
             f"{root}: holds an apply run made with other options ({', '.join(changed or ['state'])}); rerun the "

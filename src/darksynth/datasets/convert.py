@@ -32,7 +32,7 @@ import torch
 
 from darksynth import __version__
 from darksynth.apply import MANIFEST_NAME, ApplyOptions, check_video_options, execute, run_task
-from darksynth.apply_outputs import STATE_FOLDER
+from darksynth.apply_outputs import STATE_FOLDER, changed_options
 from darksynth.datasets.convert_options import (
     SCHEDULING_OPTIONS,
     ConversionReport,
@@ -277,11 +277,7 @@ def prepare_output(options: ConvertOptions, *, has_videos: bool = True) -> None:
                 return
             recorded = previous.get("options")
             old: dict[str, Any] = recorded if isinstance(recorded, dict) else {}
-            changed = sorted(
-                name
-                for name, value in fingerprint.items()
-                if old.get(name, ConvertOptions.default_fingerprint_value(name)) != value
-            )
+            changed = changed_options(options, fingerprint, old)
             if not changed and isinstance(recorded, dict):
                 # The same conversion, recorded in an earlier form: resumed, its state rewritten in this one.
                 write_text_atomic(state_path, json.dumps(document, indent=2, sort_keys=True) + "\n")

@@ -13,10 +13,11 @@ from pathlib import Path
 from typing import Any, Final
 
 from darksynth.apply import ApplyOptions
+from darksynth.apply_outputs import VIDEO_OPTIONS, options_fingerprint
 from darksynth.datasets.formats import FORMATS, DatasetFormat
 from darksynth.errors import DarksynthError
 from darksynth.io.discover import check_output_location
-from darksynth.profile import Profile, profile_to_dict
+from darksynth.profile import Profile
 
 
 def shard_of(key: str, count: int) -> int:
@@ -52,9 +53,6 @@ class Shard:
 SCHEDULING_OPTIONS: Final = frozenset({"output", "workers", "shard", "overwrite"})
 """The options of :class:`ConvertOptions` that do not change a single output byte, so that a run may resume with
 other values of them: where the output is, how the work is split, and whether an earlier run's state is kept."""
-
-VIDEO_OPTIONS: Final = frozenset({"codec", "crf", "pix_fmt"})
-"""The options that only change written videos: a dataset without videos resumes whatever they are."""
 
 
 @dataclass(frozen=True)
@@ -123,24 +121,8 @@ class ConvertOptions:
     def fingerprint(self, *, has_videos: bool = True) -> dict[str, Any]:
         """The options that decide the output bytes: all but those of :data:`SCHEDULING_OPTIONS`, and but those of
         :data:`VIDEO_OPTIONS` for a dataset without videos (``has_videos`` False)."""
-        fingerprint: dict[str, Any] = {}
-        for option in dataclasses.fields(self):
-            if option.name in SCHEDULING_OPTIONS or (option.name in VIDEO_OPTIONS and not has_videos):
-                continue
-            value = getattr(self, option.name)
-            if isinstance(value, Profile):
-                value = profile_to_dict(value)
-            elif isinstance(value, Path):
-                value = str(value)
-            fingerprint[option.name] = value
-        return fingerprint
-
-    @staticmethod
-    def default_fingerprint_value(name: str) -> Any:
-        """The fingerprint's value of option ``name`` at its default: what a state written before the option
-        existed stands for."""
-        field = next(f for f in dataclasses.fields(ConvertOptions) if f.name == name)
-        return None if field.default is dataclasses.MISSING else field.default
+        left_out = SCHEDULING_OPTIONS if has_videos else SCHEDULING_OPTIONS | VIDEO_OPTIONS
+        return options_fingerprint(self, left_out=left_out)
 
 
 @dataclass
