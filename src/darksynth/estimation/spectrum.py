@@ -254,10 +254,13 @@ def block_change(denoised: torch.Tensor) -> torch.Tensor:
     return F.avg_pool2d(change, BLOCK)[0, 0]
 
 
-def noise_only_change(denoised_first: torch.Tensor, values: NoiseValues, frames: int, strength: float) -> float:
+def noise_only_change(
+    denoised_first: torch.Tensor, values: NoiseValues, frames: int, strength: float, *, seed: int = 0
+) -> float:
     """The median block change (see :func:`block_change`) of a still clip made of the first denoised frame
     (1, 3, H, W) and independent noise of ``values`` in each of ``frames`` frames, denoised like the reference."""
-    generator = torch.Generator(device=denoised_first.device).manual_seed(7919)
+    # Its own stream of the estimate's seed (the fit's simulations use seed * 1009 + draw).
+    generator = torch.Generator(device=denoised_first.device).manual_seed(7919 + seed * 1009)
     still = denoised_first.expand(frames, -1, -1, -1)
     synthetic = quantised(add_noise(still[None], values, generator=generator)[0])
     return float(block_change(nlm_denoise(synthetic, strength)).median())
@@ -316,7 +319,8 @@ def estimate_spectrum(reference: torch.Tensor, *, seed: int = 0, name: str = "re
         first = initial_parameters(measure(frames[:1] - denoised[:1], denoised[:1], mask))
         first_values = NoiseValues.from_values(first.as_values(), dtype=torch.float32)
         threshold = max(
-            STILL_CHANGE, STILL_NOISE_FACTOR * noise_only_change(denoised[:1], first_values, frames.shape[0], strength)
+            STILL_CHANGE,
+            STILL_NOISE_FACTOR * noise_only_change(denoised[:1], first_values, frames.shape[0], strength, seed=seed),
         )
         meta["still_threshold_8bit"] = round(threshold * 255, 3)
         still = block_change(denoised) < threshold
