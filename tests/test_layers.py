@@ -7,7 +7,7 @@ sibling of its own layer):
 1. ``io`` (files, videos, atomic writes), ``darkening``, ``commands`` (the command line's shape, without its code)
    and ``console_progress`` (how a command shows its progress);
 2. ``noise``: the components, their table, the carrier of values, the composer;
-3. ``profile``;
+3. ``profile``, ``tones`` (the tone distribution of images and the darkening line fitted between two of them);
 4. ``synthesize``, ``models``, ``apply_outputs`` (what ``apply`` may write where: claiming outputs, resuming);
 5. ``apply``, ``training``, ``transforms``;
 6. ``baselines``, ``datasets``, ``estimation`` (reference -> profile, one module per stage, see below), ``preview``
@@ -20,7 +20,7 @@ The pure core (``tensors``, ``darkening``, ``noise``) also never imports ``io``:
 for the edges, so the core runs on tensors alone.
 
 Inside ``estimation`` the stages have layers of their own: the reading of the reference, the column decision, the
-darkening and the refinement's statistics import no other stage; the network reads the crop grid and the
+spectrum and the refinement's statistics import no other stage; the network reads the crop grid and the
 refinement its statistics; ``assemble`` alone runs them all.
 """
 
@@ -44,6 +44,7 @@ LAYERS: dict[str, int] = {
     "darkening": 1,
     "noise": 2,
     "profile": 3,
+    "tones": 3,
     "synthesize": 4,
     "models": 4,
     "apply_outputs": 4,
@@ -68,7 +69,6 @@ ESTIMATION_STAGES: dict[str, int] = {
     "__init__": 0,
     "reference": 0,
     "columns": 0,
-    "darkening": 0,
     "refine_statistics": 0,
     "spectrum": 0,
     "network": 1,

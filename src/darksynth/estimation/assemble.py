@@ -3,7 +3,7 @@
 The estimate of every crop is a full v; the profile holds their median (robust to crops where content,
 clipping or a light source misleads the network) and, as ``ranges``, the 10th to 90th percentile across crops,
 so that ``apply`` can reproduce the spread the reference shows. The darkening (alpha, gamma) is read from the
-reference's tone distribution (:mod:`darksynth.estimation.darkening`); for a clip, its ``ranges`` are the 10th
+reference's tone distribution (:mod:`darksynth.tones`); for a clip, its ``ranges`` are the 10th
 to 90th percentile of the per-frame estimates.
 
 Two things are measured on the reference itself rather than taken from the network: whether it shows column
@@ -25,14 +25,6 @@ import torch
 from darksynth.darkening import ALPHA_RANGE, GAMMA_RANGE, Darkening
 from darksynth.errors import DarksynthError
 from darksynth.estimation.columns import decide_columns
-from darksynth.estimation.darkening import (
-    ALPHA_BOUNDS,
-    GAMMA_BOUNDS,
-    PROBABILITIES,
-    DarkeningEstimate,
-    estimate_darkening_pooled_and_per_frame,
-    estimate_darkening_spread,
-)
 from darksynth.estimation.network import run_network
 from darksynth.estimation.reference import (
     FLAT_STD,
@@ -50,6 +42,14 @@ from darksynth.noise.components import NoiseModel, noise_parameter
 from darksynth.noise.level import mean_noise_variance
 from darksynth.noise.values import NoiseValues
 from darksynth.profile import Profile
+from darksynth.tones import (
+    ALPHA_BOUNDS,
+    GAMMA_BOUNDS,
+    PROBABILITIES,
+    DarkeningEstimate,
+    estimate_darkening_pooled_and_per_frame,
+    estimate_darkening_spread,
+)
 
 BRIGHT_MEAN = 0.35
 """A reference whose mean level is above this is not low-light; its estimate is less reliable."""

@@ -1,4 +1,5 @@
-"""Estimate the darkening x_d = alpha * x ** (1 / gamma) of a real low-light reference from its tone distribution.
+"""The darkening x_d = alpha * x ** (1 / gamma) read from tone distributions: a real low-light reference's against
+the prior of clean scenes (``estimate``), or against one clean input (``apply`` matching the reference's exposure).
 
 The reference's content is unknown; only its intensity distribution is seen. Against a prior, the average tone
 distribution of clean natural images, the darkening is a straight line in log-log coordinates::
