@@ -8,7 +8,8 @@ sibling of its own layer):
    and ``console_progress`` (how a command shows its progress);
 2. ``noise``: the components, their table, the carrier of values, the composer;
 3. ``profile``, ``tones`` (the tone distribution of images and the darkening line fitted between two of them);
-4. ``synthesize``, ``models``, ``apply_outputs`` (what ``apply`` may write where: claiming outputs, resuming);
+4. ``synthesize``, ``models``, ``apply_outputs`` (what ``apply`` may write where: claiming outputs, resuming),
+   ``exposure`` (an input's darkening matched to the reference's tones);
 5. ``apply``, ``training``, ``transforms``;
 6. ``baselines``, ``datasets``, ``estimation`` (reference -> profile, one module per stage, see below), ``preview``
    (it runs ``apply``'s synthesis);
@@ -48,6 +49,7 @@ LAYERS: dict[str, int] = {
     "synthesize": 4,
     "models": 4,
     "apply_outputs": 4,
+    "exposure": 4,
     "apply": 5,
     "training": 5,
     "transforms": 5,

@@ -29,6 +29,7 @@ from PIL import Image as PILImage
 from darksynth import __version__
 from darksynth.apply_outputs import claim_outputs, read_state, write_record, write_state
 from darksynth.errors import DarksynthError, error_reason
+from darksynth.exposure import matched_darkening
 from darksynth.io.arrays import chw_to_hwc, hwc_to_chw
 from darksynth.io.atomic import write_text_atomic
 from darksynth.io.discover import check_output_location, classify_input, scan_folder
@@ -200,12 +201,18 @@ def run_task(task: Task, options: ApplyOptions, progress: Progress | None = None
         raise DarksynthError(f"{where}: {error_reason(error)}") from None
 
 
-def start_task(key: str, options: ApplyOptions) -> tuple[int, torch.Generator, ClipParameters]:
+def start_task(
+    key: str, options: ApplyOptions, first_frame: np.ndarray | None = None
+) -> tuple[int, torch.Generator, ClipParameters]:
     """A task's seed, the generator its noise is drawn from and its parameters, all fixed by the run seed and the
-    task's key (its path relative to the input; for a single input file, its name)."""
+    task's key (its path relative to the input; for a single input file, its name). With ``first_frame`` (H, W, C)
+    and a profile that carries the reference's tones, the darkening is matched to them
+    (:func:`darksynth.exposure.matched_darkening`)."""
     seed = task_seed(options.seed, key)
     generator = torch.Generator(device=options.device).manual_seed(seed)
     profile, darkening = options.drawing()
+    if first_frame is not None and options.darkening == "profile":
+        darkening = matched_darkening(hwc_to_chw(first_frame), options.profile, source=key) or darkening
     parameters = draw_clip_parameters(profile, darkening=darkening, generator=generator)
     return seed, generator, parameters
 
@@ -220,14 +227,15 @@ def synthesize_image(pixels: np.ndarray, key: str, options: ApplyOptions) -> tup
     Returns:
         The low-light image in the dtype of ``pixels``, and its parameters.
     """
-    _, generator, parameters = start_task(key, options)
+    _, generator, parameters = start_task(key, options, pixels)
     compile_kernel = _worth_compiling(options, pixels.size)
     synthesizer = ClipSynthesizer(parameters, generator=generator, device=options.device, compile=compile_kernel)
     return chw_to_hwc(synthesizer(hwc_to_chw(pixels))), parameters
 
 
 def _run_task(task: Task, options: ApplyOptions, progress: Progress | None) -> dict[str, Any]:
-    seed, generator, parameters = start_task(task.key, options)
+    first = _first_frame(task)
+    seed, generator, parameters = start_task(task.key, options, first)
     frames = len(task.inputs)
     if task.kind == "video":
         frames = _run_video(task, options, parameters, generator, progress)
@@ -257,6 +265,14 @@ def _run_task(task: Task, options: ApplyOptions, progress: Progress | None) -> d
         "seed": seed,
         "parameters": parameters.to_json(),
     }
+
+
+def _first_frame(task: Task) -> np.ndarray | None:
+    """The first frame of a task's input, which its darkening is matched on (None for a video without frames: its
+    run then fails with its own message)."""
+    if task.kind != "video":
+        return read_image(task.inputs[0]).pixels
+    return next(iter_video_frames(task.inputs[0]), None)
 
 
 def _run_video(

@@ -7,6 +7,7 @@
            "compression": c},                  the last four optional (neutral when absent)
  "darkening": {"alpha": a, "gamma": g},        optional
  "ranges": {"shot": [lo, hi], "alpha": [lo, hi], ...},   optional: sample per image or clip within these
+ "tone": {"quantiles": [q1, ..., q49], "noise": n},   optional: the reference's exposure, matched per input
  "meta": {...}}                                optional: free-form provenance, carried but not read
 ```
 
@@ -23,6 +24,7 @@ version-1 document is read as the same noise. Profiles are written with the newe
 from __future__ import annotations
 
 import functools
+import itertools
 import json
 import math
 import sys
@@ -49,6 +51,24 @@ DARKENING_LIMITS: dict[str, tuple[float, float]] = {"alpha": (0.0, 1.0), "gamma"
 Range = tuple[float, float]
 
 
+TONE_QUANTILE_COUNT = 49
+"""Quantiles in a tone target: at 0.02, 0.04, ..., 0.98 (:data:`darksynth.tones.PROBABILITIES`)."""
+
+
+@dataclass(frozen=True)
+class ToneTarget:
+    """The reference's exposure, which ``apply`` matches each input's darkening to
+    (:func:`darksynth.tones.match_darkening`).
+
+    Attributes:
+        quantiles: the reference's tone quantiles (of its 4x4 block medians, all channels) at 0.02, ..., 0.98.
+        noise: the noise in one of its block medians (the quantiles below a few times it are not used).
+    """
+
+    quantiles: tuple[float, ...]
+    noise: float
+
+
 @dataclass(frozen=True)
 class Profile:
     """A validated noise profile.
@@ -59,12 +79,15 @@ class Profile:
         ranges: for some parameters (noise names, ``alpha``, ``gamma``), one (low, high) interval per value;
             those parameters are drawn uniformly within it for each image or clip instead of being fixed.
         meta: free-form provenance (reference file, estimator version), carried through unchanged.
+        tone: the reference's exposure, or None (an older profile, a reference too dark to read): with it,
+            ``apply`` darkens each input to the reference's tones instead of using ``darkening`` as it is.
     """
 
     noise: NoiseValues
     darkening: Darkening | None = None
     ranges: Mapping[str, tuple[Range, ...]] = field(default_factory=dict)
     meta: Mapping[str, Any] = field(default_factory=dict)
+    tone: ToneTarget | None = None
 
 
 def readable_versions() -> tuple[int, ...]:
@@ -175,6 +198,24 @@ def _darkening(raw: Any) -> Darkening | None:
     )
 
 
+def _tone(raw: Any) -> ToneTarget | None:
+    if raw is None:
+        return None
+    if not isinstance(raw, dict) or set(raw) != {"quantiles", "noise"}:
+        raise _fail(f"tone must be an object with quantiles and noise, got {raw!r}")
+    quantiles, noise = raw["quantiles"], raw["noise"]
+    if (
+        not isinstance(quantiles, list)
+        or len(quantiles) != TONE_QUANTILE_COUNT
+        or not all(isinstance(q, int | float) and not isinstance(q, bool) and 0.0 <= q <= 1.0 for q in quantiles)
+        or any(b < a for a, b in itertools.pairwise(quantiles))
+    ):
+        raise _fail(f"tone.quantiles must be {TONE_QUANTILE_COUNT} non-decreasing numbers in [0, 1], got {quantiles!r}")
+    if isinstance(noise, bool) or not isinstance(noise, int | float) or not 0.0 <= noise < 1.0:
+        raise _fail(f"tone.noise must be a number in [0, 1), got {noise!r}")
+    return ToneTarget(quantiles=tuple(float(q) for q in quantiles), noise=float(noise))
+
+
 def _version(raw: Any) -> int:
     if isinstance(raw, bool) or raw not in readable_versions():
         readable = " and ".join(str(v) for v in readable_versions())
@@ -243,6 +284,7 @@ class _ProfileDocument(BaseModel):
     meta: Annotated[dict[str, Any], BeforeValidator(_meta), WithJsonSchema({"type": "object"})] = pydantic.Field(
         default_factory=dict
     )
+    tone: Annotated[ToneTarget | None, BeforeValidator(_tone), WithJsonSchema({"type": "object"})] = None
 
 
 @functools.cache
@@ -315,6 +357,7 @@ def parse_profile(document: Any, *, source: str = "profile") -> Profile:
         darkening=parsed.darkening,
         ranges=parsed.ranges,
         meta=parsed.meta,
+        tone=parsed.tone,
     )
 
 
@@ -338,6 +381,8 @@ def profile_to_dict(profile: Profile) -> dict[str, Any]:
             name: ([list(pair) for pair in pairs] if sizes.get(name, 1) > 1 else list(pairs[0]))
             for name, pairs in profile.ranges.items()
         }
+    if profile.tone is not None:
+        document["tone"] = {"quantiles": list(profile.tone.quantiles), "noise": profile.tone.noise}
     if profile.meta:
         document["meta"] = dict(profile.meta)
     return document

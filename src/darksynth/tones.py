@@ -110,6 +110,9 @@ class DarkeningEstimate:
             on the paper's ranges rather than from the reference's tones, in [0, 1] (0: the tones alone determine
             it; 1: the reference says nothing about it and the value is the paper's mid-range). Empty without
             the prior (``use_prior=False``).
+        tone_quantiles: the fitted tone quantiles (at :data:`PROBABILITIES`), which ``apply`` matches each input's
+            exposure to (:func:`match_darkening`).
+        block_noise: the noise in a block median the fit was given.
     """
 
     darkening: Darkening
@@ -119,6 +122,8 @@ class DarkeningEstimate:
     clipped: bool
     bounds_hit: dict[str, str] = field(default_factory=dict)
     prior_share: dict[str, float] = field(default_factory=dict)
+    tone_quantiles: tuple[float, ...] = ()
+    block_noise: float = 0.0
 
     @property
     def confidence(self) -> float:
@@ -369,6 +374,8 @@ def fit_darkening(
         clipped=clipped,
         bounds_hit=bounds_hit,
         prior_share=prior_share,
+        tone_quantiles=tuple(float(q) for q in quantiles),
+        block_noise=float(noise_floor),
     )
 
 

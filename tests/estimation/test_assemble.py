@@ -14,6 +14,7 @@ from darksynth.models.den import DEN
 from darksynth.noise.components import model_parameters, noise_parameter, vector_size
 from darksynth.noise.values import NoiseValues
 from darksynth.profile import validate_profile
+from darksynth.tones import tone_quantiles
 
 
 def _reference(
@@ -95,11 +96,15 @@ def test_darkening_is_estimated_and_a_clip_gets_its_per_frame_range(tiny_model: 
     single = estimate(_dark_scene(1, alphas), tiny_model())
     assert single.profile.darkening is not None and "alpha" not in single.profile.ranges
     validate_profile(result.profile)
+    # The reference's tones go into the profile, for apply to match each input's exposure to.
+    tone = single.profile.tone
+    assert tone is not None and len(tone.quantiles) == 49 and tone.noise >= 0.0
+    assert np.allclose(tone.quantiles, tone_quantiles(_dark_scene(1, alphas)))
 
 
 def test_black_reference_warns_and_leaves_the_darkening_to_apply(tiny_model: Callable[..., DEN]) -> None:
     result = estimate(torch.zeros(1, 3, 64, 64), tiny_model(), source="black.png")
-    assert result.profile.darkening is None
+    assert result.profile.darkening is None and result.profile.tone is None
     assert "alpha" not in result.profile.ranges
     assert any(w.startswith("black.png: too dark") for w in result.warnings)
 

@@ -41,7 +41,7 @@ from darksynth.models.den import DEN
 from darksynth.noise.components import NoiseModel, noise_parameter
 from darksynth.noise.level import mean_noise_variance
 from darksynth.noise.values import NoiseValues
-from darksynth.profile import Profile
+from darksynth.profile import Profile, ToneTarget
 from darksynth.tones import (
     ALPHA_BOUNDS,
     GAMMA_BOUNDS,
@@ -188,8 +188,8 @@ def estimate(
             "single image: temporal banding cannot be told from banding; their split is the network's prior "
             "(what it learned from the training table's ranges), not a measurement"
         )
-    darkening = _estimate_darkening(reference, name, ranges, meta, warnings)
-    profile = Profile(noise=noise, darkening=darkening, ranges=ranges, meta=meta)
+    darkening, tone = _estimate_darkening(reference, name, ranges, meta, warnings)
+    profile = Profile(noise=noise, darkening=darkening, ranges=ranges, meta=meta, tone=tone)
     return Estimate(profile=profile, per_crop=per_crop, warnings=warnings)
 
 
@@ -347,8 +347,9 @@ def _estimate_darkening(
     ranges: dict[str, tuple[tuple[float, float], ...]],
     meta: dict[str, Any],
     warnings: list[str],
-) -> Darkening | None:
-    """The reference's darkening, its per-frame range for a clip, and how it was found (in ``meta``).
+) -> tuple[Darkening | None, ToneTarget | None]:
+    """The reference's darkening, its per-frame range for a clip, and how it was found (in ``meta``); and its tone
+    quantiles, which ``apply`` matches each input's exposure to.
 
     A reference too dark to read gives no darkening (``apply`` then falls back to the paper's ranges) and a
     warning, not an error: the noise estimate is still good.
@@ -366,7 +367,7 @@ def _estimate_darkening(
             "alpha": {"source": f"prior: apply draws it from the paper's range {list(ALPHA_RANGE)}"},
             "gamma": {"source": f"prior: apply draws it from the paper's range {list(GAMMA_RANGE)}"},
         }
-        return None
+        return None, None
     # A single image has no frames to spread over: its four regions say how much the estimate depends on content.
     regions = estimate_darkening_spread(reference[:1]) if reference.shape[0] == 1 else []
     meta["darkening"] = {
@@ -405,4 +406,4 @@ def _estimate_darkening(
                 low, high = np.percentile(values, [10, 90])
                 ranges[name] = ((min(float(low), point), max(float(high), point)),)
             meta["darkening"]["ranges"] = "10th-90th percentile over frames"
-    return found.darkening
+    return found.darkening, ToneTarget(quantiles=found.tone_quantiles, noise=found.block_noise)

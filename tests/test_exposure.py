@@ -1,0 +1,106 @@
+"""The reference's exposure carried by the profile and matched per input by ``apply`` (issue 25, item 0)."""
+
+from __future__ import annotations
+
+import dataclasses
+import json
+import logging
+from pathlib import Path
+
+import numpy as np
+import pytest
+import torch
+from PIL import Image
+
+from darksynth.apply import ApplyOptions, apply
+from darksynth.darkening import Darkening, darken
+from darksynth.errors import ProfileError
+from darksynth.exposure import matched_darkening
+from darksynth.noise.values import NoiseValues
+from darksynth.profile import Profile, ToneTarget, parse_profile, profile_to_dict
+from darksynth.tones import median_noise, tone_quantiles
+
+
+def _scene(seed: int, scale: float) -> np.ndarray:
+    """(96, 128, 3) uint8 smooth scene with a spread of tones, its brightness scaled by ``scale``."""
+    rng = np.random.default_rng(seed)
+    coarse = rng.random((6, 8, 3))
+    image = np.kron(coarse, np.ones((16, 16, 1)))
+    ramp = np.linspace(0.2, 1.0, 128)[None, :, None]
+    return np.clip(image * ramp * scale * 255.0, 0, 255).round().astype(np.uint8)
+
+
+def _chw(pixels: np.ndarray) -> torch.Tensor:
+    return torch.from_numpy(pixels).permute(2, 0, 1).to(torch.float32) / 255.0
+
+
+def _profile(tone: ToneTarget | None) -> Profile:
+    noise = NoiseValues.from_values({"shot": 0.01, "read": 0.002, "quantization": 0.0, "banding": 0.0})
+    return Profile(noise=noise, darkening=Darkening(0.2, 0.6), tone=tone)
+
+
+def _target() -> ToneTarget:
+    reference = darken(_chw(_scene(1, 1.0)), 0.15, 0.5)
+    return ToneTarget(tuple(float(q) for q in tone_quantiles(reference)), median_noise(reference))
+
+
+def test_the_tone_target_round_trips_through_the_document_and_bad_ones_are_refused() -> None:
+    profile = _profile(_target())
+    document = profile_to_dict(profile)
+    assert len(document["tone"]["quantiles"]) == 49
+    assert parse_profile(json.loads(json.dumps(document))).tone == profile.tone
+    assert parse_profile(profile_to_dict(_profile(None))).tone is None
+    falling = dict(document, tone={"quantiles": list(reversed(document["tone"]["quantiles"])), "noise": 0.001})
+    with pytest.raises(ProfileError, match=r"^x: tone.quantiles must be 49 non-decreasing numbers in \[0, 1\]"):
+        parse_profile(falling, source="x")
+    with pytest.raises(ProfileError, match=r"^x: tone must be an object with quantiles and noise"):
+        parse_profile(dict(document, tone=[0.1]), source="x")
+
+
+def test_apply_darkens_each_input_to_the_reference_s_tones(tmp_path: Path) -> None:
+    """Two scenes, one bright and one dim: with the tone target each is darkened to the reference's tones (their
+    own alpha and gamma, in the manifest); with the profile's one darkening they stay apart; --alpha/--gamma still
+    fix it."""
+    folder = tmp_path / "in"
+    folder.mkdir()
+    Image.fromarray(_scene(2, 1.0)).save(folder / "bright.png")
+    Image.fromarray(_scene(3, 0.35)).save(folder / "dim.png")
+    target = _target()
+
+    def run(name: str, profile: Profile, darkening: Darkening | str = "profile") -> dict[str, dict[str, float]]:
+        options = ApplyOptions(profile=profile, seed=0, darkening=darkening)  # type: ignore[arg-type]
+        apply(folder, tmp_path / name, options)
+        manifest = json.loads((tmp_path / name / "darksynth-manifest.json").read_text())
+        return {record["input"]: record["parameters"]["darkening"] for record in manifest["files"]}
+
+    def gap(name: str, file: str) -> float:
+        pixels = np.array(Image.open(tmp_path / name / file).convert("RGB"))
+        found = tone_quantiles(_chw(pixels))
+        usable = (np.asarray(target.quantiles) > 0.02) & (np.asarray(target.quantiles) < 0.95)
+        return float(np.abs(np.log(found[usable]) - np.log(np.asarray(target.quantiles)[usable])).mean())
+
+    matched = run("matched", _profile(target))
+    assert matched["bright.png"] != matched["dim.png"]  # each its own
+    assert matched["dim.png"]["gamma"] > matched["bright.png"]["gamma"]  # the dim one is lifted
+    fixed = run("fixed", _profile(None))
+    assert fixed["bright.png"] == fixed["dim.png"] == {"alpha": 0.2, "gamma": 0.6}
+    for file in ("bright.png", "dim.png"):
+        assert gap("matched", file) < 0.12
+    assert max(gap("fixed", f) for f in ("bright.png", "dim.png")) > 2 * max(
+        gap("matched", f) for f in ("bright.png", "dim.png")
+    )
+    chosen = run("chosen", _profile(target), Darkening(0.25, 0.8))
+    assert chosen["bright.png"] == chosen["dim.png"] == {"alpha": 0.25, "gamma": 0.8}
+
+
+def test_no_target_or_a_uniform_input_keeps_the_profile_s_darkening(caplog: pytest.LogCaptureFixture) -> None:
+    grey = torch.full((3, 64, 64), 120, dtype=torch.uint8)
+    assert matched_darkening(grey, _profile(None)) is None
+    with caplog.at_level(logging.WARNING, logger="darksynth.exposure"):
+        assert matched_darkening(grey, _profile(_target()), source="grey.png") is None
+    assert any("grey.png" in r.getMessage() and "profile's darkening is used" in r.getMessage() for r in caplog.records)
+    # uint8 and the same frame as float give the same match.
+    scene = torch.from_numpy(_scene(4, 0.8)).permute(2, 0, 1)
+    profile = _profile(_target())
+    assert matched_darkening(scene, profile) == matched_darkening(scene.to(torch.float32) / 255.0, profile)
+    assert dataclasses.is_dataclass(matched_darkening(scene, profile))
