@@ -5,7 +5,7 @@ Run: ``.venv/bin/python scripts/exposure_match_check.py [--data ../shared/data] 
 For every shared real low-light reference (LOL and LIME images, the first frame of each phone clip, the starlight
 video's first frame): the profile ``estimate`` writes, then the first ``--images`` Kodak images through
 ``darksynth.synthesize`` with (a) the profile's darkening (the estimate's alpha and gamma, what ``apply`` does
-today) and (b) the darkening matched to that image by :func:`darksynth.tones.match_darkening`. The
+today) and (b) the darkening matched to that image by :func:`darksynth.exposure.match_darkening`. The
 gap (issue 25's measure): the mean absolute difference of the output's luminance quantiles at 5, 10, ..., 95%
 and the reference's, on the [0, 1] scale. Printed: per reference the median gap over the images for (a) and (b),
 then the median and worst over all (reference, image) pairs.
@@ -23,9 +23,10 @@ from darksynth.darkening import Darkening
 from darksynth.errors import DarksynthError
 from darksynth.estimation.assemble import estimate
 from darksynth.estimation.reference import load_reference
+from darksynth.exposure import match_darkening
 from darksynth.io.images import read_image
 from darksynth.synthesize import synthesize
-from darksynth.tones import match_darkening, median_noise, tone_quantiles
+from darksynth.tones import median_noise, tone_quantiles
 from darksynth.training.weights import default_weights_path, load_weights
 
 LEVELS = np.arange(0.05, 0.951, 0.05)

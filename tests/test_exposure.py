@@ -17,8 +17,9 @@ from darksynth.darkening import Darkening, darken
 from darksynth.errors import ProfileError
 from darksynth.exposure import matched_darkening
 from darksynth.noise.values import NoiseValues
-from darksynth.profile import Profile, ToneTarget, parse_profile, profile_to_dict
-from darksynth.tones import median_noise, tone_quantiles
+from darksynth.profile import Profile, parse_profile, profile_to_dict
+from darksynth.synthesize import synthesize
+from darksynth.tones import ToneTarget, median_noise, sampled_tone_quantiles, tone_quantiles
 
 
 def _scene(seed: int, scale: float) -> np.ndarray:
@@ -95,12 +96,40 @@ def test_apply_darkens_each_input_to_the_reference_s_tones(tmp_path: Path) -> No
 
 def test_no_target_or_a_uniform_input_keeps_the_profile_s_darkening(caplog: pytest.LogCaptureFixture) -> None:
     grey = torch.full((3, 64, 64), 120, dtype=torch.uint8)
-    assert matched_darkening(grey, _profile(None)) is None
+    assert matched_darkening(grey, None) is None
     with caplog.at_level(logging.WARNING, logger="darksynth.exposure"):
-        assert matched_darkening(grey, _profile(_target()), source="grey.png") is None
+        assert matched_darkening(grey, _target(), source="grey.png") is None
     assert any("grey.png" in r.getMessage() and "profile's darkening is used" in r.getMessage() for r in caplog.records)
     # uint8 and the same frame as float give the same match.
     scene = torch.from_numpy(_scene(4, 0.8)).permute(2, 0, 1)
+    tone = _target()
+    assert matched_darkening(scene, tone) == matched_darkening(scene.to(torch.float32) / 255.0, tone)
+    assert dataclasses.is_dataclass(matched_darkening(scene, tone))
+
+
+def test_synthesize_darkens_each_clip_to_the_reference_s_tones_too() -> None:
+    """The library call (what the training transforms run) matches as apply does; a given darkening wins."""
     profile = _profile(_target())
-    assert matched_darkening(scene, profile) == matched_darkening(scene.to(torch.float32) / 255.0, profile)
-    assert dataclasses.is_dataclass(matched_darkening(scene, profile))
+    bright, dim = (torch.from_numpy(_scene(seed, scale)).permute(2, 0, 1) for seed, scale in ((2, 1.0), (3, 0.35)))
+    records = [
+        synthesize(image, profile, generator=torch.Generator().manual_seed(0)).parameters for image in (bright, dim)
+    ]
+    darkenings = [r["darkening"] for r in records if isinstance(r, dict)]
+    assert len(darkenings) == 2 and darkenings[0] != darkenings[1]
+    assert darkenings[1]["gamma"] > darkenings[0]["gamma"]
+    fixed = synthesize(bright, profile, darkening=Darkening(0.25, 0.8)).parameters
+    assert isinstance(fixed, dict) and fixed["darkening"] == {"alpha": 0.25, "gamma": 0.8}
+    assert synthesize(bright, _profile(None)).parameters["darkening"] == {"alpha": 0.2, "gamma": 0.6}  # type: ignore[call-overload]
+
+
+def test_large_inputs_are_matched_on_every_k_th_block_with_the_same_quantiles_within_two_levels() -> None:
+    small = _chw(_scene(5, 0.9))
+    assert np.array_equal(sampled_tone_quantiles(small), tone_quantiles(small))
+    rng = np.random.default_rng(6)
+    coarse = rng.random((34, 60, 3))
+    large = torch.from_numpy(np.kron(coarse, np.ones((32, 32, 1)))).permute(2, 0, 1).to(torch.float32)
+    large = large * torch.linspace(0.3, 1.0, large.shape[-1])
+    assert large.shape[-2:] == (1088, 1920)
+    gap = np.abs(sampled_tone_quantiles(large) - tone_quantiles(large))
+    # (The first block of each group lies on the dark side of the ramp: a bias of about half a level.)
+    assert gap.max() < 2.0 / 255.0 and gap.mean() < 1.0 / 255.0

@@ -7,9 +7,10 @@ sibling of its own layer):
 1. ``io`` (files, videos, atomic writes), ``darkening``, ``commands`` (the command line's shape, without its code)
    and ``console_progress`` (how a command shows its progress);
 2. ``noise``: the components, their table, the carrier of values, the composer;
-3. ``profile``, ``tones`` (the tone distribution of images and the darkening line fitted between two of them);
-4. ``synthesize``, ``models``, ``apply_outputs`` (what ``apply`` may write where: claiming outputs, resuming),
-   ``exposure`` (an input's darkening matched to the reference's tones);
+2b. ``tones`` (the tone distribution of images and the darkening line fitted between two of them) is on the
+   layer of ``noise``;
+3. ``profile``, ``exposure`` (an input's darkening matched to the reference's tones);
+4. ``synthesize``, ``models``, ``apply_outputs`` (what ``apply`` may write where: claiming outputs, resuming);
 5. ``apply``, ``training``, ``transforms``;
 6. ``baselines``, ``datasets``, ``estimation`` (reference -> profile, one module per stage, see below), ``preview``
    (it runs ``apply``'s synthesis);
@@ -45,11 +46,11 @@ LAYERS: dict[str, int] = {
     "darkening": 1,
     "noise": 2,
     "profile": 3,
-    "tones": 3,
+    "tones": 2,
+    "exposure": 3,
     "synthesize": 4,
     "models": 4,
     "apply_outputs": 4,
-    "exposure": 4,
     "apply": 5,
     "training": 5,
     "transforms": 5,

@@ -182,7 +182,8 @@ def test_the_pooled_and_per_frame_estimate_equals_the_separate_calls() -> None:
 def test_matching_a_reference_recovers_the_darkening_of_its_own_scene(alpha: float, gamma: float) -> None:
     """Round trip: a scene darkened with known (alpha, gamma) and made noisy is the reference; matched against
     the clean scene (and against another scene, shifted in tone: the fit then follows that scene's tones)."""
-    from darksynth.tones import match_darkening, median_noise
+    from darksynth.exposure import match_darkening
+    from darksynth.tones import median_noise
 
     clean = _scene(3)
     reference = _noisy(clean, Darkening(alpha, gamma), read=0.004, seed=1)
@@ -202,7 +203,8 @@ def test_matching_a_reference_recovers_the_darkening_of_its_own_scene(alpha: flo
 
 
 def test_matching_against_a_uniform_input_is_refused_naming_why() -> None:
-    from darksynth.tones import match_darkening, median_noise
+    from darksynth.exposure import match_darkening
+    from darksynth.tones import median_noise
 
     reference = _noisy(_scene(3), Darkening(0.2, 0.7), read=0.004, seed=1)
     grey = torch.full((3, 96, 96), 0.4)

@@ -212,7 +212,7 @@ def start_task(
     generator = torch.Generator(device=options.device).manual_seed(seed)
     profile, darkening = options.drawing()
     if first_frame is not None and options.darkening == "profile":
-        darkening = matched_darkening(hwc_to_chw(first_frame), options.profile, source=key) or darkening
+        darkening = matched_darkening(hwc_to_chw(first_frame), options.profile.tone, source=key) or darkening
     parameters = draw_clip_parameters(profile, darkening=darkening, generator=generator)
     return seed, generator, parameters
 

@@ -1,6 +1,7 @@
 """An input's darkening matched to the reference's exposure: the profile's tone target against the input's own
-tones (issue 25; docs/darkening-estimate.md). ``apply`` and ``convert`` take it for each image, clip and video,
-from its first frame, unless ``--alpha/--gamma`` or ``--no-darken`` fix the darkening."""
+tones (issue 25; docs/darkening-estimate.md). ``apply``, ``convert`` and ``synthesize`` (the training transforms)
+take it for each image, clip and video, from its first frame, unless the darkening is given (``--alpha/--gamma``,
+``--no-darken``, a ``darkening`` argument)."""
 
 from __future__ import annotations
 
@@ -11,19 +12,57 @@ import torch
 
 from darksynth.darkening import Darkening
 from darksynth.errors import DarksynthError
-from darksynth.profile import Profile
-from darksynth.tones import match_darkening
+from darksynth.tones import BLOCK, DarkeningEstimate, ToneTarget, fit_darkening, sampled_tone_quantiles
 
 logger = logging.getLogger(__name__)
 
 
-def matched_darkening(frame: torch.Tensor, profile: Profile, *, source: str = "input") -> Darkening | None:
+def match_darkening(
+    reference_quantiles: np.ndarray,
+    reference_noise: float,
+    clean: torch.Tensor,
+    *,
+    block: int = BLOCK,
+    source: str = "reference",
+) -> DarkeningEstimate:
+    """Alpha and gamma that darken ``clean`` to the tones of a reference: the fit of
+    :func:`darksynth.tones.fit_darkening` with the clean input's own log tone quantiles (every block, or every k-th
+    of a large frame: :func:`darksynth.tones.sampled_tone_quantiles`) in place of the prior of average scenes (and
+    no pull to the paper's ranges), so the darkened input's block-median quantiles follow the reference's. The
+    exposure is then "as dark as the reference" for this input, which one (alpha, gamma) read off the reference
+    against average scenes is not (issue 25: the luminance quantiles of `apply`'s output were 0.137 from the
+    reference's, median).
+
+    Args:
+        reference_quantiles: the reference's :func:`darksynth.tones.tone_quantiles` at its ``PROBABILITIES``.
+        reference_noise: the noise in the reference's block medians (:func:`darksynth.tones.median_noise`).
+        clean: the clean input (..., C, H, W) in [0, 1] (a clip's first frame is enough).
+        block: as for :func:`darksynth.tones.tone_quantiles`.
+        source: the name error messages start with.
+
+    Raises:
+        DarksynthError: as :func:`darksynth.tones.fit_darkening`: the reference is too dark or too flat to match.
+    """
+    clean_quantiles = sampled_tone_quantiles(clean, block=block)
+    # Black input quantiles have no logarithm: floored, as the prior's were, at half an 8-bit level.
+    log_clean = np.log(np.maximum(clean_quantiles, 0.5 / 255.0))
+    return fit_darkening(
+        reference_quantiles,
+        reference_noise,
+        prior=log_clean,
+        spread=np.ones_like(log_clean),
+        use_prior=False,
+        source=source,
+    )
+
+
+def matched_darkening(frame: torch.Tensor, tone: ToneTarget | None, *, source: str = "input") -> Darkening | None:
     """The darkening that gives ``frame`` (C, H, W), a clip's first frame (uint8, uint16 or float in [0, 1]), the
-    reference's tones: alpha and gamma fitted between the profile's :class:`~darksynth.profile.ToneTarget` and the
-    frame's own tone quantiles (:func:`darksynth.tones.match_darkening`), to be held over the clip's frames. None
-    without a tone target (an older profile) or where the match fails (a nearly uniform frame; logged, and the
-    caller keeps the profile's darkening)."""
-    if profile.tone is None:
+    reference's tones: alpha and gamma fitted between a profile's ``tone`` and the frame's own tone quantiles
+    (:func:`match_darkening`), to be held over the clip's frames. None without a tone target (an
+    older profile) or where the match fails (a nearly uniform frame; logged, and the caller keeps the profile's
+    darkening)."""
+    if tone is None:
         return None
     clean = frame.to(torch.float32).cpu()
     if not frame.dtype.is_floating_point:
@@ -31,7 +70,7 @@ def matched_darkening(frame: torch.Tensor, profile: Profile, *, source: str = "i
     if clean.shape[0] == 1:
         clean = clean.expand(3, -1, -1)
     try:
-        found = match_darkening(np.asarray(profile.tone.quantiles), profile.tone.noise, clean[:3], source=source)
+        found = match_darkening(np.asarray(tone.quantiles), tone.noise, clean[:3], source=source)
     except DarksynthError as error:
         logger.warning("%s; the profile's darkening is used", error)
         return None

@@ -42,6 +42,7 @@ from darksynth.errors import ProfileError
 from darksynth.io.atomic import write_text_atomic
 from darksynth.noise.components import NoiseComponent, Parameter, noise_components, noise_parameters, profile_version
 from darksynth.noise.values import NoiseValues
+from darksynth.tones import ToneTarget
 
 PROFILE_FORMAT = "darksynth-profile"
 
@@ -53,20 +54,6 @@ Range = tuple[float, float]
 
 TONE_QUANTILE_COUNT = 49
 """Quantiles in a tone target: at 0.02, 0.04, ..., 0.98 (:data:`darksynth.tones.PROBABILITIES`)."""
-
-
-@dataclass(frozen=True)
-class ToneTarget:
-    """The reference's exposure, which ``apply`` matches each input's darkening to
-    (:func:`darksynth.tones.match_darkening`).
-
-    Attributes:
-        quantiles: the reference's tone quantiles (of its 4x4 block medians, all channels) at 0.02, ..., 0.98.
-        noise: the noise in one of its block medians (the quantiles below a few times it are not used).
-    """
-
-    quantiles: tuple[float, ...]
-    noise: float
 
 
 @dataclass(frozen=True)

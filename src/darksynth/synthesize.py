@@ -20,6 +20,7 @@ import numpy as np
 import torch
 
 from darksynth.darkening import ALPHA_RANGE, GAMMA_RANGE, Darkening, darken
+from darksynth.exposure import matched_darkening
 from darksynth.io.arrays import numpy_to_tensor, tensor_to_numpy
 from darksynth.noise.components import noise_component, noise_parameter, noise_parameters
 from darksynth.noise.counter_rng import random_key
@@ -415,7 +416,9 @@ def synthesize(
     outputs = []
     records = []
     for clip in flat:
-        parameters = draw_clip_parameters(profile, darkening=darkening, generator=generator)
+        # With the reference's tones in the profile, each clip is darkened to them (darksynth.exposure).
+        matched = matched_darkening(clip[0], profile.tone) if darkening == "profile" else None
+        parameters = draw_clip_parameters(profile, darkening=matched or darkening, generator=generator)
         records.append(parameters.to_json())
         if clip.dtype == torch.uint8:
             synthesizer = ClipSynthesizer(parameters, generator=generator, device=target)

@@ -41,12 +41,13 @@ from darksynth.models.den import DEN
 from darksynth.noise.components import NoiseModel, noise_parameter
 from darksynth.noise.level import mean_noise_variance
 from darksynth.noise.values import NoiseValues
-from darksynth.profile import Profile, ToneTarget
+from darksynth.profile import Profile
 from darksynth.tones import (
     ALPHA_BOUNDS,
     GAMMA_BOUNDS,
     PROBABILITIES,
     DarkeningEstimate,
+    ToneTarget,
     estimate_darkening_pooled_and_per_frame,
     estimate_darkening_spread,
 )
