@@ -289,27 +289,31 @@ def test_a_fitted_value_on_a_bound_of_its_search_range_warns(tiny_model: Callabl
     # x ** (1 / 8): mid-tones far brighter than the search range's gamma of at most 2 allows.
     result = estimate(_dark_scene(1, [0.3], gamma=8.0), tiny_model(), source="flat.png")
     assert result.profile.darkening is not None and result.profile.darkening.gamma == 2.0
+    # apply matches the reference's tones instead (the profile's tone): a note in meta, not a warning.
+    assert result.profile.tone is not None and not any("bound" in w for w in result.warnings)
     assert any(
         w.startswith("flat.png: the fitted gamma sits on the upper bound 2 of its search range [0.1, 2]")
-        for w in result.warnings
-    ), result.warnings
+        for w in result.profile.meta["darkening"]["notes"]
+    ), result.profile.meta["darkening"]
     assert result.profile.meta["darkening"]["gamma"]["source"].startswith("fit, clipped to the upper bound")
 
 
 def test_low_darkening_confidence_warns_and_says_why(tiny_model: Callable[..., DEN]) -> None:
     model = tiny_model()
     dark = estimate(_dark_scene(1, [0.05], gamma=0.3), model, source="dark.png")  # confidence 0.02
+    # Notes in meta, not warnings: apply matches the reference's tones, not this alpha and gamma.
+    assert not any("uncertain" in w for w in dark.warnings)
     assert any(
         w.startswith("dark.png: the darkening estimate is uncertain (confidence 0.02 < 0.1: 7 of 49 tone quantiles")
-        for w in dark.warnings
-    ), dark.warnings
-    # Confidence 0.18 (its gamma hit the upper bound, which warns by itself): above the threshold of 0.1.
+        for w in dark.profile.meta["darkening"]["notes"]
+    ), dark.profile.meta["darkening"]
+    # Confidence 0.18 (its gamma hit the upper bound, which notes it by itself): above the threshold of 0.1.
     between = estimate(_dark_scene(1, [0.2], gamma=1.5), model, source="between.png")
     assert 0.1 < between.profile.meta["darkening"]["confidence"] < 0.2
-    assert not any("uncertain" in w for w in between.warnings)
-    assert any("sits on the upper bound" in w for w in between.warnings)
+    assert not any("uncertain" in w for w in between.profile.meta["darkening"]["notes"])
+    assert any("sits on the upper bound" in w for w in between.profile.meta["darkening"]["notes"])
     clear = estimate(_dark_scene(1, [0.15], gamma=0.6), model, source="clear.png")  # confidence 0.43
-    assert not any("uncertain" in w for w in clear.warnings)
+    assert "notes" not in clear.profile.meta["darkening"]
 
 
 def test_bright_reference_warns_and_a_dark_one_does_not(tiny_model: Callable[..., DEN]) -> None:
