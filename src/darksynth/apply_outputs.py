@@ -82,8 +82,32 @@ class ResumeState:
     owned: bool = False
 
 
-def _record_path(root: Path, key: str) -> Path:
-    return root / STATE_FOLDER / RECORDS / f"{hashlib.sha256(key.encode()).hexdigest()[:32]}.json"
+def record_path(root: Path, folder: str, key: str) -> Path:
+    """Where the record of the task or item ``key`` lives, in the records ``folder`` of a run's state in ``root``
+    (``apply`` and ``convert`` alike: a hash of the key, so that any path makes a valid file name)."""
+    return root / STATE_FOLDER / folder / f"{hashlib.sha256(key.encode()).hexdigest()[:32]}.json"
+
+
+def read_record(path: Path, key: str) -> dict[str, Any] | None:
+    """The record at ``path`` if it is the one of ``key``; None when missing or unreadable (atomic writes rule the
+    latter out): the task is then done again."""
+    try:
+        record = json.loads(path.read_text(encoding="utf-8"))
+    except (OSError, ValueError):
+        return None
+    return record if isinstance(record, dict) and record.get("input") == key else None
+
+
+def write_record_file(path: Path, record: dict[str, Any]) -> None:
+    """Write one record atomically.
+
+    Raises:
+        DarksynthError: the record cannot be written.
+    """
+    try:
+        write_text_atomic(path, json.dumps(record, indent=1, sort_keys=True) + "\n")
+    except OSError as error:
+        raise DarksynthError(f"{error.filename or path}: cannot write the record ({error_reason(error)})") from None
 
 
 def read_state(root: Path, options: Any, keys: dict[str, tuple[Path, ...]], *, has_videos: bool) -> ResumeState:
@@ -114,18 +138,10 @@ def read_state(root: Path, options: Any, keys: dict[str, tuple[Path, ...]], *, h
         )
     state.owned = True
     for key, outputs in keys.items():
-        record = _read_record(_record_path(root, key))
+        record = read_record(record_path(root, RECORDS, key), key)
         if record is not None and all(path.is_file() for path in outputs):
             state.done[key] = record
     return state
-
-
-def _read_record(path: Path) -> dict[str, Any] | None:
-    try:
-        record = json.loads(path.read_text(encoding="utf-8"))
-    except (OSError, ValueError):
-        return None
-    return record if isinstance(record, dict) else None
 
 
 def write_state(state: ResumeState) -> None:
@@ -152,13 +168,7 @@ def write_record(state: ResumeState, key: str, record: dict[str, Any]) -> None:
     Raises:
         DarksynthError: the record cannot be written.
     """
-    path = _record_path(state.root, key)
-    try:
-        write_text_atomic(path, json.dumps(record, indent=2) + "\n")
-    except OSError as error:
-        raise DarksynthError(
-            f"{error.filename or path}: cannot write the run's record ({error_reason(error)})"
-        ) from None
+    write_record_file(record_path(state.root, RECORDS, key), record)
 
 
 def claim_outputs(outputs: list[Path], root: Path, *, folder: bool, overwrite: bool) -> None:

@@ -11,11 +11,10 @@ import torch
 
 from darksynth.darkening import Darkening
 from darksynth.noise.counter_rng import random_key
-from darksynth.noise.spectral import OCTAVES, octave_covariances, spectral_tables
+from darksynth.noise.spectral import OCTAVES, crop_unit, octave_covariances, spectral_tables
 from darksynth.noise.spectral_8bit import level_tables
 from darksynth.noise.spectral_fit import measure
 from darksynth.noise.spectral_kernel import (
-    crop_unit,
     spectral_ar_mix_kernel,
     spectral_mix_kernel,
     spectral_pixel_kernel,

@@ -32,7 +32,8 @@ import torch
 
 from darksynth import __version__
 from darksynth.apply import MANIFEST_NAME, ApplyOptions, check_video_options, execute, run_task
-from darksynth.apply_outputs import STATE_FOLDER, changed_options
+from darksynth.apply_outputs import STATE_FOLDER, changed_options, read_record, write_record_file
+from darksynth.apply_outputs import record_path as shared_record_path
 from darksynth.datasets.convert_options import (
     SCHEDULING_OPTIONS,
     ConversionReport,
@@ -78,8 +79,7 @@ ProgressCallback = Callable[[int, int], None]
 
 def record_path(output: Path, key: str) -> Path:
     """Where the record of the item ``key`` lives."""
-    name = hashlib.sha256(key.encode()).hexdigest()[:32]
-    return output / STATE_FOLDER / _RECORDS / f"{name}.json"
+    return shared_record_path(output, _RECORDS, key)
 
 
 def convert_item(item: MediaItem | Mapping[str, Any], options: ConvertOptions) -> dict[str, Any]:
@@ -129,19 +129,11 @@ def _record(item: MediaItem, result: dict[str, Any] | None, error: str | None) -
 
 
 def _write_record(output: Path, record: dict[str, Any]) -> None:
-    path = record_path(output, record["input"])
-    try:
-        write_text_atomic(path, json.dumps(record, indent=1, sort_keys=True) + "\n")
-    except OSError as error:
-        raise DarksynthError(f"{error.filename or path}: cannot write the record ({error_reason(error)})") from None
+    write_record_file(record_path(output, record["input"]), record)
 
 
 def _read_record(output: Path, key: str) -> dict[str, Any] | None:
-    try:
-        record = json.loads(record_path(output, key).read_text(encoding="utf-8"))
-    except (OSError, ValueError):
-        return None  # missing (or unreadable, which atomic writes rule out): the item is done again
-    return record if isinstance(record, dict) and record.get("input") == key else None
+    return read_record(record_path(output, key), key)
 
 
 def is_done(output: Path, item: MediaItem) -> bool:

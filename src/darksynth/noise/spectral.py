@@ -363,8 +363,14 @@ class SpectralGrid:
         spectrum = torch.view_as_complex(self._mixed.view(self.channels, rows, -1, 2))
         # Not into a kept array: irfft2's out= computes into a new one and copies it (15 ms more a 1080p frame).
         field = torch.fft.irfft2(spectrum, s=(self.grid_height, self.grid_width))
-        unit: torch.Tensor = field[:, MARGIN : MARGIN + self.height, MARGIN : MARGIN + self.width]
-        return unit
+        return crop_unit(field, self.height, self.width)
+
+
+def crop_unit(field: torch.Tensor, height: int, width: int) -> torch.Tensor:
+    """The frame's part (C, height, width) of an inverse FFT's grid (C, grid rows, grid columns): inside the
+    :data:`MARGIN`."""
+    unit: torch.Tensor = field[:, MARGIN : MARGIN + height, MARGIN : MARGIN + width]
+    return unit
 
 
 LEVEL_GRID_STEPS = 49

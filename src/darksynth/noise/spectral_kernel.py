@@ -31,14 +31,10 @@ import torch
 
 from darksynth.darkening import Darkening
 from darksynth.noise.counter_rng import byte_from_word, first_word, flat_index, random_key, triangular_from_word
-from darksynth.noise.kernel8 import compiled_function
+from darksynth.noise.kernel8 import FULL_SCALE, compiled_function
 from darksynth.noise.quantization import QUANTIZATION_LEVELS
-from darksynth.noise.spectral import MARGIN, spectral_tables
-from darksynth.noise.spectral_8bit import level_tables
-
-FULL_SCALE = 255.0
-
-LEVELS = 256
+from darksynth.noise.spectral import crop_unit, spectral_tables
+from darksynth.noise.spectral_8bit import LEVELS, level_tables
 
 
 def _white(key: torch.Tensor, channels: int, rows: int, values: int) -> torch.Tensor:
@@ -125,11 +121,6 @@ def spectral_pixel_kernel(
     level = (signal + std * unit + quantization) * FULL_SCALE + column_pattern
     # Rounding before clamping equals clamping before rounding here because the bounds are integers.
     return level.round().clamp(0.0, FULL_SCALE).to(torch.uint8)
-
-
-def crop_unit(field: torch.Tensor, height: int, width: int) -> torch.Tensor:
-    """The frame's part (C, height, width) of the inverse FFT's grid (C, grid rows, grid columns)."""
-    return field[:, MARGIN : MARGIN + height, MARGIN : MARGIN + width]
 
 
 Kernel = Callable[..., torch.Tensor]
@@ -219,7 +210,6 @@ def compiled_spectral_kernels() -> tuple[Kernel, Callable[..., tuple[torch.Tenso
 __all__ = [
     "SpectralKernelStream",
     "compiled_spectral_kernels",
-    "crop_unit",
     "spectral_ar_mix_kernel",
     "spectral_mix_kernel",
     "spectral_pixel_kernel",
