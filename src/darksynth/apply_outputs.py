@@ -110,6 +110,41 @@ def write_record_file(path: Path, record: dict[str, Any]) -> None:
         raise DarksynthError(f"{error.filename or path}: cannot write the record ({error_reason(error)})") from None
 
 
+def state_document(kind: str, fingerprint: dict[str, Any]) -> dict[str, Any]:
+    """The state file of a run (``kind`` "apply" or "convert") with the options ``fingerprint``."""
+    digest = hashlib.sha256(json.dumps(fingerprint, sort_keys=True).encode()).hexdigest()
+    return {"format": f"darksynth-{kind}-state", "version": 1, "hash": digest, "options": fingerprint}
+
+
+def changes_from_earlier_run(path: Path, options: Any, document: dict[str, Any]) -> list[str] | None:
+    """How the run whose state is at ``path`` differs from this one (its :func:`state_document` ``document``):
+    None when it is recorded exactly so; the names of the options that differ (:func:`changed_options`); an empty
+    list for the same options recorded in an earlier form; ``["state"]`` for a state that is not valid JSON.
+
+    Raises:
+        OSError: the state cannot be read (each caller reports it in its own words)."""
+    try:
+        previous = json.loads(path.read_text(encoding="utf-8"))
+    except ValueError:
+        previous = {}
+    if not isinstance(previous, dict):
+        previous = {}
+    if previous.get("hash") == document["hash"]:
+        return None
+    recorded = previous.get("options")
+    if not isinstance(recorded, dict):
+        return ["state"]
+    return changed_options(options, document["options"], recorded)
+
+
+def other_options_error(root: Path, run: str, changed: list[str]) -> DarksynthError:
+    """The one-line refusal of an output folder that holds ``run`` (e.g. "a conversion") made with other options."""
+    return DarksynthError(
+        f"{root}: holds {run} made with other options ({', '.join(changed)}); rerun the same command to resume it, "
+        "add --overwrite to start over, or choose another output folder"
+    )
+
+
 def read_state(root: Path, options: Any, keys: dict[str, tuple[Path, ...]], *, has_videos: bool) -> ResumeState:
     """The earlier run found in ``root`` for tasks ``keys`` (task key -> its output paths); nothing is written.
 
@@ -117,25 +152,17 @@ def read_state(root: Path, options: Any, keys: dict[str, tuple[Path, ...]], *, h
         DarksynthError: ``root`` holds a run made with other options and ``options.overwrite`` is off.
     """
     left_out = UNRECORDED_OPTIONS if has_videos else UNRECORDED_OPTIONS | VIDEO_OPTIONS
-    fingerprint = options_fingerprint(options, left_out=left_out)
-    digest = hashlib.sha256(json.dumps(fingerprint, sort_keys=True).encode()).hexdigest()
-    document = {"format": "darksynth-apply-state", "version": 1, "hash": digest, "options": fingerprint}
+    document = state_document("apply", options_fingerprint(options, left_out=left_out))
     state = ResumeState(root, document)
     path = root / STATE_FOLDER / STATE_NAME
     if not path.is_file() or options.overwrite:
         return state
     try:
-        previous = json.loads(path.read_text(encoding="utf-8"))
-    except (OSError, ValueError):
-        previous = {}
-    recorded = previous.get("options") if isinstance(previous, dict) else None
-    old: dict[str, Any] = recorded if isinstance(recorded, dict) else {}
-    changed = changed_options(options, fingerprint, old)
-    if changed or not isinstance(recorded, dict):
-        raise DarksynthError(
-            f"{root}: holds an apply run made with other options ({', '.join(changed or ['state'])}); rerun the "
-            "same command to resume it, add --overwrite to start over, or choose another output folder"
-        )
+        changed = changes_from_earlier_run(path, options, document)
+    except OSError:
+        changed = ["state"]
+    if changed:
+        raise other_options_error(root, "an apply run", changed)
     state.owned = True
     for key, outputs in keys.items():
         record = read_record(record_path(root, RECORDS, key), key)

@@ -19,7 +19,6 @@ It holds no times and no absolute output paths, so it does not depend on interru
 
 from __future__ import annotations
 
-import hashlib
 import json
 import shutil
 import time
@@ -32,7 +31,14 @@ import torch
 
 from darksynth import __version__
 from darksynth.apply import MANIFEST_NAME, ApplyOptions, check_video_options, execute, run_task
-from darksynth.apply_outputs import STATE_FOLDER, changed_options, read_record, write_record_file
+from darksynth.apply_outputs import (
+    STATE_FOLDER,
+    changes_from_earlier_run,
+    other_options_error,
+    read_record,
+    state_document,
+    write_record_file,
+)
 from darksynth.apply_outputs import record_path as shared_record_path
 from darksynth.datasets.convert_options import (
     SCHEDULING_OPTIONS,
@@ -259,27 +265,18 @@ def prepare_output(options: ConvertOptions, *, has_videos: bool = True) -> None:
     """
     output = options.output
     state_path = output / STATE_FOLDER / _STATE_NAME
-    fingerprint = options.fingerprint(has_videos=has_videos)
-    digest = hashlib.sha256(json.dumps(fingerprint, sort_keys=True).encode()).hexdigest()
-    document = {"format": "darksynth-convert-state", "version": 1, "hash": digest, "options": fingerprint}
+    document = state_document("convert", options.fingerprint(has_videos=has_videos))
     try:
         if state_path.is_file():
-            previous = _read_json(state_path)
-            if previous.get("hash") == digest:
+            changed = changes_from_earlier_run(state_path, options, document)
+            if changed is None:
                 return
-            recorded = previous.get("options")
-            old: dict[str, Any] = recorded if isinstance(recorded, dict) else {}
-            changed = changed_options(options, fingerprint, old)
-            if not changed and isinstance(recorded, dict):
+            if not changed:
                 # The same conversion, recorded in an earlier form: resumed, its state rewritten in this one.
                 write_text_atomic(state_path, json.dumps(document, indent=2, sort_keys=True) + "\n")
                 return
             if not options.overwrite:
-                raise DarksynthError(
-                    f"{output}: holds a conversion made with other options ({', '.join(changed or ['state'])}); "
-                    "rerun the same command to resume it, add --overwrite to start over, or choose another output "
-                    "folder"
-                )
+                raise other_options_error(output, "a conversion", changed)
             shutil.rmtree(output / STATE_FOLDER / _RECORDS, ignore_errors=True)
             (output / MANIFEST_NAME).unlink(missing_ok=True)
         elif output.is_dir() and any(output.iterdir()) and not options.overwrite:
@@ -291,14 +288,6 @@ def prepare_output(options: ConvertOptions, *, has_videos: bool = True) -> None:
     except OSError as error:
         where = error.filename or output
         raise DarksynthError(f"{where}: cannot write the output folder ({error_reason(error)})") from None
-
-
-def _read_json(path: Path) -> dict[str, Any]:
-    try:
-        document = json.loads(path.read_text(encoding="utf-8"))
-    except ValueError:
-        return {}
-    return document if isinstance(document, dict) else {}
 
 
 def remove_stale_temps(options: ConvertOptions, plan: DatasetPlan, owns: Callable[[str], bool]) -> None:
