@@ -4,8 +4,9 @@ Layers, lowest first (a module may import its own package and any lower layer, n
 sibling of its own layer):
 
 0. ``errors``, ``tensors``, ``seeding``, ``version``: conventions that import nothing of darksynth;
-1. ``io`` (files, videos, atomic writes), ``darkening``, ``commands`` (the command line's shape, without its code)
-   and ``console_progress`` (how a command shows its progress);
+1. ``io`` (files, videos, atomic writes), ``darkening``, ``light`` (motion blur, camera shake, flicker: light
+   beyond noise), ``commands`` (the command line's shape, without its code), ``console_progress`` (how a command
+   shows its progress) and ``worker_pool`` (worker processes that end with their parent);
 2. ``noise``: the components, their table, the carrier of values, the composer;
 2b. ``tones`` (the tone distribution of images and the darkening line fitted between two of them) is on the
    layer of ``noise``;
@@ -18,7 +19,7 @@ sibling of its own layer):
 8. ``cli``, the package ``__init__``; 9. ``main``, the entry point (the light app, or the cli); 10. ``__main__``,
    which only calls it.
 
-The pure core (``tensors``, ``darkening``, ``noise``) also never imports ``io``: reading and writing files is
+The pure core (``tensors``, ``darkening``, ``light``, ``noise``) also never imports ``io``: reading and writing files is
 for the edges, so the core runs on tensors alone.
 
 Inside ``estimation`` the stages have layers of their own: the reading of the reference, the column decision, the
@@ -44,6 +45,8 @@ LAYERS: dict[str, int] = {
     "console_progress": 1,
     "io": 1,
     "darkening": 1,
+    "light": 1,
+    "worker_pool": 1,
     "noise": 2,
     "profile": 3,
     "tones": 2,
@@ -66,7 +69,7 @@ LAYERS: dict[str, int] = {
     "__init__": 8,
 }
 
-PURE_CORE = frozenset({"tensors", "darkening", "noise"})
+PURE_CORE = frozenset({"tensors", "darkening", "light", "noise"})
 
 ESTIMATION_STAGES: dict[str, int] = {
     "__init__": 0,

@@ -12,7 +12,6 @@ import json
 import logging
 import os
 import sys
-import threading
 import time
 from collections.abc import Callable, Iterator
 from concurrent.futures import ProcessPoolExecutor, as_completed
@@ -24,7 +23,6 @@ from typing import Any, Literal
 
 import numpy as np
 import torch
-from PIL import Image as PILImage
 
 from darksynth import __version__
 from darksynth.apply_outputs import claim_outputs, read_state, write_record, write_state
@@ -34,8 +32,8 @@ from darksynth.io.arrays import chw_to_hwc, hwc_to_chw
 from darksynth.io.atomic import write_text_atomic
 from darksynth.io.discover import check_output_location, classify_input, scan_folder
 from darksynth.io.images import IMAGE_SUFFIXES, Image, read_image, write_image
-from darksynth.io.video import VIDEO_SUFFIXES, VideoWriter, iter_video_frames, probe_video
-from darksynth.profile import Profile, profile_to_dict
+from darksynth.io.video import VIDEO_SUFFIXES, VideoWriter, iter_video_frames, probe_video, to_stream_size
+from darksynth.profile import Profile, profile_to_dict, without_light
 from darksynth.seeding import derive_seed
 from darksynth.synthesize import (
     ClipParameters,
@@ -44,6 +42,7 @@ from darksynth.synthesize import (
     draw_clip_parameters,
     fixed_darkening,
 )
+from darksynth.worker_pool import init_worker
 
 logger = logging.getLogger(__name__)
 
@@ -85,6 +84,8 @@ class ApplyOptions:
         device: torch device for the computation.
         compile: fuse the 8-bit kernel with torch.compile; None decides by stream length.
         profile_source: where the profile came from, for the manifest.
+        blur, flicker: False switches off the profile's motion blur and camera shake, or its flicker
+            (``--no-blur``, ``--no-flicker``).
     """
 
     profile: Profile
@@ -100,6 +101,8 @@ class ApplyOptions:
     device: str = "cpu"
     compile: bool | None = None
     profile_source: str = ""
+    blur: bool = True
+    flicker: bool = True
 
     def drawing(self) -> tuple[Profile, DarkeningChoice]:
         """The profile and darkening each file's parameters are drawn from.
@@ -108,10 +111,11 @@ class ApplyOptions:
         and a fixed darkening (:func:`darksynth.synthesize.fixed_darkening`): nothing is drawn, every file gets the
         same values and its seed only drives the noise itself.
         """
+        profile = without_light(self.profile, blur=not self.blur, flicker=not self.flicker)
         if self.jitter:
-            return self.profile, self.darkening
-        darkening = fixed_darkening(self.profile) if self.darkening == "profile" else self.darkening
-        return dataclasses.replace(self.profile, ranges={}), darkening
+            return profile, self.darkening
+        darkening = fixed_darkening(profile) if self.darkening == "profile" else self.darkening
+        return dataclasses.replace(profile, ranges={}), darkening
 
 
 @dataclass(frozen=True)
@@ -230,7 +234,7 @@ def synthesize_image(pixels: np.ndarray, key: str, options: ApplyOptions) -> tup
     _, generator, parameters = start_task(key, options, pixels)
     compile_kernel = _worth_compiling(options, pixels.size)
     synthesizer = ClipSynthesizer(parameters, generator=generator, device=options.device, compile=compile_kernel)
-    return chw_to_hwc(synthesizer(hwc_to_chw(pixels))), parameters
+    return chw_to_hwc(synthesizer.image(hwc_to_chw(pixels))), parameters
 
 
 def _run_task(task: Task, options: ApplyOptions, progress: Progress | None) -> dict[str, Any]:
@@ -240,23 +244,7 @@ def _run_task(task: Task, options: ApplyOptions, progress: Progress | None) -> d
     if task.kind == "video":
         frames = _run_video(task, options, parameters, generator, progress)
     else:
-        synthesizer: ClipSynthesizer | None = None
-        for source, target in zip(task.inputs, task.outputs, strict=True):
-            image = read_image(source)
-            if synthesizer is None:
-                compile_kernel = _worth_compiling(options, frames * image.pixels.size)
-                synthesizer = ClipSynthesizer(
-                    parameters,
-                    generator=generator,
-                    device=options.device,
-                    compile=compile_kernel,
-                    name=str(source.parent if task.kind == "clip" else source),
-                )
-            # A frame of another size is the synthesizer's to handle (it logs the change and goes on).
-            result = synthesizer(hwc_to_chw(image.pixels))
-            write_image(target, Image(chw_to_hwc(result), image.alpha, image.bit_depth, image.source_mode))
-            if progress:
-                progress(1)
+        frames = _run_frames(task, options, parameters, generator, progress)
     return {
         "input": task.key,
         "kind": task.kind,
@@ -265,6 +253,42 @@ def _run_task(task: Task, options: ApplyOptions, progress: Progress | None) -> d
         "seed": seed,
         "parameters": parameters.to_json(),
     }
+
+
+def _run_frames(
+    task: Task, options: ApplyOptions, parameters: ClipParameters, generator: torch.Generator, progress: Progress | None
+) -> int:
+    """An image task, or a clip's frames in order: a clip's frame is written when its blur is done (one behind)."""
+    synthesizer: ClipSynthesizer | None = None
+    pending: list[tuple[Path, Image]] = []
+    for source, target in zip(task.inputs, task.outputs, strict=True):
+        image = read_image(source)
+        if synthesizer is None:
+            compile_kernel = _worth_compiling(options, len(task.inputs) * image.pixels.size)
+            name = str(source.parent if task.kind == "clip" else source)
+            synthesizer = ClipSynthesizer(
+                parameters, generator=generator, device=options.device, compile=compile_kernel, name=name
+            )
+        frame = hwc_to_chw(image.pixels)
+        if task.kind == "image":
+            write_image(target, dataclasses.replace(image, pixels=chw_to_hwc(synthesizer.image(frame))))
+            if progress:
+                progress(1)
+            continue
+        # A frame of another size is the synthesizer's to handle (it logs the change and goes on).
+        pending.append((target, image))
+        for result in synthesizer.push(frame):
+            _write_pending(pending, result, progress)
+    for result in synthesizer.finish() if synthesizer is not None else []:
+        _write_pending(pending, result, progress)
+    return len(task.inputs)
+
+
+def _write_pending(pending: list[tuple[Path, Image]], result: torch.Tensor, progress: Progress | None) -> None:
+    target, image = pending.pop(0)
+    write_image(target, dataclasses.replace(image, pixels=chw_to_hwc(result)))
+    if progress:
+        progress(1)
 
 
 def _first_frame(task: Task) -> np.ndarray | None:
@@ -297,11 +321,15 @@ def _run_video(
     with VideoWriter(target, **writer_options) as writer:
         for frame in iter_video_frames(source):
             if frame.shape[:2] != (info.height, info.width):
-                frame = _to_stream_size(source, frame, info.width, info.height, first=not resized)
+                frame = to_stream_size(source, frame, info.width, info.height, first=not resized)
                 resized = True
-            result = synthesizer(hwc_to_chw(frame))
-            writer.write(chw_to_hwc(result))
+            for result in synthesizer.push(hwc_to_chw(frame)):
+                writer.write(chw_to_hwc(result))
+                if progress:
+                    progress(1)
             count += 1
+        for result in synthesizer.finish():
+            writer.write(chw_to_hwc(result))
             if progress:
                 progress(1)
     if count == 0:
@@ -326,42 +354,8 @@ def check_video_options(options: ApplyOptions, output: Path) -> None:
     VideoWriter(output, width=16, height=16, fps=Fraction(25), **_encoder_options(options))
 
 
-def _to_stream_size(source: Path, frame: np.ndarray, width: int, height: int, *, first: bool) -> np.ndarray:
-    # A stream that switches resolution mid-way (adaptive streaming, a camera's mode change) cannot go into one
-    # encoded stream at two sizes: the clean frame is scaled to the stream's declared size, as ffmpeg does by
-    # default, before the noise is drawn, so the noise keeps its per-pixel law.
-    if first:
-        logger.warning(
-            "%s: a frame of %dx%d in a %dx%d stream is scaled to the stream's size",
-            source, frame.shape[1], frame.shape[0], width, height,
-        )  # fmt: skip
-    scaled = PILImage.fromarray(frame).resize((width, height), PILImage.Resampling.BILINEAR)
-    return np.asarray(scaled)
-
-
 def _worth_compiling(options: ApplyOptions, values: int) -> bool:
     return options.compile if options.compile is not None else values >= COMPILE_MIN_ELEMENTS
-
-
-PARENT_POLL_SECONDS = 0.5
-"""How often a pool worker checks that the process that started it is alive."""
-
-
-def _init_worker(threads: int) -> None:
-    torch.set_num_threads(threads)
-    # A pool worker outlives a parent killed with SIGKILL: the executor's shutdown never runs, and a worker in the
-    # middle of a frame does not read the closed queue until its task ends (minutes for a long video). A thread that
-    # sees the parent gone (the worker re-parented) ends the worker; its half-written file is a hidden temporary,
-    # removed by the next run. PR_SET_PDEATHSIG would be immediate but fires when the *thread* that started the
-    # worker ends, which for an executor need not be the main one.
-    threading.Thread(target=_exit_with_parent, args=(os.getppid(),), name="exit-with-parent", daemon=True).start()
-
-
-def _exit_with_parent(parent: int) -> None:
-    while True:
-        time.sleep(PARENT_POLL_SECONDS)
-        if os.getppid() != parent:
-            os._exit(1)
 
 
 def execute(
@@ -381,9 +375,7 @@ def execute(
     threads = max(1, (os.cpu_count() or 1) // options.workers)
     # "spawn": forking a process that already runs torch's thread pools can deadlock.
     context = get_context("spawn")
-    with ProcessPoolExecutor(
-        options.workers, mp_context=context, initializer=_init_worker, initargs=(threads,)
-    ) as pool:
+    with ProcessPoolExecutor(options.workers, mp_context=context, initializer=init_worker, initargs=(threads,)) as pool:
         futures = {pool.submit(run_task, task, options): task for task in tasks}
         for future in as_completed(futures):
             task = futures[future]

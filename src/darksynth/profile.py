@@ -23,6 +23,7 @@ version-1 document is read as the same noise. Profiles are written with the newe
 
 from __future__ import annotations
 
+import dataclasses
 import functools
 import itertools
 import json
@@ -40,7 +41,15 @@ from pydantic_core import PydanticCustomError
 from darksynth.darkening import Darkening
 from darksynth.errors import ProfileError
 from darksynth.io.atomic import write_text_atomic
-from darksynth.noise.components import NoiseComponent, Parameter, noise_components, noise_parameters, profile_version
+from darksynth.noise.components import (
+    NoiseComponent,
+    Parameter,
+    light_parameters,
+    noise_components,
+    noise_parameters,
+    profile_section,
+    profile_version,
+)
 from darksynth.noise.values import NoiseValues
 from darksynth.tones import ToneTarget
 
@@ -61,7 +70,9 @@ class Profile:
     """A validated noise profile.
 
     Attributes:
-        noise: every noise parameter's values (unbatched; neutral where the document has none).
+        noise: every parameter's values of the one table (unbatched; neutral where the document has none): the
+            noise, and light (``exposure_fraction``, ``flicker``...), which the document keeps in its ``light``
+            section.
         darkening: the darkening to apply, or None to let the caller choose.
         ranges: for some parameters (noise names, ``alpha``, ``gamma``), one (low, high) interval per value;
             those parameters are drawn uniformly within it for each image or clip instead of being fixed.
@@ -75,6 +86,18 @@ class Profile:
     ranges: Mapping[str, tuple[Range, ...]] = field(default_factory=dict)
     meta: Mapping[str, Any] = field(default_factory=dict)
     tone: ToneTarget | None = None
+
+
+def without_light(profile: Profile, *, blur: bool = False, flicker: bool = False) -> Profile:
+    """The profile with its motion blur and camera shake (``blur``) or its flicker (``flicker``) switched off:
+    those values neutral and their ranges gone (``--no-blur``, ``--no-flicker``)."""
+    names = {name for name, off in (("scene", blur), ("flicker", flicker)) if off}
+    parameters = [p for c in noise_components() if c.name in names for p in c.parameters]
+    if not parameters:
+        return profile
+    noise = profile.noise.replace(**{p.name: p.neutral for p in parameters})
+    ranges = {name: pairs for name, pairs in profile.ranges.items() if name not in {p.name for p in parameters}}
+    return dataclasses.replace(profile, noise=noise, ranges=ranges)
 
 
 def readable_versions() -> tuple[int, ...]:
@@ -237,7 +260,7 @@ def _number_schema(parameter: Parameter) -> dict[str, Any]:
 
 def _noise_field(parameter: Parameter) -> tuple[Any, Any]:
     def check(raw: Any) -> tuple[float, ...]:
-        return _values(raw, f"noise.{parameter.name}", parameter)
+        return _values(raw, f"{profile_section(parameter)}.{parameter.name}", parameter)
 
     annotated = Annotated[tuple[float, ...], BeforeValidator(check), WithJsonSchema(_number_schema(parameter))]
     if parameter.since_version == 1:
@@ -277,12 +300,19 @@ class _ProfileDocument(BaseModel):
 @functools.cache
 def _schema_for(components: tuple[NoiseComponent, ...]) -> type[_ProfileDocument]:
     parameters = tuple(p for c in components for p in c.parameters)
-    fields: dict[str, Any] = {p.name: _noise_field(p) for p in parameters}
-    noise: type[BaseModel] = pydantic.create_model(
-        "NoiseSection", __config__=ConfigDict(extra="forbid", frozen=True), **fields
-    )
+    sections: dict[str, type[BaseModel]] = {}
+    for section in ("noise", "light"):
+        fields: dict[str, Any] = {p.name: _noise_field(p) for p in parameters if profile_section(p) == section}
+        sections[section] = pydantic.create_model(
+            f"{section.title()}Section", __config__=ConfigDict(extra="forbid", frozen=True), **fields
+        )
+    noise: Any = sections["noise"]
+    light: Any = sections["light"] | None
     document: type[_ProfileDocument] = pydantic.create_model(
-        "ProfileDocument", __base__=_ProfileDocument, noise=(noise, ...)
+        "ProfileDocument",
+        __base__=_ProfileDocument,
+        noise=(noise, ...),
+        light=(light, pydantic.Field(default=None, json_schema_extra={"since_version": 5})),
     )
     return document
 
@@ -304,11 +334,12 @@ def _error_message(error: Mapping[str, Any]) -> str:
         if len(error["loc"]) == 1:
             known = ", ".join(profile_schema().model_fields)
             return f"unknown field {error['loc'][0]!r}; a profile has {known}"
-        known = ", ".join(p.name for p in noise_parameters())
-        return f"{where} is not a noise parameter; known: {known}"
-    if where == "noise":
-        known = ", ".join(p.name for p in noise_parameters())
-        return f"noise must be an object with {known}, got {error['input']!r}"
+        section = str(error["loc"][0])
+        known = ", ".join(p.name for p in noise_parameters() if profile_section(p) == section)
+        return f"{where} is not a {section} parameter; known: {known}"
+    if where in ("noise", "light"):
+        known = ", ".join(p.name for p in noise_parameters() if profile_section(p) == where)
+        return f"{where} must be an object with {known}, got {error['input']!r}"
     return f"{where}: {error['msg']}, got {error['input']!r}"
 
 
@@ -330,13 +361,14 @@ def parse_profile(document: Any, *, source: str = "profile") -> Profile:
         raise ProfileError(f"{source}: {_error_message(error.errors()[0])}") from None
     given: dict[str, tuple[float, ...]] = {}
     for parameter in noise_parameters():
-        values = getattr(parsed.noise, parameter.name)  # type: ignore[attr-defined]
+        section = getattr(parsed, profile_section(parameter))
+        values = None if section is None else getattr(section, parameter.name)
         if values is None:
             continue
         if parameter.since_version > parsed.version:
             raise ProfileError(
-                f"{source}: noise.{parameter.name} needs profile version {parameter.since_version}, "
-                f"this document is version {parsed.version}"
+                f"{source}: {profile_section(parameter)}.{parameter.name} needs profile version "
+                f"{parameter.since_version}, this document is version {parsed.version}"
             )
         given[parameter.name] = values
     return Profile(
@@ -359,8 +391,10 @@ def profile_to_dict(profile: Profile) -> dict[str, Any]:
     document: dict[str, Any] = {
         "format": PROFILE_FORMAT,
         "version": profile_version(),
-        "noise": profile.noise.to_json(),
+        "noise": profile.noise.to_json("noise"),
     }
+    if any(not profile.noise.is_neutral(p) for p in light_parameters()):
+        document["light"] = profile.noise.to_json("light")
     if profile.darkening is not None:
         document["darkening"] = {"alpha": profile.darkening.alpha, "gamma": profile.darkening.gamma}
     if profile.ranges:

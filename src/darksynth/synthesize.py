@@ -21,7 +21,9 @@ import torch
 
 from darksynth.darkening import ALPHA_RANGE, GAMMA_RANGE, Darkening, darken
 from darksynth.exposure import matched_darkening
-from darksynth.io.arrays import numpy_to_tensor, tensor_to_numpy
+from darksynth.io.arrays import clips_from_numpy, clips_to_numpy
+from darksynth.light.flicker import FlickerGains
+from darksynth.light.shutter import ShutterStage
 from darksynth.noise.components import noise_component, noise_parameter, noise_parameters
 from darksynth.noise.counter_rng import random_key
 from darksynth.noise.kernel8 import (
@@ -38,13 +40,20 @@ from darksynth.noise.kernel8 import (
     srgb_kernel_in_pieces,
 )
 from darksynth.noise.sampling import random_uniform
-from darksynth.noise.simulate import add_noise, apply_output_stages, column_components_active, column_noise
+from darksynth.noise.simulate import (
+    add_noise,
+    apply_output_stages,
+    column_components_active,
+    column_noise,
+    exposure_gains,
+    scene_stage,
+)
 from darksynth.noise.spectral import clip_grid, octave_covariances
-from darksynth.noise.spectral_8bit import SPECTRAL_PATH, SpectralPixelPass, to_8bit
+from darksynth.noise.spectral_8bit import SPECTRAL_PATH, SpectralPixelPass, level_tables, to_8bit
 from darksynth.noise.spectral_kernel import SpectralKernelStream, compiled_spectral_kernels
 from darksynth.noise.values import NoiseValues
 from darksynth.profile import Profile
-from darksynth.tensors import CLIP_DIMS
+from darksynth.tensors import CLIP_DIMS, eight_bit_levels, full_scale, to_dtype
 
 logger = logging.getLogger(__name__)
 
@@ -61,9 +70,9 @@ class ClipParameters:
     darkening: Darkening | None
 
     def to_json(self) -> dict[str, Any]:
-        """JSON-ready record for manifests: the noise values as a profile writes them, and the darkening."""
+        """JSON-ready record for manifests: the noise and light values as a profile writes them, and the darkening."""
         darkening = None if self.darkening is None else {"alpha": self.darkening.alpha, "gamma": self.darkening.gamma}
-        return {"noise": self.noise.to_json(), "darkening": darkening}
+        return {"noise": self.noise.to_json("noise"), "light": self.noise.to_json("light"), "darkening": darkening}
 
 
 def draw_clip_parameters(
@@ -168,9 +177,45 @@ class ClipSynthesizer:
         self._scalars: tuple[torch.Tensor, ...] | None = None
         self._frame_shape: torch.Size | None = None
         self._frames_done = 0
+        # Light (darksynth.light): the shutter (motion blur, shake), the frame's darkening times its flicker gain.
+        self._darkening = parameters.darkening
+        self._flicker = FlickerGains(self._values.scalar("flicker"), self._values.scalar("flicker_correlation"))
+        scalar = self._values.scalar
+        self._shutter = ShutterStage(
+            scalar("exposure_fraction"), scalar("shake_length"), scalar("shake_angle"), self.device
+        )
+
+    def push(self, frame: torch.Tensor) -> list[torch.Tensor]:
+        """The next frame (C, H, W) of a clip in, the low-light frames finished so far out, in order. With motion
+        blur (``exposure_fraction`` > 0) a frame is finished when the next one arrives: call :meth:`finish` after
+        the last frame (:class:`darksynth.light.shutter.ShutterStage`)."""
+        return [self(clean) for clean in self._shutter.push(frame)]
+
+    def finish(self) -> list[torch.Tensor]:
+        """The clip's frames still held for their blur (none without motion blur)."""
+        return [self(clean) for clean in self._shutter.finish()]
+
+    def image(self, frame: torch.Tensor) -> torch.Tensor:
+        """A single image (C, H, W): its camera shake, if any, and no flicker (it needs a sequence)."""
+        return self._frame(self._shutter.image(frame), flicker=False)
+
+    def _set_gain(self, gain: float) -> None:
+        """This frame's darkening: the clip's times the flicker gain (the tables read from it are redone)."""
+        base = self.parameters.darkening or Darkening(alpha=1.0, gamma=1.0)
+        self._darkening = Darkening(alpha=base.alpha * gain, gamma=base.gamma)
+        self._scalars = None
+        for stage in (self._spectral_pass, self._spectral_stream):
+            if stage is not None:
+                channels = stage.signal_table.shape[0]
+                curve = self._values["level_curve"]
+                stage.signal_table, stage.std_table = level_tables(channels, self._darkening, curve, device=self.device)
 
     def __call__(self, frame: torch.Tensor) -> torch.Tensor:
-        """Low-light version of one frame (C, H, W): uint8 in, uint8 out; uint16 and float likewise."""
+        """Low-light version of one frame (C, H, W) of a clip whose light stage is done (as :meth:`push` gives
+        it): uint8 in, uint8 out; uint16 and float likewise. Flicker, if any, is drawn here."""
+        return self._frame(frame, flicker=True)
+
+    def _frame(self, frame: torch.Tensor, *, flicker: bool) -> torch.Tensor:
         if frame.dim() != 3:
             raise ValueError(f"expected a frame shaped (C, H, W), got shape {tuple(frame.shape)}")
         frame = frame.to(self.device)
@@ -178,6 +223,9 @@ class ClipSynthesizer:
             self._restart_for_new_size(frame.shape)
         self._frame_shape = frame.shape
         self._frames_done += 1
+        if flicker and self._flicker.active:
+            # The gain is drawn before the frame's noise, from the same generator.
+            self._set_gain(self._flicker.next(self.generator))
         if frame.dtype == torch.uint8 and self._fusable:
             return self._fused(frame)
         if frame.dtype == torch.uint8 and self._structured:
@@ -190,13 +238,13 @@ class ClipSynthesizer:
                 return compiled
         if frame.dtype == torch.uint8 and self._spectral:
             return self._spectral_8bit(frame)
-        scale = _full_scale(frame.dtype)
+        scale = full_scale(frame.dtype)
         clean = frame.to(torch.float32) / scale if scale else frame.to(torch.float32)
-        darkening = self.parameters.darkening
+        darkening = self._darkening
         signal = clean if darkening is None else darken(clean, darkening.alpha, darkening.gamma)
         # A frame is a clip of one frame for the composer.
         noisy = add_noise(signal[None], self._values, generator=self.generator, held=self._held)[0]
-        return _to_dtype(noisy, frame.dtype)
+        return to_dtype(noisy, frame.dtype)
 
     def _restart_for_new_size(self, shape: torch.Size) -> None:
         # A stream whose frames change size (a video that switches resolution, a folder of mixed sizes): the
@@ -216,7 +264,7 @@ class ClipSynthesizer:
 
     def _kernel_scalars(self) -> tuple[torch.Tensor, ...]:
         if self._scalars is None:
-            darkening = self.parameters.darkening
+            darkening = self._darkening
             self._scalars = kernel_scalars(
                 darkening.alpha if darkening else None,
                 darkening.gamma if darkening else None,
@@ -273,7 +321,7 @@ class ClipSynthesizer:
         if values.is_neutral(noise_parameter("compression")):
             return out
         compressed = apply_output_stages(out.to(torch.float32)[None] / FULL_SCALE, values, generator=self.generator)
-        return _to_dtype(compressed[0], frame.dtype)
+        return to_dtype(compressed[0], frame.dtype)
 
     def _spectral_kernels(self, frame: torch.Tensor) -> torch.Tensor | None:
         """The uint8 frame through the compiled spectral kernels and the output stages; None once they have failed
@@ -287,7 +335,7 @@ class ClipSynthesizer:
                     (frame.shape[0], frame.shape[1], frame.shape[2]),
                     octave_covariances(values["octave_power"], values["octave_correlation"]),
                     values["temporal_correlation"],
-                    self.parameters.darkening,
+                    self._darkening,
                     values["level_curve"],
                     values.scalar("quantization"),
                     mix=mix,
@@ -304,7 +352,7 @@ class ClipSynthesizer:
         if values.is_neutral(noise_parameter("compression")):
             return out
         compressed = apply_output_stages(out.to(torch.float32)[None] / FULL_SCALE, values, generator=self.generator)
-        return _to_dtype(compressed[0], frame.dtype)
+        return to_dtype(compressed[0], frame.dtype)
 
     def _spectral_8bit(self, frame: torch.Tensor, *, rounded: bool = True) -> torch.Tensor:
         """The uint8 frame through the spectral path: the composer's draws in the composer's order (columns, the
@@ -322,7 +370,7 @@ class ClipSynthesizer:
                 channels,
                 height,
                 width,
-                self.parameters.darkening,
+                self._darkening,
                 values["level_curve"],
                 values.scalar("quantization"),
                 device=self.device,
@@ -345,25 +393,6 @@ class ClipSynthesizer:
             return to_8bit(noisy) if rounded else noisy
         # Not rounded, the result is the pass's own array, which the next frame overwrites.
         return noisy if rounded else noisy.clone()
-
-
-def _full_scale(dtype: torch.dtype) -> float | None:
-    if dtype == torch.uint8:
-        return 255.0
-    if dtype in (torch.uint16, torch.int32, torch.int64):
-        return 65535.0
-    if dtype.is_floating_point:
-        return None
-    raise ValueError(f"unsupported pixel type {dtype}")
-
-
-def _to_dtype(image: torch.Tensor, dtype: torch.dtype) -> torch.Tensor:
-    scale = _full_scale(dtype)
-    if scale is None:
-        return image.to(dtype)
-    rounded = (image * scale).round()
-    # torch has few kernels for uint16; int32 holds every 16-bit value exactly.
-    return rounded.to(torch.int32).to(dtype) if dtype == torch.uint16 else rounded.to(dtype)
 
 
 @dataclass(frozen=True)
@@ -404,7 +433,7 @@ def synthesize(
     """
     as_numpy = isinstance(clean, np.ndarray)
     if isinstance(clean, np.ndarray):
-        clips, layout = _from_numpy(clean)
+        clips, layout = clips_from_numpy(clean)
     else:
         clips, layout = (clean.unsqueeze(0), "image") if clean.dim() == 3 else (clean, "clips")
     if clips.dim() < CLIP_DIMS:
@@ -422,63 +451,39 @@ def synthesize(
         records.append(parameters.to_json())
         if clip.dtype == torch.uint8:
             synthesizer = ClipSynthesizer(parameters, generator=generator, device=target)
-            outputs.append(torch.stack([synthesizer(frame) for frame in clip]))
+            if clip.shape[0] == 1:
+                outputs.append(synthesizer.image(clip[0])[None])
+            else:
+                frames = [low for frame in clip for low in synthesizer.push(frame)] + synthesizer.finish()
+                outputs.append(torch.stack(frames))
         else:
             outputs.append(_synthesize_clip(clip, parameters, generator))
     result = torch.stack(outputs).reshape(clips.shape)
     record: dict[str, Any] | list[dict[str, Any]] = records[0] if not batch_shape else records
     if as_numpy:
-        return LowLightResult(image=_to_numpy(result, layout), parameters=record)
+        return LowLightResult(image=clips_to_numpy(result, layout), parameters=record)
     return LowLightResult(image=result[0] if layout == "image" else result, parameters=record)
 
 
 def _synthesize_clip(clip: torch.Tensor, parameters: ClipParameters, generator: torch.Generator | None) -> torch.Tensor:
-    if clip.shape[0] == 1 and clip.dtype.is_floating_point:
+    values = parameters.noise
+    if clip.shape[0] == 1 and clip.dtype.is_floating_point and values.is_neutral(noise_parameter("shake_length")):
         # A float image of 8-bit levels (``ToTensor`` of a PNG or JPEG, as training loops pass them) has the
         # 8-bit path's tables: the composer's draws in the composer's order, so the same result.
         synthesizer = ClipSynthesizer(parameters, generator=generator, device=clip.device)
-        levels = _eight_bit_levels(clip[0]) if synthesizer._spectral else None
+        levels = eight_bit_levels(clip[0]) if synthesizer._spectral else None
         if levels is not None:
-            return _to_dtype(synthesizer._spectral_8bit(levels, rounded=False)[None], clip.dtype)
-    scale = _full_scale(clip.dtype)
+            return to_dtype(synthesizer._spectral_8bit(levels, rounded=False)[None], clip.dtype)
+    scale = full_scale(clip.dtype)
     clean = clip.to(torch.float32) / scale if scale else clip.to(torch.float32)
+    clean = scene_stage(clean, values, generator=generator)
     darkening = parameters.darkening
     signal = clean if darkening is None else darken(clean, darkening.alpha, darkening.gamma)
-    noisy = add_noise(signal, parameters.noise, generator=generator)
-    return _to_dtype(noisy, clip.dtype)
-
-
-def _eight_bit_levels(frame: torch.Tensor) -> torch.Tensor | None:
-    """The uint8 levels of a float frame whose every value is a level ``k / 255`` as float32 computes it, else
-    None."""
-    values = frame.to(torch.float32)
-    # The first row first: a frame of other values is usually told from it at once.
-    for part in (values[..., :1, :], values):
-        levels = (part * 255.0).round_().clamp_(0.0, 255.0)
-        if not torch.equal(levels / 255.0, part):
-            return None
-    return levels.to(torch.uint8)
-
-
-def _from_numpy(array: np.ndarray) -> tuple[torch.Tensor, str]:
-    if array.dtype not in (np.uint8, np.uint16) and not np.issubdtype(array.dtype, np.floating):
-        raise ValueError(f"unsupported array dtype {array.dtype}; use uint8, uint16 or float in [0, 1]")
-    tensor = numpy_to_tensor(array)
-    if array.ndim == 2:
-        return tensor[None, None], "grey"
-    if array.ndim == 3:
-        return tensor.permute(2, 0, 1)[None], "hwc"
-    if array.ndim == 4:
-        return tensor.permute(0, 3, 1, 2), "thwc"
-    raise ValueError(f"expected a numpy array (H, W), (H, W, C) or (T, H, W, C), got shape {array.shape}")
-
-
-def _to_numpy(clip: torch.Tensor, layout: str) -> np.ndarray:
-    if layout == "grey":
-        return tensor_to_numpy(clip[0, 0])
-    if layout == "hwc":
-        return tensor_to_numpy(clip[0].permute(1, 2, 0))
-    return tensor_to_numpy(clip.permute(0, 2, 3, 1))
+    gains = exposure_gains(signal, values, generator=generator)
+    if gains is not None:
+        signal = signal * gains
+    noisy = add_noise(signal, values, generator=generator)
+    return to_dtype(noisy, clip.dtype)
 
 
 __all__ = [

@@ -41,3 +41,36 @@ def check_clip_shape(shape: torch.Size | tuple[int, ...]) -> None:
 def to_8bit_levels(image: torch.Tensor) -> torch.Tensor:
     """Clip to [0, 1] and round to the 256 levels an 8-bit file stores, as a real sRGB reference arrives."""
     return (image.clamp(0.0, 1.0) * 255.0).round() / 255.0
+
+
+def full_scale(dtype: torch.dtype) -> float | None:
+    """The value of full white in a pixel type (None for float, whose scale is [0, 1])."""
+    if dtype == torch.uint8:
+        return 255.0
+    if dtype in (torch.uint16, torch.int32, torch.int64):
+        return 65535.0
+    if dtype.is_floating_point:
+        return None
+    raise ValueError(f"unsupported pixel type {dtype}")
+
+
+def to_dtype(image: torch.Tensor, dtype: torch.dtype) -> torch.Tensor:
+    """Values in [0, 1] as pixels of ``dtype`` (integers rounded)."""
+    scale = full_scale(dtype)
+    if scale is None:
+        return image.to(dtype)
+    rounded = (image * scale).round()
+    # torch has few kernels for uint16; int32 holds every 16-bit value exactly.
+    return rounded.to(torch.int32).to(dtype) if dtype == torch.uint16 else rounded.to(dtype)
+
+
+def eight_bit_levels(frame: torch.Tensor) -> torch.Tensor | None:
+    """The uint8 levels of a float frame whose every value is a level ``k / 255`` as float32 computes it, else
+    None."""
+    values = frame.to(torch.float32)
+    # The first row first: a frame of other values is usually told from it at once.
+    for part in (values[..., :1, :], values):
+        levels = (part * 255.0).round_().clamp_(0.0, 255.0)
+        if not torch.equal(levels / 255.0, part):
+            return None
+    return levels.to(torch.uint8)

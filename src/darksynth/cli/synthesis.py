@@ -11,6 +11,8 @@ import typer
 
 from darksynth.apply import ApplyOptions, ApplyReport, Task, apply
 from darksynth.cli.common import (
+    BLUR_HELP,
+    FLICKER_HELP,
     JITTER_HELP,
     QUIET_HELP,
     checked_choice,
@@ -73,6 +75,10 @@ def apply_command(
     device: Annotated[str, typer.Option(help="torch device: cpu, cuda, cuda:1 ...")] = default_of(
         ApplyOptions, "device"
     ),
+    blur: Annotated[bool, typer.Option("--blur/--no-blur", help=BLUR_HELP)] = default_of(ApplyOptions, "blur"),
+    flicker: Annotated[bool, typer.Option("--flicker/--no-flicker", help=FLICKER_HELP)] = default_of(
+        ApplyOptions, "flicker"
+    ),
     compile_kernel: Annotated[
         bool | None, typer.Option("--compile/--no-compile", help="Fuse the 8-bit kernel (default: for long clips).")
     ] = default_of(ApplyOptions, "compile"),
@@ -91,6 +97,8 @@ def apply_command(
             crf=crf,
             pix_fmt=pix_fmt,
             device=device,
+            blur=blur,
+            flicker=flicker,
             compile=compile_kernel,
             profile_source=str(profile),
         )
@@ -145,6 +153,10 @@ def convert_command(
     device: Annotated[str, typer.Option(help="torch device: cpu, cuda, cuda:1 ...")] = default_of(
         ConvertOptions, "device"
     ),
+    blur: Annotated[bool, typer.Option("--blur/--no-blur", help=BLUR_HELP)] = default_of(ConvertOptions, "blur"),
+    flicker: Annotated[bool, typer.Option("--flicker/--no-flicker", help=FLICKER_HELP)] = default_of(
+        ConvertOptions, "flicker"
+    ),
     use_ray: Annotated[
         bool,
         typer.Option(
@@ -173,6 +185,8 @@ def convert_command(
             crf=crf,
             pix_fmt=pix_fmt,
             device=device,
+            blur=blur,
+            flicker=flicker,
         )
         if use_ray:
             from darksynth.datasets.ray_convert import convert_dataset_with_ray
@@ -229,6 +243,10 @@ def preview_command(
     overwrite: Annotated[bool, typer.Option("--overwrite", help="Replace an existing OUT.")] = False,
     device: Annotated[str, typer.Option(help="torch device: cpu, cuda, cuda:1 ...")] = default_of(
         ApplyOptions, "device"
+    ),
+    blur: Annotated[bool, typer.Option("--blur/--no-blur", help=BLUR_HELP)] = default_of(ApplyOptions, "blur"),
+    flicker: Annotated[bool, typer.Option("--flicker/--no-flicker", help=FLICKER_HELP)] = default_of(
+        ApplyOptions, "flicker"
     ),
 ) -> None:
     from darksynth.preview import PreviewOptions, parse_panel_size, run_preview

@@ -74,7 +74,7 @@ class ConvertOptions:
         shard: the part of the dataset this run handles, or None for all of it.
         images_root: COCO: the folder ``file_name`` entries are relative to (tried first).
         overwrite: start over in an output written with other options.
-        codec, crf, pix_fmt, device: as for ``apply``.
+        codec, crf, pix_fmt, device, blur, flicker: as for ``apply``.
     """
 
     dataset: Path
@@ -91,6 +91,8 @@ class ConvertOptions:
     crf: int | None = None
     pix_fmt: str | None = None
     device: str = "cpu"
+    blur: bool = True
+    flicker: bool = True
 
     def checked(self) -> ConvertOptions:
         """These options with absolute paths, once checked.
@@ -116,6 +118,8 @@ class ConvertOptions:
             crf=self.crf,
             pix_fmt=self.pix_fmt,
             device=self.device,
+            blur=self.blur,
+            flicker=self.flicker,
         )
 
     def fingerprint(self, *, has_videos: bool = True) -> dict[str, Any]:

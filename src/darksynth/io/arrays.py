@@ -32,3 +32,26 @@ def hwc_to_chw(array: np.ndarray) -> torch.Tensor:
 def chw_to_hwc(frame: torch.Tensor) -> np.ndarray:
     """A (C, H, W) frame tensor as a contiguous (H, W, C) array."""
     return tensor_to_numpy(frame.permute(1, 2, 0))
+
+
+def clips_from_numpy(array: np.ndarray) -> tuple[torch.Tensor, str]:
+    """A numpy image (H, W) grey, (H, W, C) or clip (T, H, W, C) as clips (1 or T, C, H, W), and its layout name."""
+    if array.dtype not in (np.uint8, np.uint16) and not np.issubdtype(array.dtype, np.floating):
+        raise ValueError(f"unsupported array dtype {array.dtype}; use uint8, uint16 or float in [0, 1]")
+    tensor = numpy_to_tensor(array)
+    if array.ndim == 2:
+        return tensor[None, None], "grey"
+    if array.ndim == 3:
+        return tensor.permute(2, 0, 1)[None], "hwc"
+    if array.ndim == 4:
+        return tensor.permute(0, 3, 1, 2), "thwc"
+    raise ValueError(f"expected a numpy array (H, W), (H, W, C) or (T, H, W, C), got shape {array.shape}")
+
+
+def clips_to_numpy(clip: torch.Tensor, layout: str) -> np.ndarray:
+    """Clips back in the numpy layout :func:`clips_from_numpy` named."""
+    if layout == "grey":
+        return tensor_to_numpy(clip[0, 0])
+    if layout == "hwc":
+        return tensor_to_numpy(clip[0].permute(1, 2, 0))
+    return tensor_to_numpy(clip.permute(0, 2, 3, 1))

@@ -21,6 +21,7 @@ import numpy as np
 from av.container import InputContainer, OutputContainer
 from av.video.reformatter import ColorRange, Colorspace
 from av.video.stream import VideoStream
+from PIL import Image as PILImage
 
 from darksynth.errors import DarksynthError, InputFileError, error_reason
 from darksynth.io.atomic import atomic_output
@@ -475,3 +476,17 @@ def _quarter_turns(frame: av.VideoFrame) -> int:
 
 def _sorted(names: Iterable[str]) -> str:
     return " ".join(sorted(names))
+
+
+def to_stream_size(source: Path, frame: np.ndarray, width: int, height: int, *, first: bool) -> np.ndarray:
+    """A frame (H, W, C) of another size than its stream's scaled to it (the first time with a warning)."""
+    # A stream that switches resolution mid-way (adaptive streaming, a camera's mode change) cannot go into one
+    # encoded stream at two sizes: the clean frame is scaled to the stream's declared size, as ffmpeg does by
+    # default, before the noise is drawn, so the noise keeps its per-pixel law.
+    if first:
+        logger.warning(
+            "%s: a frame of %dx%d in a %dx%d stream is scaled to the stream's size",
+            source, frame.shape[1], frame.shape[0], width, height,
+        )  # fmt: skip
+    scaled = PILImage.fromarray(frame).resize((width, height), PILImage.Resampling.BILINEAR)
+    return np.asarray(scaled)

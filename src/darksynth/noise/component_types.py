@@ -17,14 +17,21 @@ import torch
 
 from darksynth.noise.statistics import PAPER_STATISTICS, EstimatorStatistics
 
-Structure = Literal["pixel", "column", "output"]
+Structure = Literal["pixel", "column", "output", "scene", "exposure"]
 """How a component varies in the frame.
 
 ``pixel``: a new value at every pixel of every frame. ``column``: one value per channel and column, the same
 down the whole column, so the component can be drawn as a (..., T or 1, C, 1, W) row and broadcast.
 ``output``: not added but applied to the finished noisy image (after summing and clipping), like a camera's
 compression; its ``draw`` returns the transformed image instead of noise.
+
+Two structures are light, not noise (:mod:`darksynth.noise.light_components`): ``scene`` transforms the clean clip
+before it is darkened (motion blur, camera shake; its ``draw`` returns the transformed clean clip), ``exposure``
+multiplies the darkened signal frame by frame (flicker; its ``draw`` returns gains shaped (*batch, T, 1, 1, 1)).
 """
+
+LIGHT_STRUCTURES: frozenset[str] = frozenset({"scene", "exposure"})
+"""The structures of light: in the profile's ``light`` section, outside the estimation network's v."""
 
 NoiseModel = Literal["paper", "srgb", "spectral"]
 """``paper``: the paper's five components (profile version 1, DEN model version 1). ``srgb``: those plus the
@@ -58,6 +65,9 @@ SPECTRAL_PATHS: frozenset[FastPath] = frozenset({"spectral_8bit"})
 
 ALL_8BIT_PATHS: frozenset[FastPath] = FUSED_PATHS | SPECTRAL_PATHS
 """Quantization and the column components, which every 8-bit path draws as the composer does."""
+
+ALL_PATHS: frozenset[FastPath] = ALL_8BIT_PATHS | STRUCTURED_PATHS
+"""Every fast path: what a parameter that none of them needs to draw declares (light, which runs outside them)."""
 
 COMPRESSION_PATHS: frozenset[FastPath] = STRUCTURED_PATHS | SPECTRAL_PATHS
 """The compression stage, which the structured and the spectral path run after their per-pixel pass."""

@@ -16,6 +16,7 @@ All values are on the [0, 1] intensity scale of the image.
 from __future__ import annotations
 
 from darksynth.noise.component_types import (
+    LIGHT_STRUCTURES,
     DrawFunction,
     FastPath,
     NoiseComponent,
@@ -27,12 +28,14 @@ from darksynth.noise.component_types import (
     VarianceFunction,
     shapes_neutral,
 )
+from darksynth.noise.light_components import FLICKER, SCENE
 from darksynth.noise.paper_components import BANDING, PERIODIC, QUANTIZATION, TEMPORAL_BANDING
 from darksynth.noise.spectral_components import SPECTRAL
 from darksynth.noise.srgb_components import COMPRESSION, HETEROSCEDASTIC, structured_unit_noise
 from darksynth.noise.statistics import EstimatorStatistics
 
 __all__ = [
+    "LIGHT_STRUCTURES",
     "NOISE_COMPONENTS",
     "NOISE_MODELS",
     "DrawFunction",
@@ -44,12 +47,14 @@ __all__ = [
     "StreamDrawFunction",
     "Structure",
     "VarianceFunction",
+    "light_parameters",
     "model_parameters",
     "model_statistics",
     "noise_components",
     "noise_parameter",
     "noise_parameter_names",
     "noise_parameters",
+    "profile_section",
     "profile_version",
     "shapes_neutral",
     "structured_unit_noise",
@@ -66,6 +71,8 @@ NOISE_COMPONENTS: tuple[NoiseComponent, ...] = (
     TEMPORAL_BANDING,
     PERIODIC,
     COMPRESSION,
+    SCENE,
+    FLICKER,
 )
 """The table. Read it through the functions below, which look it up at each call, so that a component
 listed here (or, in a test, added to it) is seen everywhere."""
@@ -88,8 +95,8 @@ def noise_parameter_names() -> tuple[str, ...]:
 
 
 def model_parameters(noise_model: NoiseModel = "srgb", version: int | None = None) -> tuple[Parameter, ...]:
-    """The parameters of one noise model, in table order: ``paper`` is shot, read, quantization, banding,
-    temporal_banding, periodic (3), the paper's v of 8 values; ``srgb`` is every parameter.
+    """The noise parameters of one noise model (light's are no model's), in table order: ``paper`` is shot, read,
+    quantization, banding, temporal_banding, periodic (3), the paper's v of 8 values; ``srgb`` is every parameter.
 
     ``version``: only the parameters that had arrived by that table (profile) version, as an estimator trained
     then predicts them (None: the table as it is now)."""
@@ -98,7 +105,9 @@ def model_parameters(noise_model: NoiseModel = "srgb", version: int | None = Non
     last = NOISE_MODELS.index(noise_model)
     return tuple(
         p
-        for p in noise_parameters()
+        for c in NOISE_COMPONENTS
+        if c.structure not in LIGHT_STRUCTURES
+        for p in c.parameters
         if NOISE_MODELS.index(p.noise_model) <= last and (version is None or p.since_version <= version)
     )
 
@@ -131,6 +140,16 @@ def noise_parameter(name: str) -> Parameter:
         if parameter.name == name:
             return parameter
     raise KeyError(f"unknown noise parameter {name!r}; known: {', '.join(noise_parameter_names())}")
+
+
+def light_parameters() -> tuple[Parameter, ...]:
+    """The parameters of light (motion blur, shake, flicker): the profile's ``light`` section."""
+    return tuple(p for c in NOISE_COMPONENTS if c.structure in LIGHT_STRUCTURES for p in c.parameters)
+
+
+def profile_section(parameter: Parameter) -> str:
+    """Where a parameter is written in a profile or a manifest record: ``noise`` or ``light``."""
+    return "light" if parameter in light_parameters() else "noise"
 
 
 def profile_version() -> int:

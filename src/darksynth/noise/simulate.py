@@ -8,6 +8,10 @@ evaluation methods. The fused 8-bit kernel is a declared fast path for a subset 
 
 Drawing order, the same for a clip and for a stream: the column components in table order, then the per-pixel
 ones in table order, then the output stages on the clipped image.
+
+Light, which is not noise, has its place around them (:mod:`darksynth.noise.light_components`): the ``scene``
+components transform the clean clip before it is darkened (:func:`scene_stage`), and the ``exposure`` ones give
+the gain per frame the darkened signal is multiplied by (:func:`exposure_gains`) before :func:`add_noise`.
 """
 
 from __future__ import annotations
@@ -92,6 +96,26 @@ def apply_output_stages(
     for stage in _active(values, "output"):
         noisy = stage.draw(noisy, values, generator)
     return noisy
+
+
+def scene_stage(clean: torch.Tensor, values: NoiseValues, *, generator: torch.Generator | None) -> torch.Tensor:
+    """The clean clips (*batch, T, C, H, W) as the shutter saw them: the active ``scene`` components (motion blur
+    along the flow for clips, camera shake for single frames), before darkening. Unchanged when none is active."""
+    for component in _active(values, "scene"):
+        clean = component.draw(clean, values, generator)
+    return clean
+
+
+def exposure_gains(
+    clean: torch.Tensor, values: NoiseValues, *, generator: torch.Generator | None
+) -> torch.Tensor | None:
+    """The per-frame gains (*batch, T, 1, 1, 1) of the active ``exposure`` components (flicker) on the darkened
+    clips, None when none is active."""
+    gains = None
+    for component in _active(values, "exposure"):
+        drawn = component.draw(clean, values, generator)
+        gains = drawn if gains is None else gains * drawn
+    return gains
 
 
 def noise_sum(signal: torch.Tensor, values: NoiseValues, *, generator: torch.Generator | None) -> torch.Tensor:

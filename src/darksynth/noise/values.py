@@ -210,12 +210,15 @@ class NoiseValues(Mapping[str, torch.Tensor]):
             raise ValueError(f"{name} has {tensor.numel()} values; a scalar view needs exactly one")
         return float(tensor.reshape(()))
 
-    def to_json(self) -> dict[str, JsonValue]:
-        """Unbatched values as JSON: a number for a parameter of size 1, a list otherwise (profiles, manifests)."""
+    def to_json(self, section: str | None = None) -> dict[str, JsonValue]:
+        """Unbatched values as JSON: a number for a parameter of size 1, a list otherwise (profiles, manifests).
+        ``section``: only the parameters of that profile section (``noise`` or ``light``), else all."""
         if self.batch_shape:
             raise ValueError(f"only unbatched noise values have a JSON form, these have batch {self.batch_shape}")
         document: dict[str, JsonValue] = {}
         for parameter in table.noise_parameters():
+            if section is not None and table.profile_section(parameter) != section:
+                continue
             numbers = [float(v) for v in self._tensors[parameter.name].tolist()]
             document[parameter.name] = numbers if parameter.size > 1 else numbers[0]
         return document

@@ -1,0 +1,354 @@
+"""Motion blur that follows the scene: each frame integrated over its exposure along the scene's own motion.
+
+A camera exposes frame t over a window of ``s`` frame intervals centred on t (``s`` is the exposure fraction: 0 an
+instant, 1 a shutter open for the whole interval, a 360-degree shutter). What moves by ``d`` pixels per frame is
+smeared along its motion over ``s * |d|`` pixels. Here the motion is the dense optical flow between consecutive
+clean frames (OpenCV's DIS flow, no network weights), and the integral over the window is the mean of the frame
+resampled at points spread evenly along each pixel's path: the first half of the window along the flow to the
+previous frame, the second half along the flow to the next one. The mean is taken in linear light (sRGB decoded,
+averaged, encoded again), as a sensor sums photons; the result is a clean frame, darkened and noised after.
+
+What it does not model: a pixel is resampled along its own flow (backward warping), so a moving object is smeared
+within its own outline and its edge into the background behind it, but does not spill a trail over a still
+background beyond its outline (that needs the flow of the object at the background's pixels, i.e. splatting).
+
+Still parts stay untouched, byte for byte: a pixel whose blur length is under :data:`STILL_LENGTH` keeps its value,
+and one between that and :data:`FULL_LENGTH` is blended, so flow jitter of a fraction of a pixel in a still scene
+changes nothing. A scene cut or a change of frame size between two frames stops the blur at the cut: each side
+is blurred with its own motion only (the flow across the cut means nothing).
+
+Frames are numpy arrays (H, W, C), uint8 or uint16, as images and videos are read; the flow runs on the CPU.
+"""
+
+from __future__ import annotations
+
+import math
+import threading
+from collections.abc import Iterator
+from dataclasses import dataclass
+from typing import Any
+
+import cv2
+import numpy as np
+
+STILL_LENGTH = 0.5
+"""Blur length (px) under which a pixel is left as it is: half a pixel of smear is below what resampling itself
+blurs, and DIS flow in a still textured scene jitters by a few tenths of a pixel."""
+
+FULL_LENGTH = 1.0
+"""Blur length (px) from which a pixel takes the full integral (between the two: a linear blend)."""
+
+SAMPLE_SPACING = 0.75
+"""Largest distance (px) between two points of a path: bilinear resampling at this spacing renders a box of
+any length without visible steps."""
+
+MAX_DOUBLINGS = 6
+"""At most 2^6 = 64 points per path; beyond 48 px of blur the points spread wider, which bilinear interpolation
+smooths."""
+
+FLOW_MAX_WIDTH = 960
+"""The flow is computed on frames scaled down to at most this width (half a 1080p frame): DIS at full 1080p costs
+30 ms a pair against 6, and the motion of a blur worth rendering is many pixels long."""
+
+BAND_ROWS = 64
+"""The frame is integrated in bands of rows; a band with no motion is copied, so the cost follows what moves."""
+
+SCENE_CUT_CHANGE = 0.08
+"""A mean absolute change of the 16x16 block means above this ([0, 1] scale) between two frames is a scene cut
+(the test the estimator uses on references, :func:`darksynth.estimation.reference.scene_cuts`)."""
+
+
+FLOW_MATCH = 0.6
+"""A flow whose warp leaves a residual above this share of the image's contrast (mean absolute deviation) did not
+find the same scene: the pair is treated as a cut. A flow that holds leaves a tenth or less (noise, occlusions);
+two unrelated images about the full contrast."""
+
+FLAT_CONTRAST = 2.0
+"""Flow images (8-bit) with a mean absolute deviation under this have nothing for a flow to follow (black, flat)."""
+
+
+def srgb_to_linear(values: np.ndarray) -> np.ndarray:
+    """sRGB-encoded values in [0, 1] to linear light (IEC 61966-2-1), float32."""
+    values = values.astype(np.float32, copy=False)
+    return np.where(values <= 0.04045, values / 12.92, ((values + 0.055) / 1.055) ** 2.4).astype(np.float32)
+
+
+def linear_to_srgb(values: np.ndarray) -> np.ndarray:
+    """Linear light in [0, 1] to sRGB-encoded values, float32."""
+    values = np.clip(values, 0.0, 1.0).astype(np.float32, copy=False)
+    encoded = np.where(values <= 0.0031308, values * 12.92, 1.055 * values ** (1 / 2.4) - 0.055)
+    return encoded.astype(np.float32)
+
+
+_LINEAR_OF_LEVEL = srgb_to_linear(np.arange(256, dtype=np.float32) / 255.0)
+# Linear light on a 16-bit grid to the nearest 8-bit level: the encoding of a blurred pixel is one table read.
+_LEVEL_OF_LINEAR = np.round(linear_to_srgb(np.arange(65536, dtype=np.float32) / 65535.0) * 255.0).astype(np.uint8)
+
+
+def _unit(frame: np.ndarray) -> np.ndarray:
+    """A frame's values on the [0, 1] scale, float32."""
+    if frame.dtype == np.uint16:
+        return frame.astype(np.float32) / 65535.0
+    if np.issubdtype(frame.dtype, np.floating):
+        return frame.astype(np.float32, copy=False)
+    raise ValueError(f"motion blur takes uint8, uint16 or float frames, got {frame.dtype}")
+
+
+def decode(frame: np.ndarray) -> np.ndarray:
+    """A frame (H, W, C) of sRGB values (uint8, uint16 or float in [0, 1]) in linear light, float32 in [0, 1]."""
+    if frame.dtype == np.uint8:
+        return cv2.LUT(frame, _LINEAR_OF_LEVEL) if frame.shape[-1] <= 4 else _LINEAR_OF_LEVEL[frame]
+    return srgb_to_linear(_unit(frame))
+
+
+def encode(linear: np.ndarray, dtype: np.dtype) -> np.ndarray:
+    """Linear light back to sRGB values of ``dtype`` (uint8 or uint16 rounded, float as it is)."""
+    if dtype == np.uint8:
+        # Linear values stay within [0, 1] (means of values in it), so no clipping is needed before the cast.
+        index = (linear * np.float32(65535.0) + np.float32(0.5)).astype(np.uint16)
+        return _LEVEL_OF_LINEAR[index]
+    if dtype == np.uint16:
+        return np.round(linear_to_srgb(linear) * 65535.0).astype(np.uint16)
+    return linear_to_srgb(linear).astype(dtype)
+
+
+def flow_image(frame: np.ndarray) -> tuple[np.ndarray, float]:
+    """The 8-bit grey image the flow is computed on, and its scale (frame width / flow width)."""
+    scale = max(1.0, frame.shape[1] / FLOW_MAX_WIDTH)
+    levels = frame if frame.dtype == np.uint8 else np.round(_unit(frame).clip(0, 1) * 255.0).astype(np.uint8)
+    grey = (
+        levels[..., 0]
+        if levels.shape[-1] == 1
+        else cv2.cvtColor(np.ascontiguousarray(levels[..., :3]), cv2.COLOR_RGB2GRAY)
+    )
+    if scale > 1.0:
+        size = (max(1, round(frame.shape[1] / scale)), max(1, round(frame.shape[0] / scale)))
+        grey = cv2.resize(grey, size, interpolation=cv2.INTER_AREA)
+    return np.ascontiguousarray(grey), scale
+
+
+def is_scene_cut(previous: np.ndarray, following: np.ndarray) -> bool:
+    """Whether two flow images (:func:`flow_image`) show different scenes (see :data:`SCENE_CUT_CHANGE`)."""
+    if previous.shape != following.shape:
+        return True
+    size = (max(1, previous.shape[1] // 16), max(1, previous.shape[0] // 16))
+    blocks = [
+        cv2.resize(g, size, interpolation=cv2.INTER_AREA).astype(np.float32) / 255.0 for g in (previous, following)
+    ]
+    return float(np.abs(blocks[1] - blocks[0]).mean()) > SCENE_CUT_CHANGE
+
+
+def dense_flow(source: np.ndarray, target: np.ndarray) -> np.ndarray:
+    """Per-pixel displacement (h, w, 2: x, y) from ``source`` to ``target``, two flow images (:func:`flow_image`),
+    in their pixels."""
+    flow: np.ndarray = _flow_engine().calc(source, target, None)
+    return flow
+
+
+def flow_holds(source: np.ndarray, target: np.ndarray, flow: np.ndarray) -> bool:
+    """Whether ``target`` warped back along ``flow`` matches ``source``: the flow found the same scene. Unrelated
+    frames (a cut the block means miss, black or flat frames) leave a residual as large as the image's contrast."""
+    contrast = float(np.abs(source.astype(np.float32) - float(source.mean())).mean())
+    if contrast < FLAT_CONTRAST:
+        return False
+    height, width = source.shape
+    grid_x, grid_y = np.meshgrid(np.arange(width, dtype=np.float32), np.arange(height, dtype=np.float32))
+    warped = cv2.remap(
+        target, grid_x + flow[..., 0], grid_y + flow[..., 1], cv2.INTER_LINEAR, borderMode=cv2.BORDER_REPLICATE
+    )
+    residual = float(np.abs(warped.astype(np.float32) - source.astype(np.float32)).mean())
+    return residual < FLOW_MATCH * contrast
+
+
+def full_resolution(flow: np.ndarray, scale: float, shape: tuple[int, int]) -> np.ndarray:
+    """A flow of the flow images at the frame's size (H, W) and in its pixels."""
+    if scale <= 1.0:
+        return flow
+    resized: np.ndarray = cv2.resize(flow, (shape[1], shape[0]), interpolation=cv2.INTER_LINEAR) * np.float32(scale)
+    return resized
+
+
+_ENGINE: dict[int, Any] = {}
+
+
+def _flow_engine() -> Any:
+    # One engine per thread (an engine keeps buffers between calls). OpenCV's stubs lack the DIS factory.
+    key = threading.get_ident()
+    if key not in _ENGINE:
+        _ENGINE[key] = cv2.DISOpticalFlow_create(cv2.DISOPTICAL_FLOW_PRESET_FAST)  # type: ignore[attr-defined]
+    return _ENGINE[key]
+
+
+def blur_frame(
+    frame: np.ndarray, exposure_fraction: float, to_previous: np.ndarray | None, to_next: np.ndarray | None
+) -> np.ndarray:
+    """One frame integrated over its exposure along its motion.
+
+    The frame's velocity is taken constant over its exposure: half the flow to the next frame minus the flow to
+    the previous one (where one is missing, the other alone). The integral over the path, ``2^K`` points evenly
+    spread, is built by doubling: each of K steps averages the running image with itself shifted both ways along
+    the velocity by half the last step's spread, so 2K resamplings make a path of ``2^K`` points (16 points in 8).
+
+    Args:
+        frame: the clean frame (H, W, C), uint8, uint16 or float in [0, 1], sRGB.
+        exposure_fraction: ``s`` in [0, 1].
+        to_previous, to_next: flow (H, W, 2) from this frame to the previous and the next one, in the frame's
+            pixels (:func:`dense_flow`, :func:`full_resolution`); None where there is none (the first or last frame,
+            a cut). Without either, the frame is returned as it is.
+
+    Returns:
+        The blurred frame, same shape and dtype; pixels whose blur is under :data:`STILL_LENGTH` keep their value.
+    """
+    if exposure_fraction <= 0 or (to_previous is None and to_next is None):
+        return frame
+    velocity = frame_velocity(to_previous, to_next)
+    # The blur length s * |v| per pixel.
+    lengths = cv2.magnitude(velocity[..., 0], velocity[..., 1]) * np.float32(exposure_fraction)
+    if float(lengths.max()) < STILL_LENGTH:
+        return frame
+    linear = decode(frame)
+    if linear.ndim == 2:
+        linear = linear[..., None]
+    out = frame.copy()
+    height, width = frame.shape[:2]
+    for top in range(0, height, BAND_ROWS):
+        bottom = min(height, top + BAND_ROWS)
+        band_lengths = lengths[top:bottom]
+        longest = float(band_lengths.max())
+        if longest < STILL_LENGTH:
+            continue
+        # Spread the band's path over at least longest / SAMPLE_SPACING points (a power of two).
+        steps = min(MAX_DOUBLINGS, max(1, math.ceil(math.log2(max(2.0, longest / SAMPLE_SPACING + 1)))))
+        # Doubling on the band plus a margin as long as its longest path, so the shifted reads stay inside.
+        margin = math.ceil(longest) + 2
+        low, high = max(0, top - margin), min(height, bottom + margin)
+        image = linear[low:high]
+        part_x = np.arange(width, dtype=np.float32)[None, :].repeat(high - low, axis=0)
+        part_y = np.arange(0, high - low, dtype=np.float32)[:, None].repeat(width, axis=1)
+        vx, vy = (
+            velocity[low:high, :, 0] * np.float32(exposure_fraction),
+            velocity[low:high, :, 1] * np.float32(exposure_fraction),
+        )
+        spread = 0.5
+        for _ in range(steps):
+            spread /= 2
+            shifted = [
+                cv2.remap(image, cv2.scaleAdd(vx, sign * spread, part_x), cv2.scaleAdd(vy, sign * spread, part_y),
+                          cv2.INTER_LINEAR, borderMode=cv2.BORDER_REPLICATE)
+                for sign in (-1.0, 1.0)
+            ]  # fmt: skip
+            image = cv2.addWeighted(shifted[0], 0.5, shifted[1], 0.5, 0.0).reshape(image.shape)
+        total = image[top - low : bottom - low]
+        weight = np.clip((band_lengths - STILL_LENGTH) / (FULL_LENGTH - STILL_LENGTH), 0.0, 1.0)
+        if float(weight.min()) < 1.0:
+            # Blend in linear light; fully still pixels keep their exact level.
+            original = linear[top:bottom]
+            total = original + weight[..., None] * (total - original)
+            blurred = encode(total, frame.dtype).reshape(out[top:bottom].shape)
+            blurred = np.where((weight <= 0.0)[..., None], frame[top:bottom], blurred)
+        else:
+            blurred = encode(total, frame.dtype).reshape(out[top:bottom].shape)
+        out[top:bottom] = blurred
+    return out
+
+
+def frame_velocity(to_previous: np.ndarray | None, to_next: np.ndarray | None) -> np.ndarray:
+    """Displacement per frame interval (H, W, 2) of each pixel of a frame, from its flows to its neighbours."""
+    if to_previous is None and to_next is not None:
+        return to_next
+    if to_next is None and to_previous is not None:
+        return -to_previous
+    if to_next is None or to_previous is None:
+        raise ValueError("a frame's velocity needs a flow to at least one neighbour")
+    velocity: np.ndarray = (to_next - to_previous) * np.float32(0.5)
+    return velocity
+
+
+def shake_blur(frame: np.ndarray, length: float, angle: float) -> np.ndarray:
+    """A still image blurred by camera shake: a straight path of ``length`` px at ``angle`` degrees
+    (counter-clockwise from the x axis), integrated in linear light. Under :data:`STILL_LENGTH` nothing changes."""
+    if length < STILL_LENGTH:
+        return frame
+    kernel = line_kernel(length, angle)
+    linear = decode(frame)
+    blurred = cv2.filter2D(linear, -1, kernel, borderType=cv2.BORDER_REPLICATE)
+    return encode(blurred.reshape(linear.shape), frame.dtype).reshape(frame.shape)
+
+
+def line_kernel(length: float, angle: float) -> np.ndarray:
+    """A normalised kernel of a straight path of ``length`` px through the centre at ``angle`` degrees, drawn as
+    the mean of bilinear splats of points spaced by at most a tenth of a pixel (so any length and angle has an
+    exact first moment)."""
+    radius = math.ceil(length / 2) + 1
+    size = 2 * radius + 1
+    kernel = np.zeros((size, size), np.float64)
+    count = max(2, math.ceil(length * 10))
+    theta = math.radians(angle)
+    for t in (np.arange(count) + 0.5) / count - 0.5:
+        x = radius + t * length * math.cos(theta)
+        y = radius - t * length * math.sin(theta)
+        x0, y0 = math.floor(x), math.floor(y)
+        fx, fy = x - x0, y - y0
+        kernel[y0, x0] += (1 - fx) * (1 - fy)
+        kernel[y0, x0 + 1] += fx * (1 - fy)
+        kernel[y0 + 1, x0] += (1 - fx) * fy
+        kernel[y0 + 1, x0 + 1] += fx * fy
+    normalised: np.ndarray = (kernel / kernel.sum()).astype(np.float32)
+    return normalised
+
+
+@dataclass
+class _Held:
+    frame: np.ndarray
+    grey: np.ndarray
+    scale: float
+    to_previous: np.ndarray | None
+
+
+class MotionBlurStream:
+    """Frames in, blurred frames out, one frame behind (a frame's blur needs the next one); at most two frames are
+    held, so memory does not grow with the length.
+
+    ``push(frame)`` returns the frames finished so far (none for the first); ``finish()`` the last one.
+
+    Args:
+        exposure_fraction: ``s`` in [0, 1]; 0 passes frames through without computing any flow.
+    """
+
+    def __init__(self, exposure_fraction: float) -> None:
+        self.exposure_fraction = float(exposure_fraction)
+        self._held: _Held | None = None
+        self.cuts = 0
+        """Pairs of frames across which nothing was blurred: scene cuts, size changes, a flow that failed."""
+
+    def push(self, frame: np.ndarray) -> list[np.ndarray]:
+        if self.exposure_fraction <= 0:
+            return [frame]
+        grey, scale = flow_image(frame)
+        held = self._held
+        if held is None:
+            self._held = _Held(frame, grey, scale, None)
+            return []
+        to_next = to_previous = None
+        if held.frame.shape == frame.shape and not is_scene_cut(held.grey, grey):
+            forward, backward = dense_flow(held.grey, grey), dense_flow(grey, held.grey)
+            if flow_holds(held.grey, grey, forward) and flow_holds(grey, held.grey, backward):
+                shape = (frame.shape[0], frame.shape[1])
+                to_next, to_previous = full_resolution(forward, scale, shape), full_resolution(backward, scale, shape)
+        if to_next is None:
+            self.cuts += 1
+        finished = blur_frame(held.frame, self.exposure_fraction, held.to_previous, to_next)
+        self._held = _Held(frame, grey, scale, to_previous)
+        return [finished]
+
+    def finish(self) -> list[np.ndarray]:
+        held, self._held = self._held, None
+        if held is None:
+            return []
+        return [blur_frame(held.frame, self.exposure_fraction, held.to_previous, None)]
+
+    def run(self, frames: Iterator[np.ndarray]) -> Iterator[np.ndarray]:
+        """All frames of an iterator, blurred, in order."""
+        for frame in frames:
+            yield from self.push(frame)
+        yield from self.finish()
