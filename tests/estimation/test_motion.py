@@ -11,7 +11,7 @@ import torch
 
 import darksynth
 from darksynth.darkening import Darkening, darken
-from darksynth.estimation.motion import EXPOSURE_FRACTION_PRIOR, MotionEstimate, estimate_motion
+from darksynth.estimation.motion import EXPOSURE_FRACTION_PRIOR, MIN_SPEED, MotionEstimate, estimate_motion
 from darksynth.profile import default_profile_path
 
 HEIGHT, WIDTH = 256, 384
@@ -110,8 +110,13 @@ def test_the_exposure_fraction_round_trips() -> None:
     errors = []
     for seed, (speed, exposure, diagonal) in enumerate(ROUND_TRIP_CASES):
         found = round_trip(speed, exposure, diagonal, seed)
-        assert found.exposure_measured, (speed, exposure, found.notes)
-        assert found.displacement == pytest.approx(speed, rel=0.15)
+        if speed < MIN_SPEED:
+            # Too slow to read a box of a fraction of a pixel: the prior, said so.
+            assert not found.exposure_measured and found.exposure_fraction == EXPOSURE_FRACTION_PRIOR
+            assert any(str(MIN_SPEED) in note for note in found.notes)
+        else:
+            assert found.exposure_measured, (speed, exposure, found.notes)
+            assert found.displacement == pytest.approx(speed, rel=0.1)
         errors.append(abs(found.exposure_fraction - exposure))
     assert float(np.median(errors)) <= 0.15, errors
     # The fast cases, where the box is several px long, are each within 0.15.
@@ -131,7 +136,7 @@ def test_a_still_scene_gives_the_prior_with_a_note() -> None:
     assert not found.exposure_measured
     assert found.exposure_fraction == EXPOSURE_FRACTION_PRIOR
     assert found.moving_share < 0.01
-    assert any("no motion" in note and str(EXPOSURE_FRACTION_PRIOR) in note for note in found.notes)
+    assert any("no motion" in note and f"prior {EXPOSURE_FRACTION_PRIOR}" in note for note in found.notes)
     assert found.to_meta()["exposure_prior"] == EXPOSURE_FRACTION_PRIOR
 
 

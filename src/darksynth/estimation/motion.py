@@ -12,13 +12,16 @@ Exposure fraction, the steps:
    consecutive frames; pairs across a scene cut or with a uniform frame are skipped, and a forward-backward check
    rejects flow that does not invert.
 2. Moving blocks (:data:`BLOCK` px at full resolution) whose flow is consistent and at least :data:`MIN_SPEED`
-   px/frame. Each block of frame t is paired with the block of frame t+1 the flow takes it to.
+   px/frame. Each block of frame t is paired with the block of frame t+1 the flow takes it to; the sub-pixel
+   remainder, and what the flow missed, are read from the phase of the pair's cross spectrum (a block whose
+   correction is large, or which turns out slower than :data:`MIN_SPEED`, is dropped: its flow followed noise).
 3. The blur is read from the block pair's cross-power spectrum ``Re(F_t conj(F_t+1))`` after the sub-pixel
    remainder of the shift is undone in phase. The noise of the two frames is independent, so it averages out of
    the cross spectrum (the auto spectrum would need the noise floor subtracted, and the reference's noise is
    neither white nor known here); the scene is the same content seen twice, blurred by the same box, so its
    power ``S(|k|) sinc^2(pi s k.d)`` remains. With locally isotropic texture, ``S`` depends on ``|k|`` alone:
-   in every ring of frequencies the measured powers must be proportional to the box's transfer
+   in every ring of frequencies (the two axes left out: a sensor's column and row patterns stay in place while the
+   scene moves) the measured powers must be proportional to the box's transfer
    ``sinc^2(pi s k.d)``. The fit maximises, over a grid of ``s``, the pooled (over rings, blocks and frame pairs)
    cosine similarity between the powers of each ring and the transfer, rings weighted by their signal to noise.
    Noise in a ring adds the same amount to every ``s`` (it is uncorrelated with the transfer), so it blurs the
@@ -27,14 +30,23 @@ Exposure fraction, the steps:
 4. Not identifiable -> :data:`EXPOSURE_FRACTION_PRIOR` with a note: one frame, no usable pair, fewer than
    :data:`MIN_BLOCKS` moving textured blocks.
 
+What it assumes: texture that is, over the pooled blocks, isotropic (a scene of mostly parallel edges along the
+motion reads as a shorter shutter, across it as a longer one); and that the camera added nothing that blurs
+along the motion (a phone's temporal denoising smears moving content and reads as a longer shutter).
+
 Flicker: on the pixels that stay still (flow below :data:`STILL_SPEED`, away from moving ones) through a stretch of
-frames between scene cuts, the mean level of each cell of a grid, per frame. The gain is common to every cell and
-the noise is independent between cells, so the covariance *between different cells* of the relative levels
-``m_bt / mean_t(m_bt) - 1`` is the variance of the gain alone, without a noise model to subtract; likewise the
-lag-1 covariance of their average (noise is independent in time). Both are corrected for the bias of a short
-de-meaned AR(1) series. A slow trend, such as a camera's auto-exposure settling, is read as flicker of high
+frames between scene cuts (a cut, a uniform frame or a pair whose flow does not invert ends a stretch). The still
+pixels are split into two halves (alternate bands of columns) and, in each, grouped by level; per frame, the
+groups' change from their mean level is fitted as ``gain * level + offset``. The fitted gain is g_t / mean(g) - 1;
+the offset takes what adds the same amount to every pixel of a frame (a wandering black level, or darksynth's own
+frame-wide periodic term, which alone read as 2 % "flicker" on a dark scene when a plain mean level was used).
+The two halves share the gain and not the noise, so the covariance between their gain series is the gain's
+variance with no noise model to subtract (the same for the lag-1 covariance). Both are corrected for the bias of
+a short de-meaned AR(1) series. A slow trend, such as a camera's auto-exposure settling, is read as flicker of high
 correlation: darksynth cannot tell them apart, and to a viewer both are the brightness of the clip changing.
-Fewer than :data:`MIN_FLICKER_FRAMES` usable frames in every stretch, or no still cells -> the priors 0 and 0.
+Fewer than :data:`MIN_FLICKER_FRAMES` comparable frames in every stretch, or too few still pixels (a handheld clip
+moves everywhere) -> the priors 0 and 0, with a note. A gain too weak to stand out of its own scatter is reported
+(near 0) with correlation 0.
 
 References:
     Kroeger et al. 2016, Fast optical flow using dense inverse search (OpenCV's DIS).
@@ -78,9 +90,10 @@ BLOCK = 64
 """Side (px, full resolution) of the blocks whose blur is measured: 32 frequency rings, enough below the first
 zero of a box of a few px."""
 
-MIN_SPEED = 1.0
+MIN_SPEED = 1.5
 """Blocks moving less than this (px/frame) are not measured: a box shorter than a pixel barely changes the
-spectrum below the Nyquist frequency, so slow blocks say little and flow errors weigh most there."""
+spectrum below the Nyquist frequency, so slow blocks say little, and in the real clips the flow of the darkest
+ones follows the noise at about 1 px/frame (their fit then reads compression and in-camera processing as blur)."""
 
 STILL_SPEED = 0.3
 """Pixels moving less than this (px/frame) are still for the flicker measurement."""
@@ -214,14 +227,18 @@ def estimate_motion(reference: torch.Tensor) -> MotionEstimate:
         notes.append(f"a single frame shows no motion: exposure fraction is the prior {EXPOSURE_FRACTION_PRIOR}")
     elif not flows:
         notes.append(
-            f"no pair of consecutive frames to compare (uniform frames or scene cuts): exposure fraction is the "
-            f"prior {EXPOSURE_FRACTION_PRIOR}"
+            f"no pair of consecutive frames to compare (uniform frames, scene cuts, or flow that does not invert: "
+            f"too dark or unrelated frames): exposure fraction is the prior {EXPOSURE_FRACTION_PRIOR}"
         )
     else:
         fit = _fit_exposure(reference, flows)
         blocks, displacement = fit[1], fit[2]
         if fit[0] is None:
-            why = "no motion between frames" if moving_share < 0.01 else f"only {blocks} moving textured blocks"
+            why = (
+                f"no motion of {MIN_SPEED} px/frame or more between frames"
+                if moving_share < 0.01
+                else f"only {blocks} moving textured blocks (at least {MIN_BLOCKS} needed)"
+            )
             notes.append(f"{why}: exposure fraction is the prior {EXPOSURE_FRACTION_PRIOR}")
         else:
             exposure, measured = fit[0], True
@@ -354,8 +371,11 @@ def _frequencies() -> tuple[np.ndarray, np.ndarray]:
     return np.fft.fftfreq(BLOCK)[:, None], np.fft.rfftfreq(BLOCK)[None, :]
 
 
-def _block_spectra(reference: torch.Tensor, flows: list[_PairFlow]) -> tuple[np.ndarray, np.ndarray, np.ndarray] | None:
-    """Cross and auto power spectra (N, BLOCK, BLOCK//2+1) of the moving block pairs, and their motions (N, 2)."""
+def _block_spectra(
+    reference: torch.Tensor, flows: list[_PairFlow]
+) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray] | None:
+    """Cross and auto power spectra (N, BLOCK, BLOCK//2+1) of the moving block pairs, their motions (N, 2) (dy, dx)
+    with the phase fit's correction, and the size of that correction (N,) px."""
     height, width = reference.shape[-2:]
     chosen: list[tuple[int, int, int, float, float]] = []
     per_pair = [_moving_blocks(f, (height, width)) for f in flows]
@@ -388,7 +408,7 @@ def _block_spectra(reference: torch.Tensor, flows: list[_PairFlow]) -> tuple[np.
     product *= np.exp(-2j * np.pi * (ky[None] * remainder[:, 0, None, None] + kx[None] * remainder[:, 1, None, None]))
     product, error = _align_phase(product)
     auto = 0.5 * (np.abs(spectrum_first) ** 2 + np.abs(spectrum_second) ** 2)
-    return product.real, auto, motion + error
+    return product.real, auto, motion + error, np.hypot(error[:, 0], error[:, 1])
 
 
 def _align_phase(product: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
@@ -438,7 +458,7 @@ def _fit_exposure(reference: torch.Tensor, flows: list[_PairFlow]) -> tuple[floa
     spectra = _block_spectra(reference, flows)
     if spectra is None:
         return None, 0, 0.0
-    cross, auto, motion = spectra
+    cross, auto, motion, correction = spectra
     ky, kx = _frequencies()
     ring = np.rint(np.hypot(ky, kx) * BLOCK).astype(int).ravel()
     # Rings 0 and 1 hold the mean and the window's leakage; beyond BLOCK / 2 the ring is cut by the corners. The
@@ -460,6 +480,9 @@ def _fit_exposure(reference: torch.Tensor, flows: list[_PairFlow]) -> tuple[floa
     # A block whose mid rings hold no more scene than noise has no texture to read blur from.
     textured = weights[:, : rings // 2].mean(axis=1) >= 0.3
     speeds = np.hypot(motion[:, 0], motion[:, 1])
+    # The cross spectrum's phase corrects the flow; where it corrects much, or finds the block slow after all, the
+    # flow had followed noise (in the darkest frames it does) and the pair is not one scene moving.
+    textured &= (speeds >= MIN_SPEED) & (correction <= 0.5 + 0.1 * speeds)
     if textured.sum() < MIN_BLOCKS:
         return None, int(textured.sum()), float(np.median(speeds))
     cross_flat, weights, motion = cross_flat[textured], weights[textured], motion[textured]
