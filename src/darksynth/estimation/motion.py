@@ -138,7 +138,8 @@ class MotionEstimate:
             measured).
         exposure_measured: whether ``exposure_fraction`` was measured (False: it is the prior).
         moving_share: share of the frame area whose flow is at least :data:`MIN_SPEED` px/frame (mean over pairs).
-        displacement: median speed (px/frame, full resolution) of the blocks the fit used; 0 without any.
+        displacement: median speed (px/frame, full resolution) of the blocks the fit used (when too few, of the
+            moving blocks found; 0 without any).
         blocks: blocks the fit used.
         pairs: consecutive frame pairs compared (flow computed and consistent).
         skipped_pairs: consecutive pairs not compared: a scene cut, a uniform frame, flow that does not invert.
@@ -529,7 +530,13 @@ def _measure_flicker(
             stretches.append([t])
     stretches = [s for s in stretches if len(s) >= MIN_FLICKER_FRAMES]
     if not stretches:
-        return 0.0, 0.0, 0, f"no stretch of {MIN_FLICKER_FRAMES} comparable frames (scene cuts, uniform frames)"
+        return (
+            0.0,
+            0.0,
+            0,
+            f"no stretch of {MIN_FLICKER_FRAMES} comparable frames "
+            "(scene cuts, uniform frames, flow that does not invert)",
+        )
     variance_sum = lag_sum = 0.0
     own_first = own_second = 0.0
     used = 0
