@@ -79,6 +79,7 @@ ESTIMATION_STAGES: dict[str, int] = {
     "spectrum": 0,
     "network": 1,
     "refine": 1,
+    "motion": 1,
     "assemble": 2,
 }
 """The layer of every module of the ``estimation`` package among its siblings."""

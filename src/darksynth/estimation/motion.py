@@ -1,0 +1,624 @@
+"""A reference clip's shutter (the exposure fraction behind its motion blur) and its exposure flicker.
+
+The model measured is the one darksynth synthesizes: frame t integrates the clean scene, in linear light, over a
+window of ``s`` frame intervals centred on t, so a pixel moving by ``d`` px/frame is smeared by a box of length
+``L = s * |d|`` along ``d``; then a per-frame gain ``g_t = 1 + std * z_t`` (z a unit-variance AR(1) sequence with
+lag-1 correlation rho) multiplies the darkened signal before the noise.
+
+Exposure fraction, the steps:
+
+1. Luminance, brightened to a common level (divided by a high percentile of each frame), reduced to at most
+   :data:`FLOW_WIDTH` px wide and lightly blurred, as 8-bit frames for OpenCV's DIS optical flow between
+   consecutive frames; pairs across a scene cut or with a uniform frame are skipped, and a forward-backward check
+   rejects flow that does not invert.
+2. Moving blocks (:data:`BLOCK` px at full resolution) whose flow is consistent and at least :data:`MIN_SPEED`
+   px/frame. Each block of frame t is paired with the block of frame t+1 the flow takes it to; the sub-pixel
+   remainder, and what the flow missed, are read from the phase of the pair's cross spectrum (a block whose
+   correction is large, or which turns out slower than :data:`MIN_SPEED`, is dropped: its flow followed noise).
+3. The blur is read from the block pair's cross-power spectrum ``Re(F_t conj(F_t+1))`` after the sub-pixel
+   remainder of the shift is undone in phase. The noise of the two frames is independent, so it averages out of
+   the cross spectrum (the auto spectrum would need the noise floor subtracted, and the reference's noise is
+   neither white nor known here); the scene is the same content seen twice, blurred by the same box, so its
+   power ``S(|k|) sinc^2(pi s k.d)`` remains. With locally isotropic texture, ``S`` depends on ``|k|`` alone:
+   in every ring of frequencies (the two axes left out: a sensor's column and row patterns stay in place while the
+   scene moves) the measured powers must be proportional to the box's transfer
+   ``sinc^2(pi s k.d)``. The fit maximises, over a grid of ``s``, the pooled (over rings, blocks and frame pairs)
+   cosine similarity between the powers of each ring and the transfer, rings weighted by their signal to noise.
+   Noise in a ring adds the same amount to every ``s`` (it is uncorrelated with the transfer), so it blurs the
+   optimum but does not move it. A pooled score rather than a median of per-block fits: one block's 64x64
+   periodogram is too noisy to fit alone, and pooling weights each block by how much its rings say.
+4. Not identifiable -> :data:`EXPOSURE_FRACTION_PRIOR` with a note: one frame, no usable pair, fewer than
+   :data:`MIN_BLOCKS` moving textured blocks.
+
+What it assumes: texture that is, over the pooled blocks, isotropic (a scene of mostly parallel edges along the
+motion reads as a shorter shutter, across it as a longer one); and that the camera added nothing that blurs
+along the motion (a phone's temporal denoising smears moving content and reads as a longer shutter).
+
+Flicker: on the pixels that stay still (flow below :data:`STILL_SPEED`, away from moving ones) through a stretch of
+frames between scene cuts (a cut, a uniform frame or a pair whose flow does not invert ends a stretch). The still
+pixels are split into two halves (alternate bands of columns) and, in each, grouped by level; per frame, the
+groups' change from their mean level is fitted as ``gain * level + offset``. The fitted gain is g_t / mean(g) - 1;
+the offset takes what adds the same amount to every pixel of a frame (a wandering black level, or darksynth's own
+frame-wide periodic term, which alone read as 2 % "flicker" on a dark scene when a plain mean level was used).
+The two halves share the gain and not the noise, so the covariance between their gain series is the gain's
+variance with no noise model to subtract (the same for the lag-1 covariance). Both are corrected for the bias of
+a short de-meaned AR(1) series. A slow trend, such as a camera's auto-exposure settling, is read as flicker of high
+correlation: darksynth cannot tell them apart, and to a viewer both are the brightness of the clip changing.
+Fewer than :data:`MIN_FLICKER_FRAMES` comparable frames in every stretch, or too few still pixels (a handheld clip
+moves everywhere) -> the priors 0 and 0, with a note. A gain too weak to stand out of its own scatter is reported
+(near 0) with correlation 0.
+
+References:
+    Kroeger et al. 2016, Fast optical flow using dense inverse search (OpenCV's DIS).
+    Yitzhaky & Kopeika 1997, Identification of blur parameters from motion blurred images (the box's spectral
+    zeros along the motion).
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+from typing import Any
+
+import cv2
+import numpy as np
+import torch
+
+from darksynth.estimation.reference import scene_cuts, uniform_frames
+
+EXPOSURE_FRACTION_PRIOR = 0.5
+"""When the blur cannot be measured: the 180-degree shutter, the convention of video cameras (exposure half the
+frame interval), which most phones and cameras follow in video unless the light forces a longer one."""
+
+FLICKER_PRIOR = 0.0
+"""When flicker cannot be measured: none (a steady light and a locked exposure)."""
+
+FLICKER_CORRELATION_PRIOR = 0.0
+"""With no flicker, its correlation has no meaning; 0 keeps the profile's default of independent frames."""
+
+FLOW_WIDTH = 640
+"""The flow runs on frames at most this wide: DIS at 640 px takes a few ms a pair, and blur is measured at full
+resolution anyway; the flow only has to say where a block went."""
+
+FLOW_BLUR_SIGMA = 1.0
+"""Gaussian blur (px, at the flow's resolution) against the noise of a dark frame before the flow."""
+
+BRIGHT_PERCENTILE = 99.5
+"""Each frame is scaled so that this percentile of its luminance is white: dark frames use the 8-bit range."""
+
+BLOCK = 64
+"""Side (px, full resolution) of the blocks whose blur is measured: 32 frequency rings, enough below the first
+zero of a box of a few px."""
+
+MIN_SPEED = 1.5
+"""Blocks moving less than this (px/frame) are not measured: a box shorter than a pixel barely changes the
+spectrum below the Nyquist frequency, so slow blocks say little, and in the real clips the flow of the darkest
+ones follows the noise at about 1 px/frame (their fit then reads compression and in-camera processing as blur)."""
+
+STILL_SPEED = 0.3
+"""Pixels moving less than this (px/frame) are still for the flicker measurement."""
+
+MIN_CONSISTENT_SHARE = 0.4
+"""A pair whose flow passes the forward-backward check on less of the frame than this is taken as a scene cut:
+between frames of one scene even fast motion leaves most of the frame consistent (occlusions are edges)."""
+
+MIN_BLOCKS = 6
+"""Fewer moving textured blocks than this: the blur is not measured (the prior is used)."""
+
+MAX_BLOCKS = 256
+"""At most this many blocks enter the fit (spread over the frame pairs): the score's cost grows with them."""
+
+MIN_FLICKER_FRAMES = 3
+"""A stretch of still frames shorter than this says nothing about the frame-to-frame gain."""
+
+FLICKER_GRID = 8
+"""The still pixels are split into alternate bands of columns, this many of each half across the frame."""
+
+MIN_STILL_PIXELS = 256
+"""Fewer still pixels (at the flow's resolution) in a half: the stretch is not read for flicker."""
+
+LEVEL_GROUPS = 8
+"""Groups of still pixels by level (quantiles) in which gain and offset are told apart."""
+
+MIN_LEVEL_SPREAD = 0.15
+"""Below this std of the groups' levels relative to their mean, a gain and an offset look alike: the gain alone
+is fitted (an offset then reads as flicker)."""
+
+S_GRID = np.linspace(0.0, 1.0, 51)
+"""Candidate exposure fractions for the fit: steps of 0.1 first, then of 0.02 around the best, refined by a
+parabola through the best three (the score is smooth in s: one broad peak)."""
+
+
+@dataclass(frozen=True)
+class MotionEstimate:
+    """What a reference clip shows of its shutter and its flicker, and how sure that is.
+
+    Attributes:
+        exposure_fraction: s in [0, 1], the share of the frame interval the shutter is open (the prior when not
+            measured).
+        exposure_measured: whether ``exposure_fraction`` was measured (False: it is the prior).
+        moving_share: share of the frame area whose flow is at least :data:`MIN_SPEED` px/frame (mean over pairs).
+        displacement: median speed (px/frame, full resolution) of the blocks the fit used (when too few, of the
+            moving blocks found; 0 without any).
+        blocks: blocks the fit used.
+        pairs: consecutive frame pairs compared (flow computed and consistent).
+        skipped_pairs: consecutive pairs not compared: a scene cut, a uniform frame, flow that does not invert.
+        flicker: std of the relative per-frame gain (the prior when not measured).
+        flicker_correlation: lag-1 correlation of the gain, in [0, 0.99].
+        flicker_measured: whether the two flicker values were measured.
+        flicker_frames: frames in the still stretches the flicker was read on.
+        notes: one line for each thing not measured, with the prior used.
+    """
+
+    exposure_fraction: float
+    exposure_measured: bool
+    moving_share: float
+    displacement: float
+    blocks: int
+    pairs: int
+    skipped_pairs: int
+    flicker: float
+    flicker_correlation: float
+    flicker_measured: bool
+    flicker_frames: int
+    notes: tuple[str, ...] = field(default=())
+
+    def to_meta(self) -> dict[str, Any]:
+        """JSON-ready record for a profile's ``meta``: the values, what was measured, the priors and why."""
+        return {
+            "exposure_fraction": round(self.exposure_fraction, 4),
+            "exposure_measured": self.exposure_measured,
+            "exposure_prior": None if self.exposure_measured else EXPOSURE_FRACTION_PRIOR,
+            "moving_share": round(self.moving_share, 4),
+            "displacement": round(self.displacement, 3),
+            "blocks": self.blocks,
+            "pairs": self.pairs,
+            "skipped_pairs": self.skipped_pairs,
+            "flicker": round(self.flicker, 5),
+            "flicker_correlation": round(self.flicker_correlation, 4),
+            "flicker_measured": self.flicker_measured,
+            "flicker_prior": None if self.flicker_measured else [FLICKER_PRIOR, FLICKER_CORRELATION_PRIOR],
+            "flicker_frames": self.flicker_frames,
+            "notes": list(self.notes),
+        }
+
+
+@dataclass(frozen=True)
+class _PairFlow:
+    """The flow of one consecutive pair (t, t+1) at the flow's resolution, in full-resolution px/frame."""
+
+    first: int
+    flow: np.ndarray  # (h, w, 2) x, y
+    valid: np.ndarray  # (h, w) bool: passed the forward-backward check
+    scale: float  # full-resolution px per px of the flow map
+
+
+def estimate_motion(reference: torch.Tensor) -> MotionEstimate:
+    """Measure the exposure fraction and the flicker of a reference.
+
+    Args:
+        reference: frames (T, 3, H, W), sRGB values in [0, 1], as :func:`darksynth.estimation.reference.load_reference`
+            reads them; any T >= 1.
+
+    Returns:
+        The estimate; what cannot be measured is the prior, with a note.
+    """
+    if reference.dim() != 4 or reference.shape[1] not in (1, 3):
+        raise ValueError(f"expected a reference shaped (T, 3, H, W), got shape {tuple(reference.shape)}")
+    frames = reference.shape[0]
+    notes: list[str] = []
+    skipped = set(uniform_frames(reference)) if frames > 1 else set()
+    cuts = set(scene_cuts(reference))
+    pairs = [t for t in range(frames - 1) if t not in skipped and t + 1 not in skipped and t + 1 not in cuts]
+    scale, small = _reduced_luminance(reference)
+    flow_frames = _flow_frames(small, skipped) if pairs else []
+    computed = [_pair_flow(flow_frames[t], flow_frames[t + 1], scale, t) for t in pairs]
+    # A cut between two frames of the same dark tones moves the block means too little for scene_cuts; the flow
+    # between unrelated frames does not invert.
+    flows = [f for f in computed if f.valid.mean() >= MIN_CONSISTENT_SHARE]
+
+    moving_share = 0.0
+    if flows:
+        moving_share = float(
+            np.mean([(f.valid & (np.hypot(f.flow[..., 0], f.flow[..., 1]) >= MIN_SPEED)).mean() for f in flows])
+        )
+    exposure, blocks, displacement = EXPOSURE_FRACTION_PRIOR, 0, 0.0
+    measured = False
+    if frames < 2:
+        notes.append(f"a single frame shows no motion: exposure fraction is the prior {EXPOSURE_FRACTION_PRIOR}")
+    elif not flows:
+        notes.append(
+            f"no pair of consecutive frames to compare (uniform frames, scene cuts, or flow that does not invert: "
+            f"too dark or unrelated frames): exposure fraction is the prior {EXPOSURE_FRACTION_PRIOR}"
+        )
+    else:
+        fit = _fit_exposure(reference, flows)
+        blocks, displacement = fit[1], fit[2]
+        if fit[0] is None:
+            why = (
+                f"no motion of {MIN_SPEED} px/frame or more between frames"
+                if moving_share < 0.01
+                else f"only {blocks} moving textured blocks (at least {MIN_BLOCKS} needed)"
+            )
+            notes.append(f"{why}: exposure fraction is the prior {EXPOSURE_FRACTION_PRIOR}")
+        else:
+            exposure, measured = fit[0], True
+
+    flicker, correlation, flicker_frames, why_not = _measure_flicker(small, flows, frames)
+    flicker_measured = why_not is None
+    if why_not is not None:
+        notes.append(f"{why_not}: flicker is the prior {FLICKER_PRIOR} (correlation {FLICKER_CORRELATION_PRIOR})")
+        flicker, correlation = FLICKER_PRIOR, FLICKER_CORRELATION_PRIOR
+    return MotionEstimate(
+        exposure_fraction=float(exposure),
+        exposure_measured=measured,
+        moving_share=moving_share,
+        displacement=displacement,
+        blocks=blocks,
+        pairs=len(flows),
+        skipped_pairs=frames - 1 - len(flows) if frames > 1 else 0,
+        flicker=float(flicker),
+        flicker_correlation=float(correlation),
+        flicker_measured=flicker_measured,
+        flicker_frames=flicker_frames,
+        notes=tuple(notes),
+    )
+
+
+def _luminance(frames: torch.Tensor) -> np.ndarray:
+    """Rec. 709 luma of sRGB frames (..., 3 or 1, H, W) -> (..., H, W) float32, NaN-free."""
+    if frames.shape[-3] == 1:
+        luma = frames[..., 0, :, :].float()
+    else:
+        channels = frames.float()
+        luma = (channels[..., 0, :, :] * 0.2126).add_(channels[..., 1, :, :], alpha=0.7152)
+        luma = luma.add_(channels[..., 2, :, :], alpha=0.0722)
+    return torch.nan_to_num(luma.float(), nan=0.0, posinf=1.0, neginf=0.0).cpu().numpy()
+
+
+def _reduced_luminance(reference: torch.Tensor) -> tuple[float, np.ndarray]:
+    """Luminance (T, h, w) at most :data:`FLOW_WIDTH` wide (pooled), and the factor from its px to full-resolution px.
+
+    Reduced before the luminance is taken: the full-resolution luminance of 16 1080p frames alone took 0.2-0.5 s,
+    and the blocks read their own from the reference.
+    """
+    factor = math.ceil(reference.shape[-1] / FLOW_WIDTH)
+    if factor == 1 or min(reference.shape[-2:]) < 2 * factor:
+        return 1.0, _luminance(reference)
+    # An integer factor: pooling is several times faster than an area resize to an arbitrary size.
+    return float(factor), _luminance(torch.nn.functional.avg_pool2d(reference.float(), factor))
+
+
+def _flow_frames(luminance: np.ndarray, skipped: set[int]) -> list[np.ndarray]:
+    """8-bit frames for the flow: each brightened to a common level, lightly blurred against the noise."""
+    out = []
+    for t, frame in enumerate(luminance):
+        top = float(np.percentile(frame[::2, ::2], BRIGHT_PERCENTILE)) if t not in skipped else 0.0
+        bright = frame * (255.0 / top) if top > 1e-6 else np.zeros_like(frame)
+        bright = cv2.GaussianBlur(bright, (0, 0), FLOW_BLUR_SIGMA)
+        out.append(np.clip(bright, 0, 255).astype(np.uint8))
+    return out
+
+
+def _pair_flow(first: np.ndarray, second: np.ndarray, scale: float, t: int) -> _PairFlow:
+    """DIS flow from ``first`` to ``second`` (full-resolution px/frame) and where it survives the backward check."""
+    dis = cv2.DISOpticalFlow_create(cv2.DISOPTICAL_FLOW_PRESET_FAST)  # type: ignore[attr-defined]
+    forward = dis.calc(first, second, None)
+    backward = dis.calc(second, first, None)
+    height, width = first.shape
+    grid_x, grid_y = np.meshgrid(np.arange(width, dtype=np.float32), np.arange(height, dtype=np.float32))
+    back_at = cv2.remap(
+        backward, grid_x + forward[..., 0], grid_y + forward[..., 1], cv2.INTER_LINEAR, borderMode=cv2.BORDER_REPLICATE
+    )
+    error = np.hypot(*(forward + back_at).transpose(2, 0, 1))
+    speed = np.hypot(forward[..., 0], forward[..., 1])
+    inside = (
+        (grid_x + forward[..., 0] >= 0)
+        & (grid_x + forward[..., 0] <= width - 1)
+        & (grid_y + forward[..., 1] >= 0)
+        & (grid_y + forward[..., 1] <= height - 1)
+    )
+    # Half a pixel, or a tenth of the motion: DIS is less exact on fast motion, and the block pairing only needs
+    # the shift to a fraction of a pixel at full resolution.
+    valid = inside & (error <= 0.5 + 0.1 * speed) & np.isfinite(speed)
+    return _PairFlow(first=t, flow=np.nan_to_num(forward) * np.float32(scale), valid=valid, scale=scale)
+
+
+def _moving_blocks(flow: _PairFlow, shape: tuple[int, int]) -> list[tuple[int, int, float, float]]:
+    """Blocks (top, left, dy, dx) of frame t, full resolution, that move consistently by (dx, dy) px/frame.
+
+    The flow statistics of every block come from box filters over the flow map (the mean flow of its valid
+    pixels and their spread), read at the block's centre: one pass per pair instead of one per block.
+    """
+    height, width = shape
+    small_h, small_w = flow.valid.shape
+    factor_y = factor_x = flow.scale
+    size = (max(1, round(BLOCK / factor_x)), max(1, round(BLOCK / factor_y)))
+    valid = flow.valid.astype(np.float32)
+    fx, fy = flow.flow[..., 0] * valid, flow.flow[..., 1] * valid
+    square = (flow.flow[..., 0] ** 2 + flow.flow[..., 1] ** 2) * valid
+    box = [cv2.blur(a, size, borderType=cv2.BORDER_REPLICATE) for a in (valid, fx, fy, square)]
+    stride = BLOCK // 2
+    tops = np.arange(0, height - BLOCK + 1, stride)
+    lefts = np.arange(0, width - BLOCK + 1, stride)
+    rows = np.clip(((tops + BLOCK / 2) / factor_y).astype(int), 0, small_h - 1)
+    columns = np.clip(((lefts + BLOCK / 2) / factor_x).astype(int), 0, small_w - 1)
+    share, sum_x, sum_y, sum_sq = (a[np.ix_(rows, columns)] for a in box)
+    count = np.maximum(share, 1e-6)
+    dx, dy = sum_x / count, sum_y / count
+    speed = np.hypot(dx, dy)
+    spread = np.sqrt(np.maximum(sum_sq / count - speed**2, 0.0))
+    top_grid, left_grid = np.meshgrid(tops, lefts, indexing="ij")
+    target_top, target_left = top_grid + np.round(dy), left_grid + np.round(dx)
+    good = (
+        (share >= 0.7)
+        & (speed >= MIN_SPEED)
+        # A block that moves as one: its flow varies by a fraction of a pixel (more for fast motion, which DIS
+        # measures less exactly).
+        & (spread <= 0.35 + 0.1 * speed)
+        & (target_top >= 0)
+        & (target_top <= height - BLOCK)
+        & (target_left >= 0)
+        & (target_left <= width - BLOCK)
+    )
+    return [
+        (int(top_grid[i, j]), int(left_grid[i, j]), float(dy[i, j]), float(dx[i, j]))
+        for i, j in zip(*np.nonzero(good), strict=True)
+    ]
+
+
+def _frequencies() -> tuple[np.ndarray, np.ndarray]:
+    """The (ky, kx) frequencies (cycles/px) of a block's real FFT, shaped to broadcast against it."""
+    return np.fft.fftfreq(BLOCK)[:, None], np.fft.rfftfreq(BLOCK)[None, :]
+
+
+def _block_spectra(
+    reference: torch.Tensor, flows: list[_PairFlow]
+) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray] | None:
+    """Cross and auto power spectra (N, BLOCK, BLOCK//2+1) of the moving block pairs, their motions (N, 2) (dy, dx)
+    with the phase fit's correction, and the size of that correction (N,) px."""
+    height, width = reference.shape[-2:]
+    chosen: list[tuple[int, int, int, float, float]] = []
+    per_pair = [_moving_blocks(f, (height, width)) for f in flows]
+    total = sum(len(b) for b in per_pair)
+    if total == 0:
+        return None
+    keep_share = min(1.0, MAX_BLOCKS / total)
+    for flow, blocks in zip(flows, per_pair, strict=True):
+        if keep_share < 1.0 and blocks:
+            index = np.unique(np.linspace(0, len(blocks) - 1, max(1, round(len(blocks) * keep_share))).round())
+            blocks = [blocks[int(i)] for i in index]
+        chosen.extend((flow.first, top, left, dy, dx) for top, left, dy, dx in blocks)
+    pieces = []
+    for t, top, left, dy, dx in chosen:
+        ry, rx = top + round(dy), left + round(dx)
+        pieces.append(reference[t, :, top : top + BLOCK, left : left + BLOCK])
+        pieces.append(reference[t + 1, :, ry : ry + BLOCK, rx : rx + BLOCK])
+    luminance = _luminance(torch.stack(pieces))
+    first, second = luminance[0::2], luminance[1::2]
+    motion = np.array([(dy, dx) for *_, dy, dx in chosen], np.float64)
+    window = np.outer(np.hanning(BLOCK), np.hanning(BLOCK)).astype(np.float32)
+    first = (first - first.mean(axis=(1, 2), keepdims=True)) * window
+    second = (second - second.mean(axis=(1, 2), keepdims=True)) * window
+    spectrum_first = np.fft.rfft2(first)
+    spectrum_second = np.fft.rfft2(second)
+    ky, kx = _frequencies()
+    # The second block starts at the rounded shift; the sub-pixel remainder is a phase ramp, undone here.
+    remainder = motion - np.round(motion)
+    product = spectrum_first * np.conj(spectrum_second)
+    product *= np.exp(-2j * np.pi * (ky[None] * remainder[:, 0, None, None] + kx[None] * remainder[:, 1, None, None]))
+    product, error = _align_phase(product)
+    auto = 0.5 * (np.abs(spectrum_first) ** 2 + np.abs(spectrum_second) ** 2)
+    return product.real, auto, motion + error, np.hypot(error[:, 0], error[:, 1])
+
+
+def _align_phase(product: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Undo the shift the flow missed: fit a phase ramp to the low frequencies of each cross spectrum.
+
+    Returns the aligned cross spectra and the shift (N, 2) (dy, dx) px added to the flow's.
+
+    A flow error of e px leaves a phase 2 pi k.e in the cross spectrum, and its real part shrinks by cos(2 pi k.e)
+    at high frequencies: along the motion that would read as extra blur. The blur itself leaves no phase (both
+    frames carry the same box, |H|^2 is real and non-negative), so the ramp is the error alone.
+    """
+    ky, kx = _frequencies()
+    radius = np.hypot(ky, kx)
+    # Low frequencies: high signal to noise, and no phase wrap for errors up to about a pixel.
+    low = (radius >= 1.5 / BLOCK) & (radius <= 8.5 / BLOCK)
+    ky_low = np.broadcast_to(ky, low.shape)[low]
+    kx_low = np.broadcast_to(kx, low.shape)[low]
+    total = np.zeros((product.shape[0], 2))
+    for _ in range(2):
+        values = product[:, low]
+        weight = np.abs(values)
+        angle = np.angle(values) / (2 * np.pi)
+        # Weighted least squares for the shift (ey, ex) in angle = ky ey + kx ex.
+        a11 = (weight * ky_low**2).sum(axis=1)
+        a12 = (weight * ky_low * kx_low).sum(axis=1)
+        a22 = (weight * kx_low**2).sum(axis=1)
+        b1 = (weight * ky_low * angle).sum(axis=1)
+        b2 = (weight * kx_low * angle).sum(axis=1)
+        determinant = np.maximum(a11 * a22 - a12**2, 1e-30)
+        error_y = np.clip((a22 * b1 - a12 * b2) / determinant, -1.0, 1.0)
+        error_x = np.clip((a11 * b2 - a12 * b1) / determinant, -1.0, 1.0)
+        product = product * np.exp(
+            -2j * np.pi * (ky[None] * error_y[:, None, None] + kx[None] * error_x[:, None, None])
+        )
+        total += np.stack([error_y, error_x], axis=1)
+    return product, total
+
+
+def _sinc_squared(x: np.ndarray) -> np.ndarray:
+    small = np.abs(x) < 1e-6
+    safe = np.where(small, 1.0, x)
+    return np.where(small, 1.0, (np.sin(np.pi * safe) / (np.pi * safe)) ** 2)
+
+
+def _fit_exposure(reference: torch.Tensor, flows: list[_PairFlow]) -> tuple[float | None, int, float]:
+    """The exposure fraction fitted to the moving blocks (None: too few), the blocks used, their median speed."""
+    spectra = _block_spectra(reference, flows)
+    if spectra is None:
+        return None, 0, 0.0
+    cross, auto, motion, correction = spectra
+    ky, kx = _frequencies()
+    ring = np.rint(np.hypot(ky, kx) * BLOCK).astype(int).ravel()
+    # Rings 0 and 1 hold the mean and the window's leakage; beyond BLOCK / 2 the ring is cut by the corners. The
+    # two axes hold the sensor's row and column patterns, which stay in place while the scene moves: their cross
+    # power oscillates with the shift and, for a shift of a pixel or two, reads as blur along it.
+    on_axes = ((ky == 0) | (kx == 0)).ravel()
+    in_rings = (ring >= 2) & (ring < BLOCK // 2) & ~on_axes
+    ring = ring[in_rings] - 2
+    rings = BLOCK // 2 - 2
+    membership = np.zeros((ring.size, rings), np.float32)
+    membership[np.arange(ring.size), ring] = 1.0
+    count = cross.shape[0]
+    cross_flat = cross.reshape(count, -1)[:, in_rings].astype(np.float32)
+    noise_flat = auto.reshape(count, -1)[:, in_rings].astype(np.float32) - cross_flat
+    signal = cross_flat @ membership
+    noise = noise_flat @ membership
+    snr = np.clip(signal, 0, None) / np.maximum(noise, 1e-12 * max(float(np.abs(signal).max()), 1e-30))
+    weights = snr / (1.0 + snr)
+    # A block whose mid rings hold no more scene than noise has no texture to read blur from.
+    textured = weights[:, : rings // 2].mean(axis=1) >= 0.3
+    speeds = np.hypot(motion[:, 0], motion[:, 1])
+    # The cross spectrum's phase corrects the flow; where it corrects much, or finds the block slow after all, the
+    # flow had followed noise (in the darkest frames it does) and the pair is not one scene moving.
+    textured &= (speeds >= MIN_SPEED) & (correction <= 0.5 + 0.1 * speeds)
+    if textured.sum() < MIN_BLOCKS:
+        return None, int(textured.sum()), float(np.median(speeds))
+    cross_flat, weights, motion = cross_flat[textured], weights[textured], motion[textured]
+    # The projection of each frequency on the motion: cycles per frame's displacement.
+    ky_flat = np.broadcast_to(ky, (BLOCK, kx.shape[1])).ravel()[in_rings]
+    kx_flat = np.broadcast_to(kx, (BLOCK, kx.shape[1])).ravel()[in_rings]
+    along = np.abs(motion[:, 0, None] * ky_flat[None] + motion[:, 1, None] * kx_flat[None]).astype(np.float32)
+    power_sq = (cross_flat**2) @ membership
+
+    def score(s: float) -> float:
+        transfer = _sinc_squared(np.float32(s) * along)
+        a = (cross_flat * transfer) @ membership
+        b = (transfer**2) @ membership
+        return float((weights * a * a / np.maximum(b * power_sq, 1e-30)).sum())
+
+    coarse = S_GRID[::5]
+    scores = np.array([score(s) for s in coarse])
+    best = float(coarse[int(np.argmax(scores))])
+    fine = S_GRID[(best - 0.101 <= S_GRID) & (best + 0.101 >= S_GRID)]
+    fine_scores = np.array([score(s) for s in fine])
+    index = int(np.argmax(fine_scores))
+    estimate = float(fine[index])
+    if 0 < index < len(fine) - 1:
+        left, middle, right = fine_scores[index - 1 : index + 2]
+        curvature = left - 2 * middle + right
+        step = float(fine[index + 1] - fine[index])
+        if curvature < 0:
+            estimate += float(np.clip(0.5 * (left - right) / curvature, -1, 1) * step)
+    return float(np.clip(estimate, 0.0, 1.0)), len(motion), float(np.median(np.hypot(motion[:, 0], motion[:, 1])))
+
+
+def _measure_flicker(
+    luminance: np.ndarray, flows: list[_PairFlow], frames: int
+) -> tuple[float, float, int, str | None]:
+    """Flicker std and lag-1 correlation read on still pixels; frames used; the reason when not measured."""
+    if frames < MIN_FLICKER_FRAMES:
+        return 0.0, 0.0, 0, f"{frames} frame(s), fewer than {MIN_FLICKER_FRAMES}"
+    by_first = {f.first: f for f in flows}
+    stretches: list[list[int]] = []
+    for t in range(frames):
+        if t - 1 in by_first and stretches and stretches[-1][-1] == t - 1:
+            stretches[-1].append(t)
+        else:
+            stretches.append([t])
+    stretches = [s for s in stretches if len(s) >= MIN_FLICKER_FRAMES]
+    if not stretches:
+        return (
+            0.0,
+            0.0,
+            0,
+            f"no stretch of {MIN_FLICKER_FRAMES} comparable frames "
+            "(scene cuts, uniform frames, flow that does not invert)",
+        )
+    variance_sum = lag_sum = 0.0
+    own_first = own_second = 0.0
+    used = 0
+    lengths = []
+    for stretch in stretches:
+        halves = _gain_series(luminance, [by_first[t] for t in stretch[:-1]], stretch)
+        if halves is None:
+            continue
+        first, second = halves
+        # The two halves share the gain, not the noise: their cross products hold the gain's variance alone.
+        variance_sum += float((first * second).sum())
+        own_first += float((first**2).sum())
+        own_second += float((second**2).sum())
+        lag_sum += 0.5 * float((first[1:] * second[:-1]).sum() + (second[1:] * first[:-1]).sum())
+        used += len(stretch)
+        lengths.append(len(stretch))
+    if used == 0:
+        return 0.0, 0.0, 0, "no part of the frame stays still through the clip"
+    # The cross product's own scatter, from the two halves' variances (noise included): a gain whose variance is
+    # within twice of it is too weak to read its correlation on.
+    scatter = math.sqrt(own_first * own_second / used)
+    if variance_sum <= 2.0 * scatter:
+        return math.sqrt(max(variance_sum, 0.0) / used), 0.0, used, None
+    raw_correlation = float(np.clip(lag_sum / variance_sum, -1.0, 1.0))
+    # A de-meaned AR(1) series of n frames: E[r] ~ rho - (1 + 3 rho) / n (Kendall), and its variance is short by
+    # the variance of its mean, about (1 + rho) / ((1 - rho) n) of it.
+    n = float(np.mean(lengths))
+    correlation = float(np.clip((raw_correlation * n + 1.0) / max(n - 3.0, 1.0), 0.0, 0.99))
+    shortfall = min(0.8, (1.0 + correlation) / ((1.0 - correlation) * n))
+    variance = variance_sum / used / (1.0 - shortfall)
+    return math.sqrt(variance), correlation, used, None
+
+
+def _gain_series(
+    luminance: np.ndarray, flows: list[_PairFlow], stretch: list[int]
+) -> tuple[np.ndarray, np.ndarray] | None:
+    """The relative gain g_t / mean(g) - 1 of a stretch, read twice on disjoint halves of its still pixels.
+
+    In each half the still pixels are grouped by their level; per frame, the groups' change from their mean
+    level is fitted as ``gain * level + offset``. The offset takes what adds the same to every pixel of a frame
+    (a sensor's black level wandering, the frame-wide term of darksynth's periodic noise), which a plain mean
+    would read as flicker; only the gain remains. The halves are alternate bands of columns, so that column noise
+    falls in one of them alone. Without a spread of levels, the offset cannot be told from the gain, and the
+    fit is the gain alone.
+    """
+    still = np.ones_like(flows[0].valid)
+    for flow in flows:
+        speed = np.hypot(flow.flow[..., 0], flow.flow[..., 1])
+        moving = ~flow.valid | (speed >= STILL_SPEED)
+        # Blur and interpolation carry a moving object's light a few px beyond where the flow says it is.
+        still &= cv2.dilate(moving.astype(np.uint8), np.ones((5, 5), np.uint8)) == 0
+    stack = luminance[stretch].astype(np.float64)
+    level = cv2.GaussianBlur(stack.mean(axis=0), (0, 0), 2.0)
+    # Saturated pixels do not follow a gain; pixels near black are clipped at 0 by their noise.
+    still &= (level > 1.0 / 255) & (level < 0.9)
+    width = still.shape[1]
+    band = max(1, width // (2 * FLICKER_GRID))
+    column_half = (np.arange(width) // band) % 2
+    halves = []
+    for half in (0, 1):
+        mask = still & (column_half == half)[None, :]
+        if mask.sum() < MIN_STILL_PIXELS:
+            return None
+        halves.append(_fitted_gain(stack[:, mask], level[mask]))
+    return halves[0], halves[1]
+
+
+def _fitted_gain(values: np.ndarray, level: np.ndarray) -> np.ndarray:
+    """Per frame, the relative gain fitted to pixels (T, N) grouped by their (smoothed) ``level`` (N,)."""
+    edges = np.quantile(level, np.linspace(0, 1, LEVEL_GROUPS + 1))
+    group = np.clip(np.searchsorted(edges, level, side="right") - 1, 0, LEVEL_GROUPS - 1)
+    counts = np.bincount(group, minlength=LEVEL_GROUPS).astype(np.float64)
+    present = counts > 0
+    sums = np.stack([np.bincount(group, weights=frame, minlength=LEVEL_GROUPS) for frame in values])
+    means = sums[:, present] / counts[present]
+    weight = counts[present]
+    mean_level = means.mean(axis=0)
+    change = means - mean_level
+    centre = float((weight * mean_level).sum() / weight.sum())
+    spread = mean_level - centre
+    if float((weight * spread**2).sum() / weight.sum()) >= (MIN_LEVEL_SPREAD * centre) ** 2:
+        slope = (change * weight * spread).sum(axis=1) / float((weight * spread**2).sum())
+    else:
+        slope = (change * weight * mean_level).sum(axis=1) / float((weight * mean_level**2).sum())
+    return np.asarray(slope)

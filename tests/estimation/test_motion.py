@@ -1,0 +1,209 @@
+"""The shutter and flicker estimate: round trips through darksynth's own synthesis, and odd input."""
+
+from __future__ import annotations
+
+import json
+import math
+
+import numpy as np
+import pytest
+import torch
+
+import darksynth
+from darksynth.darkening import Darkening, darken
+from darksynth.estimation.motion import EXPOSURE_FRACTION_PRIOR, MIN_SPEED, MotionEstimate, estimate_motion
+from darksynth.profile import default_profile_path
+
+HEIGHT, WIDTH = 256, 384
+DARKENING = Darkening(alpha=0.2, gamma=0.6)
+
+
+def srgb_to_linear(x: np.ndarray) -> np.ndarray:
+    return np.where(x <= 0.04045, x / 12.92, ((x + 0.055) / 1.055) ** 2.4)
+
+
+def linear_to_srgb(x: np.ndarray) -> np.ndarray:
+    x = np.clip(x, 0.0, 1.0)
+    return np.where(x <= 0.0031308, 12.92 * x, 1.055 * x ** (1 / 2.4) - 0.055)
+
+
+def natural_texture(seed: int, height: int = HEIGHT, width: int = WIDTH) -> np.ndarray:
+    """A periodic grey texture (H, W) in sRGB [0, 1] with a natural 1/f amplitude spectrum."""
+    rng = np.random.default_rng(seed)
+    ky = np.fft.fftfreq(height)[:, None]
+    kx = np.fft.fftfreq(width)[None, :]
+    radius = np.hypot(ky, kx)
+    amplitude = np.where(radius > 0, 1.0 / np.maximum(radius, 1.0 / max(height, width)), 0.0)
+    phase = np.exp(2j * np.pi * rng.random((height, width)))
+    field = np.fft.ifft2(amplitude * phase).real
+    field = (field - field.mean()) / field.std()
+    return np.clip(0.5 + 0.17 * field, 0.0, 1.0)
+
+
+def moving_clip(texture: np.ndarray, velocity: tuple[float, float], exposure: float, frames: int) -> np.ndarray:
+    """Frames (T, H, W) of a texture translating by ``velocity`` (dy, dx) px/frame, in sRGB [0, 1].
+
+    Each frame is the mean, in linear light, of 64 copies shifted over the window of ``exposure`` frame intervals
+    centred on the frame: the same sum done as one filter in the Fourier domain, where a sub-pixel shift of the
+    periodic texture is exact.
+    """
+    height, width = texture.shape
+    spectrum = np.fft.fft2(srgb_to_linear(texture))
+    ky = np.fft.fftfreq(height)[:, None]
+    kx = np.fft.fftfreq(width)[None, :]
+    copies = 64
+    offsets = exposure * ((np.arange(copies) + 0.5) / copies - 0.5)
+    projection = ky * velocity[0] + kx * velocity[1]
+    # The mean of the shifted copies of one frame is the frame's shift times the mean of the offsets' shifts.
+    window = np.zeros((height, width), complex)
+    for offset in offsets:
+        window += np.exp(-2j * np.pi * projection * offset) / copies
+    out = []
+    for t in range(frames):
+        shifted = spectrum * window * np.exp(-2j * np.pi * projection * t)
+        out.append(linear_to_srgb(np.fft.ifft2(shifted).real))
+    return np.stack(out)
+
+
+def low_light(frames: np.ndarray, seed: int) -> torch.Tensor:
+    """Grey frames (T, H, W) in [0, 1] -> their darkened, noisy version (T, 3, H, W) in [0, 1], 8-bit levels."""
+    clean = torch.from_numpy(np.round(frames * 255)).to(torch.uint8)[:, None].expand(-1, 3, -1, -1).contiguous()
+    profile = darksynth.load_profile(default_profile_path())
+    result = darksynth.synthesize(clean, profile, generator=torch.Generator().manual_seed(seed), darkening=DARKENING)
+    return result.image.to(torch.float32) / 255.0
+
+
+def flickering_still(gains: np.ndarray, seed: int) -> torch.Tensor:
+    """A still textured scene whose darkened signal is multiplied by ``gains[t]`` before the noise."""
+    texture = torch.from_numpy(natural_texture(seed, 192, 256)).to(torch.float32)
+    signal = darken(texture[None, None].expand(len(gains), 3, -1, -1), DARKENING.alpha, DARKENING.gamma)
+    signal = signal * torch.from_numpy(gains).to(torch.float32)[:, None, None, None]
+    profile = darksynth.load_profile(default_profile_path())
+    result = darksynth.synthesize(
+        signal.clamp(0, 1), profile, generator=torch.Generator().manual_seed(seed), darkening=None
+    )
+    return result.image.to(torch.float32)
+
+
+def ar1_gains(std: float, rho: float, frames: int, seed: int) -> np.ndarray:
+    rng = np.random.default_rng(seed)
+    z = np.empty(frames)
+    z[0] = rng.standard_normal()
+    for t in range(1, frames):
+        z[t] = rho * z[t - 1] + math.sqrt(1 - rho**2) * rng.standard_normal()
+    return 1.0 + std * z
+
+
+ROUND_TRIP_CASES = [
+    (speed, exposure, diagonal) for speed in (1, 3, 6, 12) for exposure in (0.25, 0.5, 1.0) for diagonal in (False,)
+] + [(6, 0.5, True), (3, 1.0, True)]
+
+
+def round_trip(speed: float, exposure: float, diagonal: bool, seed: int) -> MotionEstimate:
+    velocity = (speed / math.sqrt(2), speed / math.sqrt(2)) if diagonal else (0.0, float(speed))
+    frames = moving_clip(natural_texture(seed), velocity, exposure, 8)
+    return estimate_motion(low_light(frames, seed))
+
+
+def test_the_exposure_fraction_round_trips() -> None:
+    """Median error over speeds 1-12 px/frame (one diagonal case) and shutters 1/4, 1/2 and 1 within 0.15."""
+    errors = []
+    for seed, (speed, exposure, diagonal) in enumerate(ROUND_TRIP_CASES):
+        found = round_trip(speed, exposure, diagonal, seed)
+        if speed < MIN_SPEED:
+            # Too slow to read a box of a fraction of a pixel: the prior, said so.
+            assert not found.exposure_measured and found.exposure_fraction == EXPOSURE_FRACTION_PRIOR
+            assert any(str(MIN_SPEED) in note for note in found.notes)
+        else:
+            assert found.exposure_measured, (speed, exposure, found.notes)
+            assert found.displacement == pytest.approx(speed, rel=0.1)
+        errors.append(abs(found.exposure_fraction - exposure))
+    assert float(np.median(errors)) <= 0.15, errors
+    # The fast cases, where the box is several px long, are each within 0.15.
+    assert max(e for e, (speed, *_) in zip(errors, ROUND_TRIP_CASES, strict=True) if speed >= 3) <= 0.15, errors
+
+
+def test_a_long_and_a_short_shutter_are_told_apart() -> None:
+    """The control for the round trip: the same motion with s = 0.25 and s = 1 gives estimates far apart."""
+    short = round_trip(6, 0.25, False, 20).exposure_fraction
+    long = round_trip(6, 1.0, False, 20).exposure_fraction
+    assert long - short > 0.5
+
+
+def test_a_still_scene_gives_the_prior_with_a_note() -> None:
+    frames = np.repeat(natural_texture(3)[None], 6, axis=0)
+    found = estimate_motion(low_light(frames, 3))
+    assert not found.exposure_measured
+    assert found.exposure_fraction == EXPOSURE_FRACTION_PRIOR
+    assert found.moving_share < 0.01
+    assert any("no motion" in note and f"prior {EXPOSURE_FRACTION_PRIOR}" in note for note in found.notes)
+    assert found.to_meta()["exposure_prior"] == EXPOSURE_FRACTION_PRIOR
+
+
+def test_one_frame_gives_the_priors() -> None:
+    found = estimate_motion(low_light(natural_texture(4)[None], 4))
+    assert not found.exposure_measured and not found.flicker_measured
+    assert (found.exposure_fraction, found.flicker, found.flicker_correlation) == (EXPOSURE_FRACTION_PRIOR, 0.0, 0.0)
+    assert len(found.notes) == 2
+
+
+@pytest.mark.parametrize(
+    "reference",
+    [
+        torch.zeros(5, 3, 64, 64),
+        torch.zeros(1, 3, 40, 40),
+        torch.rand(4, 3, 40, 40, generator=torch.Generator().manual_seed(0)),
+        torch.full((3, 3, 48, 80), float("nan")),
+    ],
+    ids=["black", "one-tiny", "tiny-noise", "nan"],
+)
+def test_odd_input_gives_finite_priors(reference: torch.Tensor) -> None:
+    found = estimate_motion(reference)
+    meta = found.to_meta()
+    assert not found.exposure_measured
+    assert found.exposure_fraction == EXPOSURE_FRACTION_PRIOR
+    assert all(math.isfinite(v) for v in (found.flicker, found.flicker_correlation, found.displacement))
+    assert found.notes and meta["notes"] == list(found.notes)
+
+
+def test_a_scene_cut_is_not_blurred_across() -> None:
+    """Two unrelated moving patterns: no pair spans the cut, and the shutter is still found on both sides."""
+    before = moving_clip(natural_texture(5), (0.0, 6.0), 0.5, 4)
+    after = moving_clip(natural_texture(6), (0.0, 6.0), 0.5, 4)
+    found = estimate_motion(low_light(np.concatenate([before, after]), 5))
+    assert found.pairs == 6
+    assert found.exposure_measured
+    assert abs(found.exposure_fraction - 0.5) <= 0.1
+
+
+def test_a_black_frame_in_the_middle_is_skipped() -> None:
+    frames = moving_clip(natural_texture(7), (0.0, 6.0), 1.0, 6)
+    reference = low_light(frames, 7)
+    reference[3] = 0
+    found = estimate_motion(reference)
+    assert found.pairs == 3
+    assert abs(found.exposure_fraction - 1.0) <= 0.15
+
+
+@pytest.mark.parametrize("std, rho", [(0.05, 0.6), (0.05, 0.0)])
+def test_the_flicker_round_trips(std: float, rho: float) -> None:
+    """Over three seeds of 48 frames: the mean std within 25 % and the mean correlation within 0.25."""
+    found = [estimate_motion(flickering_still(ar1_gains(std, rho, 48, seed), seed)) for seed in range(3)]
+    assert all(f.flicker_measured and f.flicker_frames == 48 for f in found)
+    assert float(np.mean([f.flicker for f in found])) == pytest.approx(std, rel=0.25)
+    assert abs(float(np.mean([f.flicker_correlation for f in found])) - rho) <= 0.25
+
+
+def test_no_flicker_reads_as_none() -> None:
+    """Without a gain the noise, including its frame-wide offsets, is not read as flicker."""
+    for seed in range(3):
+        found = estimate_motion(flickering_still(np.ones(48), seed))
+        assert found.flicker_measured
+        assert found.flicker < 0.01
+
+
+def test_the_meta_is_json_ready() -> None:
+    found = estimate_motion(flickering_still(ar1_gains(0.05, 0.6, 8, 0), 0))
+    meta = json.loads(json.dumps(found.to_meta()))
+    assert meta["flicker_measured"] is True and meta["flicker_prior"] is None
+    assert meta["exposure_measured"] is False and meta["exposure_prior"] == EXPOSURE_FRACTION_PRIOR
