@@ -79,6 +79,7 @@ ESTIMATION_STAGES: dict[str, int] = {
     "spectrum": 0,
     "network": 1,
     "refine": 1,
+    "flicker": 0,
     "motion": 1,
     "assemble": 2,
 }

@@ -402,3 +402,22 @@ def test_only_the_srgb_model_is_refined_and_only_when_asked() -> None:
 
     assert refines("srgb") and refines("srgb", True)
     assert not refines("srgb", False) and not refines("paper") and not refines("paper", True)
+
+
+def test_the_light_goes_into_the_profile_with_its_priors_stated(tiny_model: Callable[..., DEN]) -> None:
+    """A single image: the exposure-fraction prior, stated in meta, no warning. A still clip: the prior too, with a
+    warning naming it. A clip whose brightness steps frame to frame: flicker measured, written in ``light``."""
+    from darksynth.estimation.motion import EXPOSURE_FRACTION_PRIOR
+    from darksynth.profile import profile_to_dict
+
+    single = estimate(_dark_scene(1, [0.15]), tiny_model(), source="photo.png")
+    assert single.profile.noise.scalar("exposure_fraction") == EXPOSURE_FRACTION_PRIOR
+    assert single.profile.meta["light"]["exposure_measured"] is False
+    assert not any("exposure fraction" in w for w in single.warnings)
+    still = estimate(_dark_scene(6, [0.15] * 6), tiny_model(), source="still")
+    assert still.profile.noise.scalar("exposure_fraction") == EXPOSURE_FRACTION_PRIOR
+    assert any("still: " in w and "exposure fraction is the prior" in w for w in still.warnings)
+    pulsing = estimate(_dark_scene(6, [0.15, 0.12, 0.17, 0.13, 0.16, 0.12]), tiny_model(), source="pulse")
+    assert pulsing.profile.meta["light"]["flicker_measured"] is True
+    assert pulsing.profile.noise.scalar("flicker") > 0.05
+    assert profile_to_dict(pulsing.profile)["light"]["flicker"] == pulsing.profile.noise.scalar("flicker")

@@ -25,6 +25,7 @@ import torch
 from darksynth.darkening import ALPHA_RANGE, GAMMA_RANGE, Darkening
 from darksynth.errors import DarksynthError
 from darksynth.estimation.columns import decide_columns
+from darksynth.estimation.motion import estimate_motion
 from darksynth.estimation.network import run_network
 from darksynth.estimation.reference import (
     FLAT_STD,
@@ -190,8 +191,26 @@ def estimate(
             "(what it learned from the training table's ranges), not a measurement"
         )
     darkening, tone = _estimate_darkening(reference, name, ranges, meta, warnings)
+    noise = _estimate_light(reference, noise, meta, warnings, name)
     profile = Profile(noise=noise, darkening=darkening, ranges=ranges, meta=meta, tone=tone)
     return Estimate(profile=profile, per_crop=per_crop, warnings=warnings)
+
+
+def _estimate_light(
+    reference: torch.Tensor, noise: NoiseValues, meta: dict[str, Any], warnings: list[str], name: str
+) -> NoiseValues:
+    """The shutter's exposure fraction and the flicker of a reference clip into the profile's light, what was
+    measured and which prior stands into ``meta.light``. A clip where they cannot be read warns (a single image
+    cannot show either: its priors are stated in ``meta`` only)."""
+    motion = estimate_motion(reference)
+    meta["light"] = motion.to_meta()
+    if reference.shape[0] > 1:
+        warnings.extend(f"{name}: {note}" for note in motion.notes)
+    return noise.replace(
+        exposure_fraction=motion.exposure_fraction,
+        flicker=motion.flicker,
+        flicker_correlation=motion.flicker_correlation,
+    )
 
 
 def refines(noise_model: NoiseModel, refine: bool = True) -> bool:

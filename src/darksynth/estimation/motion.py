@@ -64,17 +64,17 @@ import cv2
 import numpy as np
 import torch
 
+from darksynth.estimation.flicker import (
+    FLICKER_CORRELATION_PRIOR,
+    FLICKER_PRIOR,
+    PairFlow,
+    measure_flicker,
+)
 from darksynth.estimation.reference import scene_cuts, uniform_frames
 
 EXPOSURE_FRACTION_PRIOR = 0.5
 """When the blur cannot be measured: the 180-degree shutter, the convention of video cameras (exposure half the
 frame interval), which most phones and cameras follow in video unless the light forces a longer one."""
-
-FLICKER_PRIOR = 0.0
-"""When flicker cannot be measured: none (a steady light and a locked exposure)."""
-
-FLICKER_CORRELATION_PRIOR = 0.0
-"""With no flicker, its correlation has no meaning; 0 keeps the profile's default of independent frames."""
 
 FLOW_WIDTH = 640
 """The flow runs on frames at most this wide: DIS at 640 px takes a few ms a pair, and blur is measured at full
@@ -95,9 +95,6 @@ MIN_SPEED = 1.5
 spectrum below the Nyquist frequency, so slow blocks say little, and in the real clips the flow of the darkest
 ones follows the noise at about 1 px/frame (their fit then reads compression and in-camera processing as blur)."""
 
-STILL_SPEED = 0.3
-"""Pixels moving less than this (px/frame) are still for the flicker measurement."""
-
 MIN_CONSISTENT_SHARE = 0.4
 """A pair whose flow passes the forward-backward check on less of the frame than this is taken as a scene cut:
 between frames of one scene even fast motion leaves most of the frame consistent (occlusions are edges)."""
@@ -107,22 +104,6 @@ MIN_BLOCKS = 6
 
 MAX_BLOCKS = 256
 """At most this many blocks enter the fit (spread over the frame pairs): the score's cost grows with them."""
-
-MIN_FLICKER_FRAMES = 3
-"""A stretch of still frames shorter than this says nothing about the frame-to-frame gain."""
-
-FLICKER_GRID = 8
-"""The still pixels are split into alternate bands of columns, this many of each half across the frame."""
-
-MIN_STILL_PIXELS = 256
-"""Fewer still pixels (at the flow's resolution) in a half: the stretch is not read for flicker."""
-
-LEVEL_GROUPS = 8
-"""Groups of still pixels by level (quantiles) in which gain and offset are told apart."""
-
-MIN_LEVEL_SPREAD = 0.15
-"""Below this std of the groups' levels relative to their mean, a gain and an offset look alike: the gain alone
-is fitted (an offset then reads as flicker)."""
 
 S_GRID = np.linspace(0.0, 1.0, 51)
 """Candidate exposure fractions for the fit: steps of 0.1 first, then of 0.02 around the best, refined by a
@@ -183,16 +164,6 @@ class MotionEstimate:
         }
 
 
-@dataclass(frozen=True)
-class _PairFlow:
-    """The flow of one consecutive pair (t, t+1) at the flow's resolution, in full-resolution px/frame."""
-
-    first: int
-    flow: np.ndarray  # (h, w, 2) x, y
-    valid: np.ndarray  # (h, w) bool: passed the forward-backward check
-    scale: float  # full-resolution px per px of the flow map
-
-
 def estimate_motion(reference: torch.Tensor) -> MotionEstimate:
     """Measure the exposure fraction and the flicker of a reference.
 
@@ -244,7 +215,7 @@ def estimate_motion(reference: torch.Tensor) -> MotionEstimate:
         else:
             exposure, measured = fit[0], True
 
-    flicker, correlation, flicker_frames, why_not = _measure_flicker(small, flows, frames)
+    flicker, correlation, flicker_frames, why_not = measure_flicker(small, flows, frames)
     flicker_measured = why_not is None
     if why_not is not None:
         notes.append(f"{why_not}: flicker is the prior {FLICKER_PRIOR} (correlation {FLICKER_CORRELATION_PRIOR})")
@@ -300,7 +271,7 @@ def _flow_frames(luminance: np.ndarray, skipped: set[int]) -> list[np.ndarray]:
     return out
 
 
-def _pair_flow(first: np.ndarray, second: np.ndarray, scale: float, t: int) -> _PairFlow:
+def _pair_flow(first: np.ndarray, second: np.ndarray, scale: float, t: int) -> PairFlow:
     """DIS flow from ``first`` to ``second`` (full-resolution px/frame) and where it survives the backward check."""
     dis = cv2.DISOpticalFlow_create(cv2.DISOPTICAL_FLOW_PRESET_FAST)  # type: ignore[attr-defined]
     forward = dis.calc(first, second, None)
@@ -321,10 +292,10 @@ def _pair_flow(first: np.ndarray, second: np.ndarray, scale: float, t: int) -> _
     # Half a pixel, or a tenth of the motion: DIS is less exact on fast motion, and the block pairing only needs
     # the shift to a fraction of a pixel at full resolution.
     valid = inside & (error <= 0.5 + 0.1 * speed) & np.isfinite(speed)
-    return _PairFlow(first=t, flow=np.nan_to_num(forward) * np.float32(scale), valid=valid, scale=scale)
+    return PairFlow(first=t, flow=np.nan_to_num(forward) * np.float32(scale), valid=valid, scale=scale)
 
 
-def _moving_blocks(flow: _PairFlow, shape: tuple[int, int]) -> list[tuple[int, int, float, float]]:
+def _moving_blocks(flow: PairFlow, shape: tuple[int, int]) -> list[tuple[int, int, float, float]]:
     """Blocks (top, left, dy, dx) of frame t, full resolution, that move consistently by (dx, dy) px/frame.
 
     The flow statistics of every block come from box filters over the flow map (the mean flow of its valid
@@ -373,7 +344,7 @@ def _frequencies() -> tuple[np.ndarray, np.ndarray]:
 
 
 def _block_spectra(
-    reference: torch.Tensor, flows: list[_PairFlow]
+    reference: torch.Tensor, flows: list[PairFlow]
 ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray] | None:
     """Cross and auto power spectra (N, BLOCK, BLOCK//2+1) of the moving block pairs, their motions (N, 2) (dy, dx)
     with the phase fit's correction, and the size of that correction (N,) px."""
@@ -454,7 +425,7 @@ def _sinc_squared(x: np.ndarray) -> np.ndarray:
     return np.where(small, 1.0, (np.sin(np.pi * safe) / (np.pi * safe)) ** 2)
 
 
-def _fit_exposure(reference: torch.Tensor, flows: list[_PairFlow]) -> tuple[float | None, int, float]:
+def _fit_exposure(reference: torch.Tensor, flows: list[PairFlow]) -> tuple[float | None, int, float]:
     """The exposure fraction fitted to the moving blocks (None: too few), the blocks used, their median speed."""
     spectra = _block_spectra(reference, flows)
     if spectra is None:
@@ -513,112 +484,3 @@ def _fit_exposure(reference: torch.Tensor, flows: list[_PairFlow]) -> tuple[floa
         if curvature < 0:
             estimate += float(np.clip(0.5 * (left - right) / curvature, -1, 1) * step)
     return float(np.clip(estimate, 0.0, 1.0)), len(motion), float(np.median(np.hypot(motion[:, 0], motion[:, 1])))
-
-
-def _measure_flicker(
-    luminance: np.ndarray, flows: list[_PairFlow], frames: int
-) -> tuple[float, float, int, str | None]:
-    """Flicker std and lag-1 correlation read on still pixels; frames used; the reason when not measured."""
-    if frames < MIN_FLICKER_FRAMES:
-        return 0.0, 0.0, 0, f"{frames} frame(s), fewer than {MIN_FLICKER_FRAMES}"
-    by_first = {f.first: f for f in flows}
-    stretches: list[list[int]] = []
-    for t in range(frames):
-        if t - 1 in by_first and stretches and stretches[-1][-1] == t - 1:
-            stretches[-1].append(t)
-        else:
-            stretches.append([t])
-    stretches = [s for s in stretches if len(s) >= MIN_FLICKER_FRAMES]
-    if not stretches:
-        return (
-            0.0,
-            0.0,
-            0,
-            f"no stretch of {MIN_FLICKER_FRAMES} comparable frames "
-            "(scene cuts, uniform frames, flow that does not invert)",
-        )
-    variance_sum = lag_sum = 0.0
-    own_first = own_second = 0.0
-    used = 0
-    lengths = []
-    for stretch in stretches:
-        halves = _gain_series(luminance, [by_first[t] for t in stretch[:-1]], stretch)
-        if halves is None:
-            continue
-        first, second = halves
-        # The two halves share the gain, not the noise: their cross products hold the gain's variance alone.
-        variance_sum += float((first * second).sum())
-        own_first += float((first**2).sum())
-        own_second += float((second**2).sum())
-        lag_sum += 0.5 * float((first[1:] * second[:-1]).sum() + (second[1:] * first[:-1]).sum())
-        used += len(stretch)
-        lengths.append(len(stretch))
-    if used == 0:
-        return 0.0, 0.0, 0, "no part of the frame stays still through the clip"
-    # The cross product's own scatter, from the two halves' variances (noise included): a gain whose variance is
-    # within twice of it is too weak to read its correlation on.
-    scatter = math.sqrt(own_first * own_second / used)
-    if variance_sum <= 2.0 * scatter:
-        return math.sqrt(max(variance_sum, 0.0) / used), 0.0, used, None
-    raw_correlation = float(np.clip(lag_sum / variance_sum, -1.0, 1.0))
-    # A de-meaned AR(1) series of n frames: E[r] ~ rho - (1 + 3 rho) / n (Kendall), and its variance is short by
-    # the variance of its mean, about (1 + rho) / ((1 - rho) n) of it.
-    n = float(np.mean(lengths))
-    correlation = float(np.clip((raw_correlation * n + 1.0) / max(n - 3.0, 1.0), 0.0, 0.99))
-    shortfall = min(0.8, (1.0 + correlation) / ((1.0 - correlation) * n))
-    variance = variance_sum / used / (1.0 - shortfall)
-    return math.sqrt(variance), correlation, used, None
-
-
-def _gain_series(
-    luminance: np.ndarray, flows: list[_PairFlow], stretch: list[int]
-) -> tuple[np.ndarray, np.ndarray] | None:
-    """The relative gain g_t / mean(g) - 1 of a stretch, read twice on disjoint halves of its still pixels.
-
-    In each half the still pixels are grouped by their level; per frame, the groups' change from their mean
-    level is fitted as ``gain * level + offset``. The offset takes what adds the same to every pixel of a frame
-    (a sensor's black level wandering, the frame-wide term of darksynth's periodic noise), which a plain mean
-    would read as flicker; only the gain remains. The halves are alternate bands of columns, so that column noise
-    falls in one of them alone. Without a spread of levels, the offset cannot be told from the gain, and the
-    fit is the gain alone.
-    """
-    still = np.ones_like(flows[0].valid)
-    for flow in flows:
-        speed = np.hypot(flow.flow[..., 0], flow.flow[..., 1])
-        moving = ~flow.valid | (speed >= STILL_SPEED)
-        # Blur and interpolation carry a moving object's light a few px beyond where the flow says it is.
-        still &= cv2.dilate(moving.astype(np.uint8), np.ones((5, 5), np.uint8)) == 0
-    stack = luminance[stretch].astype(np.float64)
-    level = cv2.GaussianBlur(stack.mean(axis=0), (0, 0), 2.0)
-    # Saturated pixels do not follow a gain; pixels near black are clipped at 0 by their noise.
-    still &= (level > 1.0 / 255) & (level < 0.9)
-    width = still.shape[1]
-    band = max(1, width // (2 * FLICKER_GRID))
-    column_half = (np.arange(width) // band) % 2
-    halves = []
-    for half in (0, 1):
-        mask = still & (column_half == half)[None, :]
-        if mask.sum() < MIN_STILL_PIXELS:
-            return None
-        halves.append(_fitted_gain(stack[:, mask], level[mask]))
-    return halves[0], halves[1]
-
-
-def _fitted_gain(values: np.ndarray, level: np.ndarray) -> np.ndarray:
-    """Per frame, the relative gain fitted to pixels (T, N) grouped by their (smoothed) ``level`` (N,)."""
-    edges = np.quantile(level, np.linspace(0, 1, LEVEL_GROUPS + 1))
-    group = np.clip(np.searchsorted(edges, level, side="right") - 1, 0, LEVEL_GROUPS - 1)
-    counts = np.bincount(group, minlength=LEVEL_GROUPS).astype(np.float64)
-    present = counts > 0
-    sums = np.stack([np.bincount(group, weights=frame, minlength=LEVEL_GROUPS) for frame in values])
-    means = sums[:, present] / counts[present]
-    weight = counts[present]
-    mean_level = means.mean(axis=0)
-    change = means - mean_level
-    centre = float((weight * mean_level).sum() / weight.sum())
-    spread = mean_level - centre
-    if float((weight * spread**2).sum() / weight.sum()) >= (MIN_LEVEL_SPREAD * centre) ** 2:
-        slope = (change * weight * spread).sum(axis=1) / float((weight * spread**2).sum())
-    else:
-        slope = (change * weight * mean_level).sum(axis=1) / float((weight * mean_level**2).sum())
-    return np.asarray(slope)
