@@ -206,11 +206,20 @@ def _estimate_light(
     meta["light"] = motion.to_meta()
     if reference.shape[0] > 1:
         warnings.extend(f"{name}: {note}" for note in motion.notes)
-    return noise.replace(
-        exposure_fraction=motion.exposure_fraction,
-        flicker=motion.flicker,
-        flicker_correlation=motion.flicker_correlation,
-    )
+    measured = {
+        "exposure_fraction": motion.exposure_fraction,
+        "flicker": motion.flicker,
+        "flicker_correlation": motion.flicker_correlation,
+    }
+    # Within the table's bounds: a clip whose exposure ramps by 2x reads as a flicker beyond what a profile holds.
+    bounded = {
+        key: min(max(value, noise_parameter(key).minimum), noise_parameter(key).maximum)
+        for key, value in measured.items()
+    }
+    for key, value in bounded.items():
+        if value != measured[key]:
+            warnings.append(f"{name}: {key} measured {measured[key]:.3g} is held at its bound {value:g}")
+    return noise.replace(**bounded)
 
 
 def refines(noise_model: NoiseModel, refine: bool = True) -> bool:
