@@ -128,3 +128,35 @@ def test_no_flicker_and_no_blur_leave_the_profile_without_light(tmp_path: Path) 
     kept, _ = dataclasses.replace(options, blur=True, flicker=True).drawing()
     assert kept.noise.scalar("exposure_fraction") == 0.5 and "flicker" in kept.ranges
     assert isinstance(load_profile(_light_profile(tmp_path / "p.json", flicker=0.05)), Profile)
+
+
+def test_the_training_transform_blurs_a_float_clip_and_shakes_an_image() -> None:
+    from darksynth.transforms import LowLight
+
+    frames = _moving_frames()
+    clip = torch.from_numpy(np.stack(frames)).permute(0, 3, 1, 2).float() / 255
+    transform = LowLight(build_profile(exposure_fraction=1.0), darkening=None, round_to_8bit=False)
+    out = transform(clip)
+    expected = list(MotionBlurStream(1.0).run(iter([f.astype(np.float32) / 255 for f in frames])))
+    got = out.permute(0, 2, 3, 1).numpy()
+    for t, want in enumerate(expected):
+        assert np.abs(got[t] - want).max() < 1e-5
+    assert np.abs(got[2] - frames[2] / 255).mean() > 0.01
+    shaken = LowLight(build_profile(shake_length=0.05), darkening=None, round_to_8bit=False)(clip[0])
+    want = shake_blur(frames[0].astype(np.float32) / 255, 0.05 * WIDTH, 0.0)
+    assert np.abs(shaken.permute(1, 2, 0).numpy() - want).max() < 1e-5
+
+
+def test_a_one_frame_video_with_blur_is_written_unblurred(tmp_path: Path) -> None:
+    frame = _moving_frames(1)[0]
+    source = tmp_path / "one.mkv"
+    with VideoWriter(source, width=WIDTH, height=HEIGHT, fps=Fraction(25), codec="ffv1") as writer:
+        writer.write(frame)
+    profile = _light_profile(tmp_path / "light.json", exposure_fraction=1.0)
+    out = tmp_path / "out.mkv"
+    code, _, err = run_cli("apply", source, out, "--profile", profile, "--no-darken", "--codec", "ffv1")
+    assert code == 0, err
+    (written,) = iter_video_frames(out)
+    (decoded,) = iter_video_frames(source)
+    # No neighbour to take a motion from: the frame stays as it was.
+    assert np.abs(written.astype(float) - decoded.astype(float)).mean() < 0.5
