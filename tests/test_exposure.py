@@ -15,11 +15,11 @@ from PIL import Image
 from darksynth.apply import ApplyOptions, apply
 from darksynth.darkening import Darkening, darken
 from darksynth.errors import ProfileError
-from darksynth.exposure import matched_darkening
+from darksynth.exposure import matched_colour, matched_darkening
 from darksynth.noise.values import NoiseValues
 from darksynth.profile import Profile, parse_profile, profile_to_dict
 from darksynth.synthesize import synthesize
-from darksynth.tones import ToneTarget, median_noise, sampled_tone_quantiles, tone_quantiles
+from darksynth.tones import ToneTarget, colour_cast, median_noise, sampled_tone_quantiles, tone_quantiles
 
 
 def _scene(seed: int, scale: float) -> np.ndarray:
@@ -54,7 +54,7 @@ def test_the_tone_target_round_trips_through_the_document_and_bad_ones_are_refus
     falling = dict(document, tone={"quantiles": list(reversed(document["tone"]["quantiles"])), "noise": 0.001})
     with pytest.raises(ProfileError, match=r"^x: tone.quantiles must be 49 non-decreasing numbers in \[0, 1\]"):
         parse_profile(falling, source="x")
-    with pytest.raises(ProfileError, match=r"^x: tone must be an object with quantiles and noise"):
+    with pytest.raises(ProfileError, match=r"^x: tone must be an object with quantiles, noise and optionally colour"):
         parse_profile(dict(document, tone=[0.1]), source="x")
 
 
@@ -133,3 +133,59 @@ def test_large_inputs_are_matched_on_every_k_th_block_with_the_same_quantiles_wi
     gap = np.abs(sampled_tone_quantiles(large) - tone_quantiles(large))
     # (The first block of each group lies on the dark side of the ramp: a bias of about half a level.)
     assert gap.max() < 2.0 / 255.0 and gap.mean() < 1.0 / 255.0
+
+
+SODIUM = (1.45, 0.95, 0.60)
+"""A sodium-lit street's channel shares."""
+
+
+def _orange_target() -> ToneTarget:
+    return dataclasses.replace(_target(), colour=SODIUM)
+
+
+def test_the_colour_cast_round_trips_and_a_bad_one_is_refused() -> None:
+    document = profile_to_dict(_profile(_orange_target()))
+    assert document["tone"]["colour"] == list(SODIUM)
+    assert parse_profile(json.loads(json.dumps(document))).tone == _orange_target()
+    bad = dict(document, tone=dict(document["tone"], colour=[1.0, 1.0]))
+    with pytest.raises(ProfileError, match=r"^x: tone.colour must be 3 numbers in \[0, 3\]"):
+        parse_profile(bad, source="x")
+    grey = torch.full((1, 3, 32, 32), 0.2)
+    assert colour_cast(grey) == pytest.approx((1.0, 1.0, 1.0))
+    assert colour_cast(torch.zeros(1, 3, 32, 32)) is None
+
+
+@pytest.mark.parametrize("seed", [2, 3, 4])
+def test_matched_colour_gives_the_reference_s_cast_and_keeps_the_brightness(seed: int) -> None:
+    clean = torch.from_numpy(_scene(seed, 1.0)).permute(2, 0, 1).contiguous()
+    darkening = Darkening(0.2, 0.6)
+    found = matched_colour(clean, _orange_target(), darkening)
+    assert found is not None
+    scale, adjusted = found
+    assert max(scale) == pytest.approx(1.0) and min(scale) > 0.0
+    scaled = clean.to(torch.float32) / 255.0 * torch.tensor(scale)[:, None, None]
+    output = darken(scaled, adjusted.alpha, adjusted.gamma)
+    cast = colour_cast(output[None])
+    assert cast is not None
+    assert np.abs(np.subtract(cast, SODIUM)).max() < 0.03
+    before = colour_cast(darken(clean.to(torch.float32) / 255.0, 0.2, 0.6)[None])
+    assert before is not None and np.abs(np.subtract(before, SODIUM)).max() > 0.2
+    # The brightness (mean of the channels) moves by a few percent at most.
+    plain = darken(clean.to(torch.float32) / 255.0, 0.2, 0.6)
+    assert float(output.mean()) == pytest.approx(float(plain.mean()), rel=0.1)
+
+
+def test_apply_matches_the_colour_only_when_asked(tmp_path: Path) -> None:
+    folder = tmp_path / "in"
+    folder.mkdir()
+    Image.fromarray(_scene(2, 1.0)).save(folder / "a.png")
+    profile = _profile(_orange_target())
+    casts = {}
+    for name, match in (("plain", False), ("orange", True)):
+        report = apply(folder, tmp_path / name, ApplyOptions(profile=profile, seed=0, match_colour=match))
+        (record,) = report.records
+        assert ("colour_scale" in record["parameters"]) is match
+        pixels = np.array(Image.open(tmp_path / name / "a.png").convert("RGB"))
+        casts[name] = colour_cast(_chw(pixels)[None])
+    assert np.abs(np.subtract(casts["orange"], SODIUM)).max() < 0.06
+    assert np.abs(np.subtract(casts["plain"], SODIUM)).max() > 0.2

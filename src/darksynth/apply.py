@@ -27,7 +27,7 @@ import torch
 from darksynth import __version__
 from darksynth.apply_outputs import claim_outputs, read_state, write_record, write_state
 from darksynth.errors import DarksynthError, error_reason
-from darksynth.exposure import matched_darkening
+from darksynth.exposure import matched_colour, matched_darkening
 from darksynth.io.arrays import chw_to_hwc, hwc_to_chw
 from darksynth.io.atomic import write_text_atomic
 from darksynth.io.discover import check_output_location, classify_input, scan_folder
@@ -86,6 +86,8 @@ class ApplyOptions:
         profile_source: where the profile came from, for the manifest.
         blur, flicker: False switches off the profile's motion blur and camera shake, or its flicker
             (``--no-blur``, ``--no-flicker``).
+        match_colour: also give each input the reference's colour cast (``--match-colour``; needs the profile's
+            ``tone.colour`` and a darkening).
     """
 
     profile: Profile
@@ -103,6 +105,7 @@ class ApplyOptions:
     profile_source: str = ""
     blur: bool = True
     flicker: bool = True
+    match_colour: bool = False
 
     def drawing(self) -> tuple[Profile, DarkeningChoice]:
         """The profile and darkening each file's parameters are drawn from.
@@ -211,13 +214,18 @@ def start_task(
     """A task's seed, the generator its noise is drawn from and its parameters, all fixed by the run seed and the
     task's key (its path relative to the input; for a single input file, its name). With ``first_frame`` (H, W, C)
     and a profile that carries the reference's tones, the darkening is matched to them
-    (:func:`darksynth.exposure.matched_darkening`)."""
+    (:func:`darksynth.exposure.matched_darkening`), and with ``match_colour`` the colour cast too."""
     seed = task_seed(options.seed, key)
     generator = torch.Generator(device=options.device).manual_seed(seed)
     profile, darkening = options.drawing()
     if first_frame is not None and options.darkening == "profile":
         darkening = matched_darkening(hwc_to_chw(first_frame), options.profile.tone, source=key) or darkening
     parameters = draw_clip_parameters(profile, darkening=darkening, generator=generator)
+    chosen = parameters.darkening
+    if options.match_colour and first_frame is not None and chosen is not None:
+        colour = matched_colour(hwc_to_chw(first_frame), options.profile.tone, chosen)
+        if colour is not None:
+            parameters = dataclasses.replace(parameters, colour_scale=colour[0], darkening=colour[1])
     return seed, generator, parameters
 
 

@@ -12,7 +12,14 @@ import torch
 
 from darksynth.darkening import Darkening
 from darksynth.errors import DarksynthError
-from darksynth.tones import BLOCK, DarkeningEstimate, ToneTarget, fit_darkening, sampled_tone_quantiles
+from darksynth.tones import (
+    BLOCK,
+    DarkeningEstimate,
+    ToneTarget,
+    colour_cast,
+    fit_darkening,
+    sampled_tone_quantiles,
+)
 
 logger = logging.getLogger(__name__)
 
@@ -75,3 +82,35 @@ def matched_darkening(frame: torch.Tensor, tone: ToneTarget | None, *, source: s
         logger.warning("%s; the profile's darkening is used", error)
         return None
     return found.darkening
+
+
+ColourScale = tuple[float, float, float]
+"""Per-channel factors (red, green, blue) on the clean frame, each at most 1."""
+
+
+def matched_colour(
+    frame: torch.Tensor, tone: ToneTarget | None, darkening: Darkening
+) -> tuple[ColourScale, Darkening] | None:
+    """The reference's colour cast (``tone.colour``) on an input: per-channel gains g on the darkened signal that
+    give ``frame`` (C, H, W), darkened by ``darkening``, the reference's channel shares.
+
+    A gain g on the darkened signal alpha * x ** (1 / gamma) is a factor g ** gamma on the clean x. The factors are
+    scaled to at most 1 (a clean frame scaled up would clip at white) and alpha takes the rest, so the result is
+    the clean frame times the returned scale, darkened by the returned darkening. None without a cast in the tone
+    target, for a grey input, or for one without light.
+    """
+    if tone is None or tone.colour is None or frame.shape[0] != 3:
+        return None
+    clean = frame.to(torch.float32).cpu()
+    if not frame.dtype.is_floating_point:
+        clean = clean / (255.0 if frame.dtype == torch.uint8 else 65535.0)
+    darkened = darkening.alpha * clean.clamp(min=0.0) ** (1.0 / darkening.gamma)
+    own = colour_cast(darkened)
+    if own is None or min(own) <= 0.0:
+        return None
+    gains = [target / have for target, have in zip(tone.colour, own, strict=True)]
+    factors = [gain**darkening.gamma for gain in gains]
+    largest = max(factors)
+    scale = (factors[0] / largest, factors[1] / largest, factors[2] / largest)
+    adjusted = Darkening(alpha=min(1.0, darkening.alpha * largest ** (1.0 / darkening.gamma)), gamma=darkening.gamma)
+    return scale, adjusted

@@ -7,14 +7,16 @@
            "compression": c},                  the last four optional (neutral when absent)
  "darkening": {"alpha": a, "gamma": g},        optional
  "ranges": {"shot": [lo, hi], "alpha": [lo, hi], ...},   optional: sample per image or clip within these
- "tone": {"quantiles": [q1, ..., q49], "noise": n},   optional: the reference's exposure, matched per input
+ "tone": {"quantiles": [q1, ..., q49], "noise": n, "colour": [r, g, b]},   optional: the reference's exposure
+                                                      (and colour cast), matched per input
+ "light": {"exposure_fraction": s, "flicker": f, ...},   optional (version 5): motion blur, shake, flicker
  "meta": {...}}                                optional: free-form provenance, carried but not read
 ```
 
-The fields of ``noise`` come from the parameter table (:func:`darksynth.noise.components.noise_parameters`):
-the schema (:func:`profile_schema`, a pydantic model) is built from it, each field declaring its bounds, unit
-and the profile version it arrived in; nothing here names a component, so a new one needs no change in this
-module. Values are on the [0, 1] intensity scale.
+The fields of ``noise`` and ``light`` come from the parameter table
+(:func:`darksynth.noise.components.noise_parameters`): the schema (:func:`profile_schema`, a pydantic model) is
+built from it, each field declaring its bounds, unit and the profile version it arrived in; nothing here names a
+component, so a new one needs no change in this module. Values are on the [0, 1] intensity scale.
 
 Versions: a parameter that arrived in version 1 (the paper's) is required; one that arrived later (the sRGB
 model's, version 2) is optional and neutral when absent, and refused in a document of an older version, so a
@@ -211,8 +213,8 @@ def _darkening(raw: Any) -> Darkening | None:
 def _tone(raw: Any) -> ToneTarget | None:
     if raw is None:
         return None
-    if not isinstance(raw, dict) or set(raw) != {"quantiles", "noise"}:
-        raise _fail(f"tone must be an object with quantiles and noise, got {raw!r}")
+    if not isinstance(raw, dict) or not {"quantiles", "noise"} <= set(raw) <= {"quantiles", "noise", "colour"}:
+        raise _fail(f"tone must be an object with quantiles, noise and optionally colour, got {raw!r}")
     quantiles, noise = raw["quantiles"], raw["noise"]
     if (
         not isinstance(quantiles, list)
@@ -223,7 +225,15 @@ def _tone(raw: Any) -> ToneTarget | None:
         raise _fail(f"tone.quantiles must be {TONE_QUANTILE_COUNT} non-decreasing numbers in [0, 1], got {quantiles!r}")
     if isinstance(noise, bool) or not isinstance(noise, int | float) or not 0.0 <= noise < 1.0:
         raise _fail(f"tone.noise must be a number in [0, 1), got {noise!r}")
-    return ToneTarget(quantiles=tuple(float(q) for q in quantiles), noise=float(noise))
+    colour = raw.get("colour")
+    if colour is not None and (
+        not isinstance(colour, list)
+        or len(colour) != 3
+        or not all(isinstance(c, int | float) and not isinstance(c, bool) and 0.0 <= c <= 3.0 for c in colour)
+    ):
+        raise _fail(f"tone.colour must be 3 numbers in [0, 3] (red, green, blue shares of the light), got {colour!r}")
+    cast = None if colour is None else (float(colour[0]), float(colour[1]), float(colour[2]))
+    return ToneTarget(quantiles=tuple(float(q) for q in quantiles), noise=float(noise), colour=cast)
 
 
 def _version(raw: Any) -> int:
@@ -404,6 +414,8 @@ def profile_to_dict(profile: Profile) -> dict[str, Any]:
         }
     if profile.tone is not None:
         document["tone"] = {"quantiles": list(profile.tone.quantiles), "noise": profile.tone.noise}
+        if profile.tone.colour is not None:
+            document["tone"]["colour"] = list(profile.tone.colour)
     if profile.meta:
         document["meta"] = dict(profile.meta)
     return document

@@ -20,7 +20,7 @@ import numpy as np
 import torch
 
 from darksynth.darkening import ALPHA_RANGE, GAMMA_RANGE, Darkening, darken
-from darksynth.exposure import matched_darkening
+from darksynth.exposure import ColourScale, matched_darkening
 from darksynth.io.arrays import clips_from_numpy, clips_to_numpy
 from darksynth.light.flicker import FlickerGains
 from darksynth.light.shutter import ShutterStage
@@ -53,7 +53,7 @@ from darksynth.noise.spectral_8bit import SPECTRAL_PATH, SpectralPixelPass, leve
 from darksynth.noise.spectral_kernel import SpectralKernelStream, compiled_spectral_kernels
 from darksynth.noise.values import NoiseValues
 from darksynth.profile import Profile
-from darksynth.tensors import CLIP_DIMS, eight_bit_levels, full_scale, to_dtype
+from darksynth.tensors import CLIP_DIMS, eight_bit_levels, full_scale, scale_channels, to_dtype
 
 logger = logging.getLogger(__name__)
 
@@ -64,15 +64,19 @@ ranges. A :class:`Darkening`: exactly that. None: no darkening (the input alread
 
 @dataclass(frozen=True)
 class ClipParameters:
-    """The parameters drawn for one clip (or one image): noise values and, if any, the darkening."""
+    """The parameters drawn for one clip (or one image): noise values, the darkening, if any, and the channel factors
+    that give it the reference's colour cast (:func:`darksynth.exposure.matched_colour`)."""
 
     noise: NoiseValues
     darkening: Darkening | None
+    colour_scale: ColourScale | None = None
 
     def to_json(self) -> dict[str, Any]:
-        """JSON-ready record for manifests: the noise and light values as a profile writes them, and the darkening."""
+        """JSON-ready record for manifests: the noise and light values as a profile writes them, the darkening and
+        (when matched) the colour scale."""
         darkening = None if self.darkening is None else {"alpha": self.darkening.alpha, "gamma": self.darkening.gamma}
-        return {"noise": self.noise.to_json("noise"), "light": self.noise.to_json("light"), "darkening": darkening}
+        record = {"noise": self.noise.to_json("noise"), "light": self.noise.to_json("light"), "darkening": darkening}
+        return record if self.colour_scale is None else record | {"colour_scale": list(self.colour_scale)}
 
 
 def draw_clip_parameters(
@@ -180,10 +184,8 @@ class ClipSynthesizer:
         # Light (darksynth.light): the shutter (motion blur, shake), the frame's darkening times its flicker gain.
         self._darkening = parameters.darkening
         self._flicker = FlickerGains(self._values.scalar("flicker"), self._values.scalar("flicker_correlation"))
-        scalar = self._values.scalar
-        self._shutter = ShutterStage(
-            scalar("exposure_fraction"), scalar("shake_length"), scalar("shake_angle"), self.device
-        )
+        fraction, length, angle = (self._values.scalar(n) for n in ("exposure_fraction", "shake_length", "shake_angle"))
+        self._shutter = ShutterStage(fraction, length, angle, self.device)
 
     def push(self, frame: torch.Tensor) -> list[torch.Tensor]:
         """The next frame (C, H, W) of a clip in, the low-light frames finished so far out, in order. With motion
@@ -204,11 +206,10 @@ class ClipSynthesizer:
         base = self.parameters.darkening or Darkening(alpha=1.0, gamma=1.0)
         self._darkening = Darkening(alpha=base.alpha * gain, gamma=base.gamma)
         self._scalars = None
-        for stage in (self._spectral_pass, self._spectral_stream):
-            if stage is not None:
-                channels = stage.signal_table.shape[0]
-                curve = self._values["level_curve"]
-                stage.signal_table, stage.std_table = level_tables(channels, self._darkening, curve, device=self.device)
+        curve = self._values["level_curve"]
+        for stage in (stage for stage in (self._spectral_pass, self._spectral_stream) if stage is not None):
+            channels = len(stage.signal_table)
+            stage.signal_table, stage.std_table = level_tables(channels, self._darkening, curve, device=self.device)
 
     def __call__(self, frame: torch.Tensor) -> torch.Tensor:
         """Low-light version of one frame (C, H, W) of a clip whose light stage is done (as :meth:`push` gives
@@ -223,6 +224,8 @@ class ClipSynthesizer:
             self._restart_for_new_size(frame.shape)
         self._frame_shape = frame.shape
         self._frames_done += 1
+        if self.parameters.colour_scale is not None:
+            frame = scale_channels(frame, self.parameters.colour_scale)
         if flicker and self._flicker.active:
             # The gain is drawn before the frame's noise, from the same generator.
             self._set_gain(self._flicker.next(self.generator))

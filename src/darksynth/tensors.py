@@ -74,3 +74,13 @@ def eight_bit_levels(frame: torch.Tensor) -> torch.Tensor | None:
         if not torch.equal(levels / 255.0, part):
             return None
     return levels.to(torch.uint8)
+
+
+def scale_channels(frame: torch.Tensor, factors: tuple[float, ...]) -> torch.Tensor:
+    """A frame (C, H, W) with each channel times its factor, in its own dtype (integers rounded and clipped)."""
+    scale = torch.tensor(factors, dtype=torch.float32, device=frame.device)[:, None, None]
+    scaled = frame.to(torch.float32) * scale
+    top = full_scale(frame.dtype)
+    if top is None:
+        return scaled.to(frame.dtype)
+    return to_dtype(scaled.clamp_(0.0, top) / top, frame.dtype)

@@ -105,6 +105,26 @@ class ToneTarget:
 
     quantiles: tuple[float, ...]
     noise: float
+    colour: tuple[float, float, float] | None = None
+    """The reference's colour cast (:func:`colour_cast`), or None (grey, or a profile written before it)."""
+
+
+def colour_cast(frames: torch.Tensor, *, block: int = BLOCK) -> tuple[float, float, float] | None:
+    """The colour cast of frames (..., 3, H, W): each channel's share of the light, as the sum of its block medians
+    over the mean of the three channels' sums (1, 1, 1 for grey; a sodium-lit street is about 1.4, 0.9, 0.6).
+
+    Block medians, as for the tones, so that noise (symmetric about the level) does not move the cast; sums, so
+    that the bright blocks, where the cast is seen, weigh most. None for grey input or frames without light.
+    """
+    if frames.dim() < 3 or frames.shape[-3] != 3:
+        return None
+    medians = block_medians(frames.to(torch.float32), block)
+    sums = medians.movedim(-3, 0).reshape(3, -1).sum(dim=1).double()
+    mean = float(sums.mean())
+    if mean <= 0.0:
+        return None
+    red, green, blue = (float(v) / mean for v in sums)
+    return (red, green, blue)
 
 
 @dataclass(frozen=True)

@@ -24,8 +24,8 @@ def test_fingerprint_is_the_state_earlier_runs_recorded(options: ConvertOptions)
     """Outputs written before the options became one object must still resume: the same keys, the same values.
 
     The keys added since are pix_fmt (the default pixel format of H.264 went from 4:4:4 to 4:2:0 with it, so a
-    conversion begun before must not resume: its videos and the new ones would differ), and blur and flicker, which
-    an earlier state without them reads at their default (on), as before them."""
+    conversion begun before must not resume: its videos and the new ones would differ), and blur, flicker and
+    match_colour, which an earlier state without them reads at their defaults, as before them."""
     assert options.fingerprint() == {
         "dataset": str(options.dataset),
         "format": "coco",
@@ -39,6 +39,7 @@ def test_fingerprint_is_the_state_earlier_runs_recorded(options: ConvertOptions)
         "device": "cpu",
         "blur": True,
         "flicker": True,
+        "match_colour": False,
     }
 
 

@@ -14,6 +14,7 @@ from darksynth.cli.common import (
     BLUR_HELP,
     FLICKER_HELP,
     JITTER_HELP,
+    MATCH_COLOUR_HELP,
     QUIET_HELP,
     checked_choice,
     console,
@@ -79,6 +80,9 @@ def apply_command(
     flicker: Annotated[bool, typer.Option("--flicker/--no-flicker", help=FLICKER_HELP)] = default_of(
         ApplyOptions, "flicker"
     ),
+    match_colour: Annotated[bool, typer.Option("--match-colour", help=MATCH_COLOUR_HELP)] = default_of(
+        ApplyOptions, "match_colour"
+    ),
     compile_kernel: Annotated[
         bool | None, typer.Option("--compile/--no-compile", help="Fuse the 8-bit kernel (default: for long clips).")
     ] = default_of(ApplyOptions, "compile"),
@@ -99,6 +103,7 @@ def apply_command(
             device=device,
             blur=blur,
             flicker=flicker,
+            match_colour=match_colour,
             compile=compile_kernel,
             profile_source=str(profile),
         )
@@ -157,6 +162,9 @@ def convert_command(
     flicker: Annotated[bool, typer.Option("--flicker/--no-flicker", help=FLICKER_HELP)] = default_of(
         ConvertOptions, "flicker"
     ),
+    match_colour: Annotated[bool, typer.Option("--match-colour", help=MATCH_COLOUR_HELP)] = default_of(
+        ConvertOptions, "match_colour"
+    ),
     use_ray: Annotated[
         bool,
         typer.Option(
@@ -187,6 +195,7 @@ def convert_command(
             device=device,
             blur=blur,
             flicker=flicker,
+            match_colour=match_colour,
         )
         if use_ray:
             from darksynth.datasets.ray_convert import convert_dataset_with_ray
@@ -247,6 +256,9 @@ def preview_command(
     blur: Annotated[bool, typer.Option("--blur/--no-blur", help=BLUR_HELP)] = default_of(ApplyOptions, "blur"),
     flicker: Annotated[bool, typer.Option("--flicker/--no-flicker", help=FLICKER_HELP)] = default_of(
         ApplyOptions, "flicker"
+    ),
+    match_colour: Annotated[bool, typer.Option("--match-colour", help=MATCH_COLOUR_HELP)] = default_of(
+        ApplyOptions, "match_colour"
     ),
 ) -> None:
     from darksynth.preview import PreviewOptions, parse_panel_size, run_preview

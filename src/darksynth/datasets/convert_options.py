@@ -74,7 +74,7 @@ class ConvertOptions:
         shard: the part of the dataset this run handles, or None for all of it.
         images_root: COCO: the folder ``file_name`` entries are relative to (tried first).
         overwrite: start over in an output written with other options.
-        codec, crf, pix_fmt, device, blur, flicker: as for ``apply``.
+        codec, crf, pix_fmt, device, blur, flicker, match_colour: as for ``apply``.
     """
 
     dataset: Path
@@ -93,6 +93,7 @@ class ConvertOptions:
     device: str = "cpu"
     blur: bool = True
     flicker: bool = True
+    match_colour: bool = False
 
     def checked(self) -> ConvertOptions:
         """These options with absolute paths, once checked.
@@ -120,6 +121,7 @@ class ConvertOptions:
             device=self.device,
             blur=self.blur,
             flicker=self.flicker,
+            match_colour=self.match_colour,
         )
 
     def fingerprint(self, *, has_videos: bool = True) -> dict[str, Any]:

@@ -49,6 +49,7 @@ from darksynth.tones import (
     PROBABILITIES,
     DarkeningEstimate,
     ToneTarget,
+    colour_cast,
     estimate_darkening_pooled_and_per_frame,
     estimate_darkening_spread,
 )
@@ -444,4 +445,5 @@ def _estimate_darkening(
                 low, high = np.percentile(values, [10, 90])
                 ranges[name] = ((min(float(low), point), max(float(high), point)),)
             meta["darkening"]["ranges"] = "10th-90th percentile over frames"
-    return found.darkening, ToneTarget(quantiles=found.tone_quantiles, noise=found.block_noise)
+    colour = colour_cast(frames)
+    return found.darkening, ToneTarget(quantiles=found.tone_quantiles, noise=found.block_noise, colour=colour)
