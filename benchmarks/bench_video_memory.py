@@ -42,7 +42,7 @@ from typing import Any
 import av
 import numpy as np
 
-from machine import cpu_summary
+from machine import cpu_summary, opencv_summary
 
 REPO = Path(__file__).resolve().parents[1]
 PROFILE = REPO / "src" / "darksynth" / "data" / "default_profile.json"
@@ -451,6 +451,7 @@ def profile_stages(
 
 def main() -> None:
     print(cpu_summary(), flush=True)
+    print(opencv_summary(), flush=True)  # the motion blur's remaps and flow run in OpenCV
     parser = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     parser.add_argument("--seconds", type=float, default=120.0, help="length of the long video")
     parser.add_argument("--short-seconds", type=float, default=10.0, help="length of the short video")
@@ -525,6 +526,7 @@ def main() -> None:
 
         if args.profile_stages:
             print(cpu_summary(), flush=True)
+            print(opencv_summary(), flush=True)
             profile_stages(
                 sources["short"],
                 workdir / f"out_stages{suffix}",
