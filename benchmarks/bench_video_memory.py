@@ -435,8 +435,9 @@ def profile_stages(
         frames_timed = max(1, len(timing.per_frame))
         blur_mean = sum(timing.per_frame) / frames_timed
         print(
-            f"  {label}: blur / encode = {blur_mean / encode_mean:.2f} per frame (means; the encoder's per-call median "
-            f"({_median_ms(timing.per_frame) / medians['encode']:.2f}) leaves out its threads' and look-ahead's work); "
+            f"  {label}: blur / encode = {blur_mean / encode_mean:.2f} per frame (means; on medians "
+            f"{_median_ms(timing.per_frame) / medians['encode']:.2f}, but the encoder's per-call median leaves out "
+            "the work its threads and look-ahead do between calls); "
             f"pairs without blur (cuts or failed flow): {timing.cuts}"
         )
         for part, seconds in timing.parts.items():
