@@ -1,7 +1,7 @@
 """Peak memory and throughput of ``darksynth apply`` streaming a long 1080p video, against a short one.
 
 Run: ``.venv/bin/python benchmarks/bench_video_memory.py [--seconds 120] [--short-seconds 10] [--fps 30]
-[--width 1920 --height 1080] [--codec C] [--workdir DIR] [--profile-stages N]``.
+[--width 1920 --height 1080] [--codec C] [--workdir DIR] [--profile-stages N] [--blur]``.
 
 A synthetic clean source video (a few distinct frames of a moving gradient and pattern, cycled) is encoded
 cheaply (libx264 ultrafast, yuv420p, CRF 23) in this process and timed on its own. ``darksynth apply`` then runs
@@ -12,7 +12,15 @@ the long run is no larger than that of the short one, memory does not grow with 
 ``--profile-stages N`` the time per frame of decoding, synthesis and encoding is measured in this process on N
 frames, after the children have finished.
 
-The last line is ``video_seconds=<n> frames=<n> apply_s=<t> fps=<f> peak_rss_mib=<m> peak_rss_short_mib=<m2>``.
+With ``--blur`` the profile gets a light section (:data:`LIGHT`: exposure fraction 1.0, flicker), written to the
+working folder, so ``apply`` blurs every frame along the scene's optical flow before its noise (the warm-up runs
+with ``--no-blur --no-flicker``: it only fills the compile cache). The stages then also time
+``MotionBlurStream(1.0).push`` frame by frame on the same frames (the whole picture moves: the worst case for the
+blur) and on two sources where only the middle third of the rows, or of the columns, moves, each with a breakdown
+(flow, remaps, the rest), and print the ratio of blur to encode per frame.
+
+The last line is ``video_seconds=<n> frames=<n> apply_s=<t> fps=<f> peak_rss_mib=<m> peak_rss_short_mib=<m2>``,
+followed by `` blur=1`` with ``--blur``.
 """
 
 from __future__ import annotations
@@ -29,11 +37,12 @@ import time
 from dataclasses import dataclass, field
 from fractions import Fraction
 from pathlib import Path
+from typing import Any
 
 import av
 import numpy as np
 
-from machine import cpu_summary
+from machine import cpu_summary, opencv_summary
 
 REPO = Path(__file__).resolve().parents[1]
 PROFILE = REPO / "src" / "darksynth" / "data" / "default_profile.json"
@@ -45,18 +54,46 @@ WARMUP_SECONDS = 3.0
 MIB = 1024.0
 
 
-def source_frames(width: int, height: int, count: int) -> list[av.VideoFrame]:
-    """``count`` distinct yuv420p frames: a diagonal colour gradient that scrolls, with a moving sine pattern."""
+LIGHT = {"exposure_fraction": 1.0, "flicker": 0.03, "flicker_correlation": 0.6}
+"""The light section of ``--blur``: a shutter open for the whole frame interval (the longest blur) and flicker."""
+
+
+def blur_profile(path: Path) -> dict[str, Any]:
+    """The profile document at ``path`` with :data:`LIGHT` as its light section (profile version 5 at least)."""
+    document: dict[str, Any] = json.loads(path.read_text())
+    document["version"] = max(5, int(document.get("version", 1)))
+    document["light"] = document.get("light", {}) | LIGHT
+    return document
+
+
+def source_frames(width: int, height: int, count: int, moving: str = "all") -> list[av.VideoFrame]:
+    """``count`` distinct yuv420p frames: a diagonal colour gradient that scrolls, with a moving sine pattern.
+
+    ``moving``: "all" (the whole frame moves, the worst case for motion blur), "rows" (only the middle third of
+    the rows moves, the rest is the first frame, still) or "columns" (only the middle third of the columns)."""
     y = np.arange(height, dtype=np.float32)[:, None]
     x = np.arange(width, dtype=np.float32)[None, :]
-    frames = []
-    for index in range(count):
-        phase = index / count
+
+    def picture(phase: float) -> np.ndarray:
         shift = phase * width
         r = 255 * ((x + shift) % width) / width + 0 * y
         g = 255 * (y / height) + 0 * x
         b = 127.5 + 127.5 * np.sin(2 * np.pi * ((x + y) / 160 + phase)) * np.cos(2 * np.pi * (y / 90 - phase))
-        rgb = np.clip(np.stack([r, g, b], axis=-1), 0, 255).astype(np.uint8)
+        return np.clip(np.stack([r, g, b], axis=-1), 0, 255).astype(np.uint8)
+
+    still = picture(0.0) if moving != "all" else None
+    frames = []
+    for index in range(count):
+        rgb = picture(index / count)
+        if still is not None:
+            region = rgb.copy()
+            rgb = still.copy()
+            if moving == "rows":
+                rgb[height // 3 : 2 * height // 3] = region[height // 3 : 2 * height // 3]
+            elif moving == "columns":
+                rgb[:, width // 3 : 2 * width // 3] = region[:, width // 3 : 2 * width // 3]
+            else:
+                raise ValueError(f"unknown moving region {moving!r}")
         frames.append(av.VideoFrame.from_ndarray(rgb, format="rgb24").reformat(format="yuv420p"))
     return frames
 
@@ -123,7 +160,9 @@ class ChildRun:
     stderr_tail: str = ""
 
 
-def run_apply(source: Path, output: Path, codec: str | None, profile: Path = PROFILE) -> ChildRun:
+def run_apply(
+    source: Path, output: Path, codec: str | None, profile: Path = PROFILE, extra: tuple[str, ...] = ()
+) -> ChildRun:
     """Run ``darksynth apply`` on one video in a child process and measure it.
 
     Peak memory: the child is reaped with ``os.wait4``, whose rusage belongs to that child alone (its ru_maxrss is
@@ -137,6 +176,7 @@ def run_apply(source: Path, output: Path, codec: str | None, profile: Path = PRO
     command += ["--profile", str(profile), "--seed", "0"]
     if codec:
         command += ["--codec", codec]
+    command += list(extra)
     run = ChildRun()
     with tempfile.TemporaryFile(mode="w+") as stderr:
         started = time.perf_counter()
@@ -198,8 +238,120 @@ def report(label: str, run: ChildRun) -> None:
     print(f"  apply: {run.stderr_tail}")
 
 
-def profile_stages(source: Path, output: Path, frames: int, codec: str | None, profile: Path = PROFILE) -> None:
-    """Time decoding, synthesis (compiled, warmed up) and encoding separately on ``frames`` frames, in process."""
+class _TimedCv2:
+    """Stands in for the ``cv2`` module inside ``darksynth.light.motion_blur`` while the blur is profiled: the
+    calls named in ``timed`` add their wall time to ``seconds``; everything else is OpenCV's own."""
+
+    def __init__(self, real: Any, timed: tuple[str, ...]) -> None:
+        self._real, self._timed = real, timed
+        self.seconds: dict[str, float] = dict.fromkeys(timed, 0.0)
+
+    def __getattr__(self, name: str) -> Any:
+        attribute = getattr(self._real, name)
+        if name not in self._timed:
+            return attribute
+
+        def timed(*args: Any, **kwargs: Any) -> Any:
+            started = time.perf_counter()
+            try:
+                return attribute(*args, **kwargs)
+            finally:
+                self.seconds[name] += time.perf_counter() - started
+
+        return timed
+
+
+@dataclass
+class BlurTiming:
+    """Per finished frame of ``MotionBlurStream(1.0).push``, in seconds, and where the time went (summed)."""
+
+    per_frame: list[float] = field(default_factory=list)
+    parts: dict[str, float] = field(default_factory=dict)
+    cuts: int = 0
+
+
+def time_blur(frames: list[np.ndarray], exposure_fraction: float = 1.0) -> BlurTiming:
+    """``MotionBlurStream(exposure_fraction).push`` timed frame by frame (the first push only holds its frame and
+    is left out), with a breakdown of the same calls: the flow (grey images, scene-cut test, two DIS flows, their
+    checks and the resize to full resolution) timed as ``push`` runs it, and inside ``blur_frame`` the OpenCV
+    remaps (the doubling's resamplings), the other OpenCV calls, and the rest (numpy: velocity, the sRGB encode,
+    blending, copies)."""
+    from darksynth.light import motion_blur
+
+    timing = BlurTiming()
+    stream = motion_blur.MotionBlurStream(exposure_fraction)
+    real_cv2 = motion_blur.cv2
+    proxy = _TimedCv2(real_cv2, ("remap", "scaleAdd", "addWeighted", "LUT", "magnitude", "resize", "cvtColor"))
+    wrapped = {
+        name: getattr(motion_blur, name)
+        for name in ("flow_image", "is_scene_cut", "dense_flow", "flow_holds", "full_resolution", "blur_frame")
+    }
+    spent = dict.fromkeys(wrapped, 0.0)
+    in_blur = dict.fromkeys(proxy.seconds, 0.0)  # OpenCV time inside blur_frame only (flow_holds remaps too)
+
+    def timer(name: str, function: Any) -> Any:
+        def timed(*args: Any, **kwargs: Any) -> Any:
+            before = dict(proxy.seconds)
+            started = time.perf_counter()
+            try:
+                return function(*args, **kwargs)
+            finally:
+                spent[name] += time.perf_counter() - started
+                if name == "blur_frame":
+                    for call, seconds in proxy.seconds.items():
+                        in_blur[call] += seconds - before[call]
+
+        return timed
+
+    try:
+        motion_blur.cv2 = proxy  # type: ignore[attr-defined]
+        for name, function in wrapped.items():
+            setattr(motion_blur, name, timer(name, function))
+        for index, frame in enumerate(frames):
+            started = time.perf_counter()
+            stream.push(frame)
+            if index:
+                timing.per_frame.append(time.perf_counter() - started)
+        started = time.perf_counter()
+        stream.finish()  # the last frame, blurred with its flow to the previous one alone
+        timing.per_frame.append(time.perf_counter() - started)
+    finally:
+        motion_blur.cv2 = real_cv2  # type: ignore[attr-defined]
+        for name, function in wrapped.items():
+            setattr(motion_blur, name, function)
+    flow = sum(spent[name] for name in ("flow_image", "is_scene_cut", "dense_flow", "flow_holds", "full_resolution"))
+    timing.parts = {
+        "flow (grey, cut test, 2x DIS, checks, upscale)": flow,
+        "  of which DIS": spent["dense_flow"],
+        "blur_frame": spent["blur_frame"],
+        "  of which remap": in_blur["remap"],
+        "  of which scaleAdd + addWeighted": in_blur["scaleAdd"] + in_blur["addWeighted"],
+        "  of which LUT (sRGB decode) + magnitude": in_blur["LUT"] + in_blur["magnitude"],
+    }
+    timing.parts["  of which the rest (numpy: velocity, sRGB encode, blend, copies)"] = spent["blur_frame"] - sum(
+        in_blur[name] for name in ("remap", "scaleAdd", "addWeighted", "LUT", "magnitude")
+    )
+    timing.cuts = stream.cuts
+    return timing
+
+
+def _median_ms(values: list[float]) -> float:
+    return float(np.median(values)) * 1e3 if values else float("nan")
+
+
+def profile_stages(
+    source: Path,
+    output: Path,
+    frames: int,
+    codec: str | None,
+    profile: Path = PROFILE,
+    *,
+    blur: bool = False,
+    width: int = 1920,
+    height: int = 1080,
+) -> dict[str, float]:
+    """Time decoding, motion blur (with ``blur``), synthesis (compiled, warmed up) and encoding separately on
+    ``frames`` frames, in process, frame by frame. Returns the per-frame medians in ms."""
     import torch
 
     from darksynth.io.video import VideoWriter, iter_video_frames, probe_video
@@ -207,13 +359,30 @@ def profile_stages(source: Path, output: Path, frames: int, codec: str | None, p
     from darksynth.synthesize import ClipSynthesizer, draw_clip_parameters
 
     info = probe_video(source)
+    decoded: list[np.ndarray] = []
+    decode_times: list[float] = []
+    iterator = iter_video_frames(source)
     started = time.perf_counter()
-    decoded = []
-    for frame in iter_video_frames(source):
+    total_started = started
+    for frame in iterator:
+        decode_times.append(time.perf_counter() - started)
         decoded.append(frame)
         if len(decoded) == frames:
             break
-    decode_s = time.perf_counter() - started
+        started = time.perf_counter()
+    decode_s = time.perf_counter() - total_started
+
+    blurs: dict[str, BlurTiming] = {}
+    if blur:
+        blurs["blur, whole frame moves"] = time_blur(decoded)
+        for moving, label in (
+            ("rows", "blur, middle third of rows moves"),
+            ("columns", "blur, middle third of columns moves"),
+        ):
+            partial = [
+                f.to_ndarray(format="rgb24") for f in source_frames(width, height, DISTINCT_FRAMES, moving=moving)
+            ]
+            blurs[label] = time_blur([partial[index % len(partial)] for index in range(len(decoded))])
 
     generator = torch.Generator().manual_seed(0)
     parameters = draw_clip_parameters(load_profile(profile), darkening="profile", generator=generator)
@@ -223,34 +392,67 @@ def profile_stages(source: Path, output: Path, frames: int, codec: str | None, p
     first_call_s = time.perf_counter() - started
     for frame in decoded[:3]:
         synthesizer(torch.from_numpy(frame).permute(2, 0, 1))
-    started = time.perf_counter()
     results = []
+    noise_times: list[float] = []
     for frame in decoded:
+        started = time.perf_counter()
         result = synthesizer(torch.from_numpy(frame).permute(2, 0, 1))
         results.append(np.ascontiguousarray(result.permute(1, 2, 0).numpy()))
-    synthesize_s = time.perf_counter() - started
+        noise_times.append(time.perf_counter() - started)
+    synthesize_s = sum(noise_times)
 
     writer_options: dict[str, object] = {"width": info.width, "height": info.height, "fps": info.fps}
     if codec:
         writer_options["codec"] = codec
-    started = time.perf_counter()
+    encode_times: list[float] = []
+    total_started = time.perf_counter()
     with VideoWriter(output, **writer_options) as writer:  # type: ignore[arg-type]
         for result in results:
+            started = time.perf_counter()
             writer.write(result)
-    encode_s = time.perf_counter() - started  # includes flushing the encoder's look-ahead at the end
+            encode_times.append(time.perf_counter() - started)
+    encode_s = time.perf_counter() - total_started  # includes flushing the encoder's look-ahead at the end
 
-    total = decode_s + synthesize_s + encode_s
-    print(f"stages on {len(decoded)} frames, in process (compiled kernel, first call {first_call_s:.1f} s, excluded):")
-    for name, seconds in (("decode", decode_s), ("synthesize", synthesize_s), ("encode", encode_s)):
+    count = len(decoded)
+    rows = [("decode", decode_times, decode_s)]
+    rows += [(label, timing.per_frame, sum(timing.per_frame)) for label, timing in blurs.items()]
+    rows += [("noise (compiled)", noise_times, synthesize_s), ("encode", encode_times, encode_s)]
+    print(
+        f"stages on {count} frames, in process, one after another (compiled kernel, first call {first_call_s:.1f} s, "
+        "excluded); per frame: median of the calls, and mean = total / frames (encode: with the final flush)"
+    )
+    total = decode_s + synthesize_s + encode_s + (sum(blurs[next(iter(blurs))].per_frame) if blurs else 0.0)
+    for name, times, seconds in rows:
+        mean = seconds / max(1, len(times))
         print(
-            f"  {name:<10} {seconds / len(decoded) * 1e3:7.1f} ms/frame  {seconds / total:4.0%}  "
-            f"({len(decoded) / seconds:.1f} fps alone)"
+            f"  {name:<36} median {_median_ms(times):7.1f} ms  mean {mean * 1e3:7.1f} ms  "
+            f"({1 / mean if mean else float('inf'):.1f} fps alone)"
         )
-    print(f"  sum        {total / len(decoded) * 1e3:7.1f} ms/frame  -> {len(decoded) / total:.2f} fps")
+    print(f"  sum of means (whole-frame blur)      {total / count * 1e3:7.1f} ms/frame  -> {count / total:.2f} fps")
+    medians = {"decode": _median_ms(decode_times), "noise": _median_ms(noise_times), "encode": _median_ms(encode_times)}
+    encode_mean = encode_s / count
+    for label, timing in blurs.items():
+        frames_timed = max(1, len(timing.per_frame))
+        blur_mean = sum(timing.per_frame) / frames_timed
+        print(
+            f"  {label}: blur / encode = {blur_mean / encode_mean:.2f} per frame (means; on medians "
+            f"{_median_ms(timing.per_frame) / medians['encode']:.2f}, but the encoder's per-call median leaves out "
+            "the work its threads and look-ahead do between calls); "
+            f"pairs without blur (cuts or failed flow): {timing.cuts}"
+        )
+        for part, seconds in timing.parts.items():
+            print(f"      {part:<44} {seconds / frames_timed * 1e3:7.1f} ms/frame")
+    key = {"blur, whole frame moves": "blur_full", "blur, middle third of rows moves": "blur_rows"}
+    key["blur, middle third of columns moves"] = "blur_columns"
+    for label, timing in blurs.items():
+        medians[key[label]] = _median_ms(timing.per_frame)
+    medians["encode_mean"] = encode_mean * 1e3
+    return medians
 
 
 def main() -> None:
     print(cpu_summary(), flush=True)
+    print(opencv_summary(), flush=True)  # the motion blur's remaps and flow run in OpenCV
     parser = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     parser.add_argument("--seconds", type=float, default=120.0, help="length of the long video")
     parser.add_argument("--short-seconds", type=float, default=10.0, help="length of the short video")
@@ -266,6 +468,12 @@ def main() -> None:
         default=PROFILE,
         help="noise profile (default: the shipped paper-model default; an estimate'd profile takes the sRGB path)",
     )
+    parser.add_argument(
+        "--blur",
+        action="store_true",
+        help="apply with motion blur (exposure_fraction 1.0) and flicker: the profile plus a light section, "
+        "written to the workdir; the stages then include MotionBlurStream(1.0).push",
+    )
     args = parser.parse_args()
 
     import torch  # only to report the thread count the children get by default (they run the same torch)
@@ -273,7 +481,12 @@ def main() -> None:
     workdir = args.workdir or Path(tempfile.mkdtemp(prefix="darksynth-bench-video-"))
     workdir.mkdir(parents=True, exist_ok=True)
     suffix = ".mkv" if args.codec == "ffv1" else ".mp4"
+    profile = args.profile
     try:
+        if args.blur:
+            profile = workdir / "profile_blur.json"
+            profile.write_text(json.dumps(blur_profile(args.profile), indent=2))
+            print(f"profile with motion blur and flicker: {profile} (light: {json.dumps(LIGHT)})")
         commit = subprocess.run(
             ["git", "-C", str(REPO), "describe", "--always", "--dirty"], capture_output=True, text=True, check=False
         ).stdout.strip()
@@ -293,7 +506,9 @@ def main() -> None:
         runs = {}
         for name in ("warmup", "short", "long"):
             output = workdir / f"out_{name}{suffix}"
-            runs[name] = run = run_apply(sources[name], output, args.codec, args.profile)
+            # The warm-up only fills torch.compile's cache: without the blur it takes seconds, not minutes.
+            extra = ("--no-blur", "--no-flicker") if args.blur and name == "warmup" else ()
+            runs[name] = run = run_apply(sources[name], output, args.codec, profile, extra)
             size = output.stat().st_size / MIB / MIB
             report(f"apply {name}", run)
             print(f"  output {size:.0f} MiB, {size * 8 * 1.048576 / (run.frames / args.fps):.0f} Mbit/s")
@@ -311,14 +526,23 @@ def main() -> None:
         print(f"peak RSS long - short: {growth:+.0f} MiB; under 1 GiB: {long.maxrss_kib < 1024 * 1024}")
 
         if args.profile_stages:
+            print(cpu_summary(), flush=True)
+            print(opencv_summary(), flush=True)
             profile_stages(
-                sources["short"], workdir / f"out_stages{suffix}", args.profile_stages, args.codec, args.profile
+                sources["short"],
+                workdir / f"out_stages{suffix}",
+                args.profile_stages,
+                args.codec,
+                profile,
+                blur=args.blur,
+                width=args.width,
+                height=args.height,
             )
 
         print(
             f"video_seconds={args.seconds:g} frames={long.frames} apply_s={long.seconds:.1f} "
             f"fps={long.frames / long.seconds:.2f} peak_rss_mib={long.maxrss_kib / MIB:.0f} "
-            f"peak_rss_short_mib={short.maxrss_kib / MIB:.0f}"
+            f"peak_rss_short_mib={short.maxrss_kib / MIB:.0f}" + (" blur=1" if args.blur else "")
         )
     finally:
         if args.workdir is None:

@@ -54,3 +54,16 @@ def _compiled_target() -> str:
         return f"compiled kernels: {cpu_vec_isa.pick_vec_isa() or 'scalar'}, -march={config.cpp.march or 'native'}"
     except (ImportError, AttributeError):
         return "compiled kernels: unknown"
+
+
+def opencv_summary() -> str:
+    """OpenCV's version and whether its AVX-512 code paths are in use. OpenCV 5 names them AVX512-SKX and
+    AVX512-CLX in ``OPENCV_CPU_DISABLE`` (the underscore names of OpenCV 4 are reported unknown and ignored)."""
+    try:
+        import cv2
+    except ImportError:
+        return "opencv: not installed"
+    # cv::CpuFeatures: CPU_AVX2 = 11, CPU_AVX_512F = 13, CPU_AVX512_SKX = 256, CPU_AVX512_CLX = 261.
+    checks = {"avx2": 11, "avx512-skx": 256, "avx512-clx": 261}
+    used = [name for name, feature in checks.items() if cv2.checkHardwareSupport(feature)]
+    return f"opencv {cv2.__version__} dispatches to: {' '.join(used) or 'baseline only'}"
