@@ -42,9 +42,9 @@ SAMPLE_SPACING = 0.75
 """Largest distance (px) between two points of a path: bilinear resampling at this spacing renders a box of
 any length without visible steps."""
 
-MAX_DOUBLINGS = 6
-"""At most 2^6 = 64 points per path; beyond 48 px of blur the points spread wider, which bilinear interpolation
-smooths."""
+MAX_STEPS = 4
+"""At most 3^4 = 81 points per path (8 resamplings); beyond 60 px of blur the points spread wider, which bilinear
+interpolation smooths."""
 
 FLOW_MAX_WIDTH = 960
 """The flow is computed on frames scaled down to at most this width (half a 1080p frame): DIS at full 1080p costs
@@ -104,8 +104,8 @@ def decode(frame: np.ndarray) -> np.ndarray:
 def encode(linear: np.ndarray, dtype: np.dtype) -> np.ndarray:
     """Linear light back to sRGB values of ``dtype`` (uint8 or uint16 rounded, float as it is)."""
     if dtype == np.uint8:
-        # Linear values stay within [0, 1] (means of values in it), so no clipping is needed before the cast.
-        index = (linear * np.float32(65535.0) + np.float32(0.5)).astype(np.uint16)
+        # Rounded and saturated to 16 bits by OpenCV, on every core.
+        index = cv2.multiply(np.ascontiguousarray(linear, dtype=np.float32), 65535.0, dtype=cv2.CV_16U)
         return _LEVEL_OF_LINEAR[index]
     if dtype == np.uint16:
         return np.round(linear_to_srgb(linear) * 65535.0).astype(np.uint16)
@@ -185,9 +185,11 @@ def blur_frame(
     """One frame integrated over its exposure along its motion.
 
     The frame's velocity is taken constant over its exposure: half the flow to the next frame minus the flow to
-    the previous one (where one is missing, the other alone). The integral over the path, ``2^K`` points evenly
-    spread, is built by doubling: each of K steps averages the running image with itself shifted both ways along
-    the velocity by half the last step's spread, so 2K resamplings make a path of ``2^K`` points (16 points in 8).
+    the previous one (where one is missing, the other alone). The integral over the path, ``3^K`` points evenly
+    spread, is built in K steps, each the mean of the running image and of it shifted both ways along the
+    velocity by a third of the last step's spread: 2K resamplings make ``3^K`` points (27 in 6, 81 in 8).
+    Only rows that move are integrated (runs of bands of :data:`BAND_ROWS` rows, each with a margin as long as
+    its longest path, so the shifted reads stay inside).
 
     Args:
         frame: the clean frame (H, W, C), uint8, uint16 or float in [0, 1], sRGB.
@@ -210,46 +212,70 @@ def blur_frame(
     if linear.ndim == 2:
         linear = linear[..., None]
     out = frame.copy()
-    height, width = frame.shape[:2]
+    height = frame.shape[0]
+    for top, bottom in _moving_runs(lengths):
+        # The path's points are spread for the 99.5th percentile of the lengths: the flow's few outliers (where
+        # content enters the frame) would otherwise set the count of resamplings for the whole run.
+        longest = float(np.percentile(lengths[top:bottom], 99.5))
+        margin = math.ceil(float(lengths[top:bottom].max())) + 2
+        low, high = max(0, top - margin), min(height, bottom + margin)
+        total = _path_mean(linear[low:high], velocity[low:high] * np.float32(exposure_fraction), longest)
+        out[top:bottom] = _blend(
+            frame[top:bottom], linear[top:bottom], total[top - low : bottom - low], lengths[top:bottom]
+        )
+    return out
+
+
+def _moving_runs(lengths: np.ndarray) -> list[tuple[int, int]]:
+    """Runs of consecutive bands of rows whose longest blur reaches :data:`STILL_LENGTH`, as (top, bottom) rows."""
+    height = lengths.shape[0]
+    runs: list[tuple[int, int]] = []
     for top in range(0, height, BAND_ROWS):
         bottom = min(height, top + BAND_ROWS)
-        band_lengths = lengths[top:bottom]
-        longest = float(band_lengths.max())
-        if longest < STILL_LENGTH:
+        if float(lengths[top:bottom].max()) < STILL_LENGTH:
             continue
-        # Spread the band's path over at least longest / SAMPLE_SPACING points (a power of two).
-        steps = min(MAX_DOUBLINGS, max(1, math.ceil(math.log2(max(2.0, longest / SAMPLE_SPACING + 1)))))
-        # Doubling on the band plus a margin as long as its longest path, so the shifted reads stay inside.
-        margin = math.ceil(longest) + 2
-        low, high = max(0, top - margin), min(height, bottom + margin)
-        image = linear[low:high]
-        part_x = np.arange(width, dtype=np.float32)[None, :].repeat(high - low, axis=0)
-        part_y = np.arange(0, high - low, dtype=np.float32)[:, None].repeat(width, axis=1)
-        vx, vy = (
-            velocity[low:high, :, 0] * np.float32(exposure_fraction),
-            velocity[low:high, :, 1] * np.float32(exposure_fraction),
-        )
-        spread = 0.5
-        for _ in range(steps):
-            spread /= 2
-            shifted = [
-                cv2.remap(image, cv2.scaleAdd(vx, sign * spread, part_x), cv2.scaleAdd(vy, sign * spread, part_y),
-                          cv2.INTER_LINEAR, borderMode=cv2.BORDER_REPLICATE)
-                for sign in (-1.0, 1.0)
-            ]  # fmt: skip
-            image = cv2.addWeighted(shifted[0], 0.5, shifted[1], 0.5, 0.0).reshape(image.shape)
-        total = image[top - low : bottom - low]
-        weight = np.clip((band_lengths - STILL_LENGTH) / (FULL_LENGTH - STILL_LENGTH), 0.0, 1.0)
-        if float(weight.min()) < 1.0:
-            # Blend in linear light; fully still pixels keep their exact level.
-            original = linear[top:bottom]
-            total = original + weight[..., None] * (total - original)
-            blurred = encode(total, frame.dtype).reshape(out[top:bottom].shape)
-            blurred = np.where((weight <= 0.0)[..., None], frame[top:bottom], blurred)
+        if runs and runs[-1][1] == top:
+            runs[-1] = (runs[-1][0], bottom)
         else:
-            blurred = encode(total, frame.dtype).reshape(out[top:bottom].shape)
-        out[top:bottom] = blurred
-    return out
+            runs.append((top, bottom))
+    return runs
+
+
+def _path_mean(linear: np.ndarray, path: np.ndarray, longest: float) -> np.ndarray:
+    """The mean of ``linear`` (h, w, C) over each pixel's path, ``path`` (h, w, 2) the path's full extent (s times
+    the velocity), by ternary steps (see :func:`blur_frame`)."""
+    rows, width = linear.shape[:2]
+    steps = 1
+    while 3**steps < longest / SAMPLE_SPACING + 1 and steps < MAX_STEPS:
+        steps += 1
+    # Contiguous grids: OpenCV copies a broadcast view at every call.
+    grid_x = np.tile(np.arange(width, dtype=np.float32), (rows, 1))
+    grid_y = np.tile(np.arange(rows, dtype=np.float32)[:, None], (1, width))
+    path_x, path_y = np.ascontiguousarray(path[..., 0]), np.ascontiguousarray(path[..., 1])
+    image = linear
+    # Step j shifts by 3^(K - j) / 3^K of the path, the coarsest last, so that the finest shifts see the sharp frame.
+    for step in range(steps, 0, -1):
+        spread = 3 ** (steps - step) / 3**steps
+        shifted = [
+            cv2.remap(image, cv2.scaleAdd(path_x, sign * spread, grid_x), cv2.scaleAdd(path_y, sign * spread, grid_y),
+                      cv2.INTER_LINEAR, borderMode=cv2.BORDER_REPLICATE).reshape(image.shape)
+            for sign in (-1.0, 1.0)
+        ]  # fmt: skip
+        # OpenCV's arithmetic runs on every core; numpy's on one.
+        pair = cv2.addWeighted(shifted[0], 1 / 3, shifted[1], 1 / 3, 0.0)
+        image = cv2.addWeighted(image, 1 / 3, pair, 1.0, 0.0).reshape(image.shape)
+    return image
+
+
+def _blend(frame: np.ndarray, linear: np.ndarray, integrated: np.ndarray, lengths: np.ndarray) -> np.ndarray:
+    """The integrated rows blended with the frame's own by blur length (:data:`STILL_LENGTH` to
+    :data:`FULL_LENGTH`), in linear light, encoded; fully still pixels keep their exact value."""
+    weight = np.clip((lengths - STILL_LENGTH) / (FULL_LENGTH - STILL_LENGTH), 0.0, 1.0)
+    if float(weight.min()) >= 1.0:
+        return encode(integrated, frame.dtype).reshape(frame.shape)
+    mixed = encode(linear + weight[..., None] * (integrated - linear), frame.dtype).reshape(frame.shape)
+    still = (weight <= 0.0)[..., None] if frame.ndim == 3 else weight <= 0.0
+    return np.where(still, frame, mixed)
 
 
 def frame_velocity(to_previous: np.ndarray | None, to_next: np.ndarray | None) -> np.ndarray:
