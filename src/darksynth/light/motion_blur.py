@@ -106,7 +106,8 @@ def encode(linear: np.ndarray, dtype: np.dtype) -> np.ndarray:
     if dtype == np.uint8:
         # Rounded and saturated to 16 bits by OpenCV, on every core.
         index = cv2.multiply(np.ascontiguousarray(linear, dtype=np.float32), 65535.0, dtype=cv2.CV_16U)
-        return _LEVEL_OF_LINEAR[index]
+        levels: np.ndarray = _LEVEL_OF_LINEAR[index]
+        return levels
     if dtype == np.uint16:
         return np.round(linear_to_srgb(linear) * 65535.0).astype(np.uint16)
     return linear_to_srgb(linear).astype(dtype)
@@ -203,9 +204,18 @@ def blur_frame(
     """
     if exposure_fraction <= 0 or (to_previous is None and to_next is None):
         return frame
-    velocity = frame_velocity(to_previous, to_next)
-    # The blur length s * |v| per pixel.
-    lengths = cv2.magnitude(velocity[..., 0], velocity[..., 1]) * np.float32(exposure_fraction)
+    return blur_along(frame, exposure_fraction, frame_velocity(to_previous, to_next))
+
+
+def blur_along(frame: np.ndarray, exposure_fraction: float, velocity: np.ndarray) -> np.ndarray:
+    """:func:`blur_frame` with the frame's velocity (H, W, 2) given: px per frame interval, constant over the
+    exposure."""
+    if exposure_fraction <= 0:
+        return frame
+    # The path's extent s * v per pixel, its x and y contiguous (OpenCV copies a strided view at every call), and
+    # its length.
+    path_x, path_y = (np.ascontiguousarray(velocity[..., axis]) * np.float32(exposure_fraction) for axis in (0, 1))
+    lengths = cv2.magnitude(path_x, path_y)
     if float(lengths.max()) < STILL_LENGTH:
         return frame
     linear = decode(frame)
@@ -214,12 +224,13 @@ def blur_frame(
     out = frame.copy()
     height = frame.shape[0]
     for top, bottom in _moving_runs(lengths):
-        # The path's points are spread for the 99.5th percentile of the lengths: the flow's few outliers (where
-        # content enters the frame) would otherwise set the count of resamplings for the whole run.
-        longest = float(np.percentile(lengths[top:bottom], 99.5))
+        # The path's points are spread for the 99.5th percentile of the lengths (read on every 4th pixel of every
+        # 4th row): the flow's few outliers (where content enters the frame) would otherwise set the count of
+        # resamplings for the whole run.
+        longest = float(np.percentile(lengths[top:bottom:4, ::4], 99.5))
         margin = math.ceil(float(lengths[top:bottom].max())) + 2
         low, high = max(0, top - margin), min(height, bottom + margin)
-        total = _path_mean(linear[low:high], velocity[low:high] * np.float32(exposure_fraction), longest)
+        total = _path_mean(linear[low:high], path_x[low:high], path_y[low:high], longest)
         out[top:bottom] = _blend(
             frame[top:bottom], linear[top:bottom], total[top - low : bottom - low], lengths[top:bottom]
         )
@@ -241,9 +252,9 @@ def _moving_runs(lengths: np.ndarray) -> list[tuple[int, int]]:
     return runs
 
 
-def _path_mean(linear: np.ndarray, path: np.ndarray, longest: float) -> np.ndarray:
-    """The mean of ``linear`` (h, w, C) over each pixel's path, ``path`` (h, w, 2) the path's full extent (s times
-    the velocity), by ternary steps (see :func:`blur_frame`)."""
+def _path_mean(linear: np.ndarray, path_x: np.ndarray, path_y: np.ndarray, longest: float) -> np.ndarray:
+    """The mean of ``linear`` (h, w, C) over each pixel's path, ``path_x`` and ``path_y`` (h, w) the path's full
+    extent (s times the velocity), by ternary steps (see :func:`blur_frame`)."""
     rows, width = linear.shape[:2]
     steps = 1
     while 3**steps < longest / SAMPLE_SPACING + 1 and steps < MAX_STEPS:
@@ -251,7 +262,6 @@ def _path_mean(linear: np.ndarray, path: np.ndarray, longest: float) -> np.ndarr
     # Contiguous grids: OpenCV copies a broadcast view at every call.
     grid_x = np.tile(np.arange(width, dtype=np.float32), (rows, 1))
     grid_y = np.tile(np.arange(rows, dtype=np.float32)[:, None], (1, width))
-    path_x, path_y = np.ascontiguousarray(path[..., 0]), np.ascontiguousarray(path[..., 1])
     image = linear
     # Step j shifts by 3^(K - j) / 3^K of the path, the coarsest last, so that the finest shifts see the sharp frame.
     for step in range(steps, 0, -1):
@@ -329,6 +339,7 @@ class _Held:
     grey: np.ndarray
     scale: float
     to_previous: np.ndarray | None
+    """The flow to the previous frame, at the flow image's size."""
 
 
 class MotionBlurStream:
@@ -355,23 +366,28 @@ class MotionBlurStream:
         if held is None:
             self._held = _Held(frame, grey, scale, None)
             return []
+        # Flows stay at the flow images' size: the frame's velocity is formed there and scaled up once.
         to_next = to_previous = None
         if held.frame.shape == frame.shape and not is_scene_cut(held.grey, grey):
             forward, backward = dense_flow(held.grey, grey), dense_flow(grey, held.grey)
             if flow_holds(held.grey, grey, forward) and flow_holds(grey, held.grey, backward):
-                shape = (frame.shape[0], frame.shape[1])
-                to_next, to_previous = full_resolution(forward, scale, shape), full_resolution(backward, scale, shape)
+                to_next, to_previous = forward, backward
         if to_next is None:
             self.cuts += 1
-        finished = blur_frame(held.frame, self.exposure_fraction, held.to_previous, to_next)
+        finished = self._blur(held, to_next)
         self._held = _Held(frame, grey, scale, to_previous)
         return [finished]
 
     def finish(self) -> list[np.ndarray]:
         held, self._held = self._held, None
-        if held is None:
-            return []
-        return [blur_frame(held.frame, self.exposure_fraction, held.to_previous, None)]
+        return [] if held is None else [self._blur(held, None)]
+
+    def _blur(self, held: _Held, to_next: np.ndarray | None) -> np.ndarray:
+        if held.to_previous is None and to_next is None:
+            return held.frame
+        shape = (held.frame.shape[0], held.frame.shape[1])
+        velocity = full_resolution(frame_velocity(held.to_previous, to_next), held.scale, shape)
+        return blur_along(held.frame, self.exposure_fraction, velocity)
 
     def run(self, frames: Iterator[np.ndarray]) -> Iterator[np.ndarray]:
         """All frames of an iterator, blurred, in order."""
