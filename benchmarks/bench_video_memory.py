@@ -273,8 +273,8 @@ class BlurTiming:
 def time_blur(frames: list[np.ndarray], exposure_fraction: float = 1.0) -> BlurTiming:
     """``MotionBlurStream(exposure_fraction).push`` timed frame by frame (the first push only holds its frame and
     is left out), with a breakdown of the same calls: the flow (grey images, scene-cut test, two DIS flows, their
-    checks and the resize to full resolution) timed as ``push`` runs it, and inside ``blur_frame`` the OpenCV
-    remaps (the doubling's resamplings), the other OpenCV calls, and the rest (numpy: velocity, the sRGB encode,
+    checks and the resize to full resolution) timed as ``push`` runs it, and inside ``blur_along`` the OpenCV
+    remaps (the ternary steps' resamplings), the other OpenCV calls, and the rest (numpy: velocity, the sRGB encode,
     blending, copies)."""
     from darksynth.light import motion_blur
 
@@ -284,10 +284,10 @@ def time_blur(frames: list[np.ndarray], exposure_fraction: float = 1.0) -> BlurT
     proxy = _TimedCv2(real_cv2, ("remap", "scaleAdd", "addWeighted", "LUT", "magnitude", "resize", "cvtColor"))
     wrapped = {
         name: getattr(motion_blur, name)
-        for name in ("flow_image", "is_scene_cut", "dense_flow", "flow_holds", "full_resolution", "blur_frame")
+        for name in ("flow_image", "is_scene_cut", "dense_flow", "flow_holds", "full_resolution", "blur_along")
     }
     spent = dict.fromkeys(wrapped, 0.0)
-    in_blur = dict.fromkeys(proxy.seconds, 0.0)  # OpenCV time inside blur_frame only (flow_holds remaps too)
+    in_blur = dict.fromkeys(proxy.seconds, 0.0)  # OpenCV time inside blur_along only (flow_holds remaps too)
 
     def timer(name: str, function: Any) -> Any:
         def timed(*args: Any, **kwargs: Any) -> Any:
@@ -297,7 +297,7 @@ def time_blur(frames: list[np.ndarray], exposure_fraction: float = 1.0) -> BlurT
                 return function(*args, **kwargs)
             finally:
                 spent[name] += time.perf_counter() - started
-                if name == "blur_frame":
+                if name == "blur_along":
                     for call, seconds in proxy.seconds.items():
                         in_blur[call] += seconds - before[call]
 
@@ -323,12 +323,12 @@ def time_blur(frames: list[np.ndarray], exposure_fraction: float = 1.0) -> BlurT
     timing.parts = {
         "flow (grey, cut test, 2x DIS, checks, upscale)": flow,
         "  of which DIS": spent["dense_flow"],
-        "blur_frame": spent["blur_frame"],
+        "blur_along (the integral)": spent["blur_along"],
         "  of which remap": in_blur["remap"],
         "  of which scaleAdd + addWeighted": in_blur["scaleAdd"] + in_blur["addWeighted"],
         "  of which LUT (sRGB decode) + magnitude": in_blur["LUT"] + in_blur["magnitude"],
     }
-    timing.parts["  of which the rest (numpy: velocity, sRGB encode, blend, copies)"] = spent["blur_frame"] - sum(
+    timing.parts["  of which the rest (numpy: velocity, sRGB encode, blend, copies)"] = spent["blur_along"] - sum(
         in_blur[name] for name in ("remap", "scaleAdd", "addWeighted", "LUT", "magnitude")
     )
     timing.cuts = stream.cuts

@@ -118,7 +118,8 @@ def colour_cast(frames: torch.Tensor, *, block: int = BLOCK) -> tuple[float, flo
     """
     if frames.dim() < 3 or frames.shape[-3] != 3:
         return None
-    medians = block_medians(frames.to(torch.float32), block)
+    # On a sample of the blocks of a large frame, as the tones (:func:`sampled_blocks`).
+    medians = block_medians(sampled_blocks(frames.to(torch.float32), block=block), block)
     sums = medians.movedim(-3, 0).reshape(3, -1).sum(dim=1).double()
     mean = float(sums.mean())
     if mean <= 0.0:
@@ -204,20 +205,24 @@ column): its 49 quantiles are as well determined by 16k blocks as by a 1080p fra
 about 5)."""
 
 
-def sampled_tone_quantiles(frames: torch.Tensor, *, block: int = BLOCK) -> np.ndarray:
-    """:func:`tone_quantiles` of every k-th block row and column of ``frames`` (..., C, H, W), k the smallest that
-    leaves at most :data:`MATCH_BLOCKS` blocks per channel (1 for small frames: the same numbers)."""
+def sampled_blocks(frames: torch.Tensor, *, block: int = BLOCK) -> torch.Tensor:
+    """Every k-th block row and column of ``frames`` (..., C, H, W), put side by side, k the smallest that leaves
+    at most :data:`MATCH_BLOCKS` blocks per channel and frame (``frames`` itself for small frames)."""
     rows, columns = frames.shape[-2] // block, frames.shape[-1] // block
     step = max(1, math.ceil(math.sqrt(rows * columns / MATCH_BLOCKS)))
     if step == 1:
-        return tone_quantiles(frames, block=block)
+        return frames
     # The first block of every step x step group of blocks.
     rows, columns = rows // step, columns // step
     grouped = frames[..., : rows * step * block, : columns * step * block].reshape(
         *frames.shape[:-2], rows, step * block, columns, step * block
     )
-    picked = grouped[..., :block, :, :block].reshape(*frames.shape[:-2], rows * block, columns * block)
-    return tone_quantiles(picked, block=block)
+    return grouped[..., :block, :, :block].reshape(*frames.shape[:-2], rows * block, columns * block)
+
+
+def sampled_tone_quantiles(frames: torch.Tensor, *, block: int = BLOCK) -> np.ndarray:
+    """:func:`tone_quantiles` of :func:`sampled_blocks` of ``frames`` (the same numbers for small frames)."""
+    return tone_quantiles(sampled_blocks(frames, block=block), block=block)
 
 
 def tone_quantiles(

@@ -192,18 +192,25 @@ def estimate(
             "(what it learned from the training table's ranges), not a measurement"
         )
     darkening, tone = _estimate_darkening(reference, name, ranges, meta, warnings)
-    noise = _estimate_light(reference, noise, meta, warnings, name)
+    noise = _estimate_light(reference, noise, meta, warnings, name, uniform=uniform, cuts=cuts)
     profile = Profile(noise=noise, darkening=darkening, ranges=ranges, meta=meta, tone=tone)
     return Estimate(profile=profile, per_crop=per_crop, warnings=warnings)
 
 
 def _estimate_light(
-    reference: torch.Tensor, noise: NoiseValues, meta: dict[str, Any], warnings: list[str], name: str
+    reference: torch.Tensor,
+    noise: NoiseValues,
+    meta: dict[str, Any],
+    warnings: list[str],
+    name: str,
+    *,
+    uniform: list[int],
+    cuts: list[int],
 ) -> NoiseValues:
     """The shutter's exposure fraction and the flicker of a reference clip into the profile's light, what was
     measured and which prior stands into ``meta.light``. A clip where they cannot be read warns (a single image
     cannot show either: its priors are stated in ``meta`` only)."""
-    motion = estimate_motion(reference)
+    motion = estimate_motion(reference, uniform=uniform, cuts=cuts)
     meta["light"] = motion.to_meta()
     if reference.shape[0] > 1:
         warnings.extend(f"{name}: {note}" for note in motion.notes)

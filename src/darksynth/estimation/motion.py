@@ -164,12 +164,16 @@ class MotionEstimate:
         }
 
 
-def estimate_motion(reference: torch.Tensor) -> MotionEstimate:
+def estimate_motion(
+    reference: torch.Tensor, *, uniform: list[int] | None = None, cuts: list[int] | None = None
+) -> MotionEstimate:
     """Measure the exposure fraction and the flicker of a reference.
 
     Args:
         reference: frames (T, 3, H, W), sRGB values in [0, 1], as :func:`darksynth.estimation.reference.load_reference`
             reads them; any T >= 1.
+        uniform, cuts: the reference's :func:`~darksynth.estimation.reference.uniform_frames` and
+            :func:`~darksynth.estimation.reference.scene_cuts`, when the caller has them (else found here).
 
     Returns:
         The estimate; what cannot be measured is the prior, with a note.
@@ -178,9 +182,11 @@ def estimate_motion(reference: torch.Tensor) -> MotionEstimate:
         raise ValueError(f"expected a reference shaped (T, 3, H, W), got shape {tuple(reference.shape)}")
     frames = reference.shape[0]
     notes: list[str] = []
-    skipped = set(uniform_frames(reference)) if frames > 1 else set()
-    cuts = set(scene_cuts(reference))
-    pairs = [t for t in range(frames - 1) if t not in skipped and t + 1 not in skipped and t + 1 not in cuts]
+    found_uniform = uniform_frames(reference) if uniform is None else uniform
+    found_cuts = scene_cuts(reference) if cuts is None else cuts
+    skipped = set(found_uniform) if frames > 1 else set()
+    cuts = list(found_cuts)
+    pairs = [t for t in range(frames - 1) if t not in skipped and t + 1 not in skipped and t + 1 not in set(cuts)]
     scale, small = _reduced_luminance(reference)
     flow_frames = _flow_frames(small, skipped) if pairs else []
     computed = [_pair_flow(flow_frames[t], flow_frames[t + 1], scale, t) for t in pairs]
