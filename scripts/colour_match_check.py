@@ -27,22 +27,8 @@ from darksynth.profile import default_profile_path, load_profile
 from darksynth.synthesize import ClipParameters, ClipSynthesizer
 from darksynth.tones import ToneTarget, colour_cast, median_noise, tone_quantiles
 
-LEVELS = np.arange(0.05, 0.951, 0.05)
-LUMA = torch.tensor([0.2126, 0.7152, 0.0722])
-
-
-def luminance_quantiles(image: torch.Tensor) -> np.ndarray:
-    luma = torch.einsum("c,...chw->...hw", LUMA, image.to(torch.float32)).flatten().numpy()
-    return np.quantile(luma, LEVELS)
-
-
-def references(data: Path) -> list[tuple[str, Path, bool]]:
-    lowlight = data / "real-lowlight"
-    found = [(f"lol {p.name}", p, False) for p in sorted((lowlight / "images" / "lol").glob("*.png"))]
-    found += [(f"lime {p.name}", p, False) for p in sorted((lowlight / "images" / "lime").glob("*.png"))]
-    found += [(f"clip {p.name}", p, True) for p in sorted((lowlight / "clips").iterdir()) if p.is_dir()]
-    found += [(f"video {p.name}", p, False) for p in sorted((lowlight / "videos").iterdir())]
-    return found
+# The same references and luminance measure as the exposure check (this script's folder is on the path).
+from exposure_match_check import luminance_quantiles, references  # isort: skip
 
 
 def main() -> None:
