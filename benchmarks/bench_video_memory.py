@@ -450,6 +450,14 @@ def profile_stages(
     return medians
 
 
+def steady_ms_per_frame(short: ChildRun, long: ChildRun) -> float | None:
+    """Milliseconds a frame in the steady state: the difference of two runs' times over that of their frames (None
+    when the long run is not longer)."""
+    if long.frames <= short.frames or long.seconds <= short.seconds:
+        return None
+    return (long.seconds - short.seconds) / (long.frames - short.frames) * 1e3
+
+
 def main() -> None:
     print(cpu_summary(), flush=True)
     print(opencv_summary(), flush=True)  # the motion blur's remaps and flow run in OpenCV
@@ -524,6 +532,23 @@ def main() -> None:
                 print("per-frame speed differed between the runs more than the fixed start-up cost; none separable")
         growth = (long.maxrss_kib - short.maxrss_kib) / MIB
         print(f"peak RSS long - short: {growth:+.0f} MiB; under 1 GiB: {long.maxrss_kib < 1024 * 1024}")
+        if args.blur:
+            # The same two videos without blur and flicker: what the blur adds to a frame in the running pipeline,
+            # where the encoder's threads share the two cores with everything else, in the steady state (long
+            # minus short, which leaves out start-up, compile-cache load and the encoder's fill and flush).
+            plain = {}
+            for name in ("short", "long"):
+                output = workdir / f"out_{name}_plain{suffix}"
+                plain[name] = run_apply(sources[name], output, args.codec, profile, ("--no-blur", "--no-flicker"))
+                report(f"apply {name}, --no-blur --no-flicker", plain[name])
+                output.unlink()
+            with_blur = steady_ms_per_frame(short, long)
+            without = steady_ms_per_frame(plain["short"], plain["long"])
+            if with_blur is not None and without is not None:
+                print(
+                    f"steady state per frame: {with_blur:.1f} ms with blur and flicker, {without:.1f} ms without; "
+                    f"the blur adds {with_blur - without:.1f} ms a frame in the pipeline"
+                )
 
         if args.profile_stages:
             print(cpu_summary(), flush=True)

@@ -3,10 +3,11 @@
 A camera exposes frame t over a window of ``s`` frame intervals centred on t (``s`` is the exposure fraction: 0 an
 instant, 1 a shutter open for the whole interval, a 360-degree shutter). What moves by ``d`` pixels per frame is
 smeared along its motion over ``s * |d|`` pixels. Here the motion is the dense optical flow between consecutive
-clean frames (OpenCV's DIS flow, no network weights), and the integral over the window is the mean of the frame
-resampled at points spread evenly along each pixel's path: the first half of the window along the flow to the
-previous frame, the second half along the flow to the next one. The mean is taken in linear light (sRGB decoded,
-averaged, encoded again), as a sensor sums photons; the result is a clean frame, darkened and noised after.
+clean frames (OpenCV's DIS flow, no network weights): a frame's velocity is half its flow to the next frame minus
+its flow to the previous one, taken constant over the exposure, and the integral over the window is the mean of the
+frame resampled at points spread evenly along each pixel's path (:func:`blur_along`). The mean is taken in linear
+light (sRGB decoded, averaged, encoded again), as a sensor sums photons; the result is a clean frame, darkened and
+noised after.
 
 What it does not model: a pixel is resampled along its own flow (backward warping), so a moving object is smeared
 within its own outline and its edge into the background behind it, but does not spill a trail over a still
@@ -14,10 +15,12 @@ background beyond its outline (that needs the flow of the object at the backgrou
 
 Still parts stay untouched, byte for byte: a pixel whose blur length is under :data:`STILL_LENGTH` keeps its value,
 and one between that and :data:`FULL_LENGTH` is blended, so flow jitter of a fraction of a pixel in a still scene
-changes nothing. A scene cut or a change of frame size between two frames stops the blur at the cut: each side
-is blurred with its own motion only (the flow across the cut means nothing).
+changes nothing. A scene cut, a change of frame size or a flow that does not hold between two frames
+(:func:`flow_holds`: black frames, unrelated frames) stops the blur there: each side is blurred with its own motion
+only.
 
-Frames are numpy arrays (H, W, C), uint8 or uint16, as images and videos are read; the flow runs on the CPU.
+Frames are numpy arrays (H, W, C), uint8, uint16 or float in [0, 1], as images and videos are read; the flow runs on
+the CPU.
 """
 
 from __future__ import annotations
