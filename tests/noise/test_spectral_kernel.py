@@ -165,3 +165,22 @@ def test_failing_compiled_spectral_kernels_fall_back_to_the_eager_path_with_a_lo
     assert frames.std(dim=(0, 2, 3)).min() > 1.0  # noisy frames, from the eager path
     warnings = [r for r in caplog.records if "compiled spectral kernels failed" in r.getMessage()]
     assert len(warnings) == 1 and "no working C compiler" in warnings[0].getMessage()
+
+
+@pytest.mark.parametrize("compiled", [False, True])
+def test_flicker_moves_the_spectral_paths_frames_by_their_gain(monkeypatch: pytest.MonkeyPatch, compiled: bool) -> None:
+    """Flicker redoes the level tables of the spectral paths frame by frame: each frame's mean follows its gain."""
+    if compiled:
+        _eager_kernels(monkeypatch)
+    values = NoiseValues.from_values(SPECTRAL | {"flicker": 0.1})  # type: ignore[arg-type]
+    synthesizer = ClipSynthesizer(
+        ClipParameters(values, Darkening(0.3, 1.0)), generator=torch.Generator().manual_seed(0), compile=compiled
+    )
+    assert synthesizer._spectral and synthesizer._spectral_compiled is compiled
+    grey = torch.full((3, 64, 80), 200, dtype=torch.uint8)
+    means = torch.tensor([float(synthesizer(grey).double().mean()) for _ in range(200)])
+    gains = means / means.mean()
+    assert float(gains.std()) == pytest.approx(0.1, rel=0.15)
+    steady = ClipSynthesizer(ClipParameters(NoiseValues.from_values(SPECTRAL), Darkening(0.3, 1.0)), compile=compiled)  # type: ignore[arg-type]
+    flat = torch.tensor([float(steady(grey).double().mean()) for _ in range(50)])
+    assert float((flat / flat.mean()).std()) < 0.01
