@@ -171,3 +171,27 @@ def test_no_flicker_draws_nothing() -> None:
     state = generator.get_state()
     assert FlickerGains(0.0, 0.5).sequence(10, generator).tolist() == [1.0] * 10
     assert torch.equal(generator.get_state(), state)
+
+
+def test_a_flow_does_not_depend_on_the_flows_before_it() -> None:
+    """A kept DIS engine carried state from call to call: after a pair of small noise frames, the flow of an
+    unrelated pair moved by a third of a pixel. Each flow must be the pair's alone."""
+    from darksynth.light.motion_blur import dense_flow
+
+    rng = np.random.default_rng(0)
+    texture = cv2.GaussianBlur((rng.random((192, 256)) * 255).astype(np.uint8), (0, 0), 2)
+    moved = np.roll(texture, 1, axis=1)
+    first = dense_flow(texture, moved)
+    noise = (rng.random((2, 40, 40)) * 255).astype(np.uint8)
+    dense_flow(noise[0], noise[1])
+    assert np.array_equal(dense_flow(texture, moved), first)
+
+
+@pytest.mark.parametrize("shape", [(8, 8, 3), (10, 300, 3), (300, 10, 1)])
+def test_frames_too_small_for_a_flow_pass_through(shape: tuple[int, int, int]) -> None:
+    rng = np.random.default_rng(1)
+    frames = [rng.integers(0, 256, shape, dtype=np.uint8) for _ in range(3)]
+    stream = MotionBlurStream(1.0)
+    out = list(stream.run(iter(frames)))
+    assert all(np.array_equal(o, f) for o, f in zip(out, frames, strict=True))
+    assert stream.cuts == 2

@@ -71,6 +71,7 @@ from darksynth.estimation.flicker import (
     measure_flicker,
 )
 from darksynth.estimation.reference import scene_cuts, uniform_frames
+from darksynth.light.motion_blur import dense_flow, pixel_grid
 
 EXPOSURE_FRACTION_PRIOR = 0.5
 """When the blur cannot be measured: the 180-degree shutter, the convention of video cameras (exposure half the
@@ -279,11 +280,9 @@ def _flow_frames(luminance: np.ndarray, skipped: set[int]) -> list[np.ndarray]:
 
 def _pair_flow(first: np.ndarray, second: np.ndarray, scale: float, t: int) -> PairFlow:
     """DIS flow from ``first`` to ``second`` (full-resolution px/frame) and where it survives the backward check."""
-    dis = cv2.DISOpticalFlow_create(cv2.DISOPTICAL_FLOW_PRESET_FAST)  # type: ignore[attr-defined]
-    forward = dis.calc(first, second, None)
-    backward = dis.calc(second, first, None)
+    forward, backward = dense_flow(first, second), dense_flow(second, first)
     height, width = first.shape
-    grid_x, grid_y = np.meshgrid(np.arange(width, dtype=np.float32), np.arange(height, dtype=np.float32))
+    grid_x, grid_y = pixel_grid(height, width)
     back_at = cv2.remap(
         backward, grid_x + forward[..., 0], grid_y + forward[..., 1], cv2.INTER_LINEAR, borderMode=cv2.BORDER_REPLICATE
     )

@@ -20,6 +20,7 @@ from darksynth.io.arrays import hwc_to_chw
 from darksynth.io.discover import classify_input, scan_folder
 from darksynth.io.images import read_image
 from darksynth.io.video import iter_video_frames
+from darksynth.light.motion_blur import SCENE_CUT_CHANGE
 
 CROP = 128
 """Side of the square crops; the network was trained on crops of this size."""
@@ -36,11 +37,6 @@ CLIP_FRAMES = 4
 FLAT_STD = 0.5 / 255
 """Below this std over all pixels of a frame (half an 8-bit level), a frame is uniform (black, saturated or flat):
 it holds no noise to measure."""
-
-SCENE_CUT_CHANGE = 0.08
-"""A change of the 16x16-block means between two consecutive frames above this (mean absolute, [0, 1] scale) is
-a scene cut: noise, which averages out over 256 pixels, moves the block means by well under 0.01 at the
-strongest training level; a camera pan or a light switched on in a dim scene moves them by a few hundredths."""
 
 
 def spread_frames(total: int, count: int) -> list[int]:

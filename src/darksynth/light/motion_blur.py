@@ -25,11 +25,10 @@ the CPU.
 
 from __future__ import annotations
 
+import functools
 import math
-import threading
 from collections.abc import Iterator
 from dataclasses import dataclass
-from typing import Any
 
 import cv2
 import numpy as np
@@ -51,6 +50,10 @@ MAX_STEPS = 3
 ripple is a few percent of an edge's contrast, under the noise of a night frame. An 81-point path (8 resamplings)
 cost a fifth more on 1080p, for blur longer than a sixth of a 1080p frame's height."""
 
+MIN_FLOW_SIDE = 16
+"""Flow images smaller than this on a side are not followed (DIS refuses under 12 px, and a frame that small has
+no motion worth blurring): their pairs are treated as cuts."""
+
 FLOW_MAX_WIDTH = 960
 """The flow is computed on frames scaled down to at most this width (half a 1080p frame): DIS at full 1080p costs
 30 ms a pair against 6, and the motion of a blur worth rendering is many pixels long."""
@@ -59,8 +62,11 @@ BAND_ROWS = 64
 """The frame is integrated in bands of rows; a band with no motion is copied, so the cost follows what moves."""
 
 SCENE_CUT_CHANGE = 0.08
-"""A mean absolute change of the 16x16 block means above this ([0, 1] scale) between two frames is a scene cut
-(the test the estimator uses on references, :func:`darksynth.estimation.reference.scene_cuts`)."""
+"""A change of the 16x16-block means between two consecutive frames above this (mean absolute, [0, 1] scale) is
+a scene cut: noise, which averages out over 256 pixels, moves the block means by well under 0.01 at the
+strongest training level; a camera pan or a light switched on in a dim scene moves them by a few hundredths. The
+one threshold of the blur's cut test (:func:`is_scene_cut`) and the estimator's
+(:func:`darksynth.estimation.reference.scene_cuts`)."""
 
 
 FLOW_MATCH = 0.6
@@ -145,10 +151,25 @@ def is_scene_cut(previous: np.ndarray, following: np.ndarray) -> bool:
     return float(np.abs(blocks[1] - blocks[0]).mean()) > SCENE_CUT_CHANGE
 
 
+@functools.lru_cache(maxsize=4)
+def pixel_grid(height: int, width: int) -> tuple[np.ndarray, np.ndarray]:
+    """Each pixel's x and y (H, W), float32 and contiguous, the identity maps of ``cv2.remap``; made once per size
+    (read-only: the stream's every frame and the estimator's every pair share them). The first ``h`` rows are the
+    grid of a band of ``h`` rows."""
+    grid_x = np.tile(np.arange(width, dtype=np.float32), (height, 1))
+    grid_y = np.tile(np.arange(height, dtype=np.float32)[:, None], (1, width))
+    grid_x.flags.writeable = grid_y.flags.writeable = False
+    return grid_x, grid_y
+
+
 def dense_flow(source: np.ndarray, target: np.ndarray) -> np.ndarray:
-    """Per-pixel displacement (h, w, 2: x, y) from ``source`` to ``target``, two flow images (:func:`flow_image`),
-    in their pixels."""
-    flow: np.ndarray = _flow_engine().calc(source, target, None)
+    """Per-pixel displacement (h, w, 2: x, y) from ``source`` to ``target``, two flow images (:func:`flow_image`,
+    each side at least :data:`MIN_FLOW_SIDE`), in their pixels.
+
+    A new DIS engine for every call (6 us): an engine kept between calls carries state from one to the next (after a
+    pair of 40x40 noise frames, the flow of an unrelated pair moved by a third of a pixel)."""
+    engine = cv2.DISOpticalFlow_create(cv2.DISOPTICAL_FLOW_PRESET_FAST)  # type: ignore[attr-defined]
+    flow: np.ndarray = engine.calc(source, target, None)
     return flow
 
 
@@ -158,8 +179,7 @@ def flow_holds(source: np.ndarray, target: np.ndarray, flow: np.ndarray) -> bool
     contrast = float(np.abs(source.astype(np.float32) - float(source.mean())).mean())
     if contrast < FLAT_CONTRAST:
         return False
-    height, width = source.shape
-    grid_x, grid_y = np.meshgrid(np.arange(width, dtype=np.float32), np.arange(height, dtype=np.float32))
+    grid_x, grid_y = pixel_grid(*source.shape)
     warped = cv2.remap(
         target, grid_x + flow[..., 0], grid_y + flow[..., 1], cv2.INTER_LINEAR, borderMode=cv2.BORDER_REPLICATE
     )
@@ -173,17 +193,6 @@ def full_resolution(flow: np.ndarray, scale: float, shape: tuple[int, int]) -> n
         return flow
     resized: np.ndarray = cv2.resize(flow, (shape[1], shape[0]), interpolation=cv2.INTER_LINEAR) * np.float32(scale)
     return resized
-
-
-_ENGINE: dict[int, Any] = {}
-
-
-def _flow_engine() -> Any:
-    # One engine per thread (an engine keeps buffers between calls). OpenCV's stubs lack the DIS factory.
-    key = threading.get_ident()
-    if key not in _ENGINE:
-        _ENGINE[key] = cv2.DISOpticalFlow_create(cv2.DISOPTICAL_FLOW_PRESET_FAST)  # type: ignore[attr-defined]
-    return _ENGINE[key]
 
 
 def blur_frame(
@@ -238,7 +247,7 @@ def blur_along(frame: np.ndarray, exposure_fraction: float, velocity: np.ndarray
         longest = float(np.percentile(lengths[top:bottom:4, ::4], 99.5))
         margin = math.ceil(float(lengths[top:bottom].max())) + 2
         low, high = max(0, top - margin), min(height, bottom + margin)
-        total = _path_mean(linear[low:high], path_x[low:high], path_y[low:high], longest)
+        total = _path_mean(linear[low:high], path_x[low:high], path_y[low:high], longest, height)
         out[top:bottom] = _blend(
             frame[top:bottom], linear[top:bottom], total[top - low : bottom - low], lengths[top:bottom]
         )
@@ -260,16 +269,14 @@ def _moving_runs(lengths: np.ndarray) -> list[tuple[int, int]]:
     return runs
 
 
-def _path_mean(linear: np.ndarray, path_x: np.ndarray, path_y: np.ndarray, longest: float) -> np.ndarray:
-    """The mean of ``linear`` (h, w, C) over each pixel's path, ``path_x`` and ``path_y`` (h, w) the path's full
-    extent (s times the velocity), by ternary steps (see :func:`blur_frame`)."""
+def _path_mean(linear: np.ndarray, path_x: np.ndarray, path_y: np.ndarray, longest: float, height: int) -> np.ndarray:
+    """The mean of ``linear`` (h, w, C), rows of a frame ``height`` rows tall, over each pixel's path, ``path_x`` and
+    ``path_y`` (h, w) the path's full extent (s times the velocity), by ternary steps (see :func:`blur_frame`)."""
     rows, width = linear.shape[:2]
     steps = 1
     while 3**steps < longest / SAMPLE_SPACING + 1 and steps < MAX_STEPS:
         steps += 1
-    # Contiguous grids: OpenCV copies a broadcast view at every call.
-    grid_x = np.tile(np.arange(width, dtype=np.float32), (rows, 1))
-    grid_y = np.tile(np.arange(rows, dtype=np.float32)[:, None], (1, width))
+    grid_x, grid_y = (grid[:rows] for grid in pixel_grid(height, width))
     image = linear
     # Step j shifts by 3^(K - j) / 3^K of the path, the coarsest last, so that the finest shifts see the sharp frame.
     for step in range(steps, 0, -1):
@@ -382,7 +389,7 @@ class MotionBlurStream:
             return []
         # Flows stay at the flow images' size: the frame's velocity is formed there and scaled up once.
         to_next = to_previous = None
-        if held.frame.shape == frame.shape and not is_scene_cut(held.grey, grey):
+        if held.frame.shape == frame.shape and min(grey.shape) >= MIN_FLOW_SIDE and not is_scene_cut(held.grey, grey):
             forward, backward = dense_flow(held.grey, grey), dense_flow(grey, held.grey)
             if flow_holds(held.grey, grey, forward) and flow_holds(grey, held.grey, backward):
                 to_next, to_previous = forward, backward
