@@ -10,8 +10,9 @@ import logging
 import numpy as np
 import torch
 
-from darksynth.darkening import Darkening
+from darksynth.darkening import Darkening, darken
 from darksynth.errors import DarksynthError
+from darksynth.tensors import full_scale
 from darksynth.tones import (
     BLOCK,
     DarkeningEstimate,
@@ -71,9 +72,7 @@ def matched_darkening(frame: torch.Tensor, tone: ToneTarget | None, *, source: s
     darkening)."""
     if tone is None:
         return None
-    clean = frame.to(torch.float32).cpu()
-    if not frame.dtype.is_floating_point:
-        clean = clean / (255.0 if frame.dtype == torch.uint8 else 65535.0)
+    clean = _unit_frame(frame)
     if clean.shape[0] == 1:
         clean = clean.expand(3, -1, -1)
     try:
@@ -101,11 +100,7 @@ def matched_colour(
     """
     if tone is None or tone.colour is None or frame.shape[0] != 3:
         return None
-    clean = frame.to(torch.float32).cpu()
-    if not frame.dtype.is_floating_point:
-        clean = clean / (255.0 if frame.dtype == torch.uint8 else 65535.0)
-    darkened = darkening.alpha * clean.clamp(min=0.0) ** (1.0 / darkening.gamma)
-    own = colour_cast(darkened)
+    own = colour_cast(darken(_unit_frame(frame), darkening.alpha, darkening.gamma))
     if own is None or min(own) <= 0.0:
         return None
     gains = [target / have for target, have in zip(tone.colour, own, strict=True)]
@@ -114,3 +109,10 @@ def matched_colour(
     scale = (factors[0] / largest, factors[1] / largest, factors[2] / largest)
     adjusted = Darkening(alpha=min(1.0, darkening.alpha * largest ** (1.0 / darkening.gamma)), gamma=darkening.gamma)
     return scale, adjusted
+
+
+def _unit_frame(frame: torch.Tensor) -> torch.Tensor:
+    """A frame (C, H, W) of any pixel type as float32 values in [0, 1], on the CPU."""
+    clean = frame.to(torch.float32).cpu()
+    scale = full_scale(frame.dtype)
+    return clean / scale if scale else clean

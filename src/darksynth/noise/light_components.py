@@ -18,19 +18,10 @@ import numpy as np
 import torch
 
 from darksynth.light.flicker import FlickerGains
-from darksynth.light.motion_blur import MotionBlurStream, shake_blur
+from darksynth.light.shutter import ShutterStage
 from darksynth.noise.component_types import ALL_PATHS, NoiseComponent, Parameter, Role
 
 SHAKE_LENGTH_UNIT = "of the frame's longer side"
-
-
-def _clip_frames(clip: torch.Tensor) -> list[np.ndarray]:
-    return [frame.permute(1, 2, 0).contiguous().cpu().numpy() for frame in clip]
-
-
-def _from_frames(frames: list[np.ndarray], like: torch.Tensor) -> torch.Tensor:
-    stacked = torch.from_numpy(np.stack(frames)).permute(0, 3, 1, 2)
-    return stacked.to(device=like.device, dtype=like.dtype)
 
 
 def scene_blur(
@@ -45,13 +36,14 @@ def scene_blur(
     angles = values["shake_angle"].reshape(-1, 1).expand(flat.shape[0], 1)
     out = []
     for index, one in enumerate(flat):
-        frames = _clip_frames(one.float() if one.dtype.is_floating_point else one)
+        # The stage a stream runs (ClipSynthesizer), here on a whole clip.
+        stage = ShutterStage(float(fractions[index, 0]), float(lengths[index, 0]), float(angles[index, 0]), one.device)
+        frames = one.float() if one.dtype.is_floating_point else one
         if len(frames) > 1:
-            blurred = list(MotionBlurStream(float(fractions[index, 0])).run(iter(frames)))
+            blurred = [shot for frame in frames for shot in stage.push(frame)] + stage.finish()
         else:
-            side = max(one.shape[-2:])
-            blurred = [shake_blur(frames[0], float(lengths[index, 0]) * side, float(angles[index, 0]))]
-        out.append(_from_frames(blurred, one))
+            blurred = [stage.image(frames[0])]
+        out.append(torch.stack(blurred).to(one.dtype))
     return torch.stack(out).reshape(clip.shape)
 
 
