@@ -218,12 +218,13 @@ def start_task(
     seed = task_seed(options.seed, key)
     generator = torch.Generator(device=options.device).manual_seed(seed)
     profile, darkening = options.drawing()
-    if first_frame is not None and options.darkening == "profile":
-        darkening = matched_darkening(hwc_to_chw(first_frame), options.profile.tone, source=key) or darkening
+    first = None if first_frame is None else hwc_to_chw(first_frame)
+    if first is not None and options.darkening == "profile":
+        darkening = matched_darkening(first, options.profile.tone, source=key) or darkening
     parameters = draw_clip_parameters(profile, darkening=darkening, generator=generator)
     chosen = parameters.darkening
-    if options.match_colour and first_frame is not None and chosen is not None:
-        colour = matched_colour(hwc_to_chw(first_frame), options.profile.tone, chosen)
+    if options.match_colour and first is not None and chosen is not None:
+        colour = matched_colour(first, options.profile.tone, chosen)
         if colour is not None:
             parameters = dataclasses.replace(parameters, colour_scale=colour[0], darkening=colour[1])
     return seed, generator, parameters
@@ -246,13 +247,15 @@ def synthesize_image(pixels: np.ndarray, key: str, options: ApplyOptions) -> tup
 
 
 def _run_task(task: Task, options: ApplyOptions, progress: Progress | None) -> dict[str, Any]:
-    first = _first_frame(task)
-    seed, generator, parameters = start_task(task.key, options, first)
-    frames = len(task.inputs)
+    # The first frame, which the darkening is matched on (None for a video without frames: its run then fails with
+    # its own message); an image's is kept for its synthesis, not read twice.
     if task.kind == "video":
+        seed, generator, parameters = start_task(task.key, options, next(iter_video_frames(task.inputs[0]), None))
         frames = _run_video(task, options, parameters, generator, progress)
     else:
-        frames = _run_frames(task, options, parameters, generator, progress)
+        first = read_image(task.inputs[0])
+        seed, generator, parameters = start_task(task.key, options, first.pixels)
+        frames = _run_frames(task, options, parameters, generator, progress, first)
     return {
         "input": task.key,
         "kind": task.kind,
@@ -264,13 +267,18 @@ def _run_task(task: Task, options: ApplyOptions, progress: Progress | None) -> d
 
 
 def _run_frames(
-    task: Task, options: ApplyOptions, parameters: ClipParameters, generator: torch.Generator, progress: Progress | None
+    task: Task,
+    options: ApplyOptions,
+    parameters: ClipParameters,
+    generator: torch.Generator,
+    progress: Progress | None,
+    first: Image,
 ) -> int:
-    """An image task, or a clip's frames in order: a clip's frame is written when its blur is done (one behind)."""
+    """An image, or a clip's frames in order (``first`` already read); a clip's frame is written once blurred."""
     synthesizer: ClipSynthesizer | None = None
     pending: list[tuple[Path, Image]] = []
-    for source, target in zip(task.inputs, task.outputs, strict=True):
-        image = read_image(source)
+    for index, (source, target) in enumerate(zip(task.inputs, task.outputs, strict=True)):
+        image = first if index == 0 else read_image(source)
         if synthesizer is None:
             compile_kernel = _worth_compiling(options, len(task.inputs) * image.pixels.size)
             name = str(source.parent if task.kind == "clip" else source)
@@ -297,14 +305,6 @@ def _write_pending(pending: list[tuple[Path, Image]], result: torch.Tensor, prog
     write_image(target, dataclasses.replace(image, pixels=chw_to_hwc(result)))
     if progress:
         progress(1)
-
-
-def _first_frame(task: Task) -> np.ndarray | None:
-    """The first frame of a task's input, which its darkening is matched on (None for a video without frames: its
-    run then fails with its own message)."""
-    if task.kind != "video":
-        return read_image(task.inputs[0]).pixels
-    return next(iter_video_frames(task.inputs[0]), None)
 
 
 def _run_video(
