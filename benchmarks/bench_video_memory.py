@@ -281,7 +281,7 @@ def time_blur(frames: list[np.ndarray], exposure_fraction: float = 1.0) -> BlurT
     timing = BlurTiming()
     stream = motion_blur.MotionBlurStream(exposure_fraction)
     real_cv2 = motion_blur.cv2
-    proxy = _TimedCv2(real_cv2, ("remap", "scaleAdd", "addWeighted", "LUT", "magnitude", "resize", "cvtColor"))
+    proxy = _TimedCv2(real_cv2, ("remap", "multiply", "addWeighted", "LUT", "split", "magnitude", "resize", "cvtColor"))
     wrapped = {
         name: getattr(motion_blur, name)
         for name in ("flow_image", "is_scene_cut", "dense_flow", "flow_holds", "full_resolution", "blur_along")
@@ -325,11 +325,11 @@ def time_blur(frames: list[np.ndarray], exposure_fraction: float = 1.0) -> BlurT
         "  of which DIS": spent["dense_flow"],
         "blur_along (the integral)": spent["blur_along"],
         "  of which remap": in_blur["remap"],
-        "  of which scaleAdd + addWeighted": in_blur["scaleAdd"] + in_blur["addWeighted"],
-        "  of which LUT (sRGB decode) + magnitude": in_blur["LUT"] + in_blur["magnitude"],
+        "  of which multiply + addWeighted (offsets, means)": in_blur["multiply"] + in_blur["addWeighted"],
+        "  of which LUT (sRGB decode) + split + magnitude": in_blur["LUT"] + in_blur["split"] + in_blur["magnitude"],
     }
-    timing.parts["  of which the rest (numpy: velocity, sRGB encode, blend, copies)"] = spent["blur_along"] - sum(
-        in_blur[name] for name in ("remap", "scaleAdd", "addWeighted", "LUT", "magnitude")
+    timing.parts["  of which the rest (sRGB encode, blend, copies)"] = spent["blur_along"] - sum(
+        in_blur[name] for name in ("remap", "multiply", "addWeighted", "LUT", "split", "magnitude")
     )
     timing.cuts = stream.cuts
     return timing

@@ -21,7 +21,8 @@ import cv2
 import numpy as np
 
 from darksynth.io.video import iter_video_frames
-from darksynth.light.motion_blur import MotionBlurStream, decode, line_kernel
+from darksynth.light.linear_light import decode
+from darksynth.light.motion_blur import MotionBlurStream, line_kernel
 
 VIDEO = Path(__file__).resolve().parents[1].parent / "shared" / "data" / "clean" / "videos" / "bikes.mp4"
 BLOCK = 32

@@ -11,10 +11,12 @@ import pytest
 import torch
 
 from darksynth.light.flicker import FlickerGains
+from darksynth.light.linear_light import LEVEL_OF_LINEAR16, LINEAR16_OF_LEVEL, decode, encode, levels_of_linear16
 from darksynth.light.motion_blur import (
     MotionBlurStream,
-    decode,
-    encode,
+    Workspace,
+    blur_along,
+    inverse_flow,
     line_kernel,
     shake_blur,
 )
@@ -130,6 +132,68 @@ def test_sixteen_bit_and_float_frames_keep_their_type() -> None:
     floats = list(MotionBlurStream(1.0).run(iter([f.astype(np.float32) / 255 for f in clip])))
     assert floats[2].dtype == np.float32
     assert np.abs(floats[2] * 255 - eight).mean() < 0.5
+
+
+def _ramp_velocity(height: int, width: int) -> np.ndarray:
+    """Rightward motion growing down the frame from 0 to 3 px a frame: still rows, rows between
+    STILL_LENGTH and FULL_LENGTH (blended) and rows fully blurred, with a vertical part that varies along x."""
+    speed = np.linspace(0.0, 3.0, height, dtype=np.float32)[:, None] * np.ones((1, width), np.float32)
+    tilt = np.linspace(-0.3, 0.3, width, dtype=np.float32)[None, :] * speed
+    return np.ascontiguousarray(np.stack([speed, tilt], axis=-1))
+
+
+def test_eight_bit_frames_blend_as_the_float_path_does() -> None:
+    # 8-bit frames take the 16-bit tables and blend only the pixels between the two lengths; float frames take
+    # the plain arithmetic over every pixel. Both integrate the same light: within half a level on average and one
+    # level anywhere, and the still rows keep their bytes.
+    frame = _texture(3)[:HEIGHT, :WIDTH]
+    velocity = _ramp_velocity(HEIGHT, WIDTH)
+    eight = blur_along(frame, 1.0, velocity).astype(np.float64)
+    floats = blur_along(frame.astype(np.float32) / 255.0, 1.0, velocity).astype(np.float64) * 255.0
+    assert np.abs(eight - floats).max() <= 1.0 + 1e-6
+    assert np.abs(eight - floats).mean() < 0.5
+    still_rows = int(np.searchsorted(np.linspace(0.0, 3.0, HEIGHT), 0.5 / 1.3))  # lengths under 0.5 px everywhere
+    assert np.array_equal(eight[:still_rows], frame[:still_rows])
+    assert np.abs(eight[-20:] - frame[-20:]).mean() > 2.0  # the fast rows did blur
+
+
+def test_a_kept_workspace_changes_no_byte() -> None:
+    # A stream's buffers are reused from frame to frame and across sizes: the result is what a call without
+    # them gives.
+    workspace = Workspace()
+    for seed, (height, width) in enumerate([(HEIGHT, WIDTH), (HEIGHT // 2, WIDTH + 30), (HEIGHT, WIDTH)]):
+        frame = _texture(seed)[:height, :width]
+        velocity = _ramp_velocity(height, width) * np.float32(4 + seed)
+        assert np.array_equal(blur_along(frame, 0.7, velocity, workspace), blur_along(frame, 0.7, velocity))
+
+
+def test_the_inverse_flow_leads_back_where_the_flow_started() -> None:
+    # A smooth field (a turn of 2 degrees and a zoom of 3 % about the centre, plus a drift: up to 6 px): following
+    # the flow and then its inverse from where it lands returns to the start within a few hundredths of a pixel.
+    height, width = 120, 160
+    y, x = np.mgrid[0:height, 0:width].astype(np.float32)
+    cx, cy, turn, zoom = width / 2, height / 2, math.radians(2.0), 1.03
+    moved_x = cx + zoom * (math.cos(turn) * (x - cx) - math.sin(turn) * (y - cy)) + 1.5
+    moved_y = cy + zoom * (math.sin(turn) * (x - cx) + math.cos(turn) * (y - cy)) - 0.7
+    flow = np.ascontiguousarray(np.stack([moved_x - x, moved_y - y], axis=-1), dtype=np.float32)
+    back = inverse_flow(flow)
+    back_at_landing = cv2.remap(back, moved_x, moved_y, cv2.INTER_LINEAR)
+    inner = (slice(15, -15), slice(15, -15))
+    miss = np.hypot(*(flow + back_at_landing)[inner].transpose(2, 0, 1))
+    assert np.abs(flow[inner]).max() > 3.0
+    assert miss.max() < 0.05, miss.max()
+    # The plain negation (no fixed-point step) misses by tenths of a pixel: the steps are what makes it exact.
+    naive_at_landing = cv2.remap(inverse_flow(flow, iterations=0), moved_x, moved_y, cv2.INTER_LINEAR)
+    assert np.hypot(*(flow + naive_at_landing)[inner].transpose(2, 0, 1)).max() > 0.1
+
+
+@pytest.mark.parametrize("rows", [1, 63, 64, 201])
+def test_the_parallel_table_read_is_the_table(rows: int) -> None:
+    linear = np.random.default_rng(rows).integers(0, 65536, (rows, 37, 3), dtype=np.uint16)
+    assert np.array_equal(levels_of_linear16(linear), LEVEL_OF_LINEAR16[linear])
+    # Every level survives the round trip through 16-bit linear light (what lets still pixels keep their bytes).
+    levels = np.arange(256, dtype=np.uint8)
+    assert np.array_equal(levels_of_linear16(LINEAR16_OF_LEVEL[levels]), levels)
 
 
 @pytest.mark.parametrize(("length", "angle"), [(7.0, 0.0), (10.0, 30.0), (5.5, 90.0)])
