@@ -421,3 +421,14 @@ def test_the_light_goes_into_the_profile_with_its_priors_stated(tiny_model: Call
     assert pulsing.profile.meta["light"]["flicker_measured"] is True
     assert pulsing.profile.noise.scalar("flicker") > 0.05
     assert profile_to_dict(pulsing.profile)["light"]["flicker"] == pulsing.profile.noise.scalar("flicker")
+
+
+def test_a_blur_beyond_any_shutter_is_held_at_one_with_one_warning(tiny_model: Callable[..., DEN]) -> None:
+    from tests.estimation.test_motion import low_light, moving_clip, natural_texture
+
+    frames = low_light(moving_clip(natural_texture(5), (0.0, 6.0), 1.6, 8), 5)
+    result = estimate(frames, tiny_model(), source="blended")
+    assert result.profile.noise.scalar("exposure_fraction") == 1.0
+    assert result.profile.meta["light"]["exposure_fraction"] > 1.3  # the reading, kept in meta
+    said = [w for w in result.warnings if "exposure" in w or "shutter" in w]
+    assert len(said) == 1 and "held at 1" in said[0], said

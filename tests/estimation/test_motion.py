@@ -130,6 +130,17 @@ def test_a_long_and_a_short_shutter_are_told_apart() -> None:
     assert long - short > 0.5
 
 
+def test_a_blur_longer_than_a_shutter_gives_is_read_as_it_is_with_a_note() -> None:
+    """A camera blending frames over time smears motion beyond a full-interval shutter: the estimate says how far
+    (a grid ending at 1 read such clips as exactly 1) and notes that it is beyond a shutter."""
+    found = round_trip(6, 1.6, False, 21)
+    assert found.exposure_measured
+    assert found.exposure_fraction == pytest.approx(1.6, abs=0.2)
+    assert any("longer than a shutter open for the whole frame interval" in note for note in found.notes)
+    within = round_trip(6, 0.9, False, 22)
+    assert within.exposure_fraction < 1.05 and not any("longer than" in note for note in within.notes)
+
+
 def test_a_still_scene_gives_the_prior_with_a_note() -> None:
     frames = np.repeat(natural_texture(3)[None], 6, axis=0)
     found = estimate_motion(low_light(frames, 3))

@@ -134,6 +134,18 @@ def test_sixteen_bit_and_float_frames_keep_their_type() -> None:
     assert np.abs(floats[2] * 255 - eight).mean() < 0.5
 
 
+def test_grey_frames_blur_as_each_channel_of_a_colour_frame_does() -> None:
+    colour = _moving_clip(8.0)
+    grey = [np.ascontiguousarray(frame[..., 1]) for frame in colour]
+    as_colour = list(MotionBlurStream(1.0).run(iter([np.repeat(g[..., None], 3, axis=2) for g in grey])))[2][..., 0]
+    one_channel = list(MotionBlurStream(1.0).run(iter([g[..., None] for g in grey])))[2]
+    plane = list(MotionBlurStream(1.0).run(iter(grey)))[2]
+    assert one_channel.shape == (HEIGHT, WIDTH, 1) and plane.shape == (HEIGHT, WIDTH)
+    assert np.array_equal(one_channel[..., 0], as_colour)
+    assert np.abs(plane.astype(int) - as_colour).max() <= 1  # the float path: rounding apart
+    assert np.abs(plane.astype(float) - grey[2]).mean() > 2.0
+
+
 def _ramp_velocity(height: int, width: int) -> np.ndarray:
     """Rightward motion growing down the frame from 0 to 3 px a frame: still rows, rows between
     STILL_LENGTH and FULL_LENGTH (blended) and rows fully blurred, with a vertical part that varies along x."""

@@ -25,7 +25,7 @@ import torch
 from darksynth.darkening import ALPHA_RANGE, GAMMA_RANGE, Darkening
 from darksynth.errors import DarksynthError
 from darksynth.estimation.columns import decide_columns
-from darksynth.estimation.motion import estimate_motion
+from darksynth.estimation.motion import SHUTTER_LIMIT, estimate_motion
 from darksynth.estimation.network import run_network
 from darksynth.estimation.reference import (
     FLAT_STD,
@@ -225,7 +225,9 @@ def _estimate_light(
         for key, value in measured.items()
     }
     for key, value in bounded.items():
-        if value != measured[key]:
+        # A blur longer than a shutter gives has its own note (from estimate_motion), which says why.
+        explained = key == "exposure_fraction" and motion.exposure_fraction > SHUTTER_LIMIT
+        if value != measured[key] and not explained:
             warnings.append(f"{name}: {key} measured {measured[key]:.3g} is held at its bound {value:g}")
     return noise.replace(**bounded)
 

@@ -106,9 +106,15 @@ MIN_BLOCKS = 6
 MAX_BLOCKS = 256
 """At most this many blocks enter the fit (spread over the frame pairs): the score's cost grows with them."""
 
-S_GRID = np.linspace(0.0, 1.0, 51)
+S_GRID = np.linspace(0.0, 2.0, 101)
 """Candidate exposure fractions for the fit: steps of 0.1 first, then of 0.02 around the best, refined by a
-parabola through the best three (the score is smooth in s: one broad peak)."""
+parabola through the best three (the score is smooth in s: one broad peak). Up to 2, beyond any shutter: a camera
+that blends frames over time (temporal noise reduction, frame averaging in the dark) smears motion further than a
+shutter open for the whole interval, and a grid that stopped at 1 would read such a clip as exactly 1, not as
+what it is (the profile holds the value at 1, with a warning that says why)."""
+
+SHUTTER_LIMIT = 1.0
+"""The longest blur a shutter gives: open for the whole frame interval."""
 
 
 @dataclass(frozen=True)
@@ -116,8 +122,9 @@ class MotionEstimate:
     """What a reference clip shows of its shutter and its flicker, and how sure that is.
 
     Attributes:
-        exposure_fraction: s in [0, 1], the share of the frame interval the shutter is open (the prior when not
-            measured).
+        exposure_fraction: s, the share of the frame interval the shutter is open (the prior when not measured);
+            above 1 (up to 2) when the blur along the motion is longer than any shutter gives, which the profile
+            holds at 1.
         exposure_measured: whether ``exposure_fraction`` was measured (False: it is the prior).
         moving_share: share of the frame area whose flow is at least :data:`MIN_SPEED` px/frame (mean over pairs).
         displacement: median speed (px/frame, full resolution) of the blocks the fit used (when too few, of the
@@ -221,6 +228,13 @@ def estimate_motion(
             notes.append(f"{why}: exposure fraction is the prior {EXPOSURE_FRACTION_PRIOR}")
         else:
             exposure, measured = fit[0], True
+            if exposure > SHUTTER_LIMIT:
+                notes.append(
+                    f"the blur along the motion is {'at least ' if exposure >= S_GRID[-1] else ''}{exposure:.2f} "
+                    "times the displacement a frame, longer than a "
+                    "shutter open for the whole frame interval gives: the camera blends frames over time "
+                    "(temporal noise reduction or frame averaging); the exposure fraction is held at 1"
+                )
 
     flicker, correlation, flicker_frames, why_not = measure_flicker(small, flows, frames)
     flicker_measured = why_not is None
@@ -488,4 +502,5 @@ def _fit_exposure(reference: torch.Tensor, flows: list[PairFlow]) -> tuple[float
         step = float(fine[index + 1] - fine[index])
         if curvature < 0:
             estimate += float(np.clip(0.5 * (left - right) / curvature, -1, 1) * step)
-    return float(np.clip(estimate, 0.0, 1.0)), len(motion), float(np.median(np.hypot(motion[:, 0], motion[:, 1])))
+    speed = float(np.median(np.hypot(motion[:, 0], motion[:, 1])))
+    return float(np.clip(estimate, 0.0, float(S_GRID[-1]))), len(motion), speed

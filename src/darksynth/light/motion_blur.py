@@ -97,8 +97,8 @@ def flow_image(frame: np.ndarray) -> tuple[np.ndarray, float]:
     scale = max(1.0, frame.shape[1] / FLOW_MAX_WIDTH)
     levels = frame if frame.dtype == np.uint8 else np.round(unit_scale(frame).clip(0, 1) * 255.0).astype(np.uint8)
     grey = (
-        levels[..., 0]
-        if levels.shape[-1] == 1
+        (levels if levels.ndim == 2 else levels[..., 0])
+        if levels.ndim == 2 or levels.shape[-1] == 1
         else cv2.cvtColor(np.ascontiguousarray(levels[..., :3]), cv2.COLOR_RGB2GRAY)
     )
     if scale > 1.0:
@@ -239,11 +239,14 @@ def blur_along(
         return frame
     height, width = frame.shape[:2]
     # The path's extent s * v per pixel (x, y interleaved: the relative map of the resamplings), and its length.
-    path = _buffer(workspace, "path", (height, width, 2), np.float32)
-    cv2.multiply(np.ascontiguousarray(velocity, dtype=np.float32), float(exposure_fraction), dst=path)
-    plane = (height, width)
-    x, y = cv2.split(path, [_buffer(workspace, name, plane, np.float32) for name in ("path x", "path y")])
-    lengths = cv2.magnitude(x, y, _buffer(workspace, "lengths", plane, np.float32))
+    if exposure_fraction == 1.0 and velocity.dtype == np.float32 and velocity.flags.c_contiguous:
+        path = velocity  # read only (a stream passes its velocity with s folded in)
+    else:
+        path = _buffer(workspace, "path", (height, width, 2), np.float32)
+        cv2.multiply(np.ascontiguousarray(velocity, dtype=np.float32), float(exposure_fraction), dst=path)
+    # x and y apart for the length, in the buffer the resamplings' offsets take later.
+    x, y = cv2.split(path, list(_buffer(workspace, "offsets", (2, height, width), np.float32)))
+    lengths = cv2.magnitude(x, y, _buffer(workspace, "lengths", (height, width), np.float32))
     if float(lengths.max()) < STILL_LENGTH:
         return frame
     # 8-bit frames are integrated as 16-bit linear light: half the memory traffic of float32 (the resamplings are
@@ -294,23 +297,22 @@ def _path_mean(linear: np.ndarray, path: np.ndarray, longest: float, workspace: 
         steps += 1
     shape = linear.shape
     image = linear
+    # Three image buffers: the shift one way (then the pair's mean), and two that take in turn the shift the other
+    # way and the step's result, so that the running image is never written while it is read.
+    minus = _buffer(workspace, "minus", shape, linear.dtype)
+    turns = [_buffer(workspace, f"turn{index}", shape, linear.dtype) for index in (0, 1)]
+    current = -1  # the running image is the linear frame, in no buffer
     # Step j shifts by 3^(K - j) / 3^K of the path, the coarsest last, so that the finest shifts see the sharp frame.
     for step in range(steps, 0, -1):
         spread = 3 ** (steps - step) / 3**steps
-        shifted = []
-        for sign in (-1.0, 1.0):
+        target = 1 if current == 0 else 0
+        for sign, into in ((-1.0, minus), (1.0, turns[target])):
             offsets = cv2.multiply(path, sign * spread, dst=_buffer(workspace, "offsets", path.shape, np.float32))
-            shifted.append(
-                cv2.remap(
-                    image, offsets, None, _RELATIVE_LINEAR, borderMode=cv2.BORDER_REPLICATE,
-                    dst=_buffer(workspace, f"shifted{sign:+.0f}", shape, linear.dtype),
-                ).reshape(shape)
-            )  # fmt: skip
-        # OpenCV's arithmetic runs on every core; numpy's on one. The running image alternates between two buffers
-        # (it is read while the next one is written).
-        pair = cv2.addWeighted(shifted[0], 1 / 3, shifted[1], 1 / 3, 0.0, dst=shifted[0])
-        following = _buffer(workspace, f"step{step % 2}", shape, linear.dtype)
-        image = cv2.addWeighted(image, 1 / 3, pair, 1.0, 0.0, dst=following).reshape(shape)
+            cv2.remap(image, offsets, None, _RELATIVE_LINEAR, borderMode=cv2.BORDER_REPLICATE, dst=into)
+        # OpenCV's arithmetic runs on every core; numpy's on one.
+        cv2.addWeighted(minus, 1 / 3, turns[target], 1 / 3, 0.0, dst=minus)
+        cv2.addWeighted(image, 1 / 3, minus, 1.0, 0.0, dst=turns[target])
+        image, current = turns[target], target
     return image
 
 
@@ -447,8 +449,10 @@ class MotionBlurStream:
         if held.to_previous is None and to_next is None:
             return held.frame
         shape = (held.frame.shape[0], held.frame.shape[1])
-        velocity = full_resolution(frame_velocity(held.to_previous, to_next), held.scale, shape, self._workspace)
-        return blur_along(held.frame, self.exposure_fraction, velocity, self._workspace)
+        # s folded into the velocity at the flow's size: the path comes out of the upscaling as it is.
+        velocity = frame_velocity(held.to_previous, to_next) * np.float32(self.exposure_fraction)
+        path = full_resolution(velocity, held.scale, shape, self._workspace)
+        return blur_along(held.frame, 1.0, path, self._workspace)
 
     def run(self, frames: Iterator[np.ndarray]) -> Iterator[np.ndarray]:
         """All frames of an iterator, blurred, in order."""
