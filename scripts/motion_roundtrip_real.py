@@ -66,6 +66,7 @@ def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--data", type=Path, default=Path(__file__).resolve().parents[2] / "shared" / "data")
     parser.add_argument("--profile", type=Path, help="the profile to apply (default: estimated from clip1021)")
+    parser.add_argument("--only", nargs="*", help="only these videos (names under clean/videos)")
     parser.add_argument("--out", type=Path, help="write the rows as JSON here")
     args = parser.parse_args()
     rows: list[dict[str, Any]] = []
@@ -77,6 +78,8 @@ def main() -> None:
             _darksynth("estimate", str(args.data / REFERENCE_CLIP), "--clip", "--out", str(profile_path), "--quiet")
         document = json.loads(profile_path.read_text())
         for source, clip in videos(args.data):
+            if args.only and source.name not in args.only:
+                continue
             row: dict[str, Any] = {"video": source.name, "clean": estimate(source, clip)}
             for fraction in (0.0, *FRACTIONS):
                 document["version"] = max(5, int(document.get("version", 1)))
