@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import json
 import math
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -12,7 +13,10 @@ import torch
 import darksynth
 from darksynth.darkening import Darkening, darken
 from darksynth.estimation.motion import EXPOSURE_FRACTION_PRIOR, MIN_SPEED, MotionEstimate, estimate_motion
+from darksynth.estimation.reference import load_reference
 from darksynth.profile import default_profile_path
+
+CLIPS = Path(__file__).resolve().parents[3] / "shared" / "data" / "real-lowlight" / "clips"
 
 HEIGHT, WIDTH = 256, 384
 DARKENING = Darkening(alpha=0.2, gamma=0.6)
@@ -239,3 +243,15 @@ def test_the_meta_is_json_ready() -> None:
     meta = json.loads(json.dumps(found.to_meta()))
     assert meta["flicker_measured"] is True and meta["flicker_prior"] is None
     assert meta["exposure_measured"] is False and meta["exposure_prior"] == EXPOSURE_FRACTION_PRIOR
+
+
+@pytest.mark.skipif(not (CLIPS / "clip474").is_dir(), reason="../shared/data/real-lowlight is absent")
+def test_a_reading_its_halves_do_not_share_is_refused() -> None:
+    """clip474 (a phone clip at 2.7 px/frame): the alternate halves of its moving blocks read s = 0 and s = 2, so
+    no one shutter explains it; the prior stands, with a note that says so. clip1021 (7 px/frame) keeps its
+    reading."""
+    found = estimate_motion(load_reference(CLIPS / "clip474", clip=True))
+    assert not found.exposure_measured and found.exposure_fraction == EXPOSURE_FRACTION_PRIOR
+    assert any("two halves of the moving blocks" in note for note in found.notes), found.notes
+    kept = estimate_motion(load_reference(CLIPS / "clip1021", clip=True))
+    assert kept.exposure_measured and 0.3 < kept.exposure_fraction < 0.7
