@@ -80,6 +80,7 @@ ESTIMATION_STAGES: dict[str, int] = {
     "network": 1,
     "refine": 1,
     "flicker": 0,
+    "cross_spectra": 0,
     "motion": 1,
     "assemble": 2,
 }
