@@ -24,6 +24,7 @@ blocks is measured on its least textured ones, with a warning that texture may b
 from __future__ import annotations
 
 import math
+import os
 from collections.abc import Callable
 from concurrent.futures import ThreadPoolExecutor
 from dataclasses import dataclass, field
@@ -121,6 +122,15 @@ NLM_OVERLAP = 16
 the search radius plus the patch radius (6 + 2 rows), so with 8 or more the bands give the whole frame's bits."""
 
 _nlm_pool: ThreadPoolExecutor | None = None
+
+
+def _forget_nlm_pool() -> None:
+    # A forked child inherits the pool without its threads (work sent to it would wait for ever): it makes its own.
+    global _nlm_pool
+    _nlm_pool = None
+
+
+os.register_at_fork(after_in_child=_forget_nlm_pool)
 
 
 def _nlm_workers() -> int:

@@ -68,6 +68,11 @@ def _table_threads() -> ThreadPoolExecutor:
     return ThreadPoolExecutor(max_workers=_TABLE_PARTS, thread_name_prefix="darksynth-srgb")
 
 
+# A forked child (a DataLoader worker running the transforms) inherits the pool without its threads, and work sent
+# to it would wait for ever: the child makes its own.
+os.register_at_fork(after_in_child=_table_threads.cache_clear)
+
+
 def levels_of_linear16(linear: np.ndarray, out: np.ndarray | None = None) -> np.ndarray:
     """8-bit sRGB levels of 16-bit linear light (one table read per value), into ``out`` if given (same shape).
 
