@@ -9,11 +9,19 @@ missed shift and take the persistent noise out, so that the real part left is th
 from __future__ import annotations
 
 import numpy as np
+import numpy.typing as npt
 
 
 def frequencies(size: int) -> tuple[np.ndarray, np.ndarray]:
     """The (ky, kx) frequencies (cycles/px) of a ``size``-px block's real FFT, shaped to broadcast against it."""
     return np.fft.fftfreq(size)[:, None], np.fft.rfftfreq(size)[None, :]
+
+
+def ring_membership(ring: np.ndarray, rings: int, dtype: npt.DTypeLike = np.float64) -> np.ndarray:
+    """One-hot (n, rings) of each frequency's ring index ``ring`` (n,): ``values @ membership`` sums per ring."""
+    membership = np.zeros((ring.size, rings), dtype)
+    membership[np.arange(ring.size), ring] = 1.0
+    return membership
 
 
 ALONG_SEARCH = np.linspace(-1.5, 1.5, 13)
@@ -35,8 +43,7 @@ def align_along(product: np.ndarray, motion: np.ndarray) -> np.ndarray:
     radius = np.hypot(ky, kx) * product.shape[-2]
     use = ((radius >= 2) & (radius <= 16) & (ky != 0) & (kx != 0)).ravel()
     ring = np.broadcast_to(np.rint(radius).astype(int), product.shape[1:]).ravel()[use]
-    membership = np.zeros((ring.size, int(ring.max()) + 1))
-    membership[np.arange(ring.size), ring] = 1.0
+    membership = ring_membership(ring, int(ring.max()) + 1)
     membership = membership[:, membership.sum(axis=0) > 0]
     ky_used = np.broadcast_to(ky, product.shape[1:]).ravel()[use]
     kx_used = np.broadcast_to(kx, product.shape[1:]).ravel()[use]
@@ -103,9 +110,7 @@ def without_persistent_noise(product: np.ndarray, shift: np.ndarray) -> np.ndarr
     ring = np.broadcast_to(ring, product.shape[1:]).ravel()
     count = product.shape[0]
     flat_sine = sine.reshape(count, -1)
-    rings = int(ring.max()) + 1
-    membership = np.zeros((ring.size, rings), np.float64)
-    membership[np.arange(ring.size), ring] = 1.0
+    membership = ring_membership(ring, int(ring.max()) + 1)
     members = membership.sum(axis=0)
     along_imaginary = (-product.imag.reshape(count, -1) * flat_sine) @ membership
     turning = (flat_sine**2) @ membership
@@ -124,10 +129,10 @@ def align_phase(product: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     at high frequencies: along the motion that would read as extra blur. The blur itself leaves no phase (both
     frames carry the same box, |H|^2 is real and non-negative), so the ramp is the error alone.
     """
-    ky, kx = frequencies(product.shape[-2])
+    size = product.shape[-2]
+    ky, kx = frequencies(size)
     radius = np.hypot(ky, kx)
     # Low frequencies: high signal to noise, and no phase wrap for errors up to about a pixel.
-    size = product.shape[-2]
     low = (radius >= 1.5 / size) & (radius <= 8.5 / size)
     ky_low = np.broadcast_to(ky, low.shape)[low]
     kx_low = np.broadcast_to(kx, low.shape)[low]
@@ -145,8 +150,7 @@ def align_phase(product: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         determinant = np.maximum(a11 * a22 - a12**2, 1e-30)
         error_y = np.clip((a22 * b1 - a12 * b2) / determinant, -1.0, 1.0)
         error_x = np.clip((a11 * b2 - a12 * b1) / determinant, -1.0, 1.0)
-        product = product * np.exp(
-            -2j * np.pi * (ky[None] * error_y[:, None, None] + kx[None] * error_x[:, None, None])
-        )
-        total += np.stack([error_y, error_x], axis=1)
+        error = np.stack([error_y, error_x], axis=1)
+        product = product * phase_ramp(error, size)
+        total += error
     return product, total

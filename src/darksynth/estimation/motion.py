@@ -74,6 +74,7 @@ from darksynth.estimation.cross_spectra import (
     box_transfer,
     frequencies,
     phase_ramp,
+    ring_membership,
     without_persistent_noise,
 )
 from darksynth.estimation.flicker import (
@@ -207,11 +208,9 @@ def estimate_motion(
         raise ValueError(f"expected a reference shaped (T, 3, H, W), got shape {tuple(reference.shape)}")
     frames = reference.shape[0]
     notes: list[str] = []
-    found_uniform = uniform_frames(reference) if uniform is None else uniform
-    found_cuts = scene_cuts(reference) if cuts is None else cuts
-    skipped = set(found_uniform) if frames > 1 else set()
-    cuts = list(found_cuts)
-    pairs = [t for t in range(frames - 1) if t not in skipped and t + 1 not in skipped and t + 1 not in set(cuts)]
+    skipped = set(uniform_frames(reference) if uniform is None else uniform) if frames > 1 else set()
+    cut_before = set(scene_cuts(reference) if cuts is None else cuts)
+    pairs = [t for t in range(frames - 1) if t not in skipped and t + 1 not in skipped and t + 1 not in cut_before]
     scale, small = _reduced_luminance(reference)
     flow_frames = _flow_frames(small, skipped) if pairs else []
     computed = [_pair_flow(flow_frames[t], flow_frames[t + 1], scale, t) for t in pairs]
@@ -404,13 +403,12 @@ def _block_spectra(
     second = (second - second.mean(axis=(1, 2), keepdims=True)) * window
     spectrum_first = np.fft.rfft2(first)
     spectrum_second = np.fft.rfft2(second)
-    ky, kx = frequencies(BLOCK)
     # The second block starts at the rounded shift; the sub-pixel remainder is a phase ramp, undone here.
     remainder = motion - np.round(motion)
     product = spectrum_first * np.conj(spectrum_second)
-    product *= np.exp(-2j * np.pi * (ky[None] * remainder[:, 0, None, None] + kx[None] * remainder[:, 1, None, None]))
+    product *= phase_ramp(remainder, BLOCK)
     # Noise that stays in place pulls the flow and the phase towards no shift. The shift the flow missed along the
-    # motion is found first with that noise in the model (_align_along), then the rest of it (both directions, a
+    # motion is found first with that noise in the model (align_along), then the rest of it (both directions, a
     # fraction of a pixel) on the spectra without that noise.
     error = align_along(product, motion)
     product = product * phase_ramp(error, BLOCK)
@@ -438,8 +436,7 @@ def _fit_exposure(reference: torch.Tensor, flows: list[PairFlow]) -> tuple[float
     in_rings = (ring >= 2) & (ring < BLOCK // 2) & ~on_axes
     ring = ring[in_rings] - 2
     rings = BLOCK // 2 - 2
-    membership = np.zeros((ring.size, rings), np.float32)
-    membership[np.arange(ring.size), ring] = 1.0
+    membership = ring_membership(ring, rings, np.float32)
     count = cross.shape[0]
     cross_flat = cross.reshape(count, -1)[:, in_rings].astype(np.float32)
     noise_flat = auto.reshape(count, -1)[:, in_rings].astype(np.float32) - cross_flat

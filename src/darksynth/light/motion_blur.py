@@ -6,9 +6,8 @@ smeared along its motion over ``s * |d|`` pixels. Here the motion is the dense o
 clean frames (OpenCV's DIS flow, no network weights; one flow a pair, whose inverse gives the way back): a frame's
 velocity is half its flow to the next frame minus its flow to the previous one, taken constant over the exposure,
 and the integral over the window is the mean of the frame resampled at points spread evenly along each pixel's
-path (:func:`blur_along`). The mean is taken in linear
-light (sRGB decoded, averaged, encoded again), as a sensor sums photons; the result is a clean frame, darkened and
-noised after.
+path (:func:`blur_along`). The mean is taken in linear light (sRGB decoded, averaged, encoded again), as a sensor
+sums photons; the result is a clean frame, darkened and noised after.
 
 What it does not model: a pixel is resampled along its own flow (backward warping), so a moving object is smeared
 within its own outline and its edge into the background behind it, but does not spill a trail over a still
@@ -121,8 +120,7 @@ def is_scene_cut(previous: np.ndarray, following: np.ndarray) -> bool:
 @functools.lru_cache(maxsize=4)
 def pixel_grid(height: int, width: int) -> tuple[np.ndarray, np.ndarray]:
     """Each pixel's x and y (H, W), float32 and contiguous, the identity maps of ``cv2.remap``; made once per size
-    (read-only: the stream's every frame and the estimator's every pair share them). The first ``h`` rows are the
-    grid of a band of ``h`` rows."""
+    (read-only: the estimator's every pair shares them; the blur's own resamplings use relative maps instead)."""
     grid_x = np.tile(np.arange(width, dtype=np.float32), (height, 1))
     grid_y = np.tile(np.arange(height, dtype=np.float32)[:, None], (1, width))
     grid_x.flags.writeable = grid_y.flags.writeable = False
@@ -331,7 +329,7 @@ def _blend_levels(
         weight = ((lengths[y, x] - STILL_LENGTH) / (FULL_LENGTH - STILL_LENGTH))[:, None]
         own = linear[y, x].astype(np.float32)
         mixed = own + weight * (integrated[y, x].astype(np.float32) - own)
-        out[y, x] = LEVEL_OF_LINEAR16[np.round(mixed).astype(np.uint16)].reshape(out[y, x].shape)
+        out[y, x] = LEVEL_OF_LINEAR16[np.round(mixed).astype(np.uint16)]
     still = cv2.compare(lengths, STILL_LENGTH, cv2.CMP_LE)  # type: ignore[call-overload]
     if cv2.countNonZero(still):
         cv2.copyTo(frame, still, out)
