@@ -286,3 +286,35 @@ def test_unmeasured_octaves_continue_the_colour_roll_off_of_a_gaussian_low_pass(
     assert torch.allclose(continued.covariances[4] / (std[4][:, None] * std[4][None, :]), correlation)
     assert torch.allclose(continued.temporal[3:], torch.full((3,), 0.3, dtype=torch.float64))
     assert torch.equal(continued.covariances[:3], covariances[:3])
+
+
+def test_unmeasured_knots_follow_the_prior_curve_through_the_measured_ones() -> None:
+    from darksynth.noise.spectral_fit import fill_knots_along
+
+    prior = torch.linspace(1.0, 8.0, 8, dtype=torch.float64).expand(3, 8).clone()
+    curve = 2.0 * prior
+    measured = torch.zeros(3, 8, dtype=torch.bool)
+    measured[:, 3:6] = True
+    curve[:, :3] = 0.01  # what a clipped knot would have read: it must not be kept, nor continued flat
+    filled = fill_knots_along(curve, measured, prior)
+    assert torch.allclose(filled, 2.0 * prior)
+    # Between measured knots the log ratio is interpolated: ratios 2 and 8 give 4 half-way.
+    curve = prior.clone()
+    curve[:, 2], curve[:, 6] = 2.0 * prior[:, 2], 8.0 * prior[:, 6]
+    between = torch.zeros(3, 8, dtype=torch.bool)
+    between[:, [2, 6]] = True
+    assert torch.allclose(fill_knots_along(curve, between, prior)[:, 4], 4.0 * prior[:, 4])
+    # A channel with no measured knot takes the others' median ratio.
+    only = measured.clone()
+    only[2] = False
+    assert torch.allclose(fill_knots_along(2.0 * prior, only, prior)[2], 2.0 * prior[2])
+
+
+@pytest.mark.parametrize("signal", [-0.05, -0.01, 0.0, 0.02, 0.1, 0.97, 1.01])
+def test_the_uncensored_signal_is_the_mean_before_the_clip(signal: float) -> None:
+    from darksynth.noise.spectral_fit import uncensored_signal
+
+    std = 0.03
+    clipped = (signal + std * torch.randn(400_000, generator=torch.Generator().manual_seed(1))).clamp(0.0, 1.0)
+    found = uncensored_signal(clipped.mean()[None], torch.tensor([std]))
+    assert abs(float(found[0]) - signal) < 0.002

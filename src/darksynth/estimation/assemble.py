@@ -39,8 +39,9 @@ from darksynth.estimation.refine import refine_profile
 from darksynth.estimation.refine_statistics import ANALYSIS_FRAMES
 from darksynth.estimation.spectrum import estimate_spectrum
 from darksynth.models.den import DEN
-from darksynth.noise.components import NoiseModel, noise_parameter
+from darksynth.noise.components import NoiseModel, noise_component, noise_parameter
 from darksynth.noise.level import mean_noise_variance
+from darksynth.noise.spectral import LEVEL_KNOTS
 from darksynth.noise.values import NoiseValues
 from darksynth.profile import Profile
 from darksynth.tones import (
@@ -285,7 +286,7 @@ def _measure_spectrum(
 ) -> NoiseValues:
     """The network's values with the heteroscedastic part and compression replaced by the measured spectrum; the
     replaced parameters lose their ranges (``apply --jitter`` would otherwise add the network's noise back)."""
-    found = estimate_spectrum(reference, name=source)
+    found = estimate_spectrum(reference, name=source, prior_curve=network_level_curve(noise))
     neutral = {name: noise_parameter(name).neutral for name in SPECTRUM_REPLACES}
     measured = noise.replace(**neutral, **{name: value for name, value in found.values.items()})
     replaced = (*SPECTRUM_REPLACES, "compression")
@@ -296,6 +297,18 @@ def _measure_spectrum(
         "network_values": {name: [round(float(v), 5) for v in noise[name].tolist()] for name in replaced}
     }
     return measured
+
+
+def network_level_curve(noise: NoiseValues) -> torch.Tensor:
+    """(3, 8) noise std per channel at the spectral model's level knots that the network's heteroscedastic values
+    give (``g_c^2 (shot^2 x + read^2)``): the shape the measured level curve follows where the reference shows no
+    unclipped flat block."""
+    component = noise_component("heteroscedastic")
+    knots = torch.tensor(LEVEL_KNOTS, dtype=torch.float64)
+    batched = {name: noise[name].to(torch.float64)[None].expand(len(knots), -1) for name in noise}
+    assert component.variance is not None
+    variance = component.variance(batched, knots[:, None].expand(-1, 3))
+    return variance.clamp_min(0.0).sqrt().T.contiguous()
 
 
 def moved_ranges(

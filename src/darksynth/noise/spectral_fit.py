@@ -217,6 +217,35 @@ def fill_knots(values: torch.Tensor) -> torch.Tensor:
     return filled
 
 
+def fill_knots_along(curve: torch.Tensor, measured: torch.Tensor, prior: torch.Tensor) -> torch.Tensor:
+    """A level curve (C, 8) std whose unmeasured knots (``measured`` False) follow the ``prior`` curve (C, 8),
+    scaled to the measured knots: the log ratio of curve to prior is interpolated linearly over the knot index
+    between measured knots and held beyond the first and last, so a dark knot without data continues the prior's
+    shape through the measured level rather than the darkest knot's value. A channel with no measured knot takes the
+    median ratio of the others; with none at all, the prior itself."""
+    curve, prior = curve.to(torch.float64), prior.to(curve.device, torch.float64).clamp_min(1e-6)
+    log_ratio = (curve.clamp_min(1e-6) / prior).log()
+    knots = torch.arange(curve.shape[1], dtype=torch.float64, device=curve.device)
+    known_ratios = log_ratio[measured]
+    common = known_ratios.median() if known_ratios.numel() else torch.zeros((), dtype=torch.float64)
+    filled = curve.clone()
+    for channel in range(curve.shape[0]):
+        known = measured[channel].nonzero().flatten()
+        if known.numel() == 0:
+            filled[channel] = prior[channel] * common.exp()
+            continue
+        x, y = knots[known], log_ratio[channel, known]
+        position = torch.searchsorted(x, knots).clamp(1, max(known.numel() - 1, 1))
+        if known.numel() == 1:
+            interpolated = y.expand_as(knots)
+        else:
+            low, high = x[position - 1], x[position]
+            t = ((knots - low) / (high - low)).clamp(0.0, 1.0)
+            interpolated = y[position - 1] + t * (y[position] - y[position - 1])
+        filled[channel] = torch.where(measured[channel], curve[channel], prior[channel] * interpolated.exp())
+    return filled
+
+
 def _sqrtm(matrix: torch.Tensor, inverse: bool = False) -> torch.Tensor:
     eigenvalues, eigenvectors = torch.linalg.eigh(0.5 * (matrix + matrix.transpose(-1, -2)))
     floor = 1e-6 * eigenvalues[..., -1:].clamp_min(1e-30)
@@ -382,6 +411,34 @@ def continue_octaves(parameters: SpectralParameters, first_unmeasured: int) -> S
 def spectral_covariances_of(values: dict[str, torch.Tensor]) -> torch.Tensor:
     """(OCTAVES, 3, 3) covariances of the table's ``octave_power`` and ``octave_correlation``."""
     return octave_covariances(values["octave_power"], values["octave_correlation"])
+
+
+_CENSORED_T = torch.linspace(-4.0, 8.0, 2401, dtype=torch.float64)
+_CENSORED_MEAN = _CENSORED_T * 0.5 * torch.erfc(-_CENSORED_T / math.sqrt(2.0)) + torch.exp(
+    -0.5 * _CENSORED_T.square()
+) / math.sqrt(2.0 * math.pi)
+"""E[max(0, t + z)] for z ~ N(0, 1) on a grid of t: the mean of unit noise about t cut off at 0."""
+
+
+def _uncensor_low(observed: torch.Tensor, std: torch.Tensor) -> torch.Tensor:
+    ratio = (observed / std.clamp_min(1e-6)).to(torch.float64)
+    table, grid = _CENSORED_MEAN.to(ratio.device), _CENSORED_T.to(ratio.device)
+    index = torch.searchsorted(table, ratio.clamp(float(table[0]), float(table[-1]))).clamp(1, len(grid) - 1)
+    fraction = (ratio - table[index - 1]) / (table[index] - table[index - 1])
+    t = grid[index - 1] + fraction.clamp(0.0, 1.0) * (grid[index] - grid[index - 1])
+    # Past the table's end clipping no longer moves the mean; below its start the signal is 4 std under 0.
+    t = torch.where(ratio >= float(table[-1]), ratio, t)
+    return (t * std.to(torch.float64)).to(observed.dtype)
+
+
+def uncensored_signal(observed: torch.Tensor, std: torch.Tensor) -> torch.Tensor:
+    """The signal ``mu`` whose noise of std ``std``, clipped to [0, 1] as a camera writes it, has the local mean
+    ``observed`` (a denoised frame): ``E[clip(mu + std z)] = observed``, per pixel, solved for the cut at 0 and at
+    full scale (each where the other does not reach). A denoiser returns the clipped mean, which lies above the
+    signal in crushed shadows; a simulation on it clips less than the camera did and reads its noise as weaker.
+    Where ``observed`` is at or below 0, the signal is taken 4 std under it (the clipped mean no longer tells)."""
+    low = _uncensor_low(observed, std)
+    return 1.0 - _uncensor_low(1.0 - low, std)
 
 
 def quantised(image: torch.Tensor) -> torch.Tensor:
