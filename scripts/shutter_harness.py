@@ -1,7 +1,7 @@
 """Randomized round trip of the shutter estimate on real textures: dark, noisy, moving, with a known exposure fraction.
 
 Run: ``OMP_NUM_THREADS=1 PYTHONPATH=src .venv/bin/python scripts/shutter_harness.py [--part develop|check]
-[--cases 120] [--data ../shared/data] [--out FILE.json]``.
+[--cases 160] [--data ../shared/data] [--out FILE.json]``.
 
 Each case (its own seed, fixed: ``develop`` draws seeds 0.., ``check`` seeds 100000..) takes a crop of a shared
 clean image as the scene and moves it: a translation of 2-20 px/frame in any direction, and in a quarter of the
@@ -223,7 +223,7 @@ def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--data", type=Path, default=Path(__file__).resolve().parents[2] / "shared" / "data")
     parser.add_argument("--part", choices=sorted(PARTS), default="develop")
-    parser.add_argument("--cases", type=int, default=120)
+    parser.add_argument("--cases", type=int, default=160)
     parser.add_argument("--first", type=int, default=0, help="skip this many of the part's cases")
     parser.add_argument("--out", type=Path, help="write the rows and the summary as JSON here")
     args = parser.parse_args()

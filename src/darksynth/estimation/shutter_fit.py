@@ -45,9 +45,12 @@ shutter: a camera that blends frames over time (temporal noise reduction, frame 
 motion further than a shutter open for the whole interval, and a grid that stopped at 1 would read such a clip as
 exactly 1, not as what it is (the profile holds the value at 1, with a warning that says why)."""
 
-COARSE_GRID = np.linspace(0.0, 2.0, 41)
+COARSE_GRID = np.linspace(0.0, 2.5, 51)
 """The first pass of the fit, also where the halves and the resampled readings are found: steps of 0.05, a third
-of :data:`~darksynth.estimation.shutter_confidence.TOLERANCE`, so that the resampled readings resolve it."""
+of :data:`~darksynth.estimation.shutter_confidence.TOLERANCE`, so that the resampled readings resolve it. It runs
+past the end of :data:`S_GRID`: a best fit held at 2 hides how far beyond it the data would go (texture or
+processing that smears more along the motion than frame blending does); its resampled readings, beyond 2, then
+give it a low confidence."""
 
 HALVES_DISAGREE = 0.5
 """The fit is repeated on alternate halves of the moving blocks; halves further apart than this mean no one s
@@ -200,8 +203,9 @@ def fit_exposure(spectra: BlockSpectra) -> ExposureFit:
     rings = _select(rings, usable)
     speed = float(np.median(speeds[usable]))
     scores = _block_scores(rings, COARSE_GRID)
-    best = float(COARSE_GRID[int(np.argmax(scores.sum(axis=1)))])
+    best = float(np.clip(COARSE_GRID[int(np.argmax(scores.sum(axis=1)))], S_GRID[0], S_GRID[-1]))
     reading = _refined(rings, best)
+    # Resampled beyond 2 too: a reading held at 2 whose resamples lie further out is not supported.
     readings = resampled_readings(scores, COARSE_GRID, scene_cells(spectra.places[usable], 2 * BLOCK))
     weight = discriminating(rings.along)
     fit = ExposureFit(
@@ -220,7 +224,10 @@ def fit_exposure(spectra: BlockSpectra) -> ExposureFit:
     )
     # The same fit on the two halves of the blocks (alternate ones): where they disagree, one s does not explain
     # the clip (texture that is not isotropic, processing the model lacks).
-    halves = [float(COARSE_GRID[int(np.argmax(scores[:, part::2].sum(axis=1)))]) for part in (0, 1)]
+    halves = [
+        float(np.clip(COARSE_GRID[int(np.argmax(scores[:, part::2].sum(axis=1)))], S_GRID[0], S_GRID[-1]))
+        for part in (0, 1)
+    ]
     if abs(halves[0] - halves[1]) > HALVES_DISAGREE:
         return _refuse(fit, f"the two halves of the moving blocks read s = {halves[0]:.1f} and {halves[1]:.1f}")
     if fit.confidence is not None and fit.confidence < MIN_CONFIDENCE:
