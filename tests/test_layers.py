@@ -81,8 +81,10 @@ ESTIMATION_STAGES: dict[str, int] = {
     "refine": 1,
     "flicker": 0,
     "cross_spectra": 0,
-    "motion": 1,
-    "assemble": 2,
+    "shutter_confidence": 0,
+    "shutter_fit": 1,
+    "motion": 2,
+    "assemble": 3,
 }
 """The layer of every module of the ``estimation`` package among its siblings."""
 

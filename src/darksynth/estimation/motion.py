@@ -28,7 +28,12 @@ Exposure fraction, the steps:
    optimum but does not move it. A pooled score rather than a median of per-block fits: one block's 64x64
    periodogram is too noisy to fit alone, and pooling weights each block by how much its rings say.
 4. Not identifiable -> :data:`EXPOSURE_FRACTION_PRIOR` with a note: one frame, no usable pair, fewer than
-   :data:`MIN_BLOCKS` moving textured blocks.
+   :data:`~darksynth.estimation.shutter_fit.MIN_BLOCKS` moving textured blocks (blocks whose texture matches itself
+   at another shift, a periodic pattern whose motion can alias, are left out), or a reading the blocks do not
+   support: its confidence, the share of readings within 0.15 of it when the scene's blocks are resampled (a
+   cluster bootstrap, :mod:`darksynth.estimation.shutter_confidence`), under one half. The note names the reading,
+   the resampled spread, and what explains it (texture contrast against the noise on the frequencies that tell
+   shutters apart, the share of noise that stays in place, periodic blocks).
 
 What it assumes: texture that is, over the pooled blocks, isotropic (a scene of mostly parallel edges along the
 motion reads as a shorter shutter, across it as a longer one; a periodic pattern can read as 0); and that the
@@ -36,7 +41,7 @@ camera added nothing that blurs along the motion (a phone's temporal denoising s
 a longer shutter, up to 2 here, held at 1 in the profile). Noise that persists from frame to frame (temporal noise
 reduction, codecs) is modelled (:func:`~darksynth.estimation.cross_spectra.align_along`,
 :func:`~darksynth.estimation.cross_spectra.without_persistent_noise`); a fit whose alternate
-halves of blocks disagree by more than :data:`HALVES_DISAGREE` is refused.
+halves of blocks disagree by more than :data:`~darksynth.estimation.shutter_fit.HALVES_DISAGREE` is refused.
 
 Flicker: on the pixels that stay still (flow below :data:`STILL_SPEED`, away from moving ones) through a stretch of
 frames between scene cuts (a cut, a uniform frame or a pair whose flow does not invert ends a stretch). The still
@@ -62,21 +67,13 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass, field
-from typing import Any
+from typing import Any, NamedTuple
 
 import cv2
 import numpy as np
 import torch
 
-from darksynth.estimation.cross_spectra import (
-    align_along,
-    align_phase,
-    box_transfer,
-    frequencies,
-    phase_ramp,
-    ring_membership,
-    without_persistent_noise,
-)
+from darksynth.estimation.cross_spectra import align_along, align_phase, phase_ramp, without_persistent_noise
 from darksynth.estimation.flicker import (
     FLICKER_CORRELATION_PRIOR,
     FLICKER_PRIOR,
@@ -84,6 +81,15 @@ from darksynth.estimation.flicker import (
     measure_flicker,
 )
 from darksynth.estimation.reference import scene_cuts, uniform_frames
+from darksynth.estimation.shutter_fit import (
+    BLOCK,
+    MIN_BLOCKS,
+    MIN_SPEED,
+    S_GRID,
+    BlockSpectra,
+    ExposureFit,
+    fit_exposure,
+)
 from darksynth.light.motion_blur import dense_flow, pixel_grid
 
 EXPOSURE_FRACTION_PRIOR = 0.5
@@ -100,36 +106,12 @@ FLOW_BLUR_SIGMA = 1.0
 BRIGHT_PERCENTILE = 99.5
 """Each frame is scaled so that this percentile of its luminance is white: dark frames use the 8-bit range."""
 
-BLOCK = 64
-"""Side (px, full resolution) of the blocks whose blur is measured: 32 frequency rings, enough below the first
-zero of a box of a few px."""
-
-MIN_SPEED = 1.5
-"""Blocks moving less than this (px/frame) are not measured: a box shorter than a pixel barely changes the
-spectrum below the Nyquist frequency, so slow blocks say little, and in the real clips the flow of the darkest
-ones follows the noise at about 1 px/frame (their fit then reads compression and in-camera processing as blur)."""
-
 MIN_CONSISTENT_SHARE = 0.4
 """A pair whose flow passes the forward-backward check on less of the frame than this is taken as a scene cut:
 between frames of one scene even fast motion leaves most of the frame consistent (occlusions are edges)."""
 
-MIN_BLOCKS = 6
-"""Fewer moving textured blocks than this: the blur is not measured (the prior is used)."""
-
 MAX_BLOCKS = 256
 """At most this many blocks enter the fit (spread over the frame pairs): the score's cost grows with them."""
-
-S_GRID = np.linspace(0.0, 2.0, 101)
-"""Candidate exposure fractions for the fit: steps of 0.1 first, then of 0.02 around the best, refined by a
-parabola through the best three (the score is smooth in s: one broad peak). Up to 2, beyond any shutter: a camera
-that blends frames over time (temporal noise reduction, frame averaging in the dark) smears motion further than a
-shutter open for the whole interval, and a grid that stopped at 1 would read such a clip as exactly 1, not as
-what it is (the profile holds the value at 1, with a warning that says why)."""
-
-HALVES_DISAGREE = 0.5
-"""The fit is repeated on alternate halves of the moving blocks (on the coarse grid, steps of 0.1); halves further
-apart than this mean no one s explains the clip, and the prior is used. On the shared phone clips the halves of the
-readings kept agree within 0.2 (0.3 on one clip); clip474 read 0.0 on one half and 2.0 on the other."""
 
 SHUTTER_LIMIT = 1.0
 """The longest blur a shutter gives: open for the whole frame interval."""
@@ -155,6 +137,9 @@ class MotionEstimate:
         flicker_measured: whether the two flicker values were measured.
         flicker_frames: frames in the still stretches the flicker was read on.
         notes: one line for each thing not measured, with the prior used.
+        exposure_fit: the fit behind the exposure fraction and its checks (None: no block to fit): its reading
+            (kept when the prior is used), its confidence and what the blocks show of contrast, periodic texture
+            and noise that stays in place.
     """
 
     exposure_fraction: float
@@ -169,6 +154,14 @@ class MotionEstimate:
     flicker_measured: bool
     flicker_frames: int
     notes: tuple[str, ...] = field(default=())
+    exposure_fit: ExposureFit | None = None
+
+    @property
+    def exposure_confidence(self) -> float:
+        """In [0, 1]: the share of readings, with the scene's blocks resampled, within
+        :data:`~darksynth.estimation.shutter_confidence.TOLERANCE` of the reading; 0 when nothing was read."""
+        fit = self.exposure_fit
+        return 0.0 if fit is None or fit.confidence is None else round(fit.confidence, 3)
 
     def to_meta(self) -> dict[str, Any]:
         """JSON-ready record for a profile's ``meta``: the values, what was measured, the priors and why."""
@@ -176,6 +169,8 @@ class MotionEstimate:
             "exposure_fraction": round(self.exposure_fraction, 4),
             "exposure_measured": self.exposure_measured,
             "exposure_prior": None if self.exposure_measured else EXPOSURE_FRACTION_PRIOR,
+            "exposure_confidence": self.exposure_confidence,
+            "exposure_checks": _fit_checks(self.exposure_fit),
             "moving_share": round(self.moving_share, 4),
             "displacement": round(self.displacement, 3),
             "blocks": self.blocks,
@@ -223,46 +218,19 @@ def estimate_motion(
         moving_share = float(
             np.mean([(f.valid & (np.hypot(f.flow[..., 0], f.flow[..., 1]) >= MIN_SPEED)).mean() for f in flows])
         )
-    exposure, blocks, displacement = EXPOSURE_FRACTION_PRIOR, 0, 0.0
-    measured = False
-    if frames < 2:
-        notes.append(f"a single frame shows no motion: exposure fraction is the prior {EXPOSURE_FRACTION_PRIOR}")
-    elif not flows:
-        notes.append(
-            f"no pair of consecutive frames to compare (uniform frames, scene cuts, or flow that does not invert: "
-            f"too dark or unrelated frames): exposure fraction is the prior {EXPOSURE_FRACTION_PRIOR}"
-        )
-    else:
-        fit = _fit_exposure(reference, flows)
-        blocks, displacement = fit[1], fit[2]
-        if fit[0] is None:
-            why = fit[3] or (
-                f"no motion of {MIN_SPEED} px/frame or more between frames"
-                if moving_share < 0.01
-                else f"only {blocks} moving textured blocks (at least {MIN_BLOCKS} needed)"
-            )
-            notes.append(f"{why}: exposure fraction is the prior {EXPOSURE_FRACTION_PRIOR}")
-        else:
-            exposure, measured = fit[0], True
-            if exposure > SHUTTER_LIMIT:
-                notes.append(
-                    f"the blur along the motion is {'at least ' if exposure >= S_GRID[-1] else ''}{exposure:.2f} "
-                    "times the displacement a frame, longer than a "
-                    "shutter open for the whole frame interval gives: the camera blends frames over time "
-                    "(temporal noise reduction or frame averaging); the exposure fraction is held at 1"
-                )
-
+    exposure = _read_exposure(reference, flows, moving_share)
+    notes.extend(exposure.notes)
     flicker, correlation, flicker_frames, why_not = measure_flicker(small, flows, frames)
     flicker_measured = why_not is None
     if why_not is not None:
         notes.append(f"{why_not}: flicker is the prior {FLICKER_PRIOR} (correlation {FLICKER_CORRELATION_PRIOR})")
         flicker, correlation = FLICKER_PRIOR, FLICKER_CORRELATION_PRIOR
     return MotionEstimate(
-        exposure_fraction=float(exposure),
-        exposure_measured=measured,
+        exposure_fraction=float(exposure.value),
+        exposure_measured=exposure.measured,
         moving_share=moving_share,
-        displacement=displacement,
-        blocks=blocks,
+        displacement=exposure.displacement,
+        blocks=exposure.blocks,
         pairs=len(flows),
         skipped_pairs=frames - 1 - len(flows) if frames > 1 else 0,
         flicker=float(flicker),
@@ -270,7 +238,52 @@ def estimate_motion(
         flicker_measured=flicker_measured,
         flicker_frames=flicker_frames,
         notes=tuple(notes),
+        exposure_fit=exposure.fit,
     )
+
+
+class _Exposure(NamedTuple):
+    """The exposure fraction given (the prior when not measured), and what the estimate records of it."""
+
+    value: float
+    measured: bool
+    blocks: int
+    displacement: float
+    fit: ExposureFit | None
+    notes: list[str]
+
+
+def _read_exposure(reference: torch.Tensor, flows: list[PairFlow], moving_share: float) -> _Exposure:
+    """The exposure fraction from the flows' moving blocks, or the prior with a note that says why."""
+    frames = reference.shape[0]
+    prior = f"exposure fraction is the prior {EXPOSURE_FRACTION_PRIOR}"
+    if frames < 2:
+        return _Exposure(EXPOSURE_FRACTION_PRIOR, False, 0, 0.0, None, [f"a single frame shows no motion: {prior}"])
+    if not flows:
+        why = (
+            "no pair of consecutive frames to compare (uniform frames, scene cuts, or flow that does not invert: "
+            "too dark or unrelated frames)"
+        )
+        return _Exposure(EXPOSURE_FRACTION_PRIOR, False, 0, 0.0, None, [f"{why}: {prior}"])
+    spectra = _block_spectra(reference, flows)
+    fit = fit_exposure(spectra) if spectra is not None else None
+    blocks, displacement = (fit.blocks, fit.speed) if fit is not None else (0, 0.0)
+    if fit is None or fit.reading is None or fit.refused is not None:
+        why = (fit.refused if fit is not None else None) or (
+            f"no motion of {MIN_SPEED} px/frame or more between frames"
+            if moving_share < 0.01
+            else f"only {blocks} moving textured blocks (at least {MIN_BLOCKS} needed)"
+        )
+        return _Exposure(EXPOSURE_FRACTION_PRIOR, False, blocks, displacement, fit, [f"{why}: {prior}"])
+    notes = []
+    if fit.reading > SHUTTER_LIMIT:
+        notes.append(
+            f"the blur along the motion is {'at least ' if fit.reading >= S_GRID[-1] else ''}{fit.reading:.2f} "
+            "times the displacement a frame, longer than a shutter open for the whole frame interval gives: the "
+            "camera blends frames over time (temporal noise reduction or frame averaging); the exposure fraction "
+            "is held at 1"
+        )
+    return _Exposure(fit.reading, True, blocks, displacement, fit, notes)
 
 
 def _luminance(frames: torch.Tensor) -> np.ndarray:
@@ -373,11 +386,8 @@ def _moving_blocks(flow: PairFlow, shape: tuple[int, int]) -> list[tuple[int, in
     ]
 
 
-def _block_spectra(
-    reference: torch.Tensor, flows: list[PairFlow]
-) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray] | None:
-    """Cross and auto power spectra (N, BLOCK, BLOCK//2+1) of the moving block pairs, their motions (N, 2) (dy, dx)
-    with the phase fit's correction, and the size of that correction (N,) px."""
+def _block_spectra(reference: torch.Tensor, flows: list[PairFlow]) -> BlockSpectra | None:
+    """The moving block pairs' cross and auto spectra, aligned, with their motions and places (None: no block)."""
     height, width = reference.shape[-2:]
     chosen: list[tuple[int, int, int, float, float]] = []
     per_pair = [_moving_blocks(f, (height, width)) for f in flows]
@@ -417,80 +427,25 @@ def _block_spectra(
     error += missed
     auto = 0.5 * (np.abs(spectrum_first) ** 2 + np.abs(spectrum_second) ** 2)
     shift = motion + error
-    return without_persistent_noise(product, shift).real, auto, shift, np.hypot(error[:, 0], error[:, 1])
+    scene = without_persistent_noise(product, shift)
+    # Where each block's content sits in the first frame: blocks of different pairs showing one part of the scene.
+    start = np.array([(top - t * dy, left - t * dx) for t, top, left, dy, dx in chosen], np.float64).reshape(-1, 2)
+    correction = np.hypot(error[:, 0], error[:, 1])
+    return BlockSpectra(scene, product.real - scene.real, auto, shift, correction, start)
 
 
-def _fit_exposure(reference: torch.Tensor, flows: list[PairFlow]) -> tuple[float | None, int, float, str | None]:
-    """The exposure fraction fitted to the moving blocks (None: not measured), the blocks used, their median speed,
-    and why the fit was refused when the blocks were enough (None otherwise)."""
-    spectra = _block_spectra(reference, flows)
-    if spectra is None:
-        return None, 0, 0.0, None
-    cross, auto, motion, correction = spectra
-    ky, kx = frequencies(BLOCK)
-    ring = np.rint(np.hypot(ky, kx) * BLOCK).astype(int).ravel()
-    # Rings 0 and 1 hold the mean and the window's leakage; beyond BLOCK / 2 the ring is cut by the corners. The
-    # two axes hold the sensor's row and column patterns, which stay in place while the scene moves: their cross
-    # power oscillates with the shift and, for a shift of a pixel or two, reads as blur along it.
-    on_axes = ((ky == 0) | (kx == 0)).ravel()
-    in_rings = (ring >= 2) & (ring < BLOCK // 2) & ~on_axes
-    ring = ring[in_rings] - 2
-    rings = BLOCK // 2 - 2
-    membership = ring_membership(ring, rings, np.float32)
-    count = cross.shape[0]
-    cross_flat = cross.reshape(count, -1)[:, in_rings].astype(np.float32)
-    noise_flat = auto.reshape(count, -1)[:, in_rings].astype(np.float32) - cross_flat
-    signal = cross_flat @ membership
-    noise = noise_flat @ membership
-    snr = np.clip(signal, 0, None) / np.maximum(noise, 1e-12 * max(float(np.abs(signal).max()), 1e-30))
-    weights = snr / (1.0 + snr)
-    # A block whose mid rings hold no more scene than noise has no texture to read blur from.
-    textured = weights[:, : rings // 2].mean(axis=1) >= 0.3
-    speeds = np.hypot(motion[:, 0], motion[:, 1])
-    # The cross spectrum's phase corrects the flow; where it corrects much, or finds the block slow after all, the
-    # flow had followed noise (in the darkest frames it does) and the pair is not one scene moving.
-    textured &= (speeds >= MIN_SPEED) & (correction <= 0.5 + 0.1 * speeds)
-    if textured.sum() < MIN_BLOCKS:
-        return None, int(textured.sum()), float(np.median(speeds)), None
-    cross_flat, weights, motion = cross_flat[textured], weights[textured], motion[textured]
-    # The projection of each frequency on the motion: cycles per frame's displacement.
-    ky_flat = np.broadcast_to(ky, (BLOCK, kx.shape[1])).ravel()[in_rings]
-    kx_flat = np.broadcast_to(kx, (BLOCK, kx.shape[1])).ravel()[in_rings]
-    along = np.abs(motion[:, 0, None] * ky_flat[None] + motion[:, 1, None] * kx_flat[None]).astype(np.float32)
-    power_sq = (cross_flat**2) @ membership
+def _fit_checks(fit: ExposureFit | None) -> dict[str, Any] | None:
+    """The fit's reading (also when the prior is used) and its checks, JSON-ready (None: no block was fitted)."""
+    if fit is None:
+        return None
 
-    def per_block(s: float) -> np.ndarray:
-        transfer = box_transfer(np.float32(s) * along)
-        a = (cross_flat * transfer) @ membership
-        b = (transfer**2) @ membership
-        scores: np.ndarray = (weights * a * a / np.maximum(b * power_sq, 1e-30)).sum(axis=1)
-        return scores
+    def rounded(value: float | None) -> float | None:
+        return None if value is None else round(value, 4)
 
-    def score(s: float) -> float:
-        return float(per_block(s).sum())
-
-    coarse = S_GRID[::5]
-    coarse_blocks = np.stack([per_block(s) for s in coarse])
-    best = float(coarse[int(np.argmax(coarse_blocks.sum(axis=1)))])
-    # The same fit on the two halves of the blocks (alternate ones): where they disagree, one s does not explain
-    # the clip (texture that is not isotropic, processing the model lacks) and the reading is not trusted.
-    halves = [float(coarse[int(np.argmax(coarse_blocks[:, part::2].sum(axis=1)))]) for part in (0, 1)]
-    speed = float(np.median(np.hypot(motion[:, 0], motion[:, 1])))
-    if abs(halves[0] - halves[1]) > HALVES_DISAGREE:
-        return (
-            None,
-            len(motion),
-            speed,
-            f"the two halves of the moving blocks read s = {halves[0]:.1f} and {halves[1]:.1f}",
-        )
-    fine = S_GRID[(best - 0.101 <= S_GRID) & (best + 0.101 >= S_GRID)]
-    fine_scores = np.array([score(s) for s in fine])
-    index = int(np.argmax(fine_scores))
-    estimate = float(fine[index])
-    if 0 < index < len(fine) - 1:
-        left, middle, right = fine_scores[index - 1 : index + 2]
-        curvature = left - 2 * middle + right
-        step = float(fine[index + 1] - fine[index])
-        if curvature < 0:
-            estimate += float(np.clip(0.5 * (left - right) / curvature, -1, 1) * step)
-    return float(np.clip(estimate, 0.0, float(S_GRID[-1]))), len(motion), speed, None
+    return {
+        "reading": rounded(fit.reading),
+        "resampled_10_90": [round(fit.spread[0], 3), round(fit.spread[1], 3)],
+        "contrast_along_motion": rounded(fit.contrast),
+        "periodic_blocks": fit.ambiguous,
+        "persistent_share": rounded(fit.persistent_share),
+    }
