@@ -340,3 +340,12 @@ def test_sorted_quantiles_are_numpy_s_and_the_compass_search_finds_a_stepped_min
     found = compass_search(stepped, np.zeros(2), 0.25, 0.005)
     assert stepped(found) == 0.0
     assert abs(found[0] - 0.3) < 0.11 and abs(found[1] + 0.7) < 0.06
+
+    def along_a_bound(point: np.ndarray) -> float:
+        # As alpha at 1 with a pivoted gamma: the first coordinate's effect is clamped at its bound, and the way
+        # down needs both coordinates to move together (either alone does not lower it, at any step).
+        clamped = min(point[0] - point[1], 0.0)
+        return 10.0 * abs(clamped) + (point[1] - 1.0) ** 2
+
+    found = compass_search(along_a_bound, np.zeros(2), 0.25, 0.005)
+    assert abs(found[1] - 1.0) < 0.02 and along_a_bound(found) < 0.01

@@ -312,11 +312,21 @@ def fit_output_darkening(target: np.ndarray, model: OutputModel, start: Darkenin
 def compass_search(
     objective: Callable[[np.ndarray], float], start: np.ndarray, first_step: float, last_step: float
 ) -> np.ndarray:
-    """The point a compass search reaches from ``start``: move by ``step`` along the first axis direction that
-    lowers ``objective``, halve the step when none does, stop below ``last_step``. Needs no derivatives, so it
-    works on objectives with steps (quantiles of rounded values)."""
+    """The point a compass search reaches from ``start``: move by ``step`` along the first direction that lowers
+    ``objective`` (the axes, then the diagonals), halve the step when none does, stop below ``last_step``. Needs
+    no derivatives, so it works on objectives with steps (quantiles of rounded values); the diagonals get it along
+    a bound that clamps one coordinate (alpha at 1: a brighter curve needs gamma and the level to rise together).
+    """
     point, value, step = np.asarray(start, dtype=np.float64), objective(start), first_step
-    directions = np.concatenate([np.eye(point.size), -np.eye(point.size)])
+    axes = np.eye(point.size)
+    diagonals = [
+        axes[i] * a + axes[j] * b
+        for i in range(point.size)
+        for j in range(i + 1, point.size)
+        for a in (1, -1)
+        for b in (1, -1)
+    ]
+    directions = np.concatenate([axes, -axes, np.array(diagonals).reshape(-1, point.size)])
     while step >= last_step:
         for direction in directions:
             candidate = point + step * direction
