@@ -15,11 +15,29 @@ from PIL import Image
 from darksynth.apply import ApplyOptions, apply
 from darksynth.darkening import Darkening, darken
 from darksynth.errors import ProfileError
-from darksynth.exposure import matched_colour, matched_darkening
+from darksynth.exposure import (
+    compass_search,
+    match_darkening,
+    matched_colour,
+    matched_darkening,
+    output_model,
+    simulated_luminance_quantiles,
+    sorted_quantiles,
+)
+from darksynth.noise.level import channel_noise_std
+from darksynth.noise.simulate import noise_sum
 from darksynth.noise.values import NoiseValues
 from darksynth.profile import Profile, parse_profile, profile_to_dict
 from darksynth.synthesize import synthesize
-from darksynth.tones import ToneTarget, colour_cast, median_noise, sampled_tone_quantiles, tone_quantiles
+from darksynth.tones import (
+    PROBABILITIES,
+    ToneTarget,
+    colour_cast,
+    luminance_quantiles,
+    median_noise,
+    sampled_tone_quantiles,
+    tone_quantiles,
+)
 
 
 def _scene(seed: int, scale: float) -> np.ndarray:
@@ -54,7 +72,9 @@ def test_the_tone_target_round_trips_through_the_document_and_bad_ones_are_refus
     falling = dict(document, tone={"quantiles": list(reversed(document["tone"]["quantiles"])), "noise": 0.001})
     with pytest.raises(ProfileError, match=r"^x: tone.quantiles must be 49 non-decreasing numbers in \[0, 1\]"):
         parse_profile(falling, source="x")
-    with pytest.raises(ProfileError, match=r"^x: tone must be an object with quantiles, noise and optionally colour"):
+    with pytest.raises(
+        ProfileError, match=r"^x: tone must be an object with quantiles, noise and optionally colour and luminance"
+    ):
         parse_profile(dict(document, tone=[0.1]), source="x")
 
 
@@ -189,3 +209,143 @@ def test_apply_matches_the_colour_only_when_asked(tmp_path: Path) -> None:
         casts[name] = colour_cast(_chw(pixels)[None])
     assert np.abs(np.subtract(casts["orange"], SODIUM)).max() < 0.06
     assert np.abs(np.subtract(casts["plain"], SODIUM)).max() > 0.2
+
+
+# --- the match fitted on the output's luminance quantiles ----------------------------------------------------
+
+NOISY = NoiseValues.from_values({"shot": 0.03, "read": 0.02, "quantization": 0.0, "banding": 0.0})
+"""Noise strong enough against a dark output (about 5 8-bit levels at its median) that it widens the luminance
+quantiles and clipping at black lifts the lowest."""
+
+
+def _landscape() -> np.ndarray:
+    """(192, 256, 3) uint8 smooth scene: random colours on a grid of 8 px, interpolated; its top and bottom halves
+    are crops of one scene with similar, not equal, tones."""
+    rng = np.random.default_rng(11)
+    coarse = torch.from_numpy(rng.random((1, 3, 25, 33))).to(torch.float32)
+    smooth = torch.nn.functional.interpolate(coarse, size=(192, 256), mode="bilinear", align_corners=True)[0]
+    return (smooth * 255.0).round().clamp(0, 255).to(torch.uint8).permute(1, 2, 0).numpy()
+
+
+def _noisy_profile(tone: ToneTarget | None) -> Profile:
+    return Profile(noise=NOISY, darkening=Darkening(0.2, 0.6), tone=tone)
+
+
+def _reference_target(reference: torch.Tensor) -> ToneTarget:
+    """The tone target as ``estimate`` reads it from a reference (3, H, W) in [0, 1]."""
+    return ToneTarget(
+        tuple(float(q) for q in tone_quantiles(reference)),
+        median_noise(reference),
+        luminance=tuple(float(q) for q in luminance_quantiles(reference)),
+    )
+
+
+def _output(clean: np.ndarray, profile: Profile, darkening: Darkening | str = "profile") -> torch.Tensor:
+    result = synthesize(
+        torch.from_numpy(clean).permute(2, 0, 1).contiguous(),
+        profile,
+        darkening=darkening,
+        generator=torch.Generator().manual_seed(3),
+    )  # type: ignore[arg-type]
+    return torch.as_tensor(result.image).to(torch.float32) / 255.0
+
+
+def _luminance_gap(output: torch.Tensor, target: ToneTarget) -> float:
+    """Mean absolute difference of the output's luminance quantiles from the target's, 4% to 96%."""
+    assert target.luminance is not None
+    middle = slice(1, -1)
+    return float(np.abs(luminance_quantiles(output)[middle] - np.asarray(target.luminance)[middle]).mean())
+
+
+@pytest.mark.parametrize(("alpha", "gamma"), [(0.12, 0.6), (0.25, 1.0), (0.15, 0.45), (0.3, 0.8)])
+def test_a_noisy_reference_s_darkening_is_recovered_on_another_crop_of_its_scene(alpha: float, gamma: float) -> None:
+    """A crop darkened with a known alpha and gamma and the profile's noise is the reference; the other crop of the
+    same scene, matched to its tone target, gets the same tone curve, and its output the reference's luminance."""
+    scene = _landscape()
+    truth = Darkening(alpha, gamma)
+    reference = _output(scene[:96], _noisy_profile(None), truth)
+    target = _reference_target(reference)
+    other = torch.from_numpy(np.ascontiguousarray(scene[96:])).permute(2, 0, 1)
+    found = matched_darkening(other, target, noise=NOISY)
+    assert found is not None
+    # The tone curve at the crop's own tones, 10% to 90%: the two crops' tones differ a little, and the fit
+    # answers for that (the same crop gets within 8%).
+    levels = torch.from_numpy(np.quantile(scene[96:], np.linspace(0.1, 0.9, 9)) / 255.0).to(torch.float32)
+    curve_error = (darken(levels, found.alpha, found.gamma) / darken(levels, alpha, gamma) - 1.0).abs()
+    assert float(curve_error.max()) < 0.2
+    output = _output(np.ascontiguousarray(scene[96:]), _noisy_profile(target))
+    assert _luminance_gap(output, target) < 1.0 / 255.0
+
+
+def test_the_output_fit_comes_closer_than_the_block_medians_where_noise_and_clipping_weigh() -> None:
+    """On a dark, noisy reference the block medians leave out what the noise adds to the output's spread and what
+    clipping at black adds to its low end; the output fit brings the luminance quantiles nearer the reference's."""
+    scene = _landscape()
+    reference = _output(scene[:96], _noisy_profile(None), Darkening(0.06, 0.5))
+    target = _reference_target(reference)
+    other = np.ascontiguousarray(scene[96:])
+    block_only = dataclasses.replace(target, luminance=None)
+    before = _luminance_gap(_output(other, _noisy_profile(block_only)), target)
+    after = _luminance_gap(_output(other, _noisy_profile(target)), target)
+    assert after < 0.7 * before
+
+
+def test_a_profile_without_luminance_quantiles_loads_and_matches_on_the_block_medians() -> None:
+    """Profiles written before the luminance quantiles keep working: the tone target reads without them and the
+    match is the block-median one, noise or not."""
+    target = _reference_target(_output(_landscape()[:96], _noisy_profile(None), Darkening(0.12, 0.6)))
+    document = profile_to_dict(_noisy_profile(target))
+    assert len(document["tone"]["luminance"]) == 49
+    assert parse_profile(json.loads(json.dumps(document))).tone == target
+    del document["tone"]["luminance"]
+    old = parse_profile(json.loads(json.dumps(document))).tone
+    assert old is not None and old.luminance is None and old.quantiles == target.quantiles
+    other = torch.from_numpy(np.ascontiguousarray(_landscape()[96:])).permute(2, 0, 1)
+    block = match_darkening(np.asarray(old.quantiles), old.noise, other.to(torch.float32) / 255.0).darkening
+    assert matched_darkening(other, old, noise=NOISY) == block
+    assert matched_darkening(other, target, noise=NOISY) != block
+    falling = dict(document, tone=dict(document["tone"], luminance=list(reversed(target.luminance or ()))))
+    with pytest.raises(ProfileError, match=r"^x: tone.luminance must be 49 non-decreasing numbers in \[0, 1\]"):
+        parse_profile(falling, source="x")
+
+
+def test_the_simulated_output_has_the_noise_std_and_the_quantiles_of_the_real_one() -> None:
+    """The simulation's pieces against the composer: the std table against drawn noise at a flat level, and the
+    simulated luminance quantiles against a synthesized output's."""
+    flat = torch.full((1, 3, 128, 128), 0.05)
+    drawn = noise_sum(flat, NOISY, generator=torch.Generator().manual_seed(0))
+    std = channel_noise_std(NOISY, torch.tensor([0.05]))
+    assert np.allclose(drawn.reshape(3, -1).std(dim=1).numpy(), std[0].numpy(), rtol=0.05)
+    scene = _landscape()
+    darkening = Darkening(0.1, 0.5)
+    model = output_model(torch.from_numpy(scene).permute(2, 0, 1).to(torch.float32) / 255.0, NOISY)
+    simulated = simulated_luminance_quantiles(model, darkening)
+    real = luminance_quantiles(_output(scene, _noisy_profile(None), darkening))
+    assert np.abs(simulated - real)[1:-1].mean() < 1.0 / 255.0
+    noiseless = simulated_luminance_quantiles(
+        dataclasses.replace(model, noise=output_model(flat[0], None).noise), darkening
+    )
+    # Without the noise the dark end is off by about a level: the noise the simulation adds is what brings it in.
+    assert np.abs(noiseless - real)[:5].mean() > 3.0 * np.abs(simulated - real)[:5].mean()
+
+
+def test_sorted_quantiles_are_numpy_s_and_the_compass_search_finds_a_stepped_minimum() -> None:
+    values = np.sort(np.random.default_rng(0).random(1001))
+    assert np.allclose(sorted_quantiles(values, PROBABILITIES), np.quantile(values, PROBABILITIES))
+
+    def stepped(point: np.ndarray) -> float:
+        # A bowl at (0.3, -0.7) seen through steps of 0.02, as 8-bit levels show a smooth curve.
+        return float(np.round(((point[0] - 0.3) ** 2 + 4 * (point[1] + 0.7) ** 2) / 0.02) * 0.02)
+
+    found = compass_search(stepped, np.zeros(2), 0.25, 0.005)
+    assert stepped(found) == 0.0
+    assert abs(found[0] - 0.3) < 0.11 and abs(found[1] + 0.7) < 0.06
+
+    def along_a_bound(point: np.ndarray) -> float:
+        # As alpha at 1 with a pivoted gamma: the first coordinate's effect is clamped at its bound, and the way
+        # down needs both coordinates to move together (either alone does not lower it, at any step).
+        clamped = min(point[0] - point[1], 0.0)
+        return 10.0 * abs(clamped) + (point[1] - 1.0) ** 2
+
+    found = compass_search(along_a_bound, np.zeros(2), 0.25, 0.005)
+    assert abs(found[1] - 1.0) < 0.02 and along_a_bound(found) < 0.01

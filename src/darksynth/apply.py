@@ -220,7 +220,7 @@ def start_task(
     profile, darkening = options.drawing()
     first = None if first_frame is None else hwc_to_chw(first_frame)
     if first is not None and options.darkening == "profile":
-        darkening = matched_darkening(first, options.profile.tone, source=key) or darkening
+        darkening = matched_darkening(first, options.profile.tone, noise=options.profile.noise, source=key) or darkening
     parameters = draw_clip_parameters(profile, darkening=darkening, generator=generator)
     chosen = parameters.darkening
     if options.match_colour and first is not None and chosen is not None:

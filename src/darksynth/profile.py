@@ -7,8 +7,9 @@
            "compression": c},                  the last four optional (neutral when absent)
  "darkening": {"alpha": a, "gamma": g},        optional
  "ranges": {"shot": [lo, hi], "alpha": [lo, hi], ...},   optional: sample per image or clip within these
- "tone": {"quantiles": [q1, ..., q49], "noise": n, "colour": [r, g, b]},   optional: the reference's exposure
-                                                      (and colour cast), matched per input
+ "tone": {"quantiles": [q1, ..., q49], "noise": n, "colour": [r, g, b], "luminance": [l1, ..., l49]},
+                                               optional: the reference's exposure (block-median and pixel
+                                               luminance quantiles, colour cast), matched per input
  "light": {"exposure_fraction": s, "flicker": f, ...},   optional (version 5): motion blur, shake, flicker
  "meta": {...}}                                optional: free-form provenance, carried but not read
 ```
@@ -210,19 +211,30 @@ def _darkening(raw: Any) -> Darkening | None:
     )
 
 
+def _quantile_list(values: Any, where: str) -> tuple[float, ...]:
+    """:data:`TONE_QUANTILE_COUNT` non-decreasing numbers in [0, 1], or a message naming ``where``."""
+    if (
+        not isinstance(values, list)
+        or len(values) != TONE_QUANTILE_COUNT
+        or not all(isinstance(q, int | float) and not isinstance(q, bool) and 0.0 <= q <= 1.0 for q in values)
+        or any(b < a for a, b in itertools.pairwise(values))
+    ):
+        raise _fail(f"{where} must be {TONE_QUANTILE_COUNT} non-decreasing numbers in [0, 1], got {values!r}")
+    return tuple(float(q) for q in values)
+
+
 def _tone(raw: Any) -> ToneTarget | None:
     if raw is None:
         return None
-    if not isinstance(raw, dict) or not {"quantiles", "noise"} <= set(raw) <= {"quantiles", "noise", "colour"}:
-        raise _fail(f"tone must be an object with quantiles, noise and optionally colour, got {raw!r}")
-    quantiles, noise = raw["quantiles"], raw["noise"]
-    if (
-        not isinstance(quantiles, list)
-        or len(quantiles) != TONE_QUANTILE_COUNT
-        or not all(isinstance(q, int | float) and not isinstance(q, bool) and 0.0 <= q <= 1.0 for q in quantiles)
-        or any(b < a for a, b in itertools.pairwise(quantiles))
-    ):
-        raise _fail(f"tone.quantiles must be {TONE_QUANTILE_COUNT} non-decreasing numbers in [0, 1], got {quantiles!r}")
+    if not isinstance(raw, dict) or not {"quantiles", "noise"} <= set(raw) <= {
+        "quantiles",
+        "noise",
+        "colour",
+        "luminance",
+    }:
+        raise _fail(f"tone must be an object with quantiles, noise and optionally colour and luminance, got {raw!r}")
+    quantiles = _quantile_list(raw["quantiles"], "tone.quantiles")
+    noise = raw["noise"]
     if isinstance(noise, bool) or not isinstance(noise, int | float) or not 0.0 <= noise < 1.0:
         raise _fail(f"tone.noise must be a number in [0, 1), got {noise!r}")
     colour = raw.get("colour")
@@ -233,7 +245,9 @@ def _tone(raw: Any) -> ToneTarget | None:
     ):
         raise _fail(f"tone.colour must be 3 numbers in [0, 3] (red, green, blue shares of the light), got {colour!r}")
     cast = None if colour is None else (float(colour[0]), float(colour[1]), float(colour[2]))
-    return ToneTarget(quantiles=tuple(float(q) for q in quantiles), noise=float(noise), colour=cast)
+    # Profiles written before the luminance quantiles have none: apply then matches on the block medians alone.
+    luminance = None if raw.get("luminance") is None else _quantile_list(raw["luminance"], "tone.luminance")
+    return ToneTarget(quantiles=quantiles, noise=float(noise), colour=cast, luminance=luminance)
 
 
 def _version(raw: Any) -> int:
@@ -416,6 +430,8 @@ def profile_to_dict(profile: Profile) -> dict[str, Any]:
         document["tone"] = {"quantiles": list(profile.tone.quantiles), "noise": profile.tone.noise}
         if profile.tone.colour is not None:
             document["tone"]["colour"] = list(profile.tone.colour)
+        if profile.tone.luminance is not None:
+            document["tone"]["luminance"] = list(profile.tone.luminance)
     if profile.meta:
         document["meta"] = dict(profile.meta)
     return document

@@ -449,7 +449,7 @@ def synthesize(
     records = []
     for clip in flat:
         # With the reference's tones in the profile, each clip is darkened to them (darksynth.exposure).
-        matched = matched_darkening(clip[0], profile.tone) if darkening == "profile" else None
+        matched = matched_darkening(clip[0], profile.tone, noise=profile.noise) if darkening == "profile" else None
         parameters = draw_clip_parameters(profile, darkening=matched or darkening, generator=generator)
         records.append(parameters.to_json())
         if clip.dtype == torch.uint8:

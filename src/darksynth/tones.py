@@ -107,6 +107,36 @@ class ToneTarget:
     noise: float
     colour: tuple[float, float, float] | None = None
     """The reference's colour cast (:func:`colour_cast`), or None (grey, or a profile written before it)."""
+    luminance: tuple[float, ...] | None = None
+    """The reference's :func:`luminance_quantiles` at :data:`PROBABILITIES`: the tones a viewer sees, noise,
+    clipping and 8-bit levels included, which ``apply`` fits each output's to; None in profiles written before
+    them (the match then stops at the block medians)."""
+
+
+LUMINANCE_WEIGHTS: tuple[float, float, float] = (0.2126, 0.7152, 0.0722)
+"""Rec. 709 weights of red, green and blue in the luminance a viewer judges brightness by (sRGB's primaries)."""
+
+LUMINANCE_PIXELS = 1 << 20
+"""At most about this many pixels are read for a reference's luminance quantiles (every k-th pixel): a million
+values fix its 49 quantiles to far below an 8-bit level at a bounded cost on long 4K clips."""
+
+
+def luminance(frames: torch.Tensor) -> torch.Tensor:
+    """The luminance (..., H, W) of frames (..., C, H, W): the weighted sum of red, green and blue
+    (:data:`LUMINANCE_WEIGHTS`); a grey frame (C = 1) is its own luminance."""
+    if frames.shape[-3] == 1:
+        return frames[..., 0, :, :].to(torch.float32)
+    weights = torch.tensor(LUMINANCE_WEIGHTS, dtype=torch.float32, device=frames.device)
+    return torch.einsum("c,...chw->...hw", weights, frames[..., :3, :, :].to(torch.float32))
+
+
+def luminance_quantiles(frames: torch.Tensor, *, probabilities: tuple[float, ...] = PROBABILITIES) -> np.ndarray:
+    """Quantiles of the pixel luminance of frames (..., C, H, W) on the [0, 1] scale, pooled over frames, at
+    ``probabilities``: what a viewer sees of the exposure, noise and clipping included (block medians leave both
+    out). Read on every k-th pixel past :data:`LUMINANCE_PIXELS`."""
+    values = luminance(frames).flatten()
+    values = values[:: max(1, values.numel() // LUMINANCE_PIXELS)]
+    return np.quantile(values.numpy().astype(np.float64), probabilities)
 
 
 def colour_cast(frames: torch.Tensor, *, block: int = BLOCK) -> tuple[float, float, float] | None:

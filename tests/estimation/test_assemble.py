@@ -14,7 +14,7 @@ from darksynth.models.den import DEN
 from darksynth.noise.components import model_parameters, noise_parameter, vector_size
 from darksynth.noise.values import NoiseValues
 from darksynth.profile import validate_profile
-from darksynth.tones import tone_quantiles
+from darksynth.tones import luminance_quantiles, tone_quantiles
 
 
 def _reference(
@@ -100,6 +100,10 @@ def test_darkening_is_estimated_and_a_clip_gets_its_per_frame_range(tiny_model: 
     tone = single.profile.tone
     assert tone is not None and len(tone.quantiles) == 49 and tone.noise >= 0.0
     assert np.allclose(tone.quantiles, tone_quantiles(_dark_scene(1, alphas)))
+    # And the luminance a viewer sees of it, which apply fits each output's to.
+    assert tone.luminance is not None
+    assert np.allclose(tone.luminance, luminance_quantiles(_dark_scene(1, alphas)))
+    assert validate_profile(single.profile).tone == tone
 
 
 def test_black_reference_warns_and_leaves_the_darkening_to_apply(tiny_model: Callable[..., DEN]) -> None:

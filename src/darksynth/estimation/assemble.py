@@ -53,6 +53,7 @@ from darksynth.tones import (
     colour_cast,
     estimate_darkening_pooled_and_per_frame,
     estimate_darkening_spread,
+    luminance_quantiles,
 )
 
 BRIGHT_MEAN = 0.35
@@ -468,4 +469,7 @@ def _estimate_darkening(
                 ranges[name] = ((min(float(low), point), max(float(high), point)),)
             meta["darkening"]["ranges"] = "10th-90th percentile over frames"
     colour = colour_cast(frames)
-    return found.darkening, ToneTarget(quantiles=found.tone_quantiles, noise=found.block_noise, colour=colour)
+    seen = tuple(float(q) for q in luminance_quantiles(frames))
+    return found.darkening, ToneTarget(
+        quantiles=found.tone_quantiles, noise=found.block_noise, colour=colour, luminance=seen
+    )

@@ -39,3 +39,26 @@ def mean_noise_variance(values: Mapping[str, torch.Tensor], dark: torch.Tensor) 
         if component.variance is not None and all(p.name in values for p in component.parameters):
             variance = variance + component.variance(values, channel_means)
     return variance.mean(dim=1)
+
+
+def channel_noise_std(values: Mapping[str, torch.Tensor], levels: torch.Tensor, channels: int = 3) -> torch.Tensor:
+    """The noise std of each channel of a pixel at each of ``levels`` (L,), before clipping and 8-bit rounding:
+    the square root of the components' variances (as :func:`mean_noise_variance` sums them) with every channel of
+    the pixel at that level.
+
+    Args:
+        values: unbatched parameters by name, each (size,) (a :class:`~darksynth.noise.values.NoiseValues`).
+        levels: intensities on the [0, 1] scale.
+        channels: the channels of the pixel.
+
+    Returns:
+        (L, channels) standard deviations.
+    """
+    count = levels.shape[0]
+    means = levels.to(torch.float64)[:, None].expand(count, channels)
+    batched = {name: tensor.to(torch.float64).expand(count, tensor.shape[-1]) for name, tensor in values.items()}
+    variance = torch.zeros_like(means)
+    for component in noise_components():
+        if component.variance is not None and all(p.name in batched for p in component.parameters):
+            variance = variance + component.variance(batched, means)
+    return variance.clamp_min(0.0).sqrt()
