@@ -84,7 +84,7 @@ def test_octaves_the_reference_cannot_show_continue_the_measured_spectrum() -> N
     power = found.values["octave_power"].reshape(OCTAVES, 3)
     first = next(k for k in range(2, OCTAVES) if response[k] < 0.35)
     # Brightness is held; colour continues its roll-off, rising at most by the cube root of the last two octaves.
-    assert torch.equal(power[first:, 0], power[first - 1, 0].expand(OCTAVES - first)), power
+    assert torch.allclose(power[first:, 0], power[first - 1, 0].expand(OCTAVES - first), rtol=1e-9), power
     held = power[first - 1, 1:].expand(OCTAVES - first, 2)
     assert bool((power[first:, 1:] >= held * (1 - 1e-9)).all() and (power[first:, 1:] <= held * 1.6).all()), power
     assert "continue the finer octaves" in found.meta["octave_prior"]
