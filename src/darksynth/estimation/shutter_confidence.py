@@ -78,6 +78,14 @@ def contrast_along(cross: np.ndarray, noise: np.ndarray, along: np.ndarray) -> f
     return scene / max(floor, 1e-30)
 
 
+def persistent_share(persistent: np.ndarray, cross: np.ndarray, along: np.ndarray) -> float:
+    """Share of the cross power, on the frequencies that tell shutters apart (weighted by :func:`discriminating`),
+    that was noise staying in place (``persistent``, taken out) rather than the scene (``cross``, kept)."""
+    weight = discriminating(along)
+    taken = float((weight * np.abs(persistent)).sum())
+    return taken / max(taken + float((weight * np.abs(cross)).sum()), 1e-30)
+
+
 def motion_ambiguity(product: np.ndarray, motion: np.ndarray) -> np.ndarray:
     """Per block (N,): the highest local peak of the pair's cross-correlation away from the blur's ridge, as a
     share of the peak at no shift. ``product`` (N, B, B//2+1) the aligned cross spectra (the second block moved onto

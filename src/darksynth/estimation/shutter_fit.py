@@ -8,7 +8,7 @@ prior, with one line naming what could not be read and why.
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from typing import NamedTuple
 
 import numpy as np
@@ -19,8 +19,8 @@ from darksynth.estimation.shutter_confidence import (
     MIN_CONFIDENCE,
     TOLERANCE,
     contrast_along,
-    discriminating,
     motion_ambiguity,
+    persistent_share,
     reading_confidence,
     resampled_readings,
     scene_cells,
@@ -51,6 +51,11 @@ of :data:`~darksynth.estimation.shutter_confidence.TOLERANCE`, so that the resam
 past the end of :data:`S_GRID`: a best fit held at 2 hides how far beyond it the data would go (texture or
 processing that smears more along the motion than frame blending does); its resampled readings, beyond 2, then
 give it a low confidence."""
+
+SCENE_CELL = 2 * BLOCK
+"""Blocks whose content sits in one cell of this side (px, the first frame's coordinates) count as one piece of
+evidence when the blocks are resampled: blocks overlap by half (a stride of BLOCK / 2), the same part of the scene
+is seen in every frame pair, and a texture's orientation holds over a few blocks."""
 
 HALVES_DISAGREE = 0.5
 """The fit is repeated on alternate halves of the moving blocks; halves further apart than this mean no one s
@@ -181,10 +186,14 @@ def _usable(spectra: BlockSpectra, rings: _Rings) -> tuple[np.ndarray, np.ndarra
 
 
 def _select(rings: _Rings, keep: np.ndarray) -> _Rings:
-    return _Rings(
-        rings.cross[keep], rings.noise[keep], rings.persistent[keep], rings.along[keep], rings.membership,
-        rings.weights[keep],
-    )  # fmt: skip
+    """Only the blocks ``keep`` (N,) bool marks; the ring grouping stays."""
+    return rings._replace(
+        cross=rings.cross[keep],
+        noise=rings.noise[keep],
+        persistent=rings.persistent[keep],
+        along=rings.along[keep],
+        weights=rings.weights[keep],
+    )
 
 
 def fit_exposure(spectra: BlockSpectra) -> ExposureFit:
@@ -206,8 +215,7 @@ def fit_exposure(spectra: BlockSpectra) -> ExposureFit:
     best = float(np.clip(COARSE_GRID[int(np.argmax(scores.sum(axis=1)))], S_GRID[0], S_GRID[-1]))
     reading = _refined(rings, best)
     # Resampled beyond 2 too: a reading held at 2 whose resamples lie further out is not supported.
-    readings = resampled_readings(scores, COARSE_GRID, scene_cells(spectra.places[usable], 2 * BLOCK))
-    weight = discriminating(rings.along)
+    readings = resampled_readings(scores, COARSE_GRID, scene_cells(spectra.places[usable], SCENE_CELL))
     fit = ExposureFit(
         reading=reading,
         refused=None,
@@ -217,10 +225,7 @@ def fit_exposure(spectra: BlockSpectra) -> ExposureFit:
         spread=(float(np.percentile(readings, 10)), float(np.percentile(readings, 90))),
         contrast=contrast_along(rings.cross, rings.noise, rings.along),
         ambiguous=int(ambiguous.sum()),
-        persistent_share=float(
-            (weight * np.abs(rings.persistent)).sum()
-            / max(float((weight * (np.abs(rings.persistent) + np.abs(rings.cross))).sum()), 1e-30)
-        ),
+        persistent_share=persistent_share(rings.persistent, rings.cross, rings.along),
     )
     # The same fit on the two halves of the blocks (alternate ones): where they disagree, one s does not explain
     # the clip (texture that is not isotropic, processing the model lacks).
@@ -236,10 +241,7 @@ def fit_exposure(spectra: BlockSpectra) -> ExposureFit:
 
 
 def _refuse(fit: ExposureFit, why: str) -> ExposureFit:
-    return ExposureFit(
-        fit.reading, why, fit.blocks, fit.speed, fit.confidence, fit.spread, fit.contrast, fit.ambiguous,
-        fit.persistent_share,
-    )  # fmt: skip
+    return replace(fit, refused=why)
 
 
 def _why_unsure(fit: ExposureFit) -> str:
