@@ -87,9 +87,9 @@ def matched_darkening(
     reference's tones, to be held over the clip's frames: alpha and gamma fitted between a profile's ``tone`` and
     the frame's own block-median tone quantiles (:func:`match_darkening`), then, where the tone target has the
     reference's luminance quantiles, refined so that the output's luminance quantiles, the profile's ``noise``
-    added, meet them (:func:`fit_output_darkening`). None without a tone target (an older profile) or where no
-    block-median match can be made (a nearly uniform frame; logged, and the caller keeps the profile's
-    darkening)."""
+    added (None: simulated without noise), meet them (:func:`fit_output_darkening`). None without a tone target
+    (an older profile) or where no block-median match can be made (a nearly uniform frame; logged, and the caller
+    keeps the profile's darkening)."""
     if tone is None:
         return None
     clean = _unit_frame(frame)
