@@ -17,6 +17,7 @@ from darksynth.darkening import Darkening, darken
 from darksynth.errors import ProfileError
 from darksynth.exposure import (
     compass_search,
+    fit_output_darkening,
     match_darkening,
     matched_colour,
     matched_darkening,
@@ -349,3 +350,15 @@ def test_sorted_quantiles_are_numpy_s_and_the_compass_search_finds_a_stepped_min
 
     found = compass_search(along_a_bound, np.zeros(2), 0.25, 0.005)
     assert abs(found[1] - 1.0) < 0.02 and along_a_bound(found) < 0.01
+
+
+def test_the_output_fit_moves_along_the_alpha_bound() -> None:
+    """A reference brighter than alpha 1 allows (alpha on its bound) and a dark input (median 0.12), where a step
+    of gamma about the median moves alpha off the bound: the fit still finds the reference's curve."""
+    clean = (torch.from_numpy(_landscape()).permute(2, 0, 1).to(torch.float32) / 255.0) ** 3
+    model = output_model(clean, NOISY)
+    target = simulated_luminance_quantiles(model, Darkening(1.0, 0.45))
+    found = fit_output_darkening(target, model, Darkening(1.0, 0.35))
+    assert found.gamma == pytest.approx(0.45, rel=0.05)
+    gap = np.abs(simulated_luminance_quantiles(model, found) - target)[1:-1].mean()
+    assert gap < 0.3 / 255.0

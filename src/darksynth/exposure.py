@@ -87,9 +87,9 @@ def matched_darkening(
     reference's tones, to be held over the clip's frames: alpha and gamma fitted between a profile's ``tone`` and
     the frame's own block-median tone quantiles (:func:`match_darkening`), then, where the tone target has the
     reference's luminance quantiles, refined so that the output's luminance quantiles, the profile's ``noise``
-    added, meet them (:func:`fit_output_darkening`). None without a tone target (an older profile) or where no
-    block-median match can be made (a nearly uniform frame; logged, and the caller keeps the profile's
-    darkening)."""
+    added (None: simulated without noise), meet them (:func:`fit_output_darkening`). None without a tone target
+    (an older profile) or where no block-median match can be made (a nearly uniform frame; logged, and the caller
+    keeps the profile's darkening)."""
     if tone is None:
         return None
     clean = _unit_frame(frame)
@@ -178,6 +178,10 @@ SEARCH_STEPS: tuple[float, float] = (0.2, 0.01)
 """First and last step, in log units, of the search over the darkened median level and gamma: the first moves
 the output by about 22%, the block-median match's usual distance from the end; the last by 1% (a tenth of an
 8-bit level at the mid-grey of a dark output)."""
+
+BOUND_SEARCH_STEPS: tuple[float, float] = (0.1, 0.01)
+"""First and last step, in log alpha and log gamma, of the search along a bound: it starts where the first search
+ended, near the answer."""
 
 PIVOT_FLOOR = 0.02
 """The least clean level taken as the pivot of the search (an input whose median is black pivots here)."""
@@ -289,7 +293,8 @@ def fit_output_darkening(target: np.ndarray, model: OutputModel, start: Darkenin
     The output's quantiles are step functions of alpha and gamma (8-bit levels, clipping), so the search is a
     compass search, without derivatives. It moves in log of the darkened level of the input's median pixel and
     log gamma: there gamma turns the tone curve about the median, where alpha and gamma would trade off along
-    one valley.
+    one valley. Where it ends on a bound of alpha or gamma, a second search moves in log alpha and log gamma,
+    where the bound is one coordinate's and the other can move along it.
     """
     low, high = FIT_PROBABILITY_RANGE
     fitted = np.array([low - 1e-9 <= p <= high + 1e-9 for p in PROBABILITIES])
@@ -297,16 +302,37 @@ def fit_output_darkening(target: np.ndarray, model: OutputModel, start: Darkenin
     chosen = tuple(p for p, keep in zip(PROBABILITIES, fitted, strict=True) if keep)
     pivot = max(float(np.median(model.clean)), PIVOT_FLOOR)
 
-    def darkening_at(point: np.ndarray) -> Darkening:
+    def pivoted(point: np.ndarray) -> Darkening:
         gamma = float(np.clip(np.exp(point[1]), *GAMMA_BOUNDS))
-        alpha = float(np.clip(np.exp(point[0]) / pivot ** (1.0 / gamma), *ALPHA_BOUNDS))
-        return Darkening(alpha=alpha, gamma=gamma)
+        return _bounded(np.exp(point[0]) / pivot ** (1.0 / gamma), gamma)
 
-    def gap(point: np.ndarray) -> float:
-        return float(np.abs(simulated_luminance_quantiles(model, darkening_at(point), chosen) - wanted).mean())
+    def gap(darkening: Darkening) -> float:
+        return float(np.abs(simulated_luminance_quantiles(model, darkening, chosen) - wanted).mean())
 
     origin = np.array([np.log(start.alpha) + np.log(pivot) / start.gamma, np.log(start.gamma)])
-    return darkening_at(compass_search(gap, origin, *SEARCH_STEPS))
+    found = pivoted(compass_search(lambda point: gap(pivoted(point)), origin, *SEARCH_STEPS))
+    if not _on_a_bound(found):
+        return found
+    point = compass_search(
+        lambda point: gap(_bounded(np.exp(point[0]), np.exp(point[1]))),
+        np.log([found.alpha, found.gamma]),
+        *BOUND_SEARCH_STEPS,
+    )
+    return _bounded(np.exp(point[0]), np.exp(point[1]))
+
+
+def _bounded(alpha: float, gamma: float) -> Darkening:
+    """alpha and gamma clipped to :data:`darksynth.tones.ALPHA_BOUNDS` and ``GAMMA_BOUNDS``."""
+    return Darkening(alpha=float(np.clip(alpha, *ALPHA_BOUNDS)), gamma=float(np.clip(gamma, *GAMMA_BOUNDS)))
+
+
+def _on_a_bound(darkening: Darkening) -> bool:
+    # Within rounding: the pivoted coordinates give back a clipped alpha through exp and log.
+    return any(
+        math.isclose(value, bound, rel_tol=1e-9)
+        for value, bounds in ((darkening.alpha, ALPHA_BOUNDS), (darkening.gamma, GAMMA_BOUNDS))
+        for bound in bounds
+    )
 
 
 def compass_search(

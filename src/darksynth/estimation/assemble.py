@@ -468,8 +468,15 @@ def _estimate_darkening(
                 low, high = np.percentile(values, [10, 90])
                 ranges[name] = ((min(float(low), point), max(float(high), point)),)
             meta["darkening"]["ranges"] = "10th-90th percentile over frames"
-    colour = colour_cast(frames)
-    seen = tuple(float(q) for q in luminance_quantiles(frames))
-    return found.darkening, ToneTarget(
-        quantiles=found.tone_quantiles, noise=found.block_noise, colour=colour, luminance=seen
+    return found.darkening, _tone_target(found, frames)
+
+
+def _tone_target(found: DarkeningEstimate, frames: torch.Tensor) -> ToneTarget:
+    """What ``apply`` matches each input's exposure to: the reference's block-median tone quantiles and their
+    noise (from ``found``), its colour cast and the quantiles of its pixels' luminance, read on ``frames``."""
+    return ToneTarget(
+        quantiles=found.tone_quantiles,
+        noise=found.block_noise,
+        colour=colour_cast(frames),
+        luminance=tuple(float(q) for q in luminance_quantiles(frames)),
     )
