@@ -37,7 +37,7 @@ import torch
 import torch.nn.functional as F
 
 from darksynth.noise.simulate import add_noise
-from darksynth.noise.spectral import LEVEL_KNOTS, OCTAVES, level_std
+from darksynth.noise.spectral import LEVEL_KNOTS, OCTAVES, OPPONENT_BASIS, level_std
 from darksynth.noise.spectral_fit import (
     COMPRESSION_CANDIDATES,
     KnotBinning,
@@ -104,6 +104,17 @@ PROBED_OCTAVES = range(2, OCTAVES)
 
 PROBE_BOOST = 4.0
 """Factor by which a probe raises one octave's power over white noise."""
+
+ANCHOR_GAIN = 1.5
+"""Exponent on the anchor's variance ratio per step: the unmeasured octaves hold only part of the detrended
+variance, so the ratio alone moves their scale too little."""
+
+ANCHOR_WARM_STEPS = 4
+"""Updates of the anchor's scale alone before the last fit."""
+
+ANCHOR_SCALE_RANGE = (0.1, 100.0)
+"""Bounds of the factor on the unmeasured octaves' power: real cameras' coarse colour mottle reaches some 80x white
+noise's power (docs/spectral-noise.md), against 1x where the prior continues a flat spectrum."""
 
 KNOT_PROBE_BOOST = 1 / 1.5
 """Factor by which the probe of :func:`knot_responses` moves the level curve: down, since noise raised above the
@@ -463,6 +474,94 @@ def _level_checks(
     return curve
 
 
+def _block_grid(frame: torch.Tensor) -> torch.Tensor:
+    """(3, BLOCK^2, rows * cols) the BLOCK x BLOCK blocks of ``frame`` (3, H, W), row by row."""
+    return F.unfold(frame[:, None], BLOCK, stride=BLOCK)
+
+
+def detrended_block_variance(frame: torch.Tensor, blocks: torch.Tensor) -> torch.Tensor:
+    """Variance about each chosen block's least-squares plane of the brightness and the two colour components
+    (:data:`~darksynth.noise.spectral.OPPONENT_BASIS`): (3, n) for the ``blocks`` (rows, cols) bool of ``frame``
+    (3, H, W). Every scale of noise under the block size is in it."""
+    components = torch.einsum("ij,jhw->ihw", OPPONENT_BASIS.to(frame), frame)
+    grid = _block_grid(components)[..., blocks[: frame.shape[-2] // BLOCK, : frame.shape[-1] // BLOCK].flatten()]
+    detrended = grid - torch.einsum("ij,cjn->cin", _plane_projection(BLOCK).to(grid), grid)
+    return detrended.square().sum(dim=1) / (BLOCK * BLOCK - 3)
+
+
+def block_planes(frame: torch.Tensor) -> torch.Tensor:
+    """``frame`` (3, H, W) with each whole BLOCK x BLOCK block replaced by its least-squares plane (the rest
+    kept): a flat block's scene without the noise at any scale under the block size."""
+    height, width = frame.shape[-2:]
+    rows, cols = height // BLOCK, width // BLOCK
+    grid = _block_grid(frame)
+    planes = torch.einsum("ij,cjn->cin", _plane_projection(BLOCK).to(grid), grid)
+    folded = F.fold(planes, (rows * BLOCK, cols * BLOCK), BLOCK, stride=BLOCK)[:, 0]
+    result = frame.clone()
+    result[:, : rows * BLOCK, : cols * BLOCK] = folded
+    return result
+
+
+ANCHOR_QUANTILE = 0.25
+"""The quantile over blocks of the detrended variance the anchor matches (the same in the reference and the
+simulations, so any quantile is unbiased for noise): texture left in a flat block only raises its variance, and a
+low quantile reads the blocks it left alone."""
+
+
+def anchor_statistic(variances: torch.Tensor) -> torch.Tensor:
+    """The :data:`ANCHOR_QUANTILE` over blocks of detrended variances (3, n): (3,) float64."""
+    return variances.to(torch.float64).quantile(ANCHOR_QUANTILE, dim=1)
+
+
+@dataclass
+class CoarseAnchor:
+    """The noise under the block size that the denoiser's residual cannot show, read about planes.
+
+    Non-local means leaves noise coarser than its search window in the image it returns, so octaves from about
+    11 px up barely move its residual and take a prior (the finer octaves' spectrum continued). On a flat block the
+    scene is close to a plane, and the variance about the plane holds every octave under 32 px: the median over the
+    measured blocks of the reference's, against that of the model's noise added to the blocks' planes (no denoiser:
+    no scene, no coarse noise of the reference in the base), scales the unmeasured octaves (``scale``). Texture left
+    in a flat block reads as coarse noise here, which is why the median over blocks flat for their level is used.
+    Brightness and colour are anchored apart: cameras low-pass their colour noise far more than their brightness.
+
+    Attributes:
+        target: the reference's median detrended block variance, brightness and the two colours (3,).
+        planes: the denoised frame's blocks as planes (3, H, W), the base of the simulations.
+        blocks: (rows, cols) bool, the measured blocks.
+        scale: the factor (3,) on the unmeasured octaves' power of each component, moved by :meth:`update`.
+    """
+
+    target: torch.Tensor
+    planes: torch.Tensor
+    blocks: torch.Tensor
+    scale: torch.Tensor = field(default_factory=lambda: torch.ones(3, dtype=torch.float64))
+    last: torch.Tensor | None = None
+
+    def simulated(self, values: NoiseValues, curve: torch.Tensor, generator: torch.Generator) -> torch.Tensor:
+        signal = uncensored_signal(self.planes, level_std(self.planes, curve.reshape(-1).to(self.planes)))
+        synthetic = quantised(add_noise(signal[None, None], values, generator=generator)[0, 0])
+        return anchor_statistic(detrended_block_variance(synthetic, self.blocks))
+
+    def update(self) -> None:
+        """Move ``scale`` by the ratio of the target to the last simulation (bounded per step and overall)."""
+        if self.last is not None and bool((self.last > 0.0).all()):
+            step = (self.target / self.last).pow(ANCHOR_GAIN).clamp(0.25, 4.0)
+            # Brightness keeps the prior: texture left in flat blocks is brightness, and even the lower quartile of
+            # the blocks read it as coarse brightness noise (up to 70x white on textured images of the round trip,
+            # where colour stayed within 0.8-1.25; docs/spectral-noise.md).
+            step[0] = 1.0
+            self.scale = (self.scale * step).clamp(*ANCHOR_SCALE_RANGE)
+        self.last = None
+
+    def apply(self, covariances: torch.Tensor, first_unmeasured: int) -> torch.Tensor:
+        """The octaves' covariances with the unmeasured ones' components scaled (their correlations kept)."""
+        covariances = covariances.clone()
+        root = self.scale.sqrt().to(covariances)
+        covariances[first_unmeasured:] *= root[:, None] * root[None, :]
+        return covariances
+
+
 def knot_responses(
     simulate_and_measure: Callable[[SpectralParameters, int], SpectralStatistics], start: SpectralParameters
 ) -> torch.Tensor:
@@ -597,8 +696,26 @@ def _fit(
             "barely move this reference's statistics: they continue the finer octaves' spectrum"
         )
 
+    blocks = (
+        F.avg_pool2d(measured_mask[-1][None, None] if measured_mask.dim() == 3 else measured_mask[None, None], BLOCK)[
+            0, 0
+        ]
+        > 0.5
+    )
+    anchor = CoarseAnchor(
+        target=anchor_statistic(detrended_block_variance(analysed[0], blocks))
+        if bool(blocks.any())
+        else torch.zeros(3, dtype=torch.float64),
+        planes=block_planes(analysed_denoised[0]),
+        blocks=blocks,
+    )
+
     def constrain(parameters: SpectralParameters) -> SpectralParameters:
-        return constrain_curve(continue_octaves(parameters, first_unmeasured))
+        parameters = continue_octaves(parameters, first_unmeasured)
+        anchor.update()
+        if first_unmeasured < OCTAVES:
+            parameters.covariances = anchor.apply(parameters.covariances, first_unmeasured)
+        return constrain_curve(parameters)
 
     scores: dict[float, float] = {}
     fits: dict[float, SpectralParameters] = {}
@@ -622,9 +739,29 @@ def _fit(
     target = dataclasses.replace(target, knot_variance=target.knot_variance.masked_fill(unresponsive, math.nan))
     # Two draws of one frame, or one draw of a clip's frames (which hold as many pixels again).
     draws = 2 if analysed.shape[0] == 1 else 1
+    simulate = simulator(chosen)
+
+    def simulate_with_anchor(parameters: SpectralParameters, draw: int) -> SpectralStatistics:
+        if draw == 0 and first_unmeasured < OCTAVES and bool((anchor.target > 0.0).all()):
+            values = NoiseValues.from_values(parameters.as_values() | {"compression": chosen}, dtype=torch.float32)
+            generator = torch.Generator(device=analysed.device).manual_seed(seed * 1009 + 7)
+            anchor.last = anchor.simulated(values, parameters.curve, generator)
+        statistics: SpectralStatistics = simulate(parameters, draw)
+        return statistics
+
+    start = fits[chosen]
+    if first_unmeasured < OCTAVES and bool((anchor.target > 0.0).all()):
+        # The anchor alone first (no denoiser in its simulation: cheap), so that the fit starts near its scale; a
+        # colour mottle 50x white needs more steps than the fit makes.
+        for _ in range(ANCHOR_WARM_STEPS):
+            values = NoiseValues.from_values(start.as_values() | {"compression": chosen}, dtype=torch.float32)
+            generator = torch.Generator(device=analysed.device).manual_seed(seed * 1009 + 7)
+            anchor.last = anchor.simulated(values, start.curve, generator)
+            start = constrain(start)
     fitted, left_over = fit_by_resynthesis(
-        target, simulator(chosen), start=fits[chosen], iterations=FINAL_ITERATIONS, draws=draws, constrain=constrain
+        target, simulate_with_anchor, start=start, iterations=FINAL_ITERATIONS, draws=draws, constrain=constrain
     )
+    meta["coarse_octave_scale"] = [round(float(v), 3) for v in anchor.scale]
     meta["compression_scores"] = {str(c): round(v, 4) for c, v in scores.items()}
     meta["compression_chosen"] = chosen
     meta["mismatch"] = round(left_over, 4)
