@@ -6,7 +6,8 @@ Run: ``.venv/bin/python scripts/spectral_reference_check.py [--data ../shared/da
 For every reference (LOL and LIME images, the phone clips' first 4 frames, the starlight video's first 16): the
 profile ``estimate`` writes (spectral, the default), then that profile applied with ``--no-darken`` to the
 reference's own non-local-means denoised version (the denoiser and strength of the estimate). Printed per
-reference: the noise std of the 10% flattest 32-px blocks, real over synthetic (1.00: the same; above 1.25 the
+reference: the noise std of the 10% flattest 32-px blocks with at most 1% clipped pixels (crushed black holds no
+noise to compare), real over synthetic (1.00: the same; above 1.25 the
 profile misses noise, below 0.8 it reads texture as noise), and the same for the version-3 profile
 (``--no-spectrum``). The picture puts a 128-px crop of the real reference beside the same crop of both synthetic
 versions, all three brightened by one gain (the real crop's 99th percentile to 0.9); use ``--kinds`` to limit it
@@ -25,7 +26,13 @@ from PIL import Image, ImageDraw
 
 from darksynth.estimation.assemble import estimate
 from darksynth.estimation.reference import load_reference
-from darksynth.estimation.spectrum import BLOCK, flat_block_std, nlm_denoise
+from darksynth.estimation.spectrum import (
+    BLOCK,
+    STRENGTH_CLIPPED_SHARE,
+    clipped_share,
+    flat_block_std,
+    nlm_denoise,
+)
 from darksynth.noise.simulate import add_noise
 from darksynth.noise.spectral_fit import quantised
 from darksynth.training.weights import default_weights_path, load_weights
@@ -33,14 +40,16 @@ from darksynth.training.weights import default_weights_path, load_weights
 CROP = 128
 
 
-def flattest_block_std(frame: torch.Tensor) -> float:
-    """Std in 8-bit levels of the 10% flattest 32-px blocks of ``frame`` (3, H, W), flatness judged on a 5-px
-    mean so that the noise itself does not decide it."""
+def flattest_block_std(frame: torch.Tensor, usable: torch.Tensor | None = None) -> float:
+    """Std in 8-bit levels of the 10% flattest 32-px blocks of ``frame`` (3, H, W) among the ``usable`` ones (all by
+    default), flatness judged on a 5-px mean so that the noise itself does not decide it."""
     blocks = F.unfold(frame[:, None], BLOCK, stride=BLOCK).std(dim=1).mean(0)
     smooth = F.avg_pool2d(frame[None], 5, stride=1, padding=2)[0].mean(0)
     dx = (smooth[:, 1:] - smooth[:, :-1]).abs()[:-1]
     dy = (smooth[1:] - smooth[:-1]).abs()[:, :-1]
     gradient = F.avg_pool2d(F.pad(dx + dy, (0, 1, 0, 1))[None, None], BLOCK)[0, 0].flatten()[: blocks.numel()]
+    if usable is not None and bool(usable.any()):
+        blocks, gradient = blocks[usable], gradient[usable]
     count = max(1, round(0.1 * gradient.numel()))
     return float(blocks[gradient.argsort()[:count]].median()) * 255.0
 
@@ -73,15 +82,22 @@ def main() -> None:
     parser.add_argument("--data", type=Path, default=Path("../shared/data"))
     parser.add_argument("--picture", type=Path, default=None)
     parser.add_argument("--kinds", default="lol,starlight,lime,clips")
+    parser.add_argument("--only", default=None, help="comma-separated reference names (file or folder) to check")
     arguments = parser.parse_args()
     network = load_weights(default_weights_path())
     rows: list[list[np.ndarray]] = []
     labels: list[str] = []
-    for kind, path, folder in references(arguments.data, set(arguments.kinds.split(","))):
+    chosen = references(arguments.data, set(arguments.kinds.split(",")))
+    if arguments.only:
+        chosen = [entry for entry in chosen if entry[1].name in arguments.only.split(",")]
+    for kind, path, folder in chosen:
         frames = load_reference(path, clip=folder, max_frames=16)
         first = frames[:1]
         denoised = nlm_denoise(first, min(max(flat_block_std(first), 1.0), 40.0))
-        real_std = flattest_block_std(first[0])
+        # Blocks the real camera clipped (crushed black, a lamp) hold no noise to compare: both sides are judged on
+        # the blocks of the reference with at most 1 % clipped pixels.
+        usable = (clipped_share(first[0]) <= STRENGTH_CLIPPED_SHARE).flatten()
+        real_std = flattest_block_std(first[0], usable)
         line, row = [], []
         top, left = crop_at_flattest(first[0])
         real_crop = first[0, :, top : top + CROP, left : left + CROP]
@@ -91,7 +107,7 @@ def main() -> None:
             profile = estimate(frames, network, source=str(path), spectrum=spectrum).profile
             values = profile.noise.to(dtype=torch.float32)
             synthetic = quantised(add_noise(denoised[None], values, generator=torch.Generator().manual_seed(0))[0])
-            ratio = real_std / max(flattest_block_std(synthetic[0]), 1e-6)
+            ratio = real_std / max(flattest_block_std(synthetic[0], usable), 1e-6)
             line.append(f"{'spectral' if spectrum else 'v3'} {ratio:.2f}")
             row.append(synthetic[0, :, top : top + CROP, left : left + CROP])
         print(f"{kind:9s} {path.name:28s} real std {real_std:5.2f}  real/synthetic: {'  '.join(line)}", flush=True)
