@@ -10,7 +10,7 @@ import numpy as np
 import pytest
 import torch
 
-from darksynth.estimation import spectrum
+from darksynth.estimation import nonlocal_means
 from darksynth.light.linear_light import LEVEL_OF_LINEAR16, levels_of_linear16
 
 
@@ -19,7 +19,7 @@ def _in_the_child(results: multiprocessing.Queue) -> None:  # type: ignore[type-
     # (a DataLoader worker runs torch on one thread).
     linear = np.arange(200 * 30 * 3, dtype=np.uint16).reshape(200, 30, 3) * 7
     same = bool(np.array_equal(levels_of_linear16(linear), LEVEL_OF_LINEAR16[linear]))
-    results.put((same, spectrum._nlm_pool is None))
+    results.put((same, nonlocal_means._nlm_pool is None))
 
 
 @pytest.mark.skipif(sys.platform != "linux", reason="fork is the default start method on Linux only")
@@ -29,8 +29,8 @@ def test_a_forked_child_makes_its_own_thread_pools() -> None:
     try:
         # The parent makes and uses both pools first.
         levels_of_linear16(np.zeros((128, 8, 3), np.uint16))
-        spectrum.nlm_denoise(torch.rand(1, 3, 96, 64), 9.0)
-        assert spectrum._nlm_pool is not None
+        nonlocal_means.nlm_denoise(torch.rand(1, 3, 96, 64), 9.0)
+        assert nonlocal_means._nlm_pool is not None
     finally:
         torch.set_num_threads(torch_threads)
     context = multiprocessing.get_context("fork")

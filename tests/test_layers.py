@@ -23,7 +23,8 @@ The pure core (``tensors``, ``darkening``, ``light``, ``noise``) also never impo
 for the edges, so the core runs on tensors alone.
 
 Inside ``estimation`` the stages have layers of their own: the reading of the reference, the column decision, the
-spectrum and the refinement's statistics import no other stage; the network reads the crop grid and the
+denoiser, the flat blocks and the refinement's statistics import no other stage; the coarse anchor reads the flat
+blocks, the spectrum all three; the network reads the crop grid and the
 refinement its statistics; ``assemble`` alone runs them all.
 """
 
@@ -76,7 +77,10 @@ ESTIMATION_STAGES: dict[str, int] = {
     "reference": 0,
     "columns": 0,
     "refine_statistics": 0,
-    "spectrum": 0,
+    "nonlocal_means": 0,
+    "flat_blocks": 0,
+    "coarse_anchor": 1,
+    "spectrum": 2,
     "network": 1,
     "refine": 1,
     "flicker": 0,

@@ -173,19 +173,19 @@ def test_small_references_are_measured_without_error(side: int) -> None:
 def test_non_local_means_in_bands_of_rows_gives_the_whole_frames_result(height: int, width: int, threads: int) -> None:
     import cv2
 
-    from darksynth.estimation import spectrum
+    from darksynth.estimation import nonlocal_means
 
     generator = torch.Generator().manual_seed(height)
     frames = (torch.rand(2, 3, height, width, generator=generator) * 0.4 + 0.3).clamp(0, 1)
     previous = torch.get_num_threads()
     torch.set_num_threads(threads)
     try:
-        banded = spectrum.nlm_denoise(frames, 9.0)
+        banded = nonlocal_means.nlm_denoise(frames, 9.0)
     finally:
         torch.set_num_threads(previous)
     for frame, result in zip(frames, banded, strict=True):
-        image = spectrum._to_uint8(frame)
-        whole = cv2.fastNlMeansDenoising(image, None, 9.0, spectrum.NLM_TEMPLATE, spectrum.NLM_SEARCH)
+        image = nonlocal_means._to_uint8(frame)
+        whole = cv2.fastNlMeansDenoising(image, None, 9.0, nonlocal_means.NLM_TEMPLATE, nonlocal_means.NLM_SEARCH)
         assert torch.equal(result, torch.from_numpy(whole).permute(2, 0, 1).to(torch.float32) / 255.0)
 
 

@@ -40,7 +40,7 @@ from darksynth.estimation.refine_statistics import ANALYSIS_FRAMES
 from darksynth.estimation.spectrum import estimate_spectrum
 from darksynth.models.den import DEN
 from darksynth.noise.components import NoiseModel, noise_component, noise_parameter
-from darksynth.noise.level import mean_noise_variance
+from darksynth.noise.level import channel_noise_std, mean_noise_variance
 from darksynth.noise.spectral import LEVEL_KNOTS
 from darksynth.noise.values import NoiseValues
 from darksynth.profile import Profile
@@ -303,13 +303,10 @@ def _measure_spectrum(
 def network_level_curve(noise: NoiseValues) -> torch.Tensor:
     """(3, 8) noise std per channel at the spectral model's level knots that the network's heteroscedastic values
     give (``g_c^2 (shot^2 x + read^2)``): the shape the measured level curve follows where the reference shows no
-    unclipped flat block."""
-    component = noise_component("heteroscedastic")
-    knots = torch.tensor(LEVEL_KNOTS, dtype=torch.float64)
-    batched = {name: noise[name].to(torch.float64)[None].expand(len(knots), -1) for name in noise}
-    assert component.variance is not None
-    variance = component.variance(batched, knots[:, None].expand(-1, 3))
-    return variance.clamp_min(0.0).sqrt().T.contiguous()
+    unclipped flat block. Only the heteroscedastic component's parameters are passed on, so the column components
+    the profile keeps beside the curve are not counted in it."""
+    parameters = {p.name: noise[p.name] for p in noise_component("heteroscedastic").parameters}
+    return channel_noise_std(parameters, torch.tensor(LEVEL_KNOTS, dtype=torch.float64)).T.contiguous()
 
 
 def moved_ranges(

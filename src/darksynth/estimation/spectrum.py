@@ -25,19 +25,27 @@ from __future__ import annotations
 
 import dataclasses
 import math
-import os
 from collections.abc import Callable
-from concurrent.futures import ThreadPoolExecutor
 from dataclasses import dataclass, field
 from typing import Any
 
-import cv2
-import numpy as np
 import torch
 import torch.nn.functional as F
 
+from darksynth.estimation.coarse_anchor import ANCHOR_WARM_STEPS, CoarseAnchor
+from darksynth.estimation.flat_blocks import (
+    BLOCK,
+    CLIPPED_SHARE,
+    MIN_LEVEL_BLOCKS,
+    analysis_window,
+    blocks_to_mask,
+    clipped_share,
+    flat_block_std,
+    flat_mask,
+)
+from darksynth.estimation.nonlocal_means import nlm_denoise
 from darksynth.noise.simulate import add_noise
-from darksynth.noise.spectral import LEVEL_KNOTS, OCTAVES, OPPONENT_BASIS, level_std
+from darksynth.noise.spectral import OCTAVES, level_std
 from darksynth.noise.spectral_fit import (
     COMPRESSION_CANDIDATES,
     KnotBinning,
@@ -54,16 +62,6 @@ from darksynth.noise.spectral_fit import (
     uncensored_signal,
 )
 from darksynth.noise.values import NoiseValues
-
-WINDOW = 384
-"""Side of the analysis window: enough frequencies in the coarsest band (1/128-1/64 cycles/px: about 80 per
-frame), and a few seconds of denoising for all the simulations of the fit."""
-
-BLOCK = 32
-"""Side of the blocks whose flatness is judged."""
-
-FLAT_SHARE = 0.3
-"""Share of the blocks (the flattest) the statistics are read on."""
 
 TEXTURED_GRADIENT = 4.0 / 255
 """A reference whose flat blocks still have a mean gradient magnitude of the denoised image above this (in the
@@ -84,10 +82,6 @@ block above 2 levels, so no block was still and its persistence was not read).""
 MIN_STILL_BLOCKS = 4
 """Fewer still flat blocks than this: the clip's temporal correlation is not measured (the prior, 0)."""
 
-NLM_TEMPLATE, NLM_SEARCH = 5, 13
-"""Non-local means patch and search window sides: OpenCV's defaults (7, 21) cost 2.5x the time for the same
-statistics after the correction by re-synthesis."""
-
 NLM_STRENGTH = 1.0
 """Non-local means strength ``h`` in 8-bit levels per 8-bit level of the flat blocks' noise std (the pilot reads
 the noisiest intensity: :func:`flat_block_std`). With ``h`` under the noise, non-local means finds no patch like a
@@ -105,39 +99,9 @@ PROBED_OCTAVES = range(2, OCTAVES)
 PROBE_BOOST = 4.0
 """Factor by which a probe raises one octave's power over white noise."""
 
-ANCHOR_GAIN = 1.5
-"""Exponent on the anchor's variance ratio per step: the unmeasured octaves hold only part of the detrended
-variance, so the ratio alone moves their scale too little."""
-
-ANCHOR_WARM_STEPS = 4
-"""Updates of the anchor's scale alone before the last fit."""
-
-ANCHOR_SCALE_RANGE = (0.1, 100.0)
-"""Bounds of the factor on the unmeasured octaves' power: real cameras' coarse colour mottle reaches some 80x white
-noise's power (docs/spectral-noise.md), against 1x where the prior continues a flat spectrum."""
-
 KNOT_PROBE_BOOST = 1 / 1.5
 """Factor by which the probe of :func:`knot_responses` moves the level curve: down, since noise raised above the
 denoiser's strength stops raising the residual (a flat grey reference read a response of 0.26 probed upward)."""
-
-CLIPPED_LEVEL = 0.5 / 255
-"""A pixel whose channel lies within this of 0 or of full scale is clipped: an 8-bit value of 0 or 255."""
-
-CLIPPED_SHARE = 0.5
-"""A block with more than this share of clipped pixels does not measure the level: its noise was mostly cut off
-at 0 or at full scale (crushed blacks, a lamp) and its residual hardly moves with the noise's strength. Blocks
-clipped less are measured, and the re-synthesis clips as the camera did (on the signal the clipped mean came
-from: :func:`darksynth.noise.spectral_fit.uncensored_signal`)."""
-
-STRENGTH_CLIPPED_SHARE = 0.01
-"""The denoiser's strength is read on blocks clipped at most this much when there are :data:`MIN_LEVEL_BLOCKS`
-of them (for Gaussian noise a block mean about 2.3 std from the limit, where clipping takes under 2 % of the
-variance), else on the least clipped quarter of the blocks: crushed black reads as no noise, and a dark
-reference's denoiser set from it was 10x too weak and left its noise in place."""
-
-MIN_LEVEL_BLOCKS = 3
-"""Fewer unclipped blocks than this in the analysis window: the level cannot be measured and the network's level
-curve stands, with a warning (a black frame, a reference that is crushed black but for a few lamps)."""
 
 LEVEL_DISAGREEMENT = 3.0
 """Measured and network level curves further apart than this factor (their geometric mean ratio over the measured
@@ -156,207 +120,6 @@ class SpectrumEstimate:
     values: dict[str, torch.Tensor]
     meta: dict[str, Any] = field(default_factory=dict)
     warnings: list[str] = field(default_factory=list)
-
-
-def _to_uint8(frame: torch.Tensor) -> np.ndarray:
-    array: np.ndarray = (frame.clamp(0.0, 1.0) * 255.0).round().to(torch.uint8).permute(1, 2, 0).cpu().numpy()
-    return np.ascontiguousarray(array)
-
-
-NLM_OVERLAP = 16
-"""Rows of overlap between the bands a frame's denoising is split into: a pixel's result reads the pixels within
-the search radius plus the patch radius (6 + 2 rows), so with 8 or more the bands give the whole frame's bits."""
-
-_nlm_pool: ThreadPoolExecutor | None = None
-
-
-def _forget_nlm_pool() -> None:
-    # A forked child inherits the pool without its threads (work sent to it would wait for ever): it makes its own.
-    global _nlm_pool
-    _nlm_pool = None
-
-
-os.register_at_fork(after_in_child=_forget_nlm_pool)
-
-
-def _nlm_workers() -> int:
-    return max(1, torch.get_num_threads())
-
-
-def _nlm(image: np.ndarray, strength: float) -> np.ndarray:
-    # On the RGB values themselves: the colour variant compares patches in 8-bit Lab, whose steep dark end spreads
-    # the noise of dark pixels, so that a strength that denoises mid-grey returns the noise of a pixel at 5 levels
-    # (a residual of 0.5 levels where the noise was 4: the fit by re-synthesis then read dark references far too
-    # weak). Here a strength equal to the noise's std removes about 95 % of it at every intensity.
-    result: np.ndarray = cv2.fastNlMeansDenoising(image, None, strength, NLM_TEMPLATE, NLM_SEARCH)
-    return result
-
-
-def nlm_denoise(frames: torch.Tensor, strength: float) -> torch.Tensor:
-    """Non-local means (OpenCV) of each frame of (T, 3, H, W) in [0, 1] on 8-bit levels, patches compared on the
-    three RGB channels together, strength ``h`` in 8-bit levels; float32 on the input's device.
-
-    OpenCV's non-local means runs on one core: each frame is cut into bands of rows (one per torch thread,
-    overlapping by :data:`NLM_OVERLAP`) denoised side by side in threads (OpenCV releases the GIL), which gives the
-    whole frame's result exactly (tested) in about half the time on two cores."""
-    global _nlm_pool
-    workers = _nlm_workers()
-    if workers > 1 and _nlm_pool is None:
-        _nlm_pool = ThreadPoolExecutor(max_workers=workers, thread_name_prefix="darksynth-nlm")
-    images = [_to_uint8(frame) for frame in frames]
-    height = images[0].shape[0]
-    band = -(-height // workers)
-    if workers == 1 or band <= 2 * NLM_OVERLAP or _nlm_pool is None:
-        results = [_nlm(image, float(strength)) for image in images]
-    else:
-        # Every band of every frame is queued at once, so neither thread waits for the other's last band of a frame.
-        starts = range(0, height, band)
-        jobs = [
-            [
-                _nlm_pool.submit(
-                    _nlm,
-                    np.ascontiguousarray(image[max(0, top - NLM_OVERLAP) : min(height, top + band + NLM_OVERLAP)]),
-                    float(strength),
-                )
-                for top in starts
-            ]
-            for image in images
-        ]
-        results = [
-            np.concatenate(
-                [
-                    job.result()[top - max(0, top - NLM_OVERLAP) :][: min(band, height - top)]
-                    for top, job in zip(starts, frame_jobs, strict=True)
-                ]
-            )
-            for frame_jobs in jobs
-        ]
-    out = [torch.from_numpy(result).permute(2, 0, 1).to(torch.float32) / 255.0 for result in results]
-    return torch.stack(out).to(frames.device)
-
-
-def block_gradient(image: torch.Tensor) -> torch.Tensor:
-    """Mean gradient magnitude (over channels) of each BLOCK x BLOCK block of ``image`` (3, H, W):
-    (H // BLOCK, W // BLOCK)."""
-    grey = image.mean(0, keepdim=True)[None]
-    dx = (grey[..., :, 1:] - grey[..., :, :-1]).abs()[..., :-1, :]
-    dy = (grey[..., 1:, :] - grey[..., :-1, :]).abs()[..., :, :-1]
-    magnitude = F.pad(dx + dy, (0, 1, 0, 1))
-    return F.avg_pool2d(magnitude, BLOCK)[0, 0]
-
-
-def clipped_share(frames: torch.Tensor) -> torch.Tensor:
-    """Share (H // BLOCK, W // BLOCK) of the pixels of each block whose channel is clipped (within
-    :data:`CLIPPED_LEVEL` of 0 or 1) in any of the frames (T, 3, H, W) or in the frame (3, H, W)."""
-    frames = frames if frames.dim() == 4 else frames[None]
-    clipped = ((frames <= CLIPPED_LEVEL) | (frames >= 1.0 - CLIPPED_LEVEL)).any(dim=1).any(dim=0)
-    return F.avg_pool2d(clipped.to(torch.float32)[None, None], BLOCK)[0, 0]
-
-
-def _blocks_to_mask(blocks: torch.Tensor, height: int, width: int) -> torch.Tensor:
-    mask = blocks.to(torch.float32).repeat_interleave(BLOCK, 0).repeat_interleave(BLOCK, 1)
-    return F.pad(mask, (0, width - mask.shape[1], 0, height - mask.shape[0]))
-
-
-def analysis_window(frame: torch.Tensor, side: int = WINDOW) -> tuple[int, int, int, int]:
-    """(top, left, height, width) of the window of ``frame`` (3, H, W) at most ``side`` px a side whose flattest
-    unclipped blocks are flattest: candidates on a grid of half-window steps, judged on a lightly blurred copy.
-    A window holding fewer unclipped blocks than the measurement reads loses to any that holds them (crushed
-    black is the flattest thing in a night photo and measures no noise)."""
-    height, width = frame.shape[-2:]
-    window_height, window_width = min(side, height), min(side, width)
-    smooth = F.avg_pool2d(frame[None], 3, stride=1, padding=1)[0]
-    gradient = block_gradient(smooth)
-    unclipped = clipped_share(frame)[: gradient.shape[0], : gradient.shape[1]] <= CLIPPED_SHARE
-    rows_per, cols_per = max(window_height // BLOCK, 1), max(window_width // BLOCK, 1)
-    best, best_score = (0, 0), (math.inf, math.inf)
-    for top in range(0, max(gradient.shape[0] - rows_per, 0) + 1, max(rows_per // 2, 1)):
-        for left in range(0, max(gradient.shape[1] - cols_per, 0) + 1, max(cols_per // 2, 1)):
-            inside = gradient[top : top + rows_per, left : left + cols_per].flatten()
-            usable = inside[unclipped[top : top + rows_per, left : left + cols_per].flatten()]
-            if inside.numel() == 0:
-                continue
-            wanted = max(1, int(FLAT_SHARE * inside.numel()))
-            flattest = (usable if usable.numel() else inside).sort().values[:wanted]
-            score = (float(max(wanted - usable.numel(), 0)), float(flattest.mean()))
-            if score < best_score:
-                best, best_score = (top * BLOCK, left * BLOCK), score
-    return best[0], best[1], window_height, window_width
-
-
-def level_stratum(intensity: torch.Tensor) -> torch.Tensor:
-    """The level curve's segment (0-6, int64) each intensity in [0, 1] falls in: the knots are (j / 7)^2."""
-    return (intensity.clamp(0.0, 1.0) * 49.0).sqrt().floor().long().clamp(0, len(LEVEL_KNOTS) - 2)
-
-
-def flat_blocks(denoised: torch.Tensor, usable: torch.Tensor) -> torch.Tensor:
-    """The measured blocks (H // BLOCK, W // BLOCK) bool of a denoised frame (3, H, W): among the ``usable``
-    blocks, the :data:`FLAT_SHARE` with the least gradient within each segment of the level curve, so that flat
-    means flat for the noise at that intensity (noise left by the denoiser grows with the level: the flattest blocks
-    in absolute terms are the darkest) and every intensity the reference shows reaches its knots."""
-    gradient = block_gradient(denoised)
-    usable = usable[: gradient.shape[0], : gradient.shape[1]]
-    stratum = level_stratum(F.avg_pool2d(denoised.mean(0)[None, None], BLOCK)[0, 0])[: gradient.shape[0]]
-    chosen = torch.zeros_like(usable)
-    for segment in sorted(set(stratum[usable].tolist())):
-        members = usable & (stratum == segment)
-        count = max(1, round(FLAT_SHARE * int(members.sum())))
-        threshold = gradient[members].sort().values[count - 1]
-        chosen |= members & (gradient <= threshold)
-    return chosen
-
-
-def flat_mask(denoised: torch.Tensor, usable: torch.Tensor | None = None) -> tuple[torch.Tensor, float]:
-    """The measured blocks of a denoised frame (3, H, W) (see :func:`flat_blocks`; all blocks usable by default)
-    as a pixel mask (H, W), and the mean gradient of the :data:`FLAT_SHARE` flattest usable blocks (how flat the
-    reference's flattest region is, for the warning that texture may be read as noise)."""
-    gradient = block_gradient(denoised)
-    if usable is None or not bool(usable.any()):
-        usable = torch.ones_like(gradient, dtype=torch.bool)
-    usable = usable[: gradient.shape[0], : gradient.shape[1]]
-    chosen = flat_blocks(denoised, usable)
-    candidates = gradient[usable].sort().values
-    flattest = candidates[: max(1, round(FLAT_SHARE * candidates.numel()))]
-    return _blocks_to_mask(chosen, *denoised.shape[-2:]), float(flattest.mean())
-
-
-def _plane_projection(side: int) -> torch.Tensor:
-    """(side^2, side^2) least-squares projection of a side x side block onto planes a + b x + c y."""
-    y, x = torch.meshgrid(torch.linspace(-1, 1, side), torch.linspace(-1, 1, side), indexing="ij")
-    basis = torch.stack([torch.ones(side * side), x.flatten(), y.flatten()], dim=1)
-    projection: torch.Tensor = basis @ torch.linalg.pinv(basis)
-    return projection
-
-
-def flat_block_std(frames: torch.Tensor) -> float:
-    """Std in 8-bit levels of the noise on the flattest little-clipped blocks of the first frame of (T, 3, H, W), at
-    the intensity where it is strongest: per block and channel the std about the block's least-squares plane
-    (shading across a flat wall is not noise: about its mean, a clean 8-bit ramp read as 3.7 levels of noise),
-    averaged over the channels; per segment of the level curve the median over its flattest blocks; the largest
-    over the segments that hold :data:`MIN_LEVEL_BLOCKS` blocks. It holds every scale of the noise below the block
-    size and little texture: the strength the denoiser is set from. Non-local means with a strength well under the
-    noise finds no patch like a pixel's own and returns the noise; its residual then shrinks as the noise grows, and
-    a fit by re-synthesis settles on far too weak a noise (a dark reference read 10x weak when the strength came
-    from its darkest blocks). Which blocks count as little clipped: :data:`STRENGTH_CLIPPED_SHARE`."""
-    frame = frames[0]
-    blocks = F.unfold(frame[:, None], BLOCK, stride=BLOCK)  # (3, BLOCK^2, blocks)
-    detrended = blocks - torch.einsum("ij,cjn->cin", _plane_projection(BLOCK).to(blocks), blocks)
-    std = (detrended.square().sum(dim=1) / (BLOCK * BLOCK - 3)).sqrt().mean(0)  # (blocks,)
-    smooth = F.avg_pool2d(frame[None], 5, stride=1, padding=2)[0]
-    gradient = block_gradient(smooth).flatten()[: std.numel()]
-    stratum = level_stratum(F.avg_pool2d(frame.mean(0)[None, None], BLOCK)[0, 0]).flatten()[: std.numel()]
-    share = clipped_share(frame).flatten()[: std.numel()]
-    little = share <= STRENGTH_CLIPPED_SHARE
-    if int(little.sum()) < MIN_LEVEL_BLOCKS:
-        little = share <= share.sort().values[max(0, share.numel() // 4 - 1)]
-    levels: list[tuple[bool, float]] = []
-    for segment in sorted(set(stratum[little].tolist())):
-        members = (little & (stratum == segment)).nonzero().flatten()
-        if members.numel() >= MIN_LEVEL_BLOCKS or not levels:
-            flattest = members[gradient[members].argsort()[: max(1, round(FLAT_SHARE * members.numel()))]]
-            levels.append((members.numel() >= MIN_LEVEL_BLOCKS, float(std[flattest].median())))
-    supported = [level for enough, level in levels if enough] or [level for _, level in levels]
-    return max(supported) * 255.0
 
 
 def block_change(denoised: torch.Tensor) -> torch.Tensor:
@@ -435,7 +198,7 @@ def _still_flat_mask(
             f"{name}: 2 frames: the frame-to-frame correlation of the noise is read on one pair of frames "
             "(uncertain; give more frames)"
         )
-    return _blocks_to_mask(both, height, width)
+    return blocks_to_mask(both, height, width)
 
 
 def _level_checks(
@@ -472,94 +235,6 @@ def _level_checks(
                 "the profile keeps the measurement"
             )
     return curve
-
-
-def _block_grid(frame: torch.Tensor) -> torch.Tensor:
-    """(3, BLOCK^2, rows * cols) the BLOCK x BLOCK blocks of ``frame`` (3, H, W), row by row."""
-    return F.unfold(frame[:, None], BLOCK, stride=BLOCK)
-
-
-def detrended_block_variance(frame: torch.Tensor, blocks: torch.Tensor) -> torch.Tensor:
-    """Variance about each chosen block's least-squares plane of the brightness and the two colour components
-    (:data:`~darksynth.noise.spectral.OPPONENT_BASIS`): (3, n) for the ``blocks`` (rows, cols) bool of ``frame``
-    (3, H, W). Every scale of noise under the block size is in it."""
-    components = torch.einsum("ij,jhw->ihw", OPPONENT_BASIS.to(frame), frame)
-    grid = _block_grid(components)[..., blocks[: frame.shape[-2] // BLOCK, : frame.shape[-1] // BLOCK].flatten()]
-    detrended = grid - torch.einsum("ij,cjn->cin", _plane_projection(BLOCK).to(grid), grid)
-    return detrended.square().sum(dim=1) / (BLOCK * BLOCK - 3)
-
-
-def block_planes(frame: torch.Tensor) -> torch.Tensor:
-    """``frame`` (3, H, W) with each whole BLOCK x BLOCK block replaced by its least-squares plane (the rest
-    kept): a flat block's scene without the noise at any scale under the block size."""
-    height, width = frame.shape[-2:]
-    rows, cols = height // BLOCK, width // BLOCK
-    grid = _block_grid(frame)
-    planes = torch.einsum("ij,cjn->cin", _plane_projection(BLOCK).to(grid), grid)
-    folded = F.fold(planes, (rows * BLOCK, cols * BLOCK), BLOCK, stride=BLOCK)[:, 0]
-    result = frame.clone()
-    result[:, : rows * BLOCK, : cols * BLOCK] = folded
-    return result
-
-
-ANCHOR_QUANTILE = 0.25
-"""The quantile over blocks of the detrended variance the anchor matches (the same in the reference and the
-simulations, so any quantile is unbiased for noise): texture left in a flat block only raises its variance, and a
-low quantile reads the blocks it left alone."""
-
-
-def anchor_statistic(variances: torch.Tensor) -> torch.Tensor:
-    """The :data:`ANCHOR_QUANTILE` over blocks of detrended variances (3, n): (3,) float64."""
-    return variances.to(torch.float64).quantile(ANCHOR_QUANTILE, dim=1)
-
-
-@dataclass
-class CoarseAnchor:
-    """The noise under the block size that the denoiser's residual cannot show, read about planes.
-
-    Non-local means leaves noise coarser than its search window in the image it returns, so octaves from about
-    11 px up barely move its residual and take a prior (the finer octaves' spectrum continued). On a flat block the
-    scene is close to a plane, and the variance about the plane holds every octave under 32 px: the median over the
-    measured blocks of the reference's, against that of the model's noise added to the blocks' planes (no denoiser:
-    no scene, no coarse noise of the reference in the base), scales the unmeasured octaves (``scale``). Texture left
-    in a flat block reads as coarse noise here, which is why the median over blocks flat for their level is used.
-    Brightness and colour are anchored apart: cameras low-pass their colour noise far more than their brightness.
-
-    Attributes:
-        target: the reference's median detrended block variance, brightness and the two colours (3,).
-        planes: the denoised frame's blocks as planes (3, H, W), the base of the simulations.
-        blocks: (rows, cols) bool, the measured blocks.
-        scale: the factor (3,) on the unmeasured octaves' power of each component, moved by :meth:`update`.
-    """
-
-    target: torch.Tensor
-    planes: torch.Tensor
-    blocks: torch.Tensor
-    scale: torch.Tensor = field(default_factory=lambda: torch.ones(3, dtype=torch.float64))
-    last: torch.Tensor | None = None
-
-    def simulated(self, values: NoiseValues, curve: torch.Tensor, generator: torch.Generator) -> torch.Tensor:
-        signal = uncensored_signal(self.planes, level_std(self.planes, curve.reshape(-1).to(self.planes)))
-        synthetic = quantised(add_noise(signal[None, None], values, generator=generator)[0, 0])
-        return anchor_statistic(detrended_block_variance(synthetic, self.blocks))
-
-    def update(self) -> None:
-        """Move ``scale`` by the ratio of the target to the last simulation (bounded per step and overall)."""
-        if self.last is not None and bool((self.last > 0.0).all()):
-            step = (self.target / self.last).pow(ANCHOR_GAIN).clamp(0.25, 4.0)
-            # Brightness keeps the prior: texture left in flat blocks is brightness, and even the lower quartile of
-            # the blocks read it as coarse brightness noise (up to 70x white on textured images of the round trip,
-            # where colour stayed within 0.8-1.25; docs/spectral-noise.md).
-            step[0] = 1.0
-            self.scale = (self.scale * step).clamp(*ANCHOR_SCALE_RANGE)
-        self.last = None
-
-    def apply(self, covariances: torch.Tensor, first_unmeasured: int) -> torch.Tensor:
-        """The octaves' covariances with the unmeasured ones' components scaled (their correlations kept)."""
-        covariances = covariances.clone()
-        root = self.scale.sqrt().to(covariances)
-        covariances[first_unmeasured:] *= root[:, None] * root[None, :]
-        return covariances
 
 
 def knot_responses(
@@ -628,7 +303,8 @@ def estimate_spectrum(
     analysed_denoised = denoised if temporal_mask is not None else denoised[:1]
     target = measure(analysed - analysed_denoised, analysed_denoised, measured_mask)
     measured_knots = ~torch.isnan(target.knot_variance).expand(3, -1)
-    fitted = _fit(analysed, analysed_denoised, measured_mask, target, strength, seed, meta, measured_knots, prior_curve)
+    resynthesis = _Resynthesis(analysed, analysed_denoised, measured_mask, strength, seed)
+    fitted = _fit(resynthesis, target, meta, measured_knots, prior_curve)
     fitted.curve = _level_checks(
         fitted.curve, measured_knots, prior_curve, int(unclipped.sum()) >= MIN_LEVEL_BLOCKS, meta, warnings, name
     )
@@ -638,56 +314,47 @@ def estimate_spectrum(
     return SpectrumEstimate(values=values, meta=meta, warnings=warnings)
 
 
-def _fit(
-    analysed: torch.Tensor,
-    analysed_denoised: torch.Tensor,
-    measured_mask: torch.Tensor,
-    target: SpectralStatistics,
-    strength: float,
-    seed: int,
-    meta: dict[str, Any],
-    measured_knots: torch.Tensor,
-    prior_curve: torch.Tensor | None,
-) -> SpectralParameters:
-    """The fit by re-synthesis on the denoised frames: the octaves the reference shows probed, each JPEG strength
-    fitted on the first frame, the best fitted further on all analysed frames; the choice and what was left over
-    in ``meta``."""
-    height, width = analysed.shape[-2:]
-    binnings: dict[int, KnotBinning] = {}
+@dataclass
+class _Resynthesis:
+    """What every simulation of the fit shares: the analysed frames (T, 3, H, W), their denoised version, the
+    measured pixels, the denoiser's strength and the seed; the knot binning of each frame count, found once."""
 
-    def constrain_curve(parameters: SpectralParameters) -> SpectralParameters:
-        if prior_curve is not None:
-            parameters.curve = fill_knots_along(parameters.curve, measured_knots, prior_curve)
-        return parameters
+    analysed: torch.Tensor
+    denoised: torch.Tensor
+    mask: torch.Tensor
+    strength: float
+    seed: int
+    binnings: dict[int, KnotBinning] = field(default_factory=dict)
 
-    def simulator(compression: float, frame_count: int = analysed.shape[0]) -> Any:
-        denoised = analysed_denoised[:frame_count]
-        if frame_count not in binnings:
+    def simulator(
+        self, compression: float, frame_count: int | None = None
+    ) -> Callable[[SpectralParameters, int], SpectralStatistics]:
+        """Simulate and measure on the first ``frame_count`` frames (all by default) with JPEG ``compression``."""
+        count = self.analysed.shape[0] if frame_count is None else frame_count
+        denoised = self.denoised[:count]
+        if count not in self.binnings:
             # Every simulation is measured on the same denoised frames and mask: their knots are found once.
-            weight = measure_weight(frame_count, height, width, measured_mask, denoised.device)
-            binnings[frame_count] = knot_binning(denoised, weight)
-        binning = binnings[frame_count]
+            height, width = denoised.shape[-2:]
+            weight = measure_weight(count, height, width, self.mask, denoised.device)
+            self.binnings[count] = knot_binning(denoised, weight)
+        binning = self.binnings[count]
 
         def simulate_and_measure(parameters: SpectralParameters, draw: int) -> SpectralStatistics:
             values = NoiseValues.from_values(parameters.as_values() | {"compression": compression}, dtype=torch.float32)
-            generator = torch.Generator(device=analysed.device).manual_seed(seed * 1009 + draw)
+            generator = torch.Generator(device=denoised.device).manual_seed(self.seed * 1009 + draw)
             # The camera clipped its noise about the signal, not about the denoised (clipped) mean.
             signal = uncensored_signal(denoised, level_std(denoised, parameters.curve.reshape(-1).to(denoised)))
             synthetic = quantised(add_noise(signal[None], values, generator=generator)[0])
-            again = nlm_denoise(synthetic, strength)
-            return measure(synthetic - again, denoised, measured_mask, binning=binning)
+            again = nlm_denoise(synthetic, self.strength)
+            return measure(synthetic - again, denoised, self.mask, binning=binning)
 
         return simulate_and_measure
 
-    start = constrain_curve(initial_parameters(target))
-    # The probes and the search over JPEG strengths are spatial: a clip's first frame is enough for them (a 16-frame
-    # 1080p clip took 20 s with every analysed frame in every simulation); the last fit reads all of them.
-    spatial_target = (
-        target
-        if analysed.shape[0] == 1
-        else measure(analysed[:1] - analysed_denoised[:1], analysed_denoised[:1], measured_mask)
-    )
-    responses = octave_responses(simulator(0.0, 1), start)
+
+def _first_unmeasured_octave(resynthesis: _Resynthesis, start: SpectralParameters, meta: dict[str, Any]) -> int:
+    """The finest octave the reference cannot show (:data:`OCTAVES` when it shows them all), probed on its first
+    frame, with the responses and the prior's note in ``meta``."""
+    responses = octave_responses(resynthesis.simulator(0.0, 1), start)
     first_unmeasured = next((k for k in PROBED_OCTAVES if responses[k] < MIN_RESPONSE), OCTAVES)
     meta["octave_response"] = [round(float(r), 3) for r in responses]
     if first_unmeasured < OCTAVES:
@@ -695,20 +362,67 @@ def _fit(
             f"octaves {first_unmeasured + 1}-{OCTAVES} (wavelengths from {2 ** (first_unmeasured + 1.5):.0f} px) "
             "barely move this reference's statistics: they continue the finer octaves' spectrum"
         )
+    return first_unmeasured
 
-    blocks = (
-        F.avg_pool2d(measured_mask[-1][None, None] if measured_mask.dim() == 3 else measured_mask[None, None], BLOCK)[
-            0, 0
-        ]
-        > 0.5
+
+def _anchored_fit(
+    resynthesis: _Resynthesis,
+    target: SpectralStatistics,
+    start: SpectralParameters,
+    compression: float,
+    anchor: CoarseAnchor | None,
+    constrain: Callable[[SpectralParameters], SpectralParameters],
+) -> tuple[SpectralParameters, float]:
+    """The last fit, on all analysed frames with the chosen JPEG ``compression``; with an ``anchor``, each step also
+    simulates about its planes, so that ``constrain`` moves the coarse colour octaves with the rest. Returns the
+    parameters and what was left over (:func:`~darksynth.noise.spectral_fit.fit_by_resynthesis`)."""
+    simulate = resynthesis.simulator(compression)
+
+    def simulate_with_anchor(parameters: SpectralParameters, draw: int) -> SpectralStatistics:
+        if draw == 0 and anchor is not None:
+            anchor.observe(parameters, compression, resynthesis.seed)
+        return simulate(parameters, draw)
+
+    if anchor is not None:
+        # The anchor alone first (no denoiser in its simulation: cheap), so that the fit starts near its scale; a
+        # colour mottle 50x white needs more steps than the fit makes.
+        for _ in range(ANCHOR_WARM_STEPS):
+            anchor.observe(start, compression, resynthesis.seed)
+            start = constrain(start)
+    # Two draws of one frame, or one draw of a clip's frames (which hold as many pixels again).
+    draws = 2 if resynthesis.analysed.shape[0] == 1 else 1
+    return fit_by_resynthesis(
+        target, simulate_with_anchor, start=start, iterations=FINAL_ITERATIONS, draws=draws, constrain=constrain
     )
-    anchor = CoarseAnchor(
-        target=anchor_statistic(detrended_block_variance(analysed[0], blocks))
-        if bool(blocks.any())
-        else torch.zeros(3, dtype=torch.float64),
-        planes=block_planes(analysed_denoised[0]),
-        blocks=blocks,
+
+
+def _fit(
+    resynthesis: _Resynthesis,
+    target: SpectralStatistics,
+    meta: dict[str, Any],
+    measured_knots: torch.Tensor,
+    prior_curve: torch.Tensor | None,
+) -> SpectralParameters:
+    """The fit by re-synthesis on the denoised frames: the octaves the reference shows probed, each JPEG strength
+    fitted on the first frame, the knots probed at the best, which is fitted further on all analysed frames with the
+    coarse colour anchored; the choices and what was left over in ``meta``. ``measured_knots`` (C, 8) loses the
+    knots the probe finds unresponsive, in place (the caller checks the level against them)."""
+    analysed, denoised = resynthesis.analysed, resynthesis.denoised
+
+    def constrain_curve(parameters: SpectralParameters) -> SpectralParameters:
+        if prior_curve is not None:
+            parameters.curve = fill_knots_along(parameters.curve, measured_knots, prior_curve)
+        return parameters
+
+    start = constrain_curve(initial_parameters(target))
+    # The probes and the search over JPEG strengths are spatial: a clip's first frame is enough for them (a 16-frame
+    # 1080p clip took 20 s with every analysed frame in every simulation); the last fit reads all of them.
+    spatial_target = (
+        target if analysed.shape[0] == 1 else measure(analysed[:1] - denoised[:1], denoised[:1], resynthesis.mask)
     )
+    first_unmeasured = _first_unmeasured_octave(resynthesis, start, meta)
+    anchor = CoarseAnchor.read(analysed[0], denoised[0], resynthesis.mask)
+    anchored = first_unmeasured < OCTAVES and anchor.readable
 
     def constrain(parameters: SpectralParameters) -> SpectralParameters:
         parameters = continue_octaves(parameters, first_unmeasured)
@@ -722,7 +436,7 @@ def _fit(
     for compression in COMPRESSION_CANDIDATES:
         fits[compression], scores[compression] = fit_by_resynthesis(
             spatial_target,
-            simulator(compression, 1),
+            resynthesis.simulator(compression, 1),
             start=start,
             iterations=START_ITERATIONS,
             draws=1,
@@ -731,35 +445,13 @@ def _fit(
     chosen = min(scores, key=lambda c: scores[c])
     # A knot's response is probed where the fit has brought the level: at the raw residual's level (too weak on
     # textured references) texture dominates every knot's statistic and none would seem to respond.
-    responses_per_knot = knot_responses(simulator(chosen, 1), fits[chosen])
+    responses_per_knot = knot_responses(resynthesis.simulator(chosen, 1), fits[chosen])
     unresponsive = ~(responses_per_knot >= MIN_RESPONSE)
     meta["knot_response"] = [[round(float(r), 2) for r in row] for row in responses_per_knot.nan_to_num(0.0)]
-    # In place: the caller's record of which knots were measured, for its checks of the level.
     measured_knots &= ~unresponsive
     target = dataclasses.replace(target, knot_variance=target.knot_variance.masked_fill(unresponsive, math.nan))
-    # Two draws of one frame, or one draw of a clip's frames (which hold as many pixels again).
-    draws = 2 if analysed.shape[0] == 1 else 1
-    simulate = simulator(chosen)
-
-    def simulate_with_anchor(parameters: SpectralParameters, draw: int) -> SpectralStatistics:
-        if draw == 0 and first_unmeasured < OCTAVES and bool((anchor.target > 0.0).all()):
-            values = NoiseValues.from_values(parameters.as_values() | {"compression": chosen}, dtype=torch.float32)
-            generator = torch.Generator(device=analysed.device).manual_seed(seed * 1009 + 7)
-            anchor.last = anchor.simulated(values, parameters.curve, generator)
-        statistics: SpectralStatistics = simulate(parameters, draw)
-        return statistics
-
-    start = fits[chosen]
-    if first_unmeasured < OCTAVES and bool((anchor.target > 0.0).all()):
-        # The anchor alone first (no denoiser in its simulation: cheap), so that the fit starts near its scale; a
-        # colour mottle 50x white needs more steps than the fit makes.
-        for _ in range(ANCHOR_WARM_STEPS):
-            values = NoiseValues.from_values(start.as_values() | {"compression": chosen}, dtype=torch.float32)
-            generator = torch.Generator(device=analysed.device).manual_seed(seed * 1009 + 7)
-            anchor.last = anchor.simulated(values, start.curve, generator)
-            start = constrain(start)
-    fitted, left_over = fit_by_resynthesis(
-        target, simulate_with_anchor, start=start, iterations=FINAL_ITERATIONS, draws=draws, constrain=constrain
+    fitted, left_over = _anchored_fit(
+        resynthesis, target, fits[chosen], chosen, anchor if anchored else None, constrain
     )
     meta["coarse_octave_scale"] = [round(float(v), 3) for v in anchor.scale]
     meta["compression_scores"] = {str(c): round(v, 4) for c, v in scores.items()}

@@ -1,0 +1,109 @@
+"""The coarse colour octaves a denoiser's residual cannot show, read about the planes of flat blocks."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+import torch
+import torch.nn.functional as F
+
+from darksynth.estimation.flat_blocks import BLOCK, block_planes, detrended_block_variance
+from darksynth.noise.simulate import add_noise
+from darksynth.noise.spectral import level_std
+from darksynth.noise.spectral_fit import SpectralParameters, quantised, uncensored_signal
+from darksynth.noise.values import NoiseValues
+
+ANCHOR_GAIN = 1.5
+"""Exponent on the anchor's variance ratio per step: the unmeasured octaves hold only part of the detrended
+variance, so the ratio alone moves their scale too little."""
+
+ANCHOR_WARM_STEPS = 4
+"""Updates of the anchor's scale alone before the last fit."""
+
+ANCHOR_SCALE_RANGE = (0.1, 100.0)
+"""Bounds of the factor on the unmeasured octaves' power: real cameras' coarse colour mottle reaches some 80x white
+noise's power (docs/spectral-noise.md), against 1x where the prior continues a flat spectrum."""
+
+ANCHOR_QUANTILE = 0.25
+"""The quantile over blocks of the detrended variance the anchor matches (the same in the reference and the
+simulations, so any quantile is unbiased for noise): texture left in a flat block only raises its variance, and a
+low quantile reads the blocks it left alone."""
+
+
+def anchor_statistic(variances: torch.Tensor) -> torch.Tensor:
+    """The :data:`ANCHOR_QUANTILE` over blocks of detrended variances (3, n): (3,) float64."""
+    return variances.to(torch.float64).quantile(ANCHOR_QUANTILE, dim=1)
+
+
+@dataclass
+class CoarseAnchor:
+    """The noise under the block size that the denoiser's residual cannot show, read about planes.
+
+    Non-local means leaves noise coarser than its search window in the image it returns, so octaves from about
+    11 px up barely move its residual and take a prior (the finer octaves' spectrum continued). On a flat block the
+    scene is close to a plane, and the variance about the plane holds every octave under 32 px: the median over the
+    measured blocks of the reference's, against that of the model's noise added to the blocks' planes (no denoiser:
+    no scene, no coarse noise of the reference in the base), scales the unmeasured octaves (``scale``). Texture left
+    in a flat block reads as coarse noise here, which is why the median over blocks flat for their level is used.
+    Brightness and colour are anchored apart: cameras low-pass their colour noise far more than their brightness.
+
+    Attributes:
+        target: the reference's median detrended block variance, brightness and the two colours (3,).
+        planes: the denoised frame's blocks as planes (3, H, W), the base of the simulations.
+        blocks: (rows, cols) bool, the measured blocks.
+        scale: the factor (3,) on the unmeasured octaves' power of each component, moved by :meth:`update`.
+    """
+
+    target: torch.Tensor
+    planes: torch.Tensor
+    blocks: torch.Tensor
+    scale: torch.Tensor = field(default_factory=lambda: torch.ones(3, dtype=torch.float64))
+    last: torch.Tensor | None = None
+
+    @classmethod
+    def read(cls, frame: torch.Tensor, denoised: torch.Tensor, mask: torch.Tensor) -> CoarseAnchor:
+        """The anchor of a reference frame (3, H, W), its denoised version, and the measured pixels ``mask``
+        ((H, W), or (T, H, W) of which the last frame's counts)."""
+        last_mask = mask[-1] if mask.dim() == 3 else mask
+        blocks = F.avg_pool2d(last_mask[None, None], BLOCK)[0, 0] > 0.5
+        target = (
+            anchor_statistic(detrended_block_variance(frame, blocks))
+            if bool(blocks.any())
+            else torch.zeros(3, dtype=torch.float64)
+        )
+        return cls(target=target, planes=block_planes(denoised), blocks=blocks)
+
+    @property
+    def readable(self) -> bool:
+        """Whether the reference gave a target in every component (no measured block: nothing to anchor to)."""
+        return bool((self.target > 0.0).all())
+
+    def observe(self, parameters: SpectralParameters, compression: float, seed: int) -> None:
+        """Simulate ``parameters`` (with the JPEG strength ``compression``) about the planes, for the next
+        :meth:`update`; one draw of the estimate's ``seed``, the same at every step."""
+        values = NoiseValues.from_values(parameters.as_values() | {"compression": compression}, dtype=torch.float32)
+        generator = torch.Generator(device=self.planes.device).manual_seed(seed * 1009 + 7)
+        self.last = self.simulated(values, parameters.curve, generator)
+
+    def simulated(self, values: NoiseValues, curve: torch.Tensor, generator: torch.Generator) -> torch.Tensor:
+        signal = uncensored_signal(self.planes, level_std(self.planes, curve.reshape(-1).to(self.planes)))
+        synthetic = quantised(add_noise(signal[None, None], values, generator=generator)[0, 0])
+        return anchor_statistic(detrended_block_variance(synthetic, self.blocks))
+
+    def update(self) -> None:
+        """Move ``scale`` by the ratio of the target to the last simulation (bounded per step and overall)."""
+        if self.last is not None and bool((self.last > 0.0).all()):
+            step = (self.target / self.last).pow(ANCHOR_GAIN).clamp(0.25, 4.0)
+            # Brightness keeps the prior: texture left in flat blocks is brightness, and even the lower quartile of
+            # the blocks read it as coarse brightness noise (up to 70x white on textured images of the round trip,
+            # where colour stayed within 0.8-1.25; docs/spectral-noise.md).
+            step[0] = 1.0
+            self.scale = (self.scale * step).clamp(*ANCHOR_SCALE_RANGE)
+        self.last = None
+
+    def apply(self, covariances: torch.Tensor, first_unmeasured: int) -> torch.Tensor:
+        """The octaves' covariances with the unmeasured ones' components scaled (their correlations kept)."""
+        covariances = covariances.clone()
+        root = self.scale.sqrt().to(covariances)
+        covariances[first_unmeasured:] *= root[:, None] * root[None, :]
+        return covariances
