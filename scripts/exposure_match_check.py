@@ -33,7 +33,7 @@ from darksynth.exposure import compass_search
 from darksynth.io.images import read_image
 from darksynth.profile import Profile
 from darksynth.synthesize import synthesize
-from darksynth.tones import luminance
+from darksynth.tensors import luminance
 from darksynth.training.weights import default_weights_path, load_weights
 
 LEVELS = np.arange(0.05, 0.951, 0.05)

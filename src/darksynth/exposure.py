@@ -20,12 +20,11 @@ from darksynth.errors import DarksynthError
 from darksynth.noise.level import channel_noise_std
 from darksynth.noise.simulate import noise_sum
 from darksynth.noise.values import NoiseValues
-from darksynth.tensors import full_scale
+from darksynth.tensors import LUMINANCE_WEIGHTS, full_scale
 from darksynth.tones import (
     ALPHA_BOUNDS,
     BLOCK,
     GAMMA_BOUNDS,
-    LUMINANCE_WEIGHTS,
     PROBABILITIES,
     DarkeningEstimate,
     ToneTarget,

@@ -84,3 +84,16 @@ def scale_channels(frame: torch.Tensor, factors: tuple[float, ...]) -> torch.Ten
     if top is None:
         return scaled.to(frame.dtype)
     return to_dtype(scaled.clamp_(0.0, top) / top, frame.dtype)
+
+
+LUMINANCE_WEIGHTS: tuple[float, float, float] = (0.2126, 0.7152, 0.0722)
+"""Rec. 709 weights of red, green and blue in the luminance a viewer judges brightness by (sRGB's primaries)."""
+
+
+def luminance(frames: torch.Tensor) -> torch.Tensor:
+    """The luminance (..., H, W) of frames (..., C, H, W): the weighted sum of red, green and blue
+    (:data:`LUMINANCE_WEIGHTS`); a grey frame (C = 1) is its own luminance."""
+    if frames.shape[-3] == 1:
+        return frames[..., 0, :, :].to(torch.float32)
+    weights = torch.tensor(LUMINANCE_WEIGHTS, dtype=torch.float32, device=frames.device)
+    return torch.einsum("c,...chw->...hw", weights, frames[..., :3, :, :].to(torch.float32))

@@ -28,6 +28,7 @@ import torch
 
 from darksynth.darkening import ALPHA_RANGE, GAMMA_RANGE, Darkening
 from darksynth.errors import DarksynthError
+from darksynth.tensors import luminance
 
 BLOCK = 4
 """Side of the square blocks whose per-channel medians make the tone distribution."""
@@ -113,21 +114,9 @@ class ToneTarget:
     them (the match then stops at the block medians)."""
 
 
-LUMINANCE_WEIGHTS: tuple[float, float, float] = (0.2126, 0.7152, 0.0722)
-"""Rec. 709 weights of red, green and blue in the luminance a viewer judges brightness by (sRGB's primaries)."""
-
 LUMINANCE_PIXELS = 1 << 20
 """At most about this many pixels are read for a reference's luminance quantiles (every k-th pixel): a million
 values fix its 49 quantiles to far below an 8-bit level at a bounded cost on long 4K clips."""
-
-
-def luminance(frames: torch.Tensor) -> torch.Tensor:
-    """The luminance (..., H, W) of frames (..., C, H, W): the weighted sum of red, green and blue
-    (:data:`LUMINANCE_WEIGHTS`); a grey frame (C = 1) is its own luminance."""
-    if frames.shape[-3] == 1:
-        return frames[..., 0, :, :].to(torch.float32)
-    weights = torch.tensor(LUMINANCE_WEIGHTS, dtype=torch.float32, device=frames.device)
-    return torch.einsum("c,...chw->...hw", weights, frames[..., :3, :, :].to(torch.float32))
 
 
 def luminance_quantiles(frames: torch.Tensor, *, probabilities: tuple[float, ...] = PROBABILITIES) -> np.ndarray:

@@ -19,6 +19,8 @@ from matplotlib.colors import to_hex
 from matplotlib.figure import Figure
 from matplotlib.projections.polar import PolarAxes
 
+from darksynth.tensors import LUMINANCE_WEIGHTS
+
 __all__ = [
     "HISTOGRAM_LEVELS",
     "REAL_COLOUR",
@@ -38,7 +40,6 @@ so the noise of 8-bit pairs (multiples of 1/255) never straddles a bin edge."""
 
 SPECTRUM_TILE = 256
 SPECTRUM_MAX_TILES = 64
-LUMA_WEIGHTS = (0.2126, 0.7152, 0.0722)  # Rec. 709, the primaries of sRGB
 REAL_COLOUR = "#000000"
 DPI = 110
 _STD_SAMPLE = 4_000_000
@@ -208,7 +209,7 @@ def radial_power_spectrum(
         origins = [origins[i] for i in picks]
     hann = np.hanning(side)
     window = np.outer(hann, hann)
-    weights = np.asarray(LUMA_WEIGHTS, dtype=np.float64)
+    weights = np.asarray(LUMINANCE_WEIGHTS, dtype=np.float64)
     power = np.zeros((side, side // 2 + 1))
     for start in range(0, len(origins), 16):
         chunk = []
