@@ -64,6 +64,16 @@ SIDE = 512
 CLIP_FRAMES = 4
 
 
+MEASUREMENT_KEYS = (
+    "denoiser_strength_8bit",
+    "flat_block_gradient_8bit",
+    "strength_over_fitted_noise",
+    "knot_response",
+    "compression_chosen",
+)
+"""What each case keeps of the estimate's record of its measurement (``meta.spectrum``), to tell why it missed."""
+
+
 def _uniform(generator: np.random.Generator, low: float, high: float) -> float:
     return float(generator.uniform(low, high))
 
@@ -208,6 +218,7 @@ def run_case(data: Path, network: Any, seed: int) -> dict[str, Any]:
         "clipped_share": round(float((dark + real <= 0.5 / 255).float().mean()), 4),
         "seconds": round(seconds, 2),
         "warnings": found.warnings,
+        "measurement": {key: found.profile.meta.get("spectrum", {}).get(key) for key in MEASUREMENT_KEYS},
         **compare(real, synthetic, dark),
     }
 

@@ -9,7 +9,7 @@ import numpy as np
 import pytest
 import torch
 
-from darksynth.estimation.spectrum import estimate_spectrum
+from darksynth.estimation.spectrum import compression_ambiguity, estimate_spectrum
 from darksynth.evaluation.structure import band_powers, band_ratios
 from darksynth.noise.simulate import add_noise
 from darksynth.noise.spectral import OCTAVES
@@ -227,3 +227,33 @@ def test_a_level_that_disagrees_with_the_network_by_more_than_3x_is_named_in_a_w
     assert any("ref.png" in w and "differ by" in w for w in found.warnings)
     agreeing = estimate_spectrum(noisy, name="ref.png", prior_curve=torch.full((3, 8), 0.02))
     assert not any("differ by" in w for w in agreeing.warnings)
+
+
+def test_coarse_colour_the_anchor_cannot_read_takes_the_prior_and_says_so() -> None:
+    # A still clip with a tenth of a level of noise: the variance about the blocks' planes is the rounding of the
+    # scene, which no coarse noise moves, and the anchor ran one colour component to its upper bound and the other
+    # to its lower (a phone clip's crushed letterbox: 100x and 0.1x). Those are numbers the fit ran into, not
+    # readings: the finer octaves continue, and a warning says which components.
+    clean = (quantised(_scene(256)) * 0.3).expand(4, 3, 256, 256)
+    found = estimate_spectrum(_noisy(clean, _spectral([1.0] * 18, level=0.0005), 3), name="dim.mov")
+    assert found.meta["coarse_octave_scale"] == [1.0, 1.0, 1.0], found.meta["coarse_octave_scale"]
+    released = found.meta["coarse_octave_prior"]
+    assert released and set(released) <= {"red-green", "blue-yellow"}, released
+    assert any(scale in (0.1, 100.0) for scale in released.values()), released
+    assert any("dim.mov: the coarse" in w and "bound" in w for w in found.warnings), found.warnings
+    # Held at the bounds, the coarse colour octaves carried 400x the brightness power; continued, they keep about
+    # the finer octaves' colour-to-brightness ratio (7x in the finest here: the rounding of a coloured scene).
+    power = found.values["octave_power"].reshape(OCTAVES, 3)
+    assert float((power[3:, 1:] / power[3:, :1]).max()) < 20.0, power
+
+
+def test_jpeg_strengths_that_fit_alike_with_different_levels_are_reported_as_an_uncertain_level() -> None:
+    # Weak noise under a strong JPEG reads like weaker noise under none: when both fit within 1.5x of the best
+    # mismatch and their levels differ by more than 1.5x, the level is uncertain by that much.
+    meta = {
+        "compression_scores": {"0.0": 0.094, "0.2": 0.088, "0.4": 0.178},
+        "level_by_compression_8bit": {"0.0": 1.1, "0.2": 1.4, "0.4": 2.3},
+    }
+    assert compression_ambiguity(meta) is None  # 0.4 fits twice as badly; 0.0 and 0.2 agree within 1.5x
+    meta["compression_scores"]["0.4"] = 0.12
+    assert compression_ambiguity(meta) == (["0.0", "0.2", "0.4"], 1.1, 2.3)

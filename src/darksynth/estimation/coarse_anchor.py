@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass, field
 
 import torch
@@ -28,6 +29,15 @@ ANCHOR_QUANTILE = 0.25
 """The quantile over blocks of the detrended variance the anchor matches (the same in the reference and the
 simulations, so any quantile is unbiased for noise): texture left in a flat block only raises its variance, and a
 low quantile reads the blocks it left alone."""
+
+ANCHOR_MOVED = 2.0
+"""A scale this far from 1 (either way) must have moved the anchor's statistic to count as a reading."""
+
+ANCHOR_RESPONSE = 1.1
+"""The least change of the simulated statistic, from the first simulation to the last, that a moved scale must
+have caused (a factor; the common random numbers make the simulations comparable)."""
+
+COMPONENT_NAMES = ("brightness", "red-green", "blue-yellow")
 
 
 def anchor_statistic(variances: torch.Tensor) -> torch.Tensor:
@@ -59,6 +69,8 @@ class CoarseAnchor:
     blocks: torch.Tensor
     scale: torch.Tensor = field(default_factory=lambda: torch.ones(3, dtype=torch.float64))
     last: torch.Tensor | None = None
+    first: torch.Tensor | None = None
+    latest: torch.Tensor | None = None
 
     @classmethod
     def read(cls, frame: torch.Tensor, denoised: torch.Tensor, mask: torch.Tensor) -> CoarseAnchor:
@@ -93,6 +105,8 @@ class CoarseAnchor:
     def update(self) -> None:
         """Move ``scale`` by the ratio of the target to the last simulation (bounded per step and overall)."""
         if self.last is not None and bool((self.last > 0.0).all()):
+            self.first = self.last if self.first is None else self.first
+            self.latest = self.last
             step = (self.target / self.last).pow(ANCHOR_GAIN).clamp(0.25, 4.0)
             # Brightness keeps the prior: texture left in flat blocks is brightness, and even the lower quartile of
             # the blocks read it as coarse brightness noise (up to 70x white on textured images of the round trip,
@@ -100,6 +114,22 @@ class CoarseAnchor:
             step[0] = 1.0
             self.scale = (self.scale * step).clamp(*ANCHOR_SCALE_RANGE)
         self.last = None
+
+    def unmatched(self) -> list[int]:
+        """The colour components whose scale is not a reading: moved more than :data:`ANCHOR_MOVED` from the prior
+        while the simulated statistic it was moved for changed by less than :data:`ANCHOR_RESPONSE` (noise under
+        one 8-bit level, where the rounding of the scene's planes is the variance, ran one component to 100 and
+        the other to 0.1 with no effect on it). A scale held at 100 whose statistic followed is a strong mottle
+        read. Brightness is never anchored."""
+        if self.first is None or self.latest is None:
+            return []
+        moved = self.scale.log().abs() > math.log(ANCHOR_MOVED)
+        silent = (self.latest / self.first.clamp_min(1e-30)).log().abs() < math.log(ANCHOR_RESPONSE)
+        return [int(k) for k in torch.nonzero((moved & silent)[1:]).flatten() + 1]
+
+    def release(self, components: list[int]) -> None:
+        """Return ``components`` to the prior (scale 1): the finer octaves' spectrum continued."""
+        self.scale[components] = 1.0
 
     def apply(self, covariances: torch.Tensor, first_unmeasured: int) -> torch.Tensor:
         """The octaves' covariances with the unmeasured ones' components scaled (their correlations kept)."""

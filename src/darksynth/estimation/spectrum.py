@@ -32,7 +32,7 @@ from typing import Any
 import torch
 import torch.nn.functional as F
 
-from darksynth.estimation.coarse_anchor import ANCHOR_WARM_STEPS, CoarseAnchor
+from darksynth.estimation.coarse_anchor import ANCHOR_SCALE_RANGE, ANCHOR_WARM_STEPS, COMPONENT_NAMES, CoarseAnchor
 from darksynth.estimation.flat_blocks import (
     BLOCK,
     CLIPPED_SHARE,
@@ -91,6 +91,12 @@ first 15 cases read the same (median |std ratio - 1| 0.097), but the stronger sm
 texture so that a panning clip looked still."""
 
 START_ITERATIONS, FINAL_ITERATIONS = 2, 3
+
+JPEG_AMBIGUOUS = 1.5
+"""A JPEG strength whose fit's mismatch is within this factor of the best's fits the reference about as well."""
+
+LEVEL_SPREAD = 1.5
+"""Levels of the JPEG strengths that fit about as well that differ by more than this are reported as uncertain."""
 """Corrections with each JPEG candidate (one draw), then with the best one (two draws)."""
 
 PROBED_OCTAVES = range(2, OCTAVES)
@@ -305,9 +311,23 @@ def estimate_spectrum(
     measured_knots = ~torch.isnan(target.knot_variance).expand(3, -1)
     resynthesis = _Resynthesis(analysed, analysed_denoised, measured_mask, strength, seed)
     fitted = _fit(resynthesis, target, meta, measured_knots, prior_curve)
+    if (ambiguity := compression_ambiguity(meta)) is not None:
+        strengths, low, high = ambiguity
+        warnings.append(
+            f"{name}: JPEG strengths {', '.join(strengths)} fit it about as well, with noise levels from {low:.2f} "
+            f"to {high:.2f} 8-bit levels: how much noise the compression removed cannot be read, the level "
+            f"({_mean_level(fitted.curve, measured_knots):.2f}) is uncertain by that much"
+        )
+    released = meta.get("coarse_octave_prior", {})
+    if any(not ANCHOR_SCALE_RANGE[0] * 1.001 < scale < ANCHOR_SCALE_RANGE[1] * 0.999 for scale in released.values()):
+        warnings.append(
+            f"{name}: the coarse {' and '.join(released)} noise (11 px and coarser) could not be read (its fit ran "
+            "to a bound without moving the variance about the flat blocks' planes): it continues the finer octaves"
+        )
     fitted.curve = _level_checks(
         fitted.curve, measured_knots, prior_curve, int(unclipped.sum()) >= MIN_LEVEL_BLOCKS, meta, warnings, name
     )
+    meta["strength_over_fitted_noise"] = round(strength / _fitted_noise_8bit(fitted.curve, denoised[0], mask), 3)
     if target.temporal is None:
         fitted.temporal = torch.zeros(OCTAVES, dtype=torch.float64)
     values = fitted.as_values() | {"compression": torch.tensor([meta["compression_chosen"]], dtype=torch.float64)}
@@ -396,6 +416,36 @@ def _anchored_fit(
     )
 
 
+def _fitted_noise_8bit(curve: torch.Tensor, denoised: torch.Tensor, mask: torch.Tensor) -> float:
+    """The fitted noise std (mean over channels) at the brightest measured block of a denoised frame (3, H, W),
+    in 8-bit levels: what the denoiser's strength was meant to be. A strength well above it was set by texture in
+    the flattest blocks, which the fit then likely read as noise too."""
+    blocks = F.avg_pool2d(denoised[None], BLOCK)[0]
+    measured = F.avg_pool2d(mask.reshape(-1, *mask.shape[-2:])[-1][None, None], BLOCK)[0, 0] > 0.5
+    if not bool(measured.any()):
+        return math.inf
+    std = level_std(blocks, curve.reshape(-1).to(blocks)).mean(0)
+    return float(std[measured].max()) * 255
+
+
+def _mean_level(curve: torch.Tensor, measured: torch.Tensor) -> float:
+    """Mean of a level curve (3, 8) over the ``measured`` knots (all when none), in 8-bit levels."""
+    return float(curve[measured].mean() if bool(measured.any()) else curve.mean()) * 255
+
+
+def compression_ambiguity(meta: dict[str, Any]) -> tuple[list[str], float, float] | None:
+    """The JPEG strengths that fit about as well as the chosen one (score within :data:`JPEG_AMBIGUOUS` of the
+    best) and the lowest and highest level they give, when those differ by more than :data:`LEVEL_SPREAD`: the
+    reference cannot tell how much noise the compression took (weak noise under a strong JPEG reads like weaker
+    noise under none), so the level is uncertain by that much."""
+    scores: dict[str, float] = meta["compression_scores"]
+    levels: dict[str, float] = meta["level_by_compression_8bit"]
+    best = min(scores.values())
+    plausible = [c for c, score in scores.items() if score <= JPEG_AMBIGUOUS * best]
+    low, high = min(levels[c] for c in plausible), max(levels[c] for c in plausible)
+    return (plausible, low, high) if high > LEVEL_SPREAD * max(low, 1e-6) else None
+
+
 def _fit(
     resynthesis: _Resynthesis,
     target: SpectralStatistics,
@@ -453,8 +503,14 @@ def _fit(
     fitted, left_over = _anchored_fit(
         resynthesis, target, fits[chosen], chosen, anchor if anchored else None, constrain
     )
+    if anchored and (unmatched := anchor.unmatched()):
+        # The scale each released component had: a fit that ran to a bound of its range is worth a warning.
+        meta["coarse_octave_prior"] = {COMPONENT_NAMES[k]: round(float(anchor.scale[k]), 3) for k in unmatched}
+        anchor.release(unmatched)
+        fitted = constrain(fitted)  # the released components continue the finer octaves again
     meta["coarse_octave_scale"] = [round(float(v), 3) for v in anchor.scale]
     meta["compression_scores"] = {str(c): round(v, 4) for c, v in scores.items()}
+    meta["level_by_compression_8bit"] = {str(c): round(_mean_level(fits[c].curve, measured_knots), 3) for c in fits}
     meta["compression_chosen"] = chosen
     meta["mismatch"] = round(left_over, 4)
     return fitted

@@ -1,0 +1,39 @@
+"""The blocks the noise is measured on (estimation/flat_blocks.py): the denoiser's strength read on them, which texture
+must not raise beyond what the noise law allows, and which must still follow noise that grows with the level."""
+
+from __future__ import annotations
+
+import torch
+
+from darksynth.estimation.flat_blocks import BLOCK, flat_block_std
+
+
+def _frame(levels: list[float], stds: list[float], textured: list[bool], seed: int = 0) -> torch.Tensor:
+    """One (1, 3, H, W) frame of 32-px blocks in rows: row r at ``levels[r]`` with white noise of ``stds[r]``
+    (8-bit levels), and, where ``textured[r]``, a fine checkerboard of 20 levels on top (texture, not noise)."""
+    generator = torch.Generator().manual_seed(seed)
+    rows = []
+    for level, std, texture in zip(levels, stds, textured, strict=True):
+        row = torch.full((3, BLOCK, 12 * BLOCK), level)
+        if texture:
+            y, x = torch.meshgrid(torch.arange(BLOCK), torch.arange(12 * BLOCK), indexing="ij")
+            row = row + ((x // 2 + y // 2) % 2).to(row) * (20 / 255) - 10 / 255
+        rows.append(row + torch.randn(row.shape, generator=generator) * std / 255)
+    return torch.cat(rows, dim=1).clamp(0.0, 1.0)[None]
+
+
+def test_a_few_bright_textured_blocks_do_not_set_the_strength() -> None:
+    # Four rows of flat blocks at level 0.1 with 2 levels of noise, one row of checkerboard at 0.4: the largest
+    # segment's std was the strength (about 11 levels here), 5x the noise. The noise law allows sqrt(4) = 2x.
+    frame = _frame([0.1, 0.1, 0.1, 0.1, 0.4], [2.0] * 5, [False] * 4 + [True])
+    strength = flat_block_std(frame)
+    assert 1.6 < strength < 4.5, strength
+
+
+def test_noise_that_grows_with_the_level_sets_the_strength_where_it_is_strongest() -> None:
+    # Shot noise: std as sqrt(level), 2 levels at 0.05 and 4.2 at 0.22 (fewer blocks there): the strength follows
+    # the bright, noisier segment, as a dark reference's denoiser must (set from its darkest blocks, it left the
+    # noise in place).
+    frame = _frame([0.05, 0.05, 0.05, 0.22], [2.0, 2.0, 2.0, 4.2], [False] * 4)
+    strength = flat_block_std(frame)
+    assert 3.6 < strength < 4.8, strength
