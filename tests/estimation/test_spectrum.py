@@ -108,7 +108,10 @@ def test_a_still_clip_gives_its_frame_to_frame_correlation() -> None:
     found = estimate_spectrum(_noisy(clean, _spectral([1.0] * 18, temporal=0.6), 2), name="clip")
     assert not found.warnings, found.warnings
     temporal = found.values["temporal_correlation"]
-    assert torch.allclose(temporal[:4], torch.full((4,), 0.6, dtype=torch.float64), atol=0.12), temporal
+    # 2-16 px within 0.12; 16-32 px, which the frame differences read with each 32-px block's plane taken out (a
+    # change of light), within 0.2.
+    assert torch.allclose(temporal[:3], torch.full((3,), 0.6, dtype=torch.float64), atol=0.12), temporal
+    assert abs(float(temporal[3]) - 0.6) < 0.2, temporal
     independent = estimate_spectrum(_noisy(clean, _spectral([1.0] * 18), 3), name="clip")
     assert independent.values["temporal_correlation"][:4].abs().max() < 0.1
 

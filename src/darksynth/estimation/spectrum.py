@@ -44,6 +44,7 @@ from darksynth.estimation.flat_blocks import (
     flat_mask,
 )
 from darksynth.estimation.nonlocal_means import nlm_denoise
+from darksynth.estimation.persistence_fit import fit_persistence
 from darksynth.noise.simulate import add_noise
 from darksynth.noise.spectral import OCTAVES, level_std
 from darksynth.noise.spectral_fit import (
@@ -330,8 +331,32 @@ def estimate_spectrum(
     meta["strength_over_fitted_noise"] = round(strength / _fitted_noise_8bit(fitted.curve, denoised[0], mask), 3)
     if target.temporal is None:
         fitted.temporal = torch.zeros(OCTAVES, dtype=torch.float64)
+    elif analysed.shape[0] >= 3:
+        fitted.temporal = _persistence(resynthesis, fitted, meta, warnings, name)
     values = fitted.as_values() | {"compression": torch.tensor([meta["compression_chosen"]], dtype=torch.float64)}
     return SpectrumEstimate(values=values, meta=meta, warnings=warnings)
+
+
+def _persistence(
+    resynthesis: _Resynthesis, fitted: SpectralParameters, meta: dict[str, Any], warnings: list[str], name: str
+) -> torch.Tensor:
+    """The frame-to-frame correlation per octave read from frame differences of the still blocks
+    (:mod:`darksynth.estimation.persistence_fit`), in place of the residual's correlation the fit moved."""
+    temporal, record, reason = fit_persistence(
+        resynthesis.analysed,
+        resynthesis.denoised,
+        resynthesis.mask,
+        fitted,
+        meta["compression_chosen"],
+        resynthesis.seed,
+    )
+    meta.update(record)
+    if reason is not None:
+        warnings.append(
+            f"{name}: the frame-to-frame correlation of the noise cannot be read ({reason}): the prior 0 "
+            "(independent frames)"
+        )
+    return temporal
 
 
 @dataclass
