@@ -31,9 +31,10 @@ Exposure fraction, the steps:
    :data:`~darksynth.estimation.shutter_fit.MIN_BLOCKS` moving textured blocks (blocks whose texture matches itself
    at another shift, a periodic pattern whose motion can alias, are left out), or a reading the blocks do not
    support: its confidence, the share of readings within 0.15 of it when the scene's blocks are resampled (a
-   cluster bootstrap, :mod:`darksynth.estimation.shutter_confidence`), under one half. The note names the reading,
-   the resampled spread, and what explains it (texture contrast against the noise on the frequencies that tell
-   shutters apart, the share of noise that stays in place, periodic blocks).
+   cluster bootstrap, :mod:`darksynth.estimation.shutter_confidence`), under one half, or under 0.98 when the frames
+   show JPEG's 8-px blocks (its quantization moves every block's reading alike, which resampling cannot see). The
+   note names the reading, the resampled spread, and what explains it (texture contrast against the noise on the
+   frequencies that tell shutters apart, the share of noise that stays in place, periodic blocks, JPEG's blocks).
 
 What it assumes: texture that is, over the pooled blocks, isotropic (a scene of mostly parallel edges along the
 motion reads as a shorter shutter, across it as a longer one; a periodic pattern can read as 0); and that the
@@ -81,6 +82,7 @@ from darksynth.estimation.flicker import (
     measure_flicker,
 )
 from darksynth.estimation.reference import scene_cuts, uniform_frames
+from darksynth.estimation.shutter_confidence import compression_blockiness
 from darksynth.estimation.shutter_fit import (
     BLOCK,
     MIN_BLOCKS,
@@ -266,7 +268,7 @@ def _read_exposure(reference: torch.Tensor, flows: list[PairFlow], moving_share:
         )
         return _Exposure(EXPOSURE_FRACTION_PRIOR, False, 0, 0.0, None, [f"{why}: {prior}"])
     spectra = _block_spectra(reference, flows)
-    fit = fit_exposure(spectra) if spectra is not None else None
+    fit = fit_exposure(spectra, _blockiness(reference)) if spectra is not None else None
     blocks, displacement = (fit.blocks, fit.speed) if fit is not None else (0, 0.0)
     if fit is None or fit.reading is None or fit.refused is not None:
         why = (fit.refused if fit is not None else None) or (
@@ -284,6 +286,17 @@ def _read_exposure(reference: torch.Tensor, flows: list[PairFlow], moving_share:
             "is held at 1"
         )
     return _Exposure(fit.reading, True, blocks, displacement, fit, notes)
+
+
+BLOCKINESS_FRAMES, BLOCKINESS_SIZE = 8, 512
+"""JPEG's blocks are looked for on at most this many frames and this many px from the top left corner, where the
+8-px grid is anchored: enough rows and columns to average the grid out of the content, at a small cost."""
+
+
+def _blockiness(reference: torch.Tensor) -> float:
+    """The frames' :func:`~darksynth.estimation.shutter_confidence.compression_blockiness`, on their luminance."""
+    corner = reference[:BLOCKINESS_FRAMES, :, :BLOCKINESS_SIZE, :BLOCKINESS_SIZE]
+    return compression_blockiness(_luminance(corner))
 
 
 def _luminance(frames: torch.Tensor) -> np.ndarray:
@@ -448,4 +461,5 @@ def _fit_checks(fit: ExposureFit | None) -> dict[str, Any] | None:
         "contrast_along_motion": rounded(fit.contrast),
         "periodic_blocks": fit.ambiguous,
         "persistent_share": rounded(fit.persistent_share),
+        "jpeg_blockiness": rounded(fit.blockiness),
     }

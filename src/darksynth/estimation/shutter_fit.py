@@ -16,7 +16,9 @@ import numpy as np
 from darksynth.estimation.cross_spectra import box_transfer, frequencies, ring_membership
 from darksynth.estimation.shutter_confidence import (
     AMBIGUOUS_PEAK,
+    BLOCKY,
     MIN_CONFIDENCE,
+    MIN_CONFIDENCE_COMPRESSED,
     TOLERANCE,
     contrast_along,
     motion_ambiguity,
@@ -97,6 +99,9 @@ class ExposureFit:
         contrast: the scene's power against the noise's on the frequencies that tell shutters apart.
         ambiguous: blocks left out because their texture matches itself at another shift.
         persistent_share: share of the cross power, on those frequencies, that was noise staying in place.
+        blockiness: the frames' :func:`~darksynth.estimation.shutter_confidence.compression_blockiness` (above
+            :data:`~darksynth.estimation.shutter_confidence.BLOCKY`: JPEG's blocks show, and the reading needs a
+            confidence of :data:`~darksynth.estimation.shutter_confidence.MIN_CONFIDENCE_COMPRESSED`).
     """
 
     reading: float | None
@@ -108,6 +113,12 @@ class ExposureFit:
     contrast: float | None = None
     ambiguous: int = 0
     persistent_share: float | None = None
+    blockiness: float = 1.0
+
+    @property
+    def min_confidence(self) -> float:
+        """The confidence the reading needs: more where JPEG's quantization moves every block's reading alike."""
+        return MIN_CONFIDENCE_COMPRESSED if self.blockiness > BLOCKY else MIN_CONFIDENCE
 
 
 class _Rings(NamedTuple):
@@ -196,8 +207,10 @@ def _select(rings: _Rings, keep: np.ndarray) -> _Rings:
     )
 
 
-def fit_exposure(spectra: BlockSpectra) -> ExposureFit:
-    """The exposure fraction that best explains the blocks' cross spectra, and whether the blocks support it."""
+def fit_exposure(spectra: BlockSpectra, blockiness: float = 1.0) -> ExposureFit:
+    """The exposure fraction that best explains the blocks' cross spectra, and whether the blocks support it;
+    ``blockiness``, the frames' :func:`~darksynth.estimation.shutter_confidence.compression_blockiness`, sets the
+    confidence asked."""
     rings = _rings(spectra)
     usable, ambiguous = _usable(spectra, rings)
     speeds = np.hypot(spectra.motion[:, 0], spectra.motion[:, 1])
@@ -208,7 +221,14 @@ def fit_exposure(spectra: BlockSpectra) -> ExposureFit:
                 f"{int(ambiguous.sum())} of the moving textured blocks match themselves at another shift "
                 "(periodic texture: their motion and blur length can alias)"
             )
-        return ExposureFit(None, why, int(usable.sum()), float(np.median(speeds)), ambiguous=int(ambiguous.sum()))
+        return ExposureFit(
+            None,
+            why,
+            int(usable.sum()),
+            float(np.median(speeds)),
+            ambiguous=int(ambiguous.sum()),
+            blockiness=blockiness,
+        )
     rings = _select(rings, usable)
     speed = float(np.median(speeds[usable]))
     scores = _block_scores(rings, COARSE_GRID)
@@ -226,6 +246,7 @@ def fit_exposure(spectra: BlockSpectra) -> ExposureFit:
         contrast=contrast_along(rings.cross, rings.noise, rings.along),
         ambiguous=int(ambiguous.sum()),
         persistent_share=persistent_share(rings.persistent, rings.cross, rings.along),
+        blockiness=blockiness,
     )
     # The same fit on the two halves of the blocks (alternate ones): where they disagree, one s does not explain
     # the clip (texture that is not isotropic, processing the model lacks).
@@ -235,7 +256,7 @@ def fit_exposure(spectra: BlockSpectra) -> ExposureFit:
     ]
     if abs(halves[0] - halves[1]) > HALVES_DISAGREE:
         return _refuse(fit, f"the two halves of the moving blocks read s = {halves[0]:.1f} and {halves[1]:.1f}")
-    if fit.confidence is not None and fit.confidence < MIN_CONFIDENCE:
+    if fit.confidence is not None and fit.confidence < fit.min_confidence:
         return _refuse(fit, _why_unsure(fit))
     return fit
 
@@ -253,9 +274,14 @@ def _why_unsure(fit: ExposureFit) -> str:
         causes.append(f"noise that stays in place is {fit.persistent_share:.0%} of the cross power")
     if fit.ambiguous:
         causes.append(f"{fit.ambiguous} blocks of periodic texture left out")
+    if fit.blockiness > BLOCKY:
+        causes.append(
+            f"the frames show JPEG's 8-px blocks (blockiness {fit.blockiness:.2f}): its quantization moves every "
+            f"block's reading alike, so {MIN_CONFIDENCE_COMPRESSED} is asked"
+        )
     because = f" ({'; '.join(causes)})" if causes else ""
     return (
         f"the blocks read s = {fit.reading:.2f} but, resampled over the scene, between {fit.spread[0]:.2f} and "
-        f"{fit.spread[1]:.2f}: confidence {fit.confidence:.2f}, under {MIN_CONFIDENCE} of the readings within "
+        f"{fit.spread[1]:.2f}: confidence {fit.confidence:.2f}, under {fit.min_confidence} of the readings within "
         f"{TOLERANCE}{because}"
     )
