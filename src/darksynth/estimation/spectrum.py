@@ -58,6 +58,7 @@ from darksynth.noise.spectral_fit import (
     knot_binning,
     measure,
     measure_weight,
+    mismatch,
     quantised,
     uncensored_signal,
 )
@@ -92,6 +93,11 @@ texture so that a panning clip looked still."""
 
 START_ITERATIONS, FINAL_ITERATIONS = 2, 3
 """Corrections with each JPEG candidate (one draw), then with the best one (two draws)."""
+
+CANDIDATE_RULED_OUT = 4.0
+"""A JPEG strength whose first simulation's mismatch is this many times the best strength's is not fitted further:
+its correction cannot close such a gap (a JPEG stage that is not there, or one that is, shows in every band).
+Each strength fitted cost a sixth of a photo's estimate."""
 
 PROBED_OCTAVES = range(2, OCTAVES)
 """Octaves whose visibility is probed (11 px and coarser); the two finest are always in the denoiser's residual."""
@@ -325,6 +331,18 @@ class _Resynthesis:
     strength: float
     seed: int
     binnings: dict[int, KnotBinning] = field(default_factory=dict)
+    _signal: tuple[tuple[bytes, int], torch.Tensor] | None = None
+
+    def signal(self, curve: torch.Tensor, count: int) -> torch.Tensor:
+        """The signal under the first ``count`` denoised frames for the level ``curve`` (3, 8): the camera clipped
+        its noise about the signal, not about the denoised (clipped) mean. Kept for the next call: the draws of a
+        step share it."""
+        key = (curve.detach().to("cpu", torch.float64).numpy().tobytes(), count)
+        if self._signal is None or self._signal[0] != key:
+            denoised = self.denoised[:count]
+            std = level_std(denoised, curve.reshape(-1).to(denoised))
+            self._signal = (key, uncensored_signal(denoised, std))
+        return self._signal[1]
 
     def simulator(
         self, compression: float, frame_count: int | None = None
@@ -342,8 +360,7 @@ class _Resynthesis:
         def simulate_and_measure(parameters: SpectralParameters, draw: int) -> SpectralStatistics:
             values = NoiseValues.from_values(parameters.as_values() | {"compression": compression}, dtype=torch.float32)
             generator = torch.Generator(device=denoised.device).manual_seed(self.seed * 1009 + draw)
-            # The camera clipped its noise about the signal, not about the denoised (clipped) mean.
-            signal = uncensored_signal(denoised, level_std(denoised, parameters.curve.reshape(-1).to(denoised)))
+            signal = self.signal(parameters.curve, count)
             synthetic = quantised(add_noise(signal[None], values, generator=generator)[0])
             again = nlm_denoise(synthetic, self.strength)
             return measure(synthetic - again, denoised, self.mask, binning=binning)
@@ -396,6 +413,37 @@ def _anchored_fit(
     )
 
 
+def _compression_search(
+    resynthesis: _Resynthesis,
+    target: SpectralStatistics,
+    start: SpectralParameters,
+    constrain: Callable[[SpectralParameters], SpectralParameters],
+) -> tuple[dict[float, SpectralParameters], dict[float, float]]:
+    """Each JPEG strength fitted on the first frame from ``start``, with what each left over; a strength whose
+    first simulation matches the target :data:`CANDIDATE_RULED_OUT` times worse than the best one's is not fitted
+    further (its score is that first mismatch)."""
+    start = constrain(start)
+    first = {c: resynthesis.simulator(c, 1)(start, 0) for c in COMPRESSION_CANDIDATES}
+    first_mismatch = {c: mismatch(target, statistics) for c, statistics in first.items()}
+    best = min(first_mismatch.values())
+    fits: dict[float, SpectralParameters] = {}
+    scores: dict[float, float] = {}
+    for compression in COMPRESSION_CANDIDATES:
+        if first_mismatch[compression] > CANDIDATE_RULED_OUT * best:
+            fits[compression], scores[compression] = start, first_mismatch[compression]
+            continue
+        fits[compression], scores[compression] = fit_by_resynthesis(
+            target,
+            resynthesis.simulator(compression, 1),
+            start=start,
+            iterations=START_ITERATIONS,
+            draws=1,
+            constrain=constrain,
+            first=first[compression],
+        )
+    return fits, scores
+
+
 def _fit(
     resynthesis: _Resynthesis,
     target: SpectralStatistics,
@@ -431,17 +479,7 @@ def _fit(
             parameters.covariances = anchor.apply(parameters.covariances, first_unmeasured)
         return constrain_curve(parameters)
 
-    scores: dict[float, float] = {}
-    fits: dict[float, SpectralParameters] = {}
-    for compression in COMPRESSION_CANDIDATES:
-        fits[compression], scores[compression] = fit_by_resynthesis(
-            spatial_target,
-            resynthesis.simulator(compression, 1),
-            start=start,
-            iterations=START_ITERATIONS,
-            draws=1,
-            constrain=constrain,
-        )
+    fits, scores = _compression_search(resynthesis, spatial_target, start, constrain)
     chosen = min(scores, key=lambda c: scores[c])
     # A knot's response is probed where the fit has brought the level: at the raw residual's level (too weak on
     # textured references) texture dominates every knot's statistic and none would seem to respond.
