@@ -6,7 +6,8 @@ sibling of its own layer):
 0. ``errors``, ``tensors``, ``seeding``, ``version``: conventions that import nothing of darksynth;
 1. ``io`` (files, videos, atomic writes), ``darkening``, ``light`` (motion blur, camera shake, flicker: light
    beyond noise), ``commands`` (the command line's shape, without its code), ``console_progress`` (how a command
-   shows its progress) and ``worker_pool`` (worker processes that end with their parent);
+   shows its progress), ``worker_pool`` (worker processes that end with their parent) and ``tone_blocks`` (the
+   per-block tone statistics of a frame, sorted once for every darkening fit);
 2. ``noise``: the components, their table, the carrier of values, the composer;
 2b. ``tones`` (the tone distribution of images and the darkening line fitted between two of them) is on the
    layer of ``noise``;
@@ -23,9 +24,10 @@ The pure core (``tensors``, ``darkening``, ``light``, ``noise``) also never impo
 for the edges, so the core runs on tensors alone.
 
 Inside ``estimation`` the stages have layers of their own: the reading of the reference, the column decision, the
-denoiser, the flat blocks and the refinement's statistics import no other stage; the coarse anchor reads the flat
-blocks, the spectrum all three; the network reads the crop grid and the
-refinement its statistics; ``assemble`` alone runs them all.
+denoiser, the flat blocks and the refinement's statistics import no other stage; the coarse anchor, the still
+blocks of a clip and the frame-to-frame fit read the flat blocks; the spectrum's checks read the anchor, and the
+spectrum all of them; the network reads the crop grid and the refinement its statistics; ``assemble`` alone runs
+them all.
 """
 
 from __future__ import annotations
@@ -48,6 +50,7 @@ LAYERS: dict[str, int] = {
     "darkening": 1,
     "light": 1,
     "worker_pool": 1,
+    "tone_blocks": 1,
     "noise": 2,
     "profile": 3,
     "tones": 2,
@@ -80,7 +83,10 @@ ESTIMATION_STAGES: dict[str, int] = {
     "nonlocal_means": 0,
     "flat_blocks": 0,
     "coarse_anchor": 1,
-    "spectrum": 2,
+    "still_blocks": 1,
+    "persistence_fit": 1,
+    "spectrum_checks": 2,
+    "spectrum": 3,
     "network": 1,
     "refine": 1,
     "flicker": 0,
@@ -88,7 +94,7 @@ ESTIMATION_STAGES: dict[str, int] = {
     "shutter_confidence": 0,
     "shutter_fit": 1,
     "motion": 2,
-    "assemble": 3,
+    "assemble": 4,
 }
 """The layer of every module of the ``estimation`` package among its siblings."""
 

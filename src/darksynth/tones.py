@@ -29,6 +29,7 @@ import torch
 from darksynth.darkening import ALPHA_RANGE, GAMMA_RANGE, Darkening
 from darksynth.errors import DarksynthError
 from darksynth.tensors import luminance
+from darksynth.tone_blocks import NOISE_BLOCKS, BlockStatistics, block_side, block_statistics, tiles
 
 BLOCK = 4
 """Side of the square blocks whose per-channel medians make the tone distribution."""
@@ -186,19 +187,6 @@ class DarkeningEstimate:
         return score * (0.5 if self.clipped else 1.0)
 
 
-NOISE_BLOCKS = 1 << 18
-"""At most about this many blocks are read to measure the noise left in a block median."""
-
-
-def _tiles(frames: torch.Tensor, block: int) -> torch.Tensor:
-    """(..., C, H, W) -> (..., C, H // s, W // s, s * s), s = ``block`` or the shorter side if smaller."""
-    side = max(1, min(block, frames.shape[-2], frames.shape[-1]))
-    rows, columns = frames.shape[-2] // side, frames.shape[-1] // side
-    lead = frames.shape[:-2]
-    tiles = frames[..., : rows * side, : columns * side].reshape(*lead, rows, side, columns, side)
-    return tiles.transpose(-3, -2).reshape(*lead, rows, columns, side * side)
-
-
 def block_medians(frames: torch.Tensor, block: int = BLOCK) -> torch.Tensor:
     """Per-channel medians of non-overlapping ``block`` x ``block`` tiles.
 
@@ -213,8 +201,7 @@ def block_medians(frames: torch.Tensor, block: int = BLOCK) -> torch.Tensor:
     """
     if frames.dim() < 3:
         raise ValueError(f"expected frames shaped (..., C, H, W), got shape {tuple(frames.shape)}")
-    tiles = _tiles(frames, block)
-    medians: torch.Tensor = tiles.median(dim=-1).values
+    medians: torch.Tensor = tiles(frames, block).median(dim=-1).values
     return medians
 
 
@@ -224,11 +211,11 @@ column): its 49 quantiles are as well determined by 16k blocks as by a 1080p fra
 about 5)."""
 
 
-def sampled_blocks(frames: torch.Tensor, *, block: int = BLOCK) -> torch.Tensor:
+def sampled_blocks(frames: torch.Tensor, *, block: int = BLOCK, most: int = MATCH_BLOCKS) -> torch.Tensor:
     """Every k-th block row and column of ``frames`` (..., C, H, W), put side by side, k the smallest that leaves
-    at most :data:`MATCH_BLOCKS` blocks per channel and frame (``frames`` itself for small frames)."""
+    at most ``most`` blocks per channel and frame (``frames`` itself for small frames)."""
     rows, columns = frames.shape[-2] // block, frames.shape[-1] // block
-    step = max(1, math.ceil(math.sqrt(rows * columns / MATCH_BLOCKS)))
+    step = max(1, math.ceil(math.sqrt(rows * columns / most)))
     if step == 1:
         return frames
     # The first block of every step x step group of blocks.
@@ -270,20 +257,16 @@ def median_noise(frames: torch.Tensor, block: int = BLOCK) -> float:
     """
     frames = frames.to(torch.float32)
     centre, upper = _block_noise_quantiles(frames, block)
-    return _noise_of_quantiles(centre, upper, _side(frames, block))
+    return _noise_of_quantiles(centre, upper, block_side(frames, block))
 
 
 def _block_noise_quantiles(frames: torch.Tensor, block: int) -> tuple[torch.Tensor, torch.Tensor]:
     """Median and 75th percentile of every block of float32 frames, in flat order (frame, channel, row, column)."""
-    tiles = _tiles(frames, block).flatten(0, -2)
+    flat = tiles(frames, block).flatten(0, -2)
     # An even subsample of the blocks reads the same median noise at a bounded cost (4K clips have ~25 M).
-    tiles = tiles[:: max(1, tiles.shape[0] // NOISE_BLOCKS)]
-    centre, upper = torch.quantile(tiles, torch.tensor([0.5, 0.75]), dim=-1)
+    flat = flat[:: max(1, flat.shape[0] // NOISE_BLOCKS)]
+    centre, upper = torch.quantile(flat, torch.tensor([0.5, 0.75]), dim=-1)
     return centre, upper
-
-
-def _side(frames: torch.Tensor, block: int) -> int:
-    return max(1, min(block, frames.shape[-2], frames.shape[-1]))
 
 
 def _noise_of_quantiles(centre: torch.Tensor, upper: torch.Tensor, side: int) -> float:
@@ -294,10 +277,15 @@ def _noise_of_quantiles(centre: torch.Tensor, upper: torch.Tensor, side: int) ->
 
 
 def estimate_darkening_pooled_and_per_frame(
-    frames: torch.Tensor, *, block: int = BLOCK, source: str = "reference"
+    frames: torch.Tensor,
+    *,
+    block: int = BLOCK,
+    source: str = "reference",
+    statistics: list[BlockStatistics] | None = None,
 ) -> tuple[DarkeningEstimate, list[DarkeningEstimate | None]]:
     """:func:`estimate_darkening` of frames (T, C, H, W) pooled, and of each frame alone (None where one is too
-    dark or flat), from one pass of block statistics per frame instead of two.
+    dark or flat), from one sort of each frame's blocks (:func:`~darksynth.tone_blocks.block_statistics`; given
+    as ``statistics`` when the caller has them) instead of four passes.
 
     The pooled figures are read from the frames' block statistics concatenated in frame order, the order in which
     :func:`estimate_darkening` reads them: the same numbers, as long as one frame's blocks are few enough to be
@@ -309,11 +297,12 @@ def estimate_darkening_pooled_and_per_frame(
     """
     medians, centres, uppers = [], [], []
     per_frame: list[DarkeningEstimate | None] = []
-    side = _side(frames, block)
-    for frame in frames:
-        plane = frame.to(torch.float32)
-        frame_medians = block_medians(plane, block).flatten().numpy().astype(np.float64)
-        centre, upper = _block_noise_quantiles(plane, block)
+    side = block_side(frames, block)
+    if statistics is None:
+        statistics = [block_statistics(frame, block) for frame in frames]
+    for found in statistics:
+        frame_medians = found.medians.flatten().numpy().astype(np.float64)
+        centre, upper = found.noise_quantiles()
         medians.append(frame_medians)
         centres.append(centre)
         uppers.append(upper)
@@ -490,12 +479,18 @@ def estimate_darkening(
 
 
 def estimate_darkening_spread(
-    frames: torch.Tensor, *, regions: int = 2, block: int = BLOCK, source: str = "reference"
+    frames: torch.Tensor,
+    *,
+    regions: int = 2,
+    block: int = BLOCK,
+    source: str = "reference",
+    statistics: list[BlockStatistics] | None = None,
 ) -> list[DarkeningEstimate]:
     """Estimates on parts of the reference: each frame cut into ``regions`` x ``regions`` tiles.
 
     The spread of these estimates shows how much the content, rather than the camera, moves the estimate;
-    regions too dark to fit are skipped (the list may be empty).
+    regions too dark to fit are skipped (the list may be empty). ``statistics``: each frame's
+    :func:`~darksynth.tone_blocks.block_statistics`, which a region on their block grid reads its own from.
     """
     if frames.dim() == 3:
         frames = frames[None]
@@ -503,14 +498,21 @@ def estimate_darkening_spread(
     rows = np.linspace(0, height, regions + 1).round().astype(int)
     columns = np.linspace(0, width, regions + 1).round().astype(int)
     estimates = []
-    for frame in frames:
+    for index, frame in enumerate(frames):
+        whole = statistics[index] if statistics is not None else block_statistics(frame, block)
         for top, bottom in itertools.pairwise(rows):
             for left, right in itertools.pairwise(columns):
                 part = frame[:, top:bottom, left:right]
                 if min(part.shape[-2:]) < block:
                     continue
+                found = whole.region(top, bottom, left, right) or block_statistics(part, block)
+                quantiles = np.quantile(found.medians.flatten().numpy().astype(np.float64), PROBABILITIES)
                 try:
-                    estimates.append(estimate_darkening(part, block=block, source=source))
+                    estimates.append(
+                        fit_darkening(
+                            quantiles, _noise_of_quantiles(*found.noise_quantiles(), found.side), source=source
+                        )
+                    )
                 except DarksynthError:
                     continue
     return estimates

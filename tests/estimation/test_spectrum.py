@@ -9,7 +9,8 @@ import numpy as np
 import pytest
 import torch
 
-from darksynth.estimation.spectrum import compression_ambiguity, estimate_spectrum
+from darksynth.estimation.spectrum import estimate_spectrum
+from darksynth.estimation.spectrum_checks import compression_ambiguity
 from darksynth.evaluation.structure import band_powers, band_ratios
 from darksynth.noise.simulate import add_noise
 from darksynth.noise.spectral import OCTAVES

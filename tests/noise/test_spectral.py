@@ -318,3 +318,28 @@ def test_the_uncensored_signal_is_the_mean_before_the_clip(signal: float) -> Non
     clipped = (signal + std * torch.randn(400_000, generator=torch.Generator().manual_seed(1))).clamp(0.0, 1.0)
     found = uncensored_signal(clipped.mean()[None], torch.tensor([std]))
     assert abs(float(found[0]) - signal) < 0.002
+
+
+def test_uncensored_signal_searches_only_where_the_cut_reaches() -> None:
+    """The signal under a clipped mean: far from 0 it is the mean itself, near 0 the table's inversion, as a full
+    search of every pixel gives."""
+    from darksynth.noise.spectral_fit import _CENSORED_MEAN, _CENSORED_T, uncensored_signal
+
+    generator = torch.Generator().manual_seed(0)
+    observed = torch.rand(3, 40, 40, generator=generator) ** 3
+    observed[0, :4] = 0.0
+    observed[1, :2] = 1.0
+    std = 0.002 + 0.05 * torch.rand(3, 40, 40, generator=generator)
+
+    def searched(mean: torch.Tensor) -> torch.Tensor:
+        ratio = (mean / std.clamp_min(1e-6)).to(torch.float64)
+        index = torch.searchsorted(_CENSORED_MEAN, ratio.clamp(float(_CENSORED_MEAN[0]), float(_CENSORED_MEAN[-1])))
+        index = index.clamp(1, len(_CENSORED_T) - 1)
+        low, high = _CENSORED_MEAN[index - 1], _CENSORED_MEAN[index]
+        t = _CENSORED_T[index - 1] + ((ratio - low) / (high - low)).clamp(0.0, 1.0) * (
+            _CENSORED_T[index] - _CENSORED_T[index - 1]
+        )
+        t = torch.where(ratio >= float(_CENSORED_MEAN[-1]), ratio, t)
+        return (t * std.to(torch.float64)).to(mean.dtype)
+
+    assert torch.equal(uncensored_signal(observed, std), 1.0 - searched(1.0 - searched(observed)))

@@ -30,21 +30,25 @@ from dataclasses import dataclass, field
 from typing import Any
 
 import torch
-import torch.nn.functional as F
 
-from darksynth.estimation.coarse_anchor import ANCHOR_SCALE_RANGE, ANCHOR_WARM_STEPS, COMPONENT_NAMES, CoarseAnchor
+from darksynth.estimation.coarse_anchor import ANCHOR_WARM_STEPS, COMPONENT_NAMES, CoarseAnchor
 from darksynth.estimation.flat_blocks import (
-    BLOCK,
     CLIPPED_SHARE,
     MIN_LEVEL_BLOCKS,
     analysis_window,
-    blocks_to_mask,
     clipped_share,
     flat_block_std,
     flat_mask,
 )
 from darksynth.estimation.nonlocal_means import nlm_denoise
 from darksynth.estimation.persistence_fit import fit_persistence
+from darksynth.estimation.spectrum_checks import (
+    fitted_noise_8bit,
+    level_checks,
+    mean_level,
+    readability_warnings,
+)
+from darksynth.estimation.still_blocks import still_flat_mask
 from darksynth.noise.simulate import add_noise
 from darksynth.noise.spectral import OCTAVES, level_std
 from darksynth.noise.spectral_fit import (
@@ -59,6 +63,7 @@ from darksynth.noise.spectral_fit import (
     knot_binning,
     measure,
     measure_weight,
+    mismatch,
     quantised,
     uncensored_signal,
 )
@@ -71,18 +76,6 @@ TEXTURED_GRADIENT = 4.0 / 255
 TEMPORAL_FRAMES = 4
 """Consecutive frames a clip is analysed on for the frame-to-frame correlation."""
 
-STILL_CHANGE = 2.0 / 255
-"""A block is still when the mean absolute change of the denoised frames, from the first, is below this or below
-:data:`STILL_NOISE_FACTOR` times the change the noise alone leaves in a still simulation, whichever is larger."""
-
-STILL_NOISE_FACTOR = 1.5
-"""How far above the noise-only change (the median over blocks of a still simulation's) a still block may go.
-Strong noise leaves a change of its own in the denoised frames (the starlight video, 4 levels of noise: every
-block above 2 levels, so no block was still and its persistence was not read)."""
-
-MIN_STILL_BLOCKS = 4
-"""Fewer still flat blocks than this: the clip's temporal correlation is not measured (the prior, 0)."""
-
 NLM_STRENGTH = 1.0
 """Non-local means strength ``h`` in 8-bit levels per 8-bit level of the flat blocks' noise std (the pilot reads
 the noisiest intensity: :func:`flat_block_std`). With ``h`` under the noise, non-local means finds no patch like a
@@ -93,12 +86,10 @@ texture so that a panning clip looked still."""
 
 START_ITERATIONS, FINAL_ITERATIONS = 2, 3
 
-JPEG_AMBIGUOUS = 1.5
-"""A JPEG strength whose fit's mismatch is within this factor of the best's fits the reference about as well."""
-
-LEVEL_SPREAD = 1.5
-"""Levels of the JPEG strengths that fit about as well that differ by more than this are reported as uncertain."""
-"""Corrections with each JPEG candidate (one draw), then with the best one (two draws)."""
+CANDIDATE_RULED_OUT = 4.0
+"""A JPEG strength whose first simulation's mismatch is this many times the best strength's is not fitted further:
+its correction cannot close such a gap (a JPEG stage that is not there, or one that is, shows in every band).
+Each strength fitted cost a sixth of a photo's estimate."""
 
 PROBED_OCTAVES = range(2, OCTAVES)
 """Octaves whose visibility is probed (11 px and coarser); the two finest are always in the denoiser's residual."""
@@ -109,10 +100,6 @@ PROBE_BOOST = 4.0
 KNOT_PROBE_BOOST = 1 / 1.5
 """Factor by which the probe of :func:`knot_responses` moves the level curve: down, since noise raised above the
 denoiser's strength stops raising the residual (a flat grey reference read a response of 0.26 probed upward)."""
-
-LEVEL_DISAGREEMENT = 3.0
-"""Measured and network level curves further apart than this factor (their geometric mean ratio over the measured
-knots) get a warning naming both: one of the two misread the reference."""
 
 MIN_RESPONSE = 0.35
 """An octave is measured when its band's statistic follows its power with at least this exponent (1: in
@@ -127,28 +114,6 @@ class SpectrumEstimate:
     values: dict[str, torch.Tensor]
     meta: dict[str, Any] = field(default_factory=dict)
     warnings: list[str] = field(default_factory=list)
-
-
-def block_change(denoised: torch.Tensor) -> torch.Tensor:
-    """Mean absolute change (H // BLOCK, W // BLOCK) of each block of denoised frames (T, 3, H, W) from the first
-    frame, over the frames and channels, after each frame's median change per channel: a change of the whole
-    frame's brightness (auto-exposure, flicker: the starlight video dims by 7 levels in 4 frames) moves nothing."""
-    difference = denoised - denoised[:1]
-    global_change = difference.flatten(-2).median(dim=-1).values[..., None, None]
-    change = (difference - global_change).abs().mean(dim=(0, 1))[None, None]
-    return F.avg_pool2d(change, BLOCK)[0, 0]
-
-
-def noise_only_change(
-    denoised_first: torch.Tensor, values: NoiseValues, frames: int, strength: float, *, seed: int = 0
-) -> float:
-    """The median block change (see :func:`block_change`) of a still clip made of the first denoised frame
-    (1, 3, H, W) and independent noise of ``values`` in each of ``frames`` frames, denoised like the reference."""
-    # Its own stream of the estimate's seed (the fit's simulations use seed * 1009 + draw).
-    generator = torch.Generator(device=denoised_first.device).manual_seed(7919 + seed * 1009)
-    still = denoised_first.expand(frames, -1, -1, -1)
-    synthetic = quantised(add_noise(still[None], values, generator=generator)[0])
-    return float(block_change(nlm_denoise(synthetic, strength)).median())
 
 
 def octave_responses(
@@ -168,80 +133,6 @@ def octave_responses(
         power = simulate_and_measure(boosted, 0).cross_power.diagonal(dim1=-2, dim2=-1).sum(-1)
         responses[octave] = torch.log(power[octave] / base[octave].clamp_min(1e-30)) / math.log(PROBE_BOOST)
     return responses
-
-
-def _still_flat_mask(
-    frames: torch.Tensor,
-    denoised: torch.Tensor,
-    mask: torch.Tensor,
-    strength: float,
-    seed: int,
-    meta: dict[str, Any],
-    warnings: list[str],
-    name: str,
-) -> torch.Tensor | None:
-    """The measured blocks of a clip that stay still over its frames, as a pixel mask; None (with a warning) when
-    fewer than :data:`MIN_STILL_BLOCKS` do."""
-    height, width = frames.shape[-2:]
-    first = initial_parameters(measure(frames[:1] - denoised[:1], denoised[:1], mask))
-    first_values = NoiseValues.from_values(first.as_values(), dtype=torch.float32)
-    threshold = max(
-        STILL_CHANGE,
-        STILL_NOISE_FACTOR * noise_only_change(denoised[:1], first_values, frames.shape[0], strength, seed=seed),
-    )
-    meta["still_threshold_8bit"] = round(threshold * 255, 3)
-    still = block_change(denoised) < threshold
-    flat = F.avg_pool2d(mask[None, None], BLOCK)[0, 0] > 0.5
-    both = still[: flat.shape[0], : flat.shape[1]] & flat
-    meta["still_flat_blocks"] = int(both.sum())
-    if int(both.sum()) < MIN_STILL_BLOCKS:
-        warnings.append(
-            f"{name}: only {int(both.sum())} flat blocks stay still over {frames.shape[0]} frames (the camera "
-            "or the scene moves): the frame-to-frame correlation of the noise is the prior 0 (independent frames)"
-        )
-        return None
-    if frames.shape[0] == 2:
-        warnings.append(
-            f"{name}: 2 frames: the frame-to-frame correlation of the noise is read on one pair of frames "
-            "(uncertain; give more frames)"
-        )
-    return blocks_to_mask(both, height, width)
-
-
-def _level_checks(
-    curve: torch.Tensor,
-    measured: torch.Tensor,
-    prior_curve: torch.Tensor | None,
-    level_measured: bool,
-    meta: dict[str, Any],
-    warnings: list[str],
-    name: str,
-) -> torch.Tensor:
-    """The fitted level curve (3, 8) std, or the network's where the reference showed no unclipped block, with the
-    comparison of the two in ``meta`` and a warning where they disagree by more than :data:`LEVEL_DISAGREEMENT`."""
-    meta["measured_knots"] = [[bool(k) for k in channel] for channel in measured.tolist()]
-    if prior_curve is None:
-        return curve
-    prior_curve = prior_curve.to(curve)
-    meta["network_level_curve_8bit"] = [[round(float(v) * 255, 3) for v in c] for c in prior_curve]
-    if not level_measured:
-        warnings.append(
-            f"{name}: no block free of clipped pixels (crushed black or saturated): the noise level could not be "
-            "measured; the profile holds the network's level curve"
-        )
-        meta["level_source"] = "network: no unclipped block to measure on"
-        return prior_curve.clone()
-    meta["level_source"] = "measured on unclipped blocks; unmeasured knots follow the network's curve"
-    if bool(measured.any()):
-        ratio = float((curve[measured] / prior_curve[measured].clamp_min(1e-6)).log().mean().exp())
-        if not 1.0 / LEVEL_DISAGREEMENT <= ratio <= LEVEL_DISAGREEMENT:
-            levels = [float(curve[measured].mean()) * 255, float(prior_curve[measured].mean()) * 255]
-            warnings.append(
-                f"{name}: the measured noise level ({levels[0]:.2f} 8-bit levels) and the network's "
-                f"({levels[1]:.2f}) differ by {max(ratio, 1 / ratio):.1f}x at the intensities the reference shows; "
-                "the profile keeps the measurement"
-            )
-    return curve
 
 
 def knot_responses(
@@ -301,7 +192,7 @@ def estimate_spectrum(
         )
     temporal_mask = None
     if clip:
-        temporal_mask = _still_flat_mask(frames, denoised, mask, strength, seed, meta, warnings, name)
+        temporal_mask = still_flat_mask(frames, denoised, mask, strength, seed, meta, warnings, name)
     else:
         meta["temporal_prior"] = "single image: frame-to-frame correlation of the noise not measurable; prior 0"
     # Moving pixels carry the scene's change, not the noise's persistence: a clip is read on its still blocks.
@@ -312,23 +203,11 @@ def estimate_spectrum(
     measured_knots = ~torch.isnan(target.knot_variance).expand(3, -1)
     resynthesis = _Resynthesis(analysed, analysed_denoised, measured_mask, strength, seed)
     fitted = _fit(resynthesis, target, meta, measured_knots, prior_curve)
-    if (ambiguity := compression_ambiguity(meta)) is not None:
-        strengths, low, high = ambiguity
-        warnings.append(
-            f"{name}: JPEG strengths {', '.join(strengths)} fit it about as well, with noise levels from {low:.2f} "
-            f"to {high:.2f} 8-bit levels: how much noise the compression removed cannot be read, the level "
-            f"({_mean_level(fitted.curve, measured_knots):.2f}) is uncertain by that much"
-        )
-    released = meta.get("coarse_octave_prior", {})
-    if any(not ANCHOR_SCALE_RANGE[0] * 1.001 < scale < ANCHOR_SCALE_RANGE[1] * 0.999 for scale in released.values()):
-        warnings.append(
-            f"{name}: the coarse {' and '.join(released)} noise (11 px and coarser) could not be read (its fit ran "
-            "to a bound without moving the variance about the flat blocks' planes): it continues the finer octaves"
-        )
-    fitted.curve = _level_checks(
+    warnings += readability_warnings(meta, fitted.curve, measured_knots, name)
+    fitted.curve = level_checks(
         fitted.curve, measured_knots, prior_curve, int(unclipped.sum()) >= MIN_LEVEL_BLOCKS, meta, warnings, name
     )
-    meta["strength_over_fitted_noise"] = round(strength / _fitted_noise_8bit(fitted.curve, denoised[0], mask), 3)
+    meta["strength_over_fitted_noise"] = round(strength / fitted_noise_8bit(fitted.curve, denoised[0], mask), 3)
     if target.temporal is None:
         fitted.temporal = torch.zeros(OCTAVES, dtype=torch.float64)
     elif analysed.shape[0] >= 3:
@@ -370,6 +249,18 @@ class _Resynthesis:
     strength: float
     seed: int
     binnings: dict[int, KnotBinning] = field(default_factory=dict)
+    _signal: tuple[tuple[bytes, int], torch.Tensor] | None = None
+
+    def signal(self, curve: torch.Tensor, count: int) -> torch.Tensor:
+        """The signal under the first ``count`` denoised frames for the level ``curve`` (3, 8): the camera clipped
+        its noise about the signal, not about the denoised (clipped) mean. Kept for the next call: the draws of a
+        step share it."""
+        key = (curve.detach().to("cpu", torch.float64).numpy().tobytes(), count)
+        if self._signal is None or self._signal[0] != key:
+            denoised = self.denoised[:count]
+            std = level_std(denoised, curve.reshape(-1).to(denoised))
+            self._signal = (key, uncensored_signal(denoised, std))
+        return self._signal[1]
 
     def simulator(
         self, compression: float, frame_count: int | None = None
@@ -387,8 +278,7 @@ class _Resynthesis:
         def simulate_and_measure(parameters: SpectralParameters, draw: int) -> SpectralStatistics:
             values = NoiseValues.from_values(parameters.as_values() | {"compression": compression}, dtype=torch.float32)
             generator = torch.Generator(device=denoised.device).manual_seed(self.seed * 1009 + draw)
-            # The camera clipped its noise about the signal, not about the denoised (clipped) mean.
-            signal = uncensored_signal(denoised, level_std(denoised, parameters.curve.reshape(-1).to(denoised)))
+            signal = self.signal(parameters.curve, count)
             synthetic = quantised(add_noise(signal[None], values, generator=generator)[0])
             again = nlm_denoise(synthetic, self.strength)
             return measure(synthetic - again, denoised, self.mask, binning=binning)
@@ -441,34 +331,35 @@ def _anchored_fit(
     )
 
 
-def _fitted_noise_8bit(curve: torch.Tensor, denoised: torch.Tensor, mask: torch.Tensor) -> float:
-    """The fitted noise std (mean over channels) at the brightest measured block of a denoised frame (3, H, W),
-    in 8-bit levels: what the denoiser's strength was meant to be. A strength well above it was set by texture in
-    the flattest blocks, which the fit then likely read as noise too."""
-    blocks = F.avg_pool2d(denoised[None], BLOCK)[0]
-    measured = F.avg_pool2d(mask.reshape(-1, *mask.shape[-2:])[-1][None, None], BLOCK)[0, 0] > 0.5
-    if not bool(measured.any()):
-        return math.inf
-    std = level_std(blocks, curve.reshape(-1).to(blocks)).mean(0)
-    return float(std[measured].max()) * 255
-
-
-def _mean_level(curve: torch.Tensor, measured: torch.Tensor) -> float:
-    """Mean of a level curve (3, 8) over the ``measured`` knots (all when none), in 8-bit levels."""
-    return float(curve[measured].mean() if bool(measured.any()) else curve.mean()) * 255
-
-
-def compression_ambiguity(meta: dict[str, Any]) -> tuple[list[str], float, float] | None:
-    """The JPEG strengths that fit about as well as the chosen one (score within :data:`JPEG_AMBIGUOUS` of the
-    best) and the lowest and highest level they give, when those differ by more than :data:`LEVEL_SPREAD`: the
-    reference cannot tell how much noise the compression took (weak noise under a strong JPEG reads like weaker
-    noise under none), so the level is uncertain by that much."""
-    scores: dict[str, float] = meta["compression_scores"]
-    levels: dict[str, float] = meta["level_by_compression_8bit"]
-    best = min(scores.values())
-    plausible = [c for c, score in scores.items() if score <= JPEG_AMBIGUOUS * best]
-    low, high = min(levels[c] for c in plausible), max(levels[c] for c in plausible)
-    return (plausible, low, high) if high > LEVEL_SPREAD * max(low, 1e-6) else None
+def _compression_search(
+    resynthesis: _Resynthesis,
+    target: SpectralStatistics,
+    start: SpectralParameters,
+    constrain: Callable[[SpectralParameters], SpectralParameters],
+) -> tuple[dict[float, SpectralParameters], dict[float, float]]:
+    """Each JPEG strength fitted on the first frame from ``start``, with what each left over; a strength whose
+    first simulation matches the target :data:`CANDIDATE_RULED_OUT` times worse than the best one's is not fitted
+    further (its score is that first mismatch)."""
+    start = constrain(start)
+    first = {c: resynthesis.simulator(c, 1)(start, 0) for c in COMPRESSION_CANDIDATES}
+    first_mismatch = {c: mismatch(target, statistics) for c, statistics in first.items()}
+    best = min(first_mismatch.values())
+    fits: dict[float, SpectralParameters] = {}
+    scores: dict[float, float] = {}
+    for compression in COMPRESSION_CANDIDATES:
+        if first_mismatch[compression] > CANDIDATE_RULED_OUT * best:
+            fits[compression], scores[compression] = start, first_mismatch[compression]
+            continue
+        fits[compression], scores[compression] = fit_by_resynthesis(
+            target,
+            resynthesis.simulator(compression, 1),
+            start=start,
+            iterations=START_ITERATIONS,
+            draws=1,
+            constrain=constrain,
+            first=first[compression],
+        )
+    return fits, scores
 
 
 def _fit(
@@ -506,17 +397,7 @@ def _fit(
             parameters.covariances = anchor.apply(parameters.covariances, first_unmeasured)
         return constrain_curve(parameters)
 
-    scores: dict[float, float] = {}
-    fits: dict[float, SpectralParameters] = {}
-    for compression in COMPRESSION_CANDIDATES:
-        fits[compression], scores[compression] = fit_by_resynthesis(
-            spatial_target,
-            resynthesis.simulator(compression, 1),
-            start=start,
-            iterations=START_ITERATIONS,
-            draws=1,
-            constrain=constrain,
-        )
+    fits, scores = _compression_search(resynthesis, spatial_target, start, constrain)
     chosen = min(scores, key=lambda c: scores[c])
     # A knot's response is probed where the fit has brought the level: at the raw residual's level (too weak on
     # textured references) texture dominates every knot's statistic and none would seem to respond.
@@ -535,7 +416,7 @@ def _fit(
         fitted = constrain(fitted)  # the released components continue the finer octaves again
     meta["coarse_octave_scale"] = [round(float(v), 3) for v in anchor.scale]
     meta["compression_scores"] = {str(c): round(v, 4) for c, v in scores.items()}
-    meta["level_by_compression_8bit"] = {str(c): round(_mean_level(fits[c].curve, measured_knots), 3) for c in fits}
+    meta["level_by_compression_8bit"] = {str(c): round(mean_level(fits[c].curve, measured_knots), 3) for c in fits}
     meta["compression_chosen"] = chosen
     meta["mismatch"] = round(left_over, 4)
     return fitted

@@ -32,6 +32,7 @@ spectrum, intensity scaling curves, blind estimation from video).
 
 from __future__ import annotations
 
+import functools
 import math
 import threading
 from collections import OrderedDict
@@ -123,9 +124,21 @@ def grid_radius(height: int, width: int, device: torch.device | str) -> torch.Te
     return torch.sqrt(fy[:, None] ** 2 + fx[None, :] ** 2)
 
 
+@functools.lru_cache(maxsize=2)
+def _octave_mass(device: str) -> torch.Tensor:
+    """(1, OCTAVES) each octave's hat weight summed over the :data:`NORMALISATION_GRID` frequency square."""
+    grid = grid_radius(NORMALISATION_GRID, NORMALISATION_GRID, device)
+    # rfft grid: the columns other than 0 and Nyquist stand for two bins of the full square.
+    weights = torch.full(grid.shape, 2.0, dtype=torch.float64, device=grid.device)
+    weights[:, 0] = weights[:, -1] = 1.0
+    return (octave_weights(grid.reshape(-1)) * weights.reshape(-1, 1)).sum(0, keepdim=True)
+
+
 def _rgb_covariance(covariances: torch.Tensor, frequency: torch.Tensor, channels: int) -> torch.Tensor:
-    """The (..., F, C, C) RGB (or grey) spectral covariance at ``frequency`` (F,) for one clip's (OCTAVES, 3, 3)."""
-    opponent = torch.einsum("fk,kij->fij", octave_weights(frequency), covariances)
+    """The (..., F, C, C) RGB (or grey) spectral covariance at ``frequency`` (F,) for one clip's (OCTAVES, 3, 3),
+    or for octave weights (F, OCTAVES) given in place of the frequencies."""
+    weights = octave_weights(frequency) if frequency.dim() == 1 else frequency
+    opponent = torch.einsum("fk,kij->fij", weights, covariances)
     if channels == 1:
         return opponent[..., :1, :1]
     basis = OPPONENT_BASIS.to(covariances.device)
@@ -138,13 +151,11 @@ def radial_factor(covariances: torch.Tensor, channels: int) -> torch.Tensor:
 
     The unit variance is each channel's integral of its spectral density over the frequency square, evaluated on
     a fixed :data:`NORMALISATION_GRID` grid, so it is the same for every frame size."""
-    grid = grid_radius(NORMALISATION_GRID, NORMALISATION_GRID, covariances.device)
-    # rfft grid: the columns other than 0 and Nyquist stand for two bins of the full square.
-    weights = torch.full(grid.shape, 2.0, dtype=torch.float64, device=grid.device)
-    weights[:, 0] = weights[:, -1] = 1.0
-    full = _rgb_covariance(covariances, grid.reshape(-1), channels)
-    variance = (full.diagonal(dim1=-2, dim2=-1) * weights.reshape(-1, 1)).sum(0) / float(NORMALISATION_GRID**2)
-    scale = variance.clamp_min(1e-30).rsqrt()
+    # The spectral density is linear in the octaves' covariances, so its integral is the octaves' covariances
+    # weighted by their hats' integrals: 6 numbers instead of a 512 x 257 grid of 3 x 3 matrices per spectrum.
+    octave_mass = _octave_mass(str(covariances.device))
+    variance = _rgb_covariance(covariances, octave_mass, channels).diagonal(dim1=-2, dim2=-1)[0]
+    scale = (variance / float(NORMALISATION_GRID**2)).clamp_min(1e-30).rsqrt()
     table = _rgb_covariance(covariances, _radial_frequencies(covariances.device), channels)
     table = table * scale[:, None] * scale[None, :]
     # A covariance is factored by its eigen-decomposition, which, unlike Cholesky, takes singular ones (a channel

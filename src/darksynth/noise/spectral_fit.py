@@ -21,6 +21,7 @@ by the gap of the correlations.
 
 from __future__ import annotations
 
+import functools
 import math
 from collections.abc import Callable
 from dataclasses import dataclass
@@ -70,7 +71,9 @@ class SpectralStatistics:
     temporal: torch.Tensor | None
 
 
+@functools.lru_cache(maxsize=4)
 def _band_masks(height: int, width: int, device: torch.device) -> torch.Tensor:
+    # Cached: a fit measures dozens of maps of one size (the tensor is only read).
     fy = torch.fft.fftfreq(height, dtype=torch.float64, device=device)
     fx = torch.fft.rfftfreq(width, dtype=torch.float64, device=device)
     radius = torch.sqrt(fy[:, None] ** 2 + fx[None, :] ** 2)
@@ -347,20 +350,25 @@ def fit_by_resynthesis(
     iterations: int = 4,
     draws: int = 2,
     constrain: Callable[[SpectralParameters], SpectralParameters] | None = None,
+    first: SpectralStatistics | None = None,
 ) -> tuple[SpectralParameters, float]:
     """Indirect inference: from ``start`` (the measurement itself by default), ``iterations`` corrections, each
     from the mean statistics of ``draws`` simulations (``simulate_and_measure(parameters, seed)``). Returns the
     parameters and the :func:`mismatch` of the simulations of the last step (before its correction).
     ``constrain`` is applied to the start and after every correction (a prior holding what the statistics
-    cannot move, e.g. :func:`continue_octaves`)."""
+    cannot move, e.g. :func:`continue_octaves`). ``first``: the first step's mean statistics, when the caller has
+    simulated them already (the constrained start, the same draws)."""
     parameters = start if start is not None else initial_parameters(target)
     if constrain is not None:
         parameters = constrain(parameters)
     left = math.inf
-    for _ in range(iterations):
+    for step in range(iterations):
         # The same draws at every step (common random numbers): the step is then a fixed map, which converges,
         # rather than chasing the sampling error of a new draw each time.
-        simulated = average([simulate_and_measure(parameters, d) for d in range(draws)])
+        if step == 0 and first is not None:
+            simulated = first
+        else:
+            simulated = average([simulate_and_measure(parameters, d) for d in range(draws)])
         left = mismatch(target, simulated)
         parameters = corrected(parameters, target, simulated)
         if constrain is not None:
@@ -423,11 +431,15 @@ _CENSORED_MEAN = _CENSORED_T * 0.5 * torch.erfc(-_CENSORED_T / math.sqrt(2.0)) +
 def _uncensor_low(observed: torch.Tensor, std: torch.Tensor) -> torch.Tensor:
     ratio = (observed / std.clamp_min(1e-6)).to(torch.float64)
     table, grid = _CENSORED_MEAN.to(ratio.device), _CENSORED_T.to(ratio.device)
-    index = torch.searchsorted(table, ratio.clamp(float(table[0]), float(table[-1]))).clamp(1, len(grid) - 1)
-    fraction = (ratio - table[index - 1]) / (table[index] - table[index - 1])
-    t = grid[index - 1] + fraction.clamp(0.0, 1.0) * (grid[index] - grid[index - 1])
-    # Past the table's end clipping no longer moves the mean; below its start the signal is 4 std under 0.
-    t = torch.where(ratio >= float(table[-1]), ratio, t)
+    # Past the table's end clipping no longer moves the mean (t is the ratio itself): only the pixels within reach
+    # of the cut are searched, which in the cut at full scale of a dark frame is next to none.
+    censored = ratio < float(table[-1])
+    t = ratio.clone()
+    near = ratio[censored]
+    index = torch.searchsorted(table, near.clamp_min(float(table[0]))).clamp(1, len(grid) - 1)
+    fraction = (near - table[index - 1]) / (table[index] - table[index - 1])
+    # Below the table's start the signal is 4 std under 0.
+    t[censored] = grid[index - 1] + fraction.clamp(0.0, 1.0) * (grid[index] - grid[index - 1])
     return (t * std.to(torch.float64)).to(observed.dtype)
 
 
