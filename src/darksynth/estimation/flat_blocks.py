@@ -117,57 +117,30 @@ def flat_block_std(frames: torch.Tensor) -> float:
     the intensity where it is strongest: per block and channel the std about the block's least-squares plane
     (shading across a flat wall is not noise: about its mean, a clean 8-bit ramp read as 3.7 levels of noise),
     averaged over the channels; per segment of the level curve the median over its flattest blocks; the largest
-    over the segments, within what the noise law allows (:func:`_noise_law_bound`). It holds every scale of the
-    noise below the block size and little texture: the strength the denoiser is set from. Non-local means with a
-    strength well under the noise finds no patch like a pixel's own and returns the noise; its residual then
-    shrinks as the noise grows, and a fit by re-synthesis settles on far too weak a noise (a dark reference read
-    10x weak when the strength came from its darkest blocks). Which blocks count as little clipped:
-    :data:`STRENGTH_CLIPPED_SHARE`."""
+    over the segments that hold :data:`MIN_LEVEL_BLOCKS` blocks. It holds every scale of the noise below the block
+    size and little texture: the strength the denoiser is set from. Non-local means with a strength well under the
+    noise finds no patch like a pixel's own and returns the noise; its residual then shrinks as the noise grows, and
+    a fit by re-synthesis settles on far too weak a noise (a dark reference read 10x weak when the strength came
+    from its darkest blocks). Which blocks count as little clipped: :data:`STRENGTH_CLIPPED_SHARE`."""
     frame = frames[0]
     blocks = F.unfold(frame[:, None], BLOCK, stride=BLOCK)  # (3, BLOCK^2, blocks)
     detrended = blocks - torch.einsum("ij,cjn->cin", _plane_projection(BLOCK).to(blocks), blocks)
-    channel_std = (detrended.square().sum(dim=1) / (BLOCK * BLOCK - 3)).sqrt()  # (3, blocks)
-    # Clipping is judged per channel: a saturated colour (one channel at 0 in most blocks of a vivid image) leaves
-    # the block's other channels to measure, where judged on the pixel, only a few textured blocks were left.
-    clipped = (frame <= CLIPPED_LEVEL) | (frame >= 1.0 - CLIPPED_LEVEL)
-    channel_share = F.avg_pool2d(clipped.to(frame.dtype)[:, None], BLOCK)[:, 0].flatten(1)[:, : channel_std.shape[1]]
-    valid = channel_share <= STRENGTH_CLIPPED_SHARE
-    if int(valid.any(0).sum()) < MIN_LEVEL_BLOCKS:
-        valid = channel_share <= channel_share.min(0).values.sort().values[max(0, valid.shape[1] // 4 - 1)]
-    std = (channel_std * valid).sum(0) / valid.sum(0).clamp_min(1)  # (blocks,)
-    little = valid.any(0)
+    std = (detrended.square().sum(dim=1) / (BLOCK * BLOCK - 3)).sqrt().mean(0)  # (blocks,)
     smooth = F.avg_pool2d(frame[None], 5, stride=1, padding=2)[0]
     gradient = block_gradient(smooth).flatten()[: std.numel()]
-    level = F.avg_pool2d(frame.mean(0)[None, None], BLOCK)[0, 0].flatten()[: std.numel()]
-    stratum = level_stratum(level)
-    segments: list[tuple[int, float, float]] = []  # (blocks, mean level, noise std) per segment
+    stratum = level_stratum(F.avg_pool2d(frame.mean(0)[None, None], BLOCK)[0, 0]).flatten()[: std.numel()]
+    share = clipped_share(frame).flatten()[: std.numel()]
+    little = share <= STRENGTH_CLIPPED_SHARE
+    if int(little.sum()) < MIN_LEVEL_BLOCKS:
+        little = share <= share.sort().values[max(0, share.numel() // 4 - 1)]
+    levels: list[tuple[bool, float]] = []
     for segment in sorted(set(stratum[little].tolist())):
         members = (little & (stratum == segment)).nonzero().flatten()
-        flattest = members[gradient[members].argsort()[: max(1, round(FLAT_SHARE * members.numel()))]]
-        segments.append((members.numel(), float(level[members].mean()), float(std[flattest].median())))
-    supported = [entry for entry in segments if entry[0] >= MIN_LEVEL_BLOCKS] or segments
-    return _noise_law_bound(supported) * 255.0
-
-
-def _noise_law_bound(segments: list[tuple[int, float, float]]) -> float:
-    """The largest per-segment noise std (``(blocks, mean level, std)`` per segment) that the noise law allows.
-
-    Texture left in a segment's flattest blocks only raises its std, and a few bright textured blocks set the
-    denoiser 5-10x above the noise (round trip: 12-19 levels for noise of 1.3-4 levels), which then smooths away
-    texture the re-synthesis does not (its base, the denoised image, no longer holds it) and the fit reads it as
-    noise. Noise std rises with level at most like ``sqrt(x)`` (``shot^2 x + read^2``; a camera's tone curve
-    flattens it further), and falls toward bright levels at most about like ``1 / x`` (read noise through an sRGB
-    encoding: ``x^-1.2``). So each segment's std is held under that of the segment holding the most blocks (the
-    least likely to be all texture) times that law from its level to their own."""
-    _, anchor_level, anchor_std = max(segments, key=lambda entry: entry[0])
-    bounded = [
-        min(
-            std,
-            anchor_std * (level / anchor_level) ** 0.5 if level > anchor_level else anchor_std * anchor_level / level,
-        )
-        for _, level, std in segments
-    ]
-    return max(bounded)
+        if members.numel() >= MIN_LEVEL_BLOCKS or not levels:
+            flattest = members[gradient[members].argsort()[: max(1, round(FLAT_SHARE * members.numel()))]]
+            levels.append((members.numel() >= MIN_LEVEL_BLOCKS, float(std[flattest].median())))
+    supported = [level for enough, level in levels if enough] or [level for _, level in levels]
+    return max(supported) * 255.0
 
 
 def detrended_block_variance(frame: torch.Tensor, blocks: torch.Tensor) -> torch.Tensor:
