@@ -51,17 +51,19 @@ class CoarseAnchor:
 
     Non-local means leaves noise coarser than its search window in the image it returns, so octaves from about
     11 px up barely move its residual and take a prior (the finer octaves' spectrum continued). On a flat block the
-    scene is close to a plane, and the variance about the plane holds every octave under 32 px: the median over the
-    measured blocks of the reference's, against that of the model's noise added to the blocks' planes (no denoiser:
-    no scene, no coarse noise of the reference in the base), scales the unmeasured octaves (``scale``). Texture left
-    in a flat block reads as coarse noise here, which is why the median over blocks flat for their level is used.
-    Brightness and colour are anchored apart: cameras low-pass their colour noise far more than their brightness.
+    scene is close to a plane, and the variance about the plane holds every octave under 32 px: its
+    :data:`ANCHOR_QUANTILE` over the measured blocks in the reference, against that of the model's noise added to
+    the blocks' planes (no denoiser: no scene, no coarse noise of the reference in the base), scales the unmeasured
+    octaves (``scale``). Texture left in a flat block reads as coarse noise here, which is why a low quantile over
+    blocks flat for their level is used. Only colour is anchored (see :meth:`update`).
 
     Attributes:
-        target: the reference's median detrended block variance, brightness and the two colours (3,).
+        target: the reference's statistic of the detrended block variance, brightness and the two colours (3,).
         planes: the denoised frame's blocks as planes (3, H, W), the base of the simulations.
         blocks: (rows, cols) bool, the measured blocks.
         scale: the factor (3,) on the unmeasured octaves' power of each component, moved by :meth:`update`.
+        last: the statistic of the last :meth:`observe`, until :meth:`update` uses it.
+        first, latest: the first and the latest statistic an update used (for :meth:`unmatched`).
     """
 
     target: torch.Tensor

@@ -85,6 +85,7 @@ first 15 cases read the same (median |std ratio - 1| 0.097), but the stronger sm
 texture so that a panning clip looked still."""
 
 START_ITERATIONS, FINAL_ITERATIONS = 2, 3
+"""Corrections with each JPEG candidate (one draw), then with the best one (two draws)."""
 
 CANDIDATE_RULED_OUT = 4.0
 """A JPEG strength whose first simulation's mismatch is this many times the best strength's is not fitted further:

@@ -17,11 +17,8 @@ from darksynth.noise.spectral import level_std
 JPEG_AMBIGUOUS = 1.5
 """A JPEG strength whose fit's mismatch is within this factor of the best's fits the reference about as well."""
 
-
 LEVEL_SPREAD = 1.5
 """Levels of the JPEG strengths that fit about as well that differ by more than this are reported as uncertain."""
-"""Corrections with each JPEG candidate (one draw), then with the best one (two draws)."""
-
 
 LEVEL_DISAGREEMENT = 3.0
 """Measured and network level curves further apart than this factor (their geometric mean ratio over the measured
@@ -66,8 +63,9 @@ def level_checks(
 
 def fitted_noise_8bit(curve: torch.Tensor, denoised: torch.Tensor, mask: torch.Tensor) -> float:
     """The fitted noise std (mean over channels) at the brightest measured block of a denoised frame (3, H, W),
-    in 8-bit levels: what the denoiser's strength was meant to be. A strength well above it was set by texture in
-    the flattest blocks, which the fit then likely read as noise too."""
+    in 8-bit levels: what the denoiser's strength was meant to be. Recorded beside the strength for diagnosis; on
+    the round trip it does not separate the cases texture misleads (1.2-1.3 there as on good ones), so nothing
+    warns on it."""
     blocks = F.avg_pool2d(denoised[None], BLOCK)[0]
     measured = F.avg_pool2d(mask.reshape(-1, *mask.shape[-2:])[-1][None, None], BLOCK)[0, 0] > 0.5
     if not bool(measured.any()):

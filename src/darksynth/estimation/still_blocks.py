@@ -18,12 +18,10 @@ STILL_CHANGE = 2.0 / 255
 """A block is still when the mean absolute change of the denoised frames, from the first, is below this or below
 :data:`STILL_NOISE_FACTOR` times the change the noise alone leaves in a still simulation, whichever is larger."""
 
-
 STILL_NOISE_FACTOR = 1.5
 """How far above the noise-only change (the median over blocks of a still simulation's) a still block may go.
 Strong noise leaves a change of its own in the denoised frames (the starlight video, 4 levels of noise: every
 block above 2 levels, so no block was still and its persistence was not read)."""
-
 
 MIN_STILL_BLOCKS = 4
 """Fewer still flat blocks than this: the clip's temporal correlation is not measured (the prior, 0)."""

@@ -72,8 +72,9 @@ class SpectralStatistics:
 
 
 @functools.lru_cache(maxsize=4)
-def _band_masks(height: int, width: int, device: torch.device) -> torch.Tensor:
-    # Cached: a fit measures dozens of maps of one size (the tensor is only read).
+def band_masks(height: int, width: int, device: torch.device) -> torch.Tensor:
+    """(len(BANDS), H, W // 2 + 1) float64, 1 where a frequency of an ``rfft2`` of an (H, W) map falls in a band.
+    Cached: a fit measures dozens of maps of one size (the tensor is only read, never written)."""
     fy = torch.fft.fftfreq(height, dtype=torch.float64, device=device)
     fx = torch.fft.rfftfreq(width, dtype=torch.float64, device=device)
     radius = torch.sqrt(fy[:, None] ** 2 + fx[None, :] ** 2)
@@ -89,7 +90,7 @@ def band_fields(noise: torch.Tensor) -> tuple[torch.Tensor, torch.Tensor]:
     components = torch.einsum("ij,...jhw->...ihw", OPPONENT_BASIS.to(noise.device), noise) if channels == 3 else noise
     components = components - components.mean(dim=(-2, -1), keepdim=True)
     height, width = noise.shape[-2:]
-    masks = _band_masks(height, width, noise.device)
+    masks = band_masks(height, width, noise.device)
     spectrum = torch.fft.rfft2(components)
     fields = torch.stack([torch.fft.irfft2(spectrum * mask, s=(height, width)) for mask in masks], dim=-4)
     weights = torch.full(masks.shape[-2:], 2.0, dtype=torch.float64, device=noise.device)
