@@ -4,7 +4,7 @@ Run: ``.venv/bin/python benchmarks/bench_apply.py [--rounds N] [--block K]``. Ea
 frames of each method in turn (a stream of frames, as in a video), so that a slow moment of the machine hits
 all of them alike; medians over all timed frames are printed. The first line is the CPU and its vector
 extensions. The last line is ``apply_ms=<a> floor_ms=<b> albumentations_gauss_ms=<c> default_ms=<d>
-srgb_ms=<d3> srgb_floor_ms=<e> albumentations_chain_ms=<f> synthesize_ms=<s> synthesize_float_ms=<sf>
+network_ms=<d3> srgb_floor_ms=<e> albumentations_chain_ms=<f> synthesize_ms=<s> synthesize_float_ms=<sf>
 spectral_floor_ms=<g> default_eager_ms=<de> irfft2_ms=<i>``:
 
 - a: the paper's model, every component on, darkening on, compiled kernel; b: ``torch.randn`` + ``torch.rand`` of
@@ -13,9 +13,10 @@ spectral_floor_ms=<g> default_eager_ms=<de> irfft2_ms=<i>``:
   profile version 4, compression included when it has one), darkening on, through ``ClipSynthesizer`` compiled,
   as ``apply`` runs a stream (:mod:`darksynth.noise.spectral_kernel`); de: the same eagerly, as ``apply`` runs a
   short clip or one image (:mod:`darksynth.noise.spectral_8bit`);
-- d3: the version-3 sRGB profile of the same reference (``estimate`` without the spectrum), compiled, for
-  comparison; e: the floor of a JPEG path, ``torch.randn`` + ``torch.rand`` of the frame and a Pillow JPEG encode
-  and decode of it at quality 75; f: albumentations ``Compose([GaussNoise, ImageCompression])`` at quality 75;
+- d3: the network's values alone for the same reference (``estimate --no-refine``, the sRGB vocabulary drawn as the
+  spectral model), compiled, for comparison; e: the floor of a JPEG path, ``torch.randn`` + ``torch.rand`` of the
+  frame and a Pillow JPEG encode and decode of it at quality 75; f: albumentations
+  ``Compose([GaussNoise, ImageCompression])`` at quality 75;
 - s: one image (uint8 tensor) through ``darksynth.synthesize`` with the default profile, no compile step, what a
   training transform runs on 8-bit input in a DataLoader worker (drawing the parameters and a new synthesizer per
   call); sf: the same image as float in [0, 1] (on the 8-bit levels, as ``ToTensor`` gives it);
@@ -43,6 +44,7 @@ from darksynth.estimation.assemble import estimate
 from darksynth.estimation.reference import load_reference
 from darksynth.noise.components import noise_component
 from darksynth.noise.spectral import SpectralGrid, octave_covariances
+from darksynth.noise.structure_translation import spectral_tensors
 from darksynth.noise.values import NoiseValues
 from darksynth.profile import Profile
 from darksynth.synthesize import ClipParameters, ClipSynthesizer, synthesize
@@ -68,16 +70,17 @@ ALL_COMPONENTS = ClipParameters(
 DEMO_REFERENCE = Path(__file__).resolve().parents[1] / "src" / "darksynth" / "data" / "sample" / "reference.png"
 
 
-def demo_profile(*, spectrum: bool) -> Profile:
-    """The profile ``estimate`` writes for the demo reference: with ``spectrum`` the default (the spectral model),
-    without it the version-3 sRGB refinement (``estimate --no-spectrum``)."""
+def demo_profile(*, measured: bool) -> Profile:
+    """The profile ``estimate`` writes for the demo reference: ``measured``, the default (the spectral model),
+    else the network's values alone (``estimate --no-refine``)."""
     reference = load_reference(DEMO_REFERENCE, clip=False, max_frames=1)
-    return estimate(reference, load_weights(default_weights_path()), spectrum=spectrum).profile
+    return estimate(reference, load_weights(default_weights_path()), refine=measured).profile
 
 
 def demo_parameters(profile: Profile) -> ClipParameters:
-    """A demo profile's values with the paper example's darkening: the path a user's ``apply`` takes."""
-    return ClipParameters(noise=profile.noise, darkening=ALL_COMPONENTS.darkening)
+    """A demo profile's values, as a clip draws them, with the paper example's darkening: the path a user's
+    ``apply`` takes."""
+    return ClipParameters(noise=NoiseValues(spectral_tensors(profile.noise)), darkening=ALL_COMPONENTS.darkening)
 
 
 def jpeg_round_trip(frame_hwc: np.ndarray, quality: int = 75) -> np.ndarray:
@@ -110,14 +113,14 @@ def main() -> None:
     frame_hwc = np.clip(ramp + rng.normal(0, 20, (HEIGHT, WIDTH, 3)), 0, 255).astype(np.uint8)
     frame = torch.from_numpy(frame_hwc).permute(2, 0, 1).contiguous().to(args.device)
     generator = torch.Generator().manual_seed(0)
-    default_profile, srgb_profile = demo_profile(spectrum=True), demo_profile(spectrum=False)
-    default, srgb = demo_parameters(default_profile), demo_parameters(srgb_profile)
+    default_profile, network_profile = demo_profile(measured=True), demo_profile(measured=False)
+    default, network = demo_parameters(default_profile), demo_parameters(network_profile)
     print(
         f"default profile (estimate): spectral model "
         f"{'active' if default.noise.is_active(noise_component('spectral')) else 'NOT active'}, compression "
         f"{default.noise.scalar('compression'):.2f}, temporal correlation "
-        f"{max(default.noise['temporal_correlation'].tolist()):.2f}; version-3 profile (estimate --no-spectrum): "
-        f"compression {srgb.noise.scalar('compression'):.2f}, shot {srgb.noise.scalar('shot'):.4f}"
+        f"{max(default.noise['temporal_correlation'].tolist()):.2f}; the network's values (estimate --no-refine): "
+        f"compression {network.noise.scalar('compression'):.2f}"
     )
 
     started = time.perf_counter()
@@ -130,9 +133,8 @@ def main() -> None:
     default_synthesizer(frame)
     default_first_call_s = time.perf_counter() - started
     default_eager = ClipSynthesizer(default, generator=generator, compile=False, device=args.device)
-    srgb_synthesizer = ClipSynthesizer(srgb, generator=generator, compile=True, device=args.device)
-    # What a single image of the version-3 profile gets: no compilation, the general composer.
-    srgb_single = ClipSynthesizer(srgb, generator=generator, compile=False, device=args.device)
+    network_synthesizer = ClipSynthesizer(network, generator=generator, compile=True, device=args.device)
+    network_single = ClipSynthesizer(network, generator=generator, compile=False, device=args.device)
     frame_float = frame.to(torch.float32) / 255.0
     darkening = ALL_COMPONENTS.darkening
     gauss = albumentations.GaussNoise(std_range=(0.05, 0.05), p=1.0)
@@ -173,7 +175,7 @@ def main() -> None:
         "default": lambda: default_synthesizer(frame),
         "default_eager": lambda: default_eager(frame),
         "irfft2": irfft2,
-        "srgb": lambda: srgb_synthesizer(frame),
+        "network": lambda: network_synthesizer(frame),
         "srgb_floor": lambda: (
             torch.randn(shape, generator=generator),
             torch.rand(shape, generator=generator),
@@ -181,7 +183,7 @@ def main() -> None:
         ),
         "chain": lambda: chain(image=frame_hwc),
         "spectral_floor": spectral_floor,
-        "srgb_single": lambda: srgb_single(frame),
+        "network_single": lambda: network_single(frame),
         "synthesize": lambda: synthesize(frame, default_profile, generator=generator, darkening=darkening),
         "synthesize_float": lambda: synthesize(frame_float, default_profile, generator=generator, darkening=darkening),
     }
@@ -194,9 +196,9 @@ def main() -> None:
             results[name].extend(timed(method, args.device) for _ in range(args.block))
     median = {name: statistics.median(values) for name, values in results.items()}
     apply_ms, floor_ms, gauss_ms = median["apply"], median["floor"], median["gauss"]
-    default_ms, srgb_ms, srgb_floor_ms, chain_ms = (
+    default_ms, network_ms, srgb_floor_ms, chain_ms = (
         median["default"],
-        median["srgb"],
+        median["network"],
         median["srgb_floor"],
         median["chain"],
     )
@@ -220,8 +222,8 @@ def main() -> None:
         f"({synthesize_float_ms / chain_ms:.2f}x the chain)"
     )
     print(
-        f"version-3 sRGB profile: compiled {srgb_ms:.2f} ms (chain / srgb = {chain_ms / srgb_ms:.2f}), "
-        f"single image without compiling {median['srgb_single']:.2f} ms"
+        f"the network's values alone: compiled {network_ms:.2f} ms (chain / it = {chain_ms / network_ms:.2f}), "
+        f"single image without compiling {median['network_single']:.2f} ms"
     )
     print(
         f"floors: randn + rand {floor_ms:.2f} ms; randn + rand + Pillow JPEG q75 {srgb_floor_ms:.2f} ms "
@@ -233,7 +235,7 @@ def main() -> None:
     print(f"ratios: apply/floor = {apply_ms / floor_ms:.3f}, albumentations_gauss/apply = {gauss_ms / apply_ms:.2f}")
     print(
         f"apply_ms={apply_ms:.2f} floor_ms={floor_ms:.2f} albumentations_gauss_ms={gauss_ms:.2f} "
-        f"default_ms={default_ms:.2f} srgb_ms={srgb_ms:.2f} srgb_floor_ms={srgb_floor_ms:.2f} "
+        f"default_ms={default_ms:.2f} network_ms={network_ms:.2f} srgb_floor_ms={srgb_floor_ms:.2f} "
         f"albumentations_chain_ms={chain_ms:.2f} synthesize_ms={synthesize_ms:.2f} "
         f"synthesize_float_ms={synthesize_float_ms:.2f} spectral_floor_ms={median['spectral_floor']:.2f} "
         f"default_eager_ms={median['default_eager']:.2f} irfft2_ms={median['irfft2']:.2f}"

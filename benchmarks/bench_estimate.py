@@ -99,7 +99,7 @@ def main() -> None:
     parser.add_argument("--photo", action="store_true", help="one 12 MP photo (PNG) instead of the 1080p clip")
     parser.add_argument("--reference", type=Path, default=None, help="time this file instead of making one")
     parser.add_argument("--data", type=Path, default=Path(__file__).resolve().parents[2] / "shared" / "data")
-    parser.add_argument("--no-refine", action="store_true", help="time the network alone, without the refinement")
+    parser.add_argument("--no-refine", action="store_true", help="time the network alone (no spectrum)")
     args = parser.parse_args()
     with tempfile.TemporaryDirectory() as folder:
         if args.reference is not None:

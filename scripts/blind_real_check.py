@@ -1,6 +1,6 @@
 """Quick check of blind methods against the real pairs (validation only, nothing is fitted to them).
 
-Run: ``.venv/bin/python scripts/blind_real_check.py den,den-network,srgb-oracle [POLYU_STEP]``: every
+Run: ``.venv/bin/python scripts/blind_real_check.py den,den-network,spectral-oracle [POLYU_STEP]``: every
 POLYU_STEP-th polyu pair (default 10), every nam-cc15 and sidd pair. Prints, per set and method, the mean Noise
 Flow kld and kld_srgb, the synthetic / real noise std per channel (pooled), the mean channel correlation of the
 synthetic noise beside the real one's, and the fit + synthesis time per pair. A subsample of what ``darksynth
@@ -24,7 +24,7 @@ ROOT = Path(__file__).resolve().parents[2] / "shared" / "data" / "real-pairs"
 
 
 def main() -> int:
-    methods = sys.argv[1].split(",") if len(sys.argv) > 1 else ["den", "den-network", "srgb-oracle"]
+    methods = sys.argv[1].split(",") if len(sys.argv) > 1 else ["den", "den-network", "spectral-oracle"]
     steps = {"polyu": int(sys.argv[2]) if len(sys.argv) > 2 else 10, "nam-cc15": 1, "sidd": 1}
     built = {name: build_method(name) for name in methods}
     for set_name, step in steps.items():

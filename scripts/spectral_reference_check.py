@@ -8,8 +8,8 @@ profile ``estimate`` writes (spectral, the default), then that profile applied w
 reference's own non-local-means denoised version (the denoiser and strength of the estimate). Printed per
 reference: the noise std of the 10% flattest 32-px blocks with at most 1% clipped pixels (crushed black holds no
 noise to compare), real over synthetic (1.00: the same; above 1.25 the
-profile misses noise, below 0.8 it reads texture as noise), and the same for the version-3 profile
-(``--no-spectrum``). The picture puts a 128-px crop of the real reference beside the same crop of both synthetic
+profile misses noise, below 0.8 it reads texture as noise), and the same for the network's values alone
+(``--no-refine``). The picture puts a 128-px crop of the real reference beside the same crop of both synthetic
 versions, all three brightened by one gain (the real crop's 99th percentile to 0.9); use ``--kinds`` to limit it
 to permissively licensed references (LOL: MIT; the starlight video: BSD-3) for a picture that may be committed.
 """
@@ -98,12 +98,12 @@ def main() -> None:
         real_crop = first[0, :, top : top + CROP, left : left + CROP]
         gain = 0.9 / max(float(real_crop.quantile(0.99)), 1e-3)
         row.append(real_crop)
-        for spectrum in (True, False):
-            profile = estimate(frames, network, source=str(path), spectrum=spectrum).profile
+        for measured in (True, False):
+            profile = estimate(frames, network, source=str(path), refine=measured).profile
             values = profile.noise.to(dtype=torch.float32)
             synthetic = quantised(add_noise(denoised[None], values, generator=torch.Generator().manual_seed(0))[0])
             ratio = real_std / max(flattest_block_std(synthetic[0], usable), 1e-6)
-            line.append(f"{'spectral' if spectrum else 'v3'} {ratio:.2f}")
+            line.append(f"{'spectral' if measured else 'network'} {ratio:.2f}")
             row.append(synthetic[0, :, top : top + CROP, left : left + CROP])
         print(f"{kind:9s} {path.name:28s} real std {real_std:5.2f}  real/synthetic: {'  '.join(line)}", flush=True)
         rows.append([(c * gain).clamp(0, 1).permute(1, 2, 0).numpy() for c in row])
@@ -117,7 +117,7 @@ def write_picture(rows: list[list[np.ndarray]], labels: list[str], out: Path) ->
     width = 3 * CROP + 4 * gap
     sheet = Image.new("RGB", (width, head + len(rows) * (CROP + head)), "white")
     draw = ImageDraw.Draw(sheet)
-    for column, title in enumerate(("real reference", "spectral (default)", "version 3")):
+    for column, title in enumerate(("real reference", "spectral (default)", "network alone")):
         draw.text((gap + column * (CROP + gap), 3), title, fill="black")
     for index, (row, label) in enumerate(zip(rows, labels, strict=True)):
         y = head + index * (CROP + head)

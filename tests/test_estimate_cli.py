@@ -175,14 +175,14 @@ def test_unknown_variant_is_one_error_line(dark_image: Path) -> None:
 
 
 def test_refine_brings_the_shipped_networks_level_to_the_reference(tmp_path: Path) -> None:
-    """The refinement (the default: the measured spectrum; --no-spectrum: the sRGB structure refined) runs after
-    the network and says so in the profile's meta; --no-refine keeps the network's values."""
+    """The measured spectrum (the default) runs after the network and says so in the profile's meta; --no-refine
+    keeps the network's values; --no-spectrum, the retired version-3 refinement, is gone."""
     clean = smooth_rgb(160, 160).astype(float) / 4
     noisy = clean + np.random.default_rng(0).normal(0, 6, clean.shape)
     path = write_png(tmp_path / "noisy.png", np.clip(noisy, 0, 255).round().astype(np.uint8))
     reference = torch.from_numpy(clean / 255).permute(2, 0, 1)[None, None]
     levels = {}
-    records = {("--no-refine",): None, ("--refine",): "spectrum", ("--refine", "--no-spectrum"): "refined"}
+    records = {("--no-refine",): None, ("--refine",): "spectrum"}
     for flags, record in records.items():
         code, stdout, stderr = run_cli("estimate", path, *flags)
         assert code == 0, stderr
@@ -190,6 +190,7 @@ def test_refine_brings_the_shipped_networks_level_to_the_reference(tmp_path: Pat
         assert [key for key in ("refined", "spectrum") if key in profile.meta] == ([record] if record else [])
         batched = profile.noise.map(lambda t: t[None])
         levels[flags] = float(mean_noise_variance(batched, reference).sqrt()) * 255
-    # White noise of std 6 levels: the refined profiles add noise of that std within 15%.
+    # White noise of std 6 levels: the measured profile adds noise of that std within 15%.
     assert abs(levels[("--refine",)] / 6 - 1) < 0.15, levels
-    assert abs(levels[("--refine", "--no-spectrum")] / 6 - 1) < 0.15, levels
+    code, _, stderr = run_cli("estimate", path, "--no-spectrum")
+    assert code == 2 and "No such option: --no-spectrum" in stderr

@@ -24,10 +24,9 @@ The pure core (``tensors``, ``darkening``, ``light``, ``noise``) also never impo
 for the edges, so the core runs on tensors alone.
 
 Inside ``estimation`` the stages have layers of their own: the reading of the reference, the column decision, the
-denoiser, the flat blocks and the refinement's statistics import no other stage; the coarse anchor, the still
-blocks of a clip and the frame-to-frame fit read the flat blocks; the spectrum's checks read the anchor, and the
-spectrum all of them; the network reads the crop grid and the refinement its statistics; ``assemble`` alone runs
-them all.
+denoiser and the flat blocks import no other stage; the coarse anchor, the still blocks of a clip and the
+frame-to-frame fit read the flat blocks; the spectrum's checks read the anchor, and the spectrum all of them; the
+network reads the crop grid; ``assemble`` alone runs them all.
 """
 
 from __future__ import annotations
@@ -79,7 +78,6 @@ ESTIMATION_STAGES: dict[str, int] = {
     "__init__": 0,
     "reference": 0,
     "columns": 0,
-    "refine_statistics": 0,
     "nonlocal_means": 0,
     "flat_blocks": 0,
     "coarse_anchor": 1,
@@ -88,7 +86,6 @@ ESTIMATION_STAGES: dict[str, int] = {
     "spectrum_checks": 2,
     "spectrum": 3,
     "network": 1,
-    "refine": 1,
     "flicker": 0,
     "cross_spectra": 0,
     "shutter_confidence": 0,

@@ -26,7 +26,7 @@ HEAVY_TESTS: dict[str, tuple[str, ...]] = {
         "datasets/test_ray_convert.py::test_cli_ray_flag_converts_and_refuses_local_scheduling_options",
     ),
     "torch.compile": (
-        "noise/test_kernel8.py::test_compiled_kernel_is_bit_identical_to_eager",
+        "noise/test_fused_8bit.py::test_compiled_kernel_is_bit_identical_to_eager",
         "test_apply_cli.py::test_compiled_and_eager_runs_write_the_same_bytes",
     ),
     "GAN training": (

@@ -26,18 +26,14 @@ from darksynth.light.flicker import FlickerGains
 from darksynth.light.shutter import ShutterStage
 from darksynth.noise.components import noise_component, noise_parameter, noise_parameters
 from darksynth.noise.counter_rng import random_key
-from darksynth.noise.kernel8 import (
+from darksynth.noise.fused_8bit import (
     FAST_PATH,
     FULL_SCALE,
-    STRUCTURED_PATH,
     PixelKernel,
     compiled_pixel_kernel,
-    compiled_srgb_kernel,
     kernel_scalars,
     pixel_kernel_8bit,
     pixel_kernel_in_pieces,
-    srgb_kernel_factors,
-    srgb_kernel_in_pieces,
 )
 from darksynth.noise.sampling import random_uniform
 from darksynth.noise.simulate import (
@@ -51,6 +47,7 @@ from darksynth.noise.simulate import (
 from darksynth.noise.spectral import clip_grid, octave_covariances
 from darksynth.noise.spectral_8bit import SPECTRAL_PATH, SpectralPixelPass, level_tables, to_8bit
 from darksynth.noise.spectral_kernel import SpectralKernelStream, compiled_spectral_kernels
+from darksynth.noise.structure_translation import spectral_tensors
 from darksynth.noise.values import NoiseValues
 from darksynth.profile import Profile
 from darksynth.tensors import CLIP_DIMS, eight_bit_levels, full_scale, scale_channels, to_dtype
@@ -84,7 +81,9 @@ def draw_clip_parameters(
 ) -> ClipParameters:
     """Fix the parameters for one clip: values from the profile, drawn within its ranges where it has them.
 
-    Draws happen in the order of the parameter table, then alpha and gamma, so a seed fixes them all.
+    Draws happen in the order of the parameter table, then alpha and gamma, so a seed fixes them all. The sRGB
+    structure of a version-2 or version-3 profile, once drawn, is given as the spectral model's values
+    (:func:`darksynth.noise.structure_translation.spectral_tensors`): what the clip draws and what its record says.
     """
     # Draws happen on the generator's device (a CUDA generator cannot fill a CPU tensor).
     device = generator.device if generator is not None else None
@@ -95,6 +94,7 @@ def draw_clip_parameters(
                 profile.ranges[parameter.name], generator=generator, device=device, dtype=torch.float64
             ).cpu()
     noise = profile.noise.replace(**drawn) if drawn else profile.noise
+    noise = NoiseValues(spectral_tensors(noise))
     chosen: Darkening | None
     if darkening is None or isinstance(darkening, Darkening):
         chosen = darkening
@@ -129,11 +129,9 @@ class ClipSynthesizer:
 
     Every frame goes through the composer (:func:`darksynth.noise.simulate.add_noise`), which holds the
     components a clip keeps fixed (temporal banding) from the first frame on. 8-bit frames whose values the
-    fused kernel covers (:data:`darksynth.noise.kernel8.FAST_PATH` in the table) take it for the per-pixel part;
-    with ``compile``, those of the sRGB model (:data:`darksynth.noise.kernel8.STRUCTURED_PATH`) take the compiled
-    sRGB kernel, which draws the structured unit noise and does the per-pixel pass in one function, and then the
-    compression stage. 8-bit frames of a spectral profile (:data:`darksynth.noise.spectral_8bit.SPECTRAL_PATH`)
-    read their darkened level and noise std from tables of the 256 levels and draw the composer's bits.
+    fused kernel covers (:data:`darksynth.noise.fused_8bit.FAST_PATH` in the table) take it for the per-pixel part.
+    8-bit frames of a spectral profile (:data:`darksynth.noise.spectral_8bit.SPECTRAL_PATH`) read their darkened
+    level and noise std from tables of the 256 levels and draw the composer's bits.
 
     Args:
         parameters: the clip's parameters (see :func:`draw_clip_parameters`).
@@ -161,12 +159,8 @@ class ClipSynthesizer:
         self._kernel: PixelKernel = compiled_pixel_kernel() if compile else pixel_kernel_8bit
         uncovered = self._values.uncovered_by(FAST_PATH)
         self._fusable = not uncovered
-        # Only compiled: eagerly, the sRGB kernel's chain of operations is slower than the general composer
-        # (200 against 149 ms a 1080p frame; docs/performance.md).
-        self._structured = compile and bool(uncovered) and self._values.covered_by(STRUCTURED_PATH)
-        self._srgb_factors: tuple[torch.Tensor, ...] | None = None
-        # A profile of the spectral model (its curve set) whose other values the spectral path draws; profiles of
-        # the earlier models never take it, so their frames keep their bits.
+        # A profile of the spectral model (its curve set) whose other values the spectral path draws; the paper's
+        # white model never takes it, so its frames keep their bits.
         self._spectral = (
             bool(uncovered)
             and self._values.is_active(noise_component("spectral"))
@@ -176,7 +170,7 @@ class ClipSynthesizer:
         # Compiled, a spectral stream takes the fused kernels (the same law, counter-based draws).
         self._spectral_compiled = compile and self._spectral
         self._spectral_stream: SpectralKernelStream | None = None
-        if uncovered and not self._structured and not self._spectral:
+        if uncovered and not self._spectral:
             logger.debug("8-bit frames take the general composer: %s not covered by %s", uncovered, FAST_PATH)
         self._scalars: tuple[torch.Tensor, ...] | None = None
         self._frame_shape: torch.Size | None = None
@@ -231,10 +225,6 @@ class ClipSynthesizer:
             self._set_gain(self._flicker.next(self.generator))
         if frame.dtype == torch.uint8 and self._fusable:
             return self._fused(frame)
-        if frame.dtype == torch.uint8 and self._structured:
-            structured = self._fused_structured(frame)
-            if structured is not None:
-                return structured
         if frame.dtype == torch.uint8 and self._spectral_compiled:
             compiled = self._spectral_kernels(frame)
             if compiled is not None:
@@ -263,7 +253,7 @@ class ClipSynthesizer:
             self._frames_done,
         )
         self._held.clear()
-        self._fusable = self._structured = self._spectral = self._spectral_compiled = False
+        self._fusable = self._spectral = self._spectral_compiled = False
 
     def _kernel_scalars(self) -> tuple[torch.Tensor, ...]:
         if self._scalars is None:
@@ -296,35 +286,6 @@ class ClipSynthesizer:
                 logger.warning("compiled 8-bit kernel failed (%s); using the eager kernel", error)
                 self._kernel = pixel_kernel_8bit
         return pixel_kernel_in_pieces(self._kernel, frame, key, scalars, columns_8bit)
-
-    def _fused_structured(self, frame: torch.Tensor) -> torch.Tensor | None:
-        """The frame through the compiled sRGB kernel and the output stages; None once that kernel has failed
-        (the caller then takes the general composer, which has the same law)."""
-        columns_8bit = self._columns_8bit(frame)
-        key = random_key(self.generator).to(self.device)
-        if self._srgb_factors is None:
-            self._srgb_factors = srgb_kernel_factors(self._values, frame.shape[0], device=self.device)
-        try:
-            out = srgb_kernel_in_pieces(
-                compiled_srgb_kernel(),
-                frame,
-                key,
-                self._srgb_factors,
-                self._kernel_scalars(),
-                columns_8bit,
-                piece_values=frame.numel(),
-            )
-        except Exception as error:
-            # As for the white kernel: a platform without a working compiler. Eagerly this kernel is slower than
-            # the general composer (docs/performance.md), so the stream goes on there.
-            logger.warning("compiled sRGB kernel failed (%s); using the general composer", error)
-            self._structured = False
-            return None
-        values = self._values
-        if values.is_neutral(noise_parameter("compression")):
-            return out
-        compressed = apply_output_stages(out.to(torch.float32)[None] / FULL_SCALE, values, generator=self.generator)
-        return to_dtype(compressed[0], frame.dtype)
 
     def _spectral_kernels(self, frame: torch.Tensor) -> torch.Tensor | None:
         """The uint8 frame through the compiled spectral kernels and the output stages; None once they have failed

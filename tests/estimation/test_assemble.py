@@ -177,46 +177,33 @@ def test_nearly_noise_free_estimate_warns(tiny_model: Callable[..., DEN]) -> Non
     assert not any("noise-free" in w for w in noisy.warnings)
 
 
-@pytest.mark.parametrize(("spectrum", "record"), [(True, "spectrum"), (False, "refined")])
-def test_the_refinement_overrules_a_network_that_calls_a_noisy_reference_noise_free(
-    tiny_model: Callable[..., DEN], spectrum: bool, record: str
+def test_the_measured_spectrum_overrules_a_network_that_calls_a_noisy_reference_noise_free(
+    tiny_model: Callable[..., DEN],
 ) -> None:
     # White noise of std 0.03 (7.65 8-bit levels) on a level of 0.2: plainly visible.
     network = _rigged(tiny_model(), torch.full((vector_size(),), 0.001))
     noise = 0.03 * torch.randn(1, 3, 128, 128, generator=torch.Generator().manual_seed(0))
-    result = estimate((0.2 + noise).clamp(0, 1), network, source="dim.png", spectrum=spectrum)
+    result = estimate((0.2 + noise).clamp(0, 1), network, source="dim.png")
     assert not any("noise-free" in w for w in result.warnings), result.warnings
     network_only = estimate((0.2 + noise).clamp(0, 1), network, source="dim.png", refine=False)
     assert network_only.profile.meta["noise_std_8bit"] < 1.0
-    assert "network_values" in result.profile.meta[record]
+    assert "network_values" in result.profile.meta["spectrum"]
     assert 0.8 < result.profile.meta["noise_std_8bit"] / 7.65 < 1.2
 
 
-def test_a_clean_reference_stays_noise_free_after_the_refinement(tiny_model: Callable[..., DEN]) -> None:
-    # A smooth clean gradient on 8-bit levels: nothing the refinement could read as noise.
+def test_a_clean_reference_stays_nearly_noise_free_after_the_measured_spectrum(
+    tiny_model: Callable[..., DEN],
+) -> None:
+    # A smooth clean gradient on 8-bit levels: nothing the measurement could read as noise.
     ramp = torch.linspace(0.05, 0.25, 128)
     clean = (ramp[:, None].expand(128, 128)[None, None].expand(1, 3, 128, 128) * 255).round() / 255
     network = _rigged(tiny_model(), torch.full((vector_size(),), 0.001))
-    result = estimate(clean, network, source="clean.png", spectrum=False)
+    result = estimate(clean, network, source="clean.png", refine=False)
     assert any(w.startswith("clean.png: nearly noise-free") for w in result.warnings), result.warnings
     # The measured spectrum reads the ramp's 8-bit steps, which the denoiser's 8-bit output keeps, as about half
     # a level of noise: invisible, and far below any camera's.
     measured = estimate(clean, network, source="clean.png")
     assert measured.profile.meta["noise_std_8bit"] < 0.75, measured.profile.meta["noise_std_8bit"]
-
-
-def test_the_refinement_carries_the_ranges_to_its_values(tiny_model: Callable[..., DEN]) -> None:
-    # apply draws every ranged parameter within its range: ranges left at the network's values would undo the
-    # refinement.
-    network = _rigged(tiny_model(), torch.full((vector_size(),), 0.001))
-    profile = estimate(_reference(1, 128, 128), network, spectrum=False).profile
-    for name, intervals in profile.ranges.items():
-        if name in ("alpha", "gamma"):
-            continue
-        for (low, high), value in zip(intervals, profile.noise[name].tolist(), strict=True):
-            assert low <= value <= high, (name, low, value, high)
-    (compression,) = profile.ranges["compression"]
-    assert compression[0] == compression[1] == profile.noise.scalar("compression")
 
 
 def test_the_measured_spectrum_drops_the_ranges_of_what_it_replaces(tiny_model: Callable[..., DEN]) -> None:
@@ -232,19 +219,7 @@ def test_the_measured_spectrum_drops_the_ranges_of_what_it_replaces(tiny_model: 
     assert not profile.noise.is_neutral(noise_parameter("octave_power"))
 
 
-def test_moved_ranges_scale_levels_and_shift_the_rest() -> None:
-    from darksynth.estimation.assemble import moved_ranges
-
-    before = NoiseValues.from_values({"shot": 0.01, "correlation_length": 0.5})
-    after = before.replace(shot=0.03, correlation_length=1.0)
-    ranges = {"shot": ((0.005, 0.02),), "correlation_length": ((0.2, 0.9),), "read": ((0.001, 0.002),)}
-    moved = moved_ranges(ranges, before, after)
-    assert moved["shot"][0] == pytest.approx((0.015, 0.06))
-    assert moved["correlation_length"][0] == pytest.approx((0.7, 1.4))
-    assert "read" not in moved  # unchanged values keep their ranges
-
-
-def test_a_reference_too_small_to_refine_keeps_the_network_values_and_says_so(
+def test_a_reference_too_small_to_measure_keeps_the_network_values_and_says_so(
     tiny_model: Callable[..., DEN],
 ) -> None:
     network = _rigged(tiny_model(), torch.full((vector_size(),), 0.3))
@@ -252,7 +227,7 @@ def test_a_reference_too_small_to_refine_keeps_the_network_values_and_says_so(
     refined = estimate(reference, network, source="small.png")
     plain = estimate(reference, network, source="small.png", refine=False)
     assert refined.profile.noise == plain.profile.noise
-    assert any(w.startswith("small.png: 48x48 is too small to refine") for w in refined.warnings)
+    assert any(w.startswith("small.png: 48x48 is too small to measure") for w in refined.warnings)
 
 
 def test_noise_free_warning_reads_the_noise_the_profile_adds_on_this_reference(

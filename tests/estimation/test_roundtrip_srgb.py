@@ -3,8 +3,9 @@
 The sRGB model's own figures (docs/den.md) set what is asked: the overall level is its training target and is
 checked against the truth; each structure parameter is checked for direction and separation (off against on
 moves the estimate by a clear share of its training range), which is what its held-out R^2 supports. The estimate
-is the version-3 path, the network refined on the reference (docs/refine.md, ``spectrum=False``), unless a test
-says otherwise; the spectral estimate has its own round trip (tests/estimation/test_spectrum.py).
+is the network's values alone (``refine=False``); the references are drawn as a profile of those values draws,
+through the spectral model (:mod:`darksynth.noise.structure_translation`); the spectral estimate has its own round
+trip (tests/estimation/test_spectrum.py).
 """
 
 from __future__ import annotations
@@ -40,7 +41,7 @@ def model() -> DEN:
 def _estimated(model: DEN, noise: dict[str, tuple[float, ...]], seed: int, frames: int = 1) -> dict[str, list[float]]:
     return {
         name: values.tolist()
-        for name, values in estimate(_reference(noise, frames, seed), model, spectrum=False).profile.noise.items()
+        for name, values in estimate(_reference(noise, frames, seed), model, refine=False).profile.noise.items()
     }
 
 
@@ -62,12 +63,20 @@ def test_the_shipped_srgb_network_estimates_every_parameter(model: DEN) -> None:
         assert not result.profile.noise.is_neutral(parameter), parameter.name
 
 
-def test_read_level_is_recovered_under_structure(model: DEN) -> None:
+def test_the_noise_level_is_recovered_under_structure(model: DEN) -> None:
+    # The default estimate (the spectrum measured after the network) against the truth, both as the std their
+    # values add on the reference (the level is what the profile carries; its split into shot and read is not).
+    from darksynth.estimation.assemble import profile_noise_std
+
     structure = {"correlation_length": (0.9,), "channel_correlation": (0.4, 0.4, 0.5), "channel_gain": (1.2, 1.2)}
-    truths = [0.01, 0.02, 0.04, 0.08]
-    estimates = [_estimated(model, {"read": (read,), **structure}, seed)["read"][0] for seed, read in enumerate(truths)]
-    assert np.all(np.diff(estimates) > 0), estimates
-    assert np.allclose(estimates, truths, rtol=0.4), estimates
+    ratios = []
+    for seed, read in enumerate([0.01, 0.02, 0.04, 0.08]):
+        truth = {"read": (read,), **structure}
+        reference = _reference(truth, 1, seed)
+        found = estimate(reference, model).profile.noise
+        true_std = profile_noise_std(NoiseValues.from_values(truth), reference)
+        ratios.append(profile_noise_std(found, reference) / true_std)
+    assert np.allclose(ratios, 1.0, atol=0.25), ratios
 
 
 @pytest.mark.parametrize(
@@ -76,7 +85,6 @@ def test_read_level_is_recovered_under_structure(model: DEN) -> None:
         ("compression", (0.5,)),
         ("correlation_length", (1.6,)),
         ("channel_correlation", (0.6, 0.6, 0.6)),
-        ("channel_gain", (1.8, 1.8)),
     ],
 )
 def test_each_structure_parameter_moves_its_estimate(model: DEN, name: str, on: tuple[float, ...]) -> None:
@@ -87,17 +95,12 @@ def test_each_structure_parameter_moves_its_estimate(model: DEN, name: str, on: 
     assert with_it - off > 0.3 * (high - low), (off, with_it)
 
 
-def test_the_network_alone_does_not_recover_channel_gains_and_the_refinement_does(model: DEN) -> None:
-    # The shipped network's gains have a held-out R^2 of about 0 (docs/den.md); the refinement on the reference
-    # reads them from the per-channel residual variances. Strict: a retrained network that recovers them turns
-    # this red, and the test must then say so.
+def test_the_network_alone_does_not_recover_channel_gains(model: DEN) -> None:
+    # The shipped network's gains have a held-out R^2 of about 0 (docs/den.md); the spectral measurement reads the
+    # channels' levels into its level curve instead. Strict: a retrained network that recovers them turns this red,
+    # and the test must then say so.
     base, on = {"read": (0.03,)}, {"channel_gain": (1.8, 1.8)}
     low, high = noise_parameter("channel_gain").training_range
-    moves = {}
-    for refine in (False, True):
-        off = estimate(_reference(base, 1, 21), model, refine=refine, spectrum=False).profile.noise["channel_gain"]
-        with_it = estimate(_reference(base | on, 1, 21), model, refine=refine, spectrum=False).profile.noise[
-            "channel_gain"
-        ]
-        moves[refine] = float((with_it - off).mean()) / (high - low)
-    assert moves[False] < 0.3 < moves[True], moves
+    off = estimate(_reference(base, 1, 21), model, refine=False).profile.noise["channel_gain"]
+    with_it = estimate(_reference(base | on, 1, 21), model, refine=False).profile.noise["channel_gain"]
+    assert float((with_it - off).mean()) / (high - low) < 0.3

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import numpy as np
 import pytest
 import torch
 
@@ -11,6 +12,7 @@ from darksynth.evaluation.classical import (
     blind_gaussian_sigma,
     blind_poisson_gaussian,
     oracle_poisson_gaussian,
+    weighted_line,
 )
 from darksynth.tensors import to_8bit_levels
 
@@ -24,6 +26,16 @@ def smooth_scene(size: int = 384) -> torch.Tensor:
     )
     ramp = 0.1 + 0.8 * (0.7 * x + 0.3 * y)
     return torch.stack([ramp, ramp.flip(-1), 0.5 + 0.3 * torch.sin(3 * x) * torch.cos(2 * y)])
+
+
+def test_weighted_line_recovers_a_line_and_keeps_both_terms_non_negative() -> None:
+    level = np.linspace(0.1, 0.9, 9)
+    a, b = weighted_line(level, 2e-3 * level + 1e-4, np.ones_like(level))
+    assert a == pytest.approx(2e-3) and b == pytest.approx(1e-4)
+    falling_a, falling_b = weighted_line(level, 1e-3 - 5e-4 * level, np.ones_like(level))
+    assert falling_a == 0.0 and falling_b > 0.0
+    through_zero_a, through_zero_b = weighted_line(level, 3e-3 * level - 2e-4, np.ones_like(level))
+    assert through_zero_b == 0.0 and through_zero_a > 0.0
 
 
 def test_to_8bit_levels_rounds_and_clips() -> None:

@@ -7,8 +7,13 @@ from pathlib import Path
 import pytest
 import torch
 
-from darksynth.evaluation.methods import AWGN_SIGMA, METHOD_NAMES, MethodUnavailableError, build_method
-from darksynth.evaluation.srgb_fit import synthesize_image
+from darksynth.evaluation.methods import (
+    AWGN_SIGMA,
+    METHOD_NAMES,
+    MethodUnavailableError,
+    build_method,
+    synthesize_image,
+)
 from darksynth.noise.simulate import add_noise
 from darksynth.noise.values import NoiseValues
 from darksynth.tensors import to_8bit_levels
@@ -96,7 +101,6 @@ def test_every_den_method_uses_a_shipped_den_of_its_noise_model_and_variant() ->
 
     assert DEN_METHODS == {
         "den": ("srgb", "v3"),
-        "den-srgb": ("srgb", "v3"),
         "den-network": ("srgb", "v3"),
         "den-paper": ("paper", "v3"),
         "den-v2": ("paper", "v2"),
@@ -108,12 +112,16 @@ def test_every_den_method_uses_a_shipped_den_of_its_noise_model_and_variant() ->
         assert method.details["weights"].endswith(SHIPPED_WEIGHTS[noise_model, variant])
 
 
-def test_den_measures_the_spectrum_den_srgb_is_refined_and_den_network_is_not() -> None:
+def test_den_measures_the_spectrum_and_den_network_does_not() -> None:
     assert "spectrum measured on it" in build_method("den").summary
-    assert "refined on it" in build_method("den-srgb").summary
-    assert "spectrum" not in build_method("den-srgb").summary
-    assert "refined" not in build_method("den-network").summary
-    assert "refined" not in build_method("den-paper").summary
+    assert "spectrum" not in build_method("den-network").summary
+    assert "spectrum" not in build_method("den-paper").summary
+
+
+@pytest.mark.parametrize("name", ["den-srgb", "srgb-oracle", "pg-corr-oracle"])
+def test_the_retired_srgb_methods_are_unknown(name: str) -> None:
+    with pytest.raises(MethodUnavailableError, match="unknown method"):
+        build_method(name)
 
 
 def test_the_shipped_v2_ablation_is_a_den_without_decoder() -> None:
@@ -121,47 +129,8 @@ def test_the_shipped_v2_ablation_is_a_den_without_decoder() -> None:
     assert "DEN v2" in method.summary and method.details["weights"].endswith("den_v2.safetensors")
 
 
-@pytest.fixture(scope="module")
-def structured_pair(clean: torch.Tensor) -> tuple[torch.Tensor, torch.Tensor]:
-    """A pair whose noise has every part of the table's sRGB structure but compression."""
-    values = NoiseValues.from_values(
-        {
-            "shot": 0.04,
-            "read": 0.01,
-            "channel_gain": [1.2, 0.9],
-            "correlation_length": 0.8,
-            "channel_correlation": [0.6, 0.2, 0.4],
-        }
-    )
-    return synthesize_image(clean, values, torch.Generator().manual_seed(7)), clean
-
-
-def test_srgb_oracle_ablations_fit_only_their_components(structured_pair: tuple[torch.Tensor, torch.Tensor]) -> None:
-    noisy, clean = structured_pair
-    methods = {name: build_method(name) for name in ("pg-corr-oracle", "pg-rho-oracle", "srgb-nojpeg-oracle")}
-    assert all(method.oracle for method in methods.values())
-    fitted = {name: method.fit(noisy, clean) for name, method in methods.items()}
-    for values in fitted.values():
-        assert values.scalar("compression") == 0.0
-        assert [float(g) for g in values["channel_gain"]] == pytest.approx([1.2, 0.9], abs=0.05)
-    corr = fitted["pg-corr-oracle"]
-    assert corr.scalar("correlation_length") == pytest.approx(0.8, abs=0.15)
-    assert corr["channel_correlation"].tolist() == [0.0, 0.0, 0.0]
-    rho = fitted["pg-rho-oracle"]
-    assert rho.scalar("correlation_length") == 0.0
-    assert rho["channel_correlation"].tolist() == pytest.approx([0.4] * 3, abs=0.05)
-    full = fitted["srgb-nojpeg-oracle"]
-    assert full.scalar("correlation_length") == pytest.approx(0.8, abs=0.15)
-    assert full["channel_correlation"].tolist() == pytest.approx([0.6, 0.2, 0.4], abs=0.05)
-
-
-def test_srgb_oracle_synthesises_through_the_composer(structured_pair: tuple[torch.Tensor, torch.Tensor]) -> None:
-    noisy, clean = structured_pair
-    method = build_method("srgb-oracle")
-    values = method.fit(noisy, clean)
-    assert isinstance(values, NoiseValues)
-    synthetic = method.synthesize(clean, values, torch.Generator().manual_seed(3))
+def test_methods_synthesise_through_the_composer(clean: torch.Tensor) -> None:
+    values = NoiseValues.from_values({"shot": 0.04, "read": 0.01, "correlation_length": 0.8})
+    synthetic = synthesize_image(clean, values, torch.Generator().manual_seed(3))
     composed = to_8bit_levels(add_noise(clean[None], values, generator=torch.Generator().manual_seed(3))[0])
     assert torch.equal(synthetic, composed)
-    real_std = (noisy - clean).std(dim=(-2, -1))
-    assert (synthetic - clean).std(dim=(-2, -1)) == pytest.approx(real_std.tolist(), rel=0.1)

@@ -9,8 +9,8 @@ import pytest
 import torch
 
 from darksynth.darkening import Darkening, darken
-from darksynth.noise import kernel8
-from darksynth.noise.kernel8 import FAST_PATH, STRUCTURED_PATH
+from darksynth.noise import fused_8bit
+from darksynth.noise.fused_8bit import FAST_PATH
 from darksynth.noise.simulate import add_noise
 from darksynth.noise.spectral import OCTAVES
 from darksynth.noise.spectral_8bit import read_levels, read_levels_by_index
@@ -75,7 +75,7 @@ def test_a_failing_compiled_kernel_falls_back_once_with_a_log_line(
     assert all(torch.equal(a, eager(frame)) for a in frames)
     warnings = [r for r in caplog.records if "compiled 8-bit kernel failed" in r.getMessage()]
     assert len(warnings) == 1 and "no working C compiler" in warnings[0].getMessage()
-    assert kernel8.pixel_kernel_8bit is not broken
+    assert fused_8bit.pixel_kernel_8bit is not broken
 
 
 SRGB = {
@@ -90,83 +90,14 @@ SRGB = {
 }
 
 
-def test_the_structured_path_is_taken_compiled_for_the_srgb_model_only() -> None:
-    srgb = ClipParameters(NoiseValues.from_values(SRGB), None)  # type: ignore[arg-type]
-    white = ClipParameters(NoiseValues.from_values(PAPER), None)
-    assert NoiseValues.from_values(SRGB).covered_by(STRUCTURED_PATH)  # type: ignore[arg-type]
-    assert ClipSynthesizer(srgb, compile=True)._structured
-    assert not ClipSynthesizer(srgb, compile=False)._structured  # eagerly the general composer is faster
-    assert not ClipSynthesizer(white, compile=True)._structured  # the white fused kernel instead
-    assert ClipSynthesizer(white, compile=True)._fusable
-
-
-def _statistics(frames: torch.Tensor) -> dict[str, torch.Tensor]:
-    """Per channel mean and std, the channel correlations and the lag-1 autocorrelation along x and y."""
-    noise = frames - frames.mean(dim=(0, 2, 3), keepdim=True)
-    flat = noise.transpose(0, 1).reshape(3, -1)
-    correlation = torch.corrcoef(flat)
-    lag_x = (noise[..., 1:] * noise[..., :-1]).mean(dim=(0, 2, 3)) / noise.var(dim=(0, 2, 3))
-    lag_y = (noise[..., 1:, :] * noise[..., :-1, :]).mean(dim=(0, 2, 3)) / noise.var(dim=(0, 2, 3))
-    return {
-        "mean": frames.mean(dim=(0, 2, 3)),
-        "std": frames.std(dim=(0, 2, 3)),
-        "correlation": torch.stack([correlation[0, 1], correlation[1, 2], correlation[0, 2]]),
-        "lag": torch.cat([lag_x, lag_y]),
-    }
-
-
-@pytest.mark.parametrize(
-    ("compression", "chroma_length"), [(0.0, 1.0), (0.3, 1.0), (0.0, 0.0)], ids=["chroma", "chroma-jpeg", "cholesky"]
-)
-def test_structured_and_general_paths_draw_the_same_law(compression: float, chroma_length: float) -> None:
-    """The compiled sRGB kernel against the general composer on the same 8-bit frames, by moments: per-channel
-    mean and std, channel correlations, lag-1 autocorrelation (spatial correlation); with coarser colour noise
-    (the principal-component mixing) and without (the Cholesky mixing)."""
-    extra = {"compression": compression, "chroma_length": chroma_length}
-    values = NoiseValues.from_values(SRGB | extra)  # type: ignore[arg-type]
-    parameters = ClipParameters(values, Darkening(0.4, 1.0))
-    frame = torch.full((3, 192, 192), 150, dtype=torch.uint8)
-    structured = ClipSynthesizer(parameters, generator=torch.Generator().manual_seed(3), compile=True)
-    general = ClipSynthesizer(parameters, generator=torch.Generator().manual_seed(4))
-    assert structured._structured and not general._structured
-    fast = _statistics(torch.stack([structured(frame) for _ in range(6)]).double())
-    slow = _statistics(torch.stack([general(frame) for _ in range(6)]).double())
-    assert torch.allclose(fast["mean"], slow["mean"], atol=0.3)  # 8-bit levels
-    assert torch.allclose(fast["std"] / slow["std"], torch.ones(3, dtype=torch.float64), atol=0.04)
-    assert torch.allclose(fast["correlation"], slow["correlation"], atol=0.03)
-    assert torch.allclose(fast["lag"], slow["lag"], atol=0.03)
-    # The structure is there at all: correlated channels and spatially correlated noise.
-    assert float(fast["correlation"].min()) > 0.1 and float(fast["lag"].min()) > 0.3
-
-
-def test_a_failing_compiled_srgb_kernel_falls_back_to_the_general_composer_with_a_log_line(
-    monkeypatch: pytest.MonkeyPatch, caplog: pytest.LogCaptureFixture
-) -> None:
-    def broken(*args: object) -> torch.Tensor:
-        raise RuntimeError("no working C compiler")
-
-    module = sys.modules["darksynth.synthesize"]
-    monkeypatch.setattr(module, "compiled_srgb_kernel", lambda: broken)
-    composed: list[int] = []
-    general_add_noise = module.add_noise
-
-    def counting_add_noise(*args: object, **kwargs: object) -> torch.Tensor:
-        composed.append(1)
-        return general_add_noise(*args, **kwargs)  # type: ignore[arg-type]
-
-    monkeypatch.setattr(module, "add_noise", counting_add_noise)
-    parameters = ClipParameters(NoiseValues.from_values(SRGB), None)  # type: ignore[arg-type]
-    frame = torch.full((3, 64, 64), 100, dtype=torch.uint8)
-    with caplog.at_level(logging.WARNING, logger="darksynth.synthesize"):
-        compiled = ClipSynthesizer(parameters, generator=torch.Generator().manual_seed(2), compile=True)
-        frames = [compiled(frame) for _ in range(3)]
-    assert not compiled._structured and len(composed) == 3  # every frame, the failing one included
-    assert all(f.dtype == torch.uint8 and f.shape == frame.shape for f in frames)
-    std = torch.stack(frames).double().std(dim=(0, 2, 3))
-    expected = 255.0 * (0.05**2 * 100 / 255 + 0.01**2) ** 0.5 * torch.tensor([1.3, 1.0, 0.8], dtype=torch.float64)
-    assert torch.allclose(std / expected, torch.ones(3, dtype=torch.float64), atol=0.15)
-    warnings = [r for r in caplog.records if "compiled sRGB kernel failed" in r.getMessage()]
-    assert len(warnings) == 1 and "no working C compiler" in warnings[0].getMessage()
+def test_srgb_values_drawn_for_a_clip_take_the_spectral_path() -> None:
+    """A version-3 profile's clip parameters are the translated spectral values: the spectral 8-bit path draws
+    them, compiled or not; given untranslated to a synthesizer they take the general composer, which translates."""
+    profile = Profile(noise=NoiseValues.from_values(SRGB))  # type: ignore[arg-type]
+    drawn = draw_clip_parameters(profile, darkening=None)
+    assert ClipSynthesizer(drawn)._spectral and ClipSynthesizer(drawn, compile=True)._spectral_compiled
+    untranslated = ClipSynthesizer(ClipParameters(profile.noise, None))
+    assert not untranslated._spectral and not untranslated._fusable
 
 
 SPECTRAL = {

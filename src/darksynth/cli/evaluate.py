@@ -50,7 +50,7 @@ def evaluate_command(
         str,
         typer.Option(
             help=f"Comma-separated methods. Default: {', '.join(default_of(EvaluationOptions, 'methods'))}. "
-            "Also by name: srgb-oracle and its ablations (docs/srgb-noise.md)."
+            "Also by name: den-network (the network's values alone) and spectral-oracle."
         ),
     ] = "",
     weights: Annotated[

@@ -145,19 +145,11 @@ def estimate_command(
         bool,
         typer.Option(
             "--refine/--no-refine",
-            help="Refine the sRGB network's noise on the reference itself by analysis by synthesis (default; "
-            "stronger, closer to the real pairs' noise, see docs/refine.md); --no-refine keeps the network's values.",
+            help="After the sRGB network, measure the noise's spectrum on the reference itself (per octave, in "
+            "brightness and colour, per intensity, frame to frame; default, docs/spectral-noise.md); --no-refine "
+            "keeps the network's values.",
         ),
     ] = default_of(EstimateOptions, "refine"),
-    spectrum: Annotated[
-        bool,
-        typer.Option(
-            "--spectrum/--no-spectrum",
-            help="With the sRGB model and --refine, measure the noise's spectrum on the reference (per octave, in "
-            "brightness and colour, per intensity, frame to frame; default, docs/spectral-noise.md); --no-spectrum "
-            "gives the version-3 profile (one length per part, refined as in docs/refine.md).",
-        ),
-    ] = default_of(EstimateOptions, "spectrum"),
     quiet: Annotated[bool, typer.Option("--quiet", "-q", help=QUIET_HELP)] = False,
 ) -> None:
     import json
@@ -172,7 +164,7 @@ def estimate_command(
             noise_model=checked_choice("--model", model, NETWORK_MODELS),
             variant=checked_choice("--variant", variant, VARIANTS),
         )
-        options = EstimateOptions(clip=clip, device=device, refine=refine, spectrum=spectrum)
+        options = EstimateOptions(clip=clip, device=device, refine=refine)
         network = load_weights(choice.path(), device=options.device)
         result = estimate_file(reference, network, options)
     except DarksynthError as error:

@@ -4,8 +4,8 @@
   what every stage measures of them (spread frames, uniform frames, scene cuts, the crop grid);
 - :mod:`~darksynth.estimation.network`: the DEN on the crop grid, median and 10-90th percentile ranges;
 - :mod:`~darksynth.estimation.columns`: whether the reference shows column patterns (banding decisions);
-- :mod:`~darksynth.estimation.refine_statistics` and :mod:`~darksynth.estimation.refine`: the analysis-by-synthesis
-  refinement of the network's values on the reference itself;
+- :mod:`~darksynth.estimation.spectrum`: the spectral model measured on the reference itself (level curve, octave
+  covariances, persistence from frame to frame), which replaces the network's heteroscedastic values;
 - the darkening is read from the reference's tone distribution by :mod:`darksynth.tones` (below ``apply``, which
   also matches each input's exposure to the reference with it);
 - :mod:`~darksynth.estimation.assemble`: ``estimate``, which runs the stages in order and assembles the profile.

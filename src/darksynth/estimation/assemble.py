@@ -14,7 +14,7 @@ set absent, since the network never predicts exactly zero), and how much noise t
 
 from __future__ import annotations
 
-from collections.abc import Mapping, Sequence
+from collections.abc import Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
@@ -35,9 +35,7 @@ from darksynth.estimation.reference import (
     spread_frames,
     uniform_frames,
 )
-from darksynth.estimation.refine import refine_profile
-from darksynth.estimation.refine_statistics import ANALYSIS_FRAMES
-from darksynth.estimation.spectrum import estimate_spectrum
+from darksynth.estimation.spectrum import TEMPORAL_FRAMES, estimate_spectrum
 from darksynth.models.den import DEN
 from darksynth.noise.components import NoiseModel, noise_component, noise_parameter
 from darksynth.noise.level import channel_noise_std, mean_noise_variance
@@ -87,14 +85,9 @@ class EstimateOptions:
     device: str = "cpu"
     max_frames: int = MAX_FRAMES
     batch: int = 16
-    spectrum: bool = True
-    """With ``refine``, measure the spectral model on the reference (docs/spectral-noise.md) instead of refining
-    the sRGB network's structure."""
     refine: bool = True
-    """After the sRGB network, refine the noise on the reference itself by analysis by synthesis
-    (:func:`darksynth.estimation.refine.refine_profile`, docs/refine.md): on the real pairs it divides the histogram
-    KL of the network's estimate by 1.7-4.8 (docs/results.md); ``--no-refine`` keeps the network's values (the
-    ablation)."""
+    """After the sRGB network, measure the noise's spectrum on the reference itself (docs/spectral-noise.md);
+    ``--no-refine`` keeps the network's values (the ablation)."""
 
 
 def estimate_file(path: Path, network: DEN, options: EstimateOptions) -> Estimate:
@@ -107,7 +100,6 @@ def estimate_file(path: Path, network: DEN, options: EstimateOptions) -> Estimat
         batch=options.batch,
         device=options.device,
         refine=options.refine,
-        spectrum=options.spectrum,
     )
 
 
@@ -130,18 +122,14 @@ def estimate(
     batch: int = 16,
     device: torch.device | str = "cpu",
     refine: bool = True,
-    spectrum: bool = True,
 ) -> Estimate:
     """Estimate a noise profile from reference frames (T, 3, H, W) in [0, 1].
 
     Args:
-        spectrum: with ``refine`` and a network of the sRGB model, measure the spectral model on the reference
-            (:func:`darksynth.estimation.spectrum.estimate_spectrum`) instead of refining the network's sRGB
-            structure: the network's heteroscedastic values and compression are replaced by the spectrum's, its
-            column components kept.
-        refine: for a network of the sRGB model, refine its values on the reference itself
-            (:func:`darksynth.estimation.refine.refine_profile`); skipped, with a warning, on a reference smaller
-            than :data:`REFINE_MIN_SIDE`. The paper's model is never refined (the refinement moves the sRGB structure).
+        refine: for a network of the sRGB model, measure the spectral model on the reference
+            (:func:`darksynth.estimation.spectrum.estimate_spectrum`): the network's heteroscedastic values and
+            compression are replaced by the spectrum's, its column components kept; skipped, with a warning, on a
+            reference smaller than :data:`REFINE_MIN_SIDE`. The paper's model keeps the network's values.
     """
     found = run_network(reference, network, batch=batch, device=device)
     per_crop, noise, ranges = found.per_crop, found.noise, dict(found.ranges)
@@ -171,14 +159,11 @@ def estimate(
     if cuts:
         meta["scene_cuts"] = cuts
         warnings.append(
-            f"{name}: scene cut before frame(s) {cuts}: the estimate mixes more than one scene (the refinement reads "
-            f"the first {ANALYSIS_FRAMES} frames, the darkening several spread over the clip); give one shot"
+            f"{name}: scene cut before frame(s) {cuts}: the estimate mixes more than one scene (the spectrum reads "
+            f"the first {TEMPORAL_FRAMES} frames, the darkening several spread over the clip); give one shot"
         )
     if refines(noise_model, refine) and len(uniform) < reference.shape[0]:
-        if spectrum and min(reference.shape[-2:]) >= REFINE_MIN_SIDE:
-            noise = _measure_spectrum(reference, noise, ranges, meta, warnings, name)
-        else:
-            noise = _refine(reference, noise, ranges, meta, warnings, name)
+        noise = _measure_spectrum(reference, noise, ranges, meta, warnings, name)
     level = float(reference.mean())
     if level > BRIGHT_MEAN:
         warnings.append(
@@ -240,41 +225,14 @@ def _estimate_light(
 
 
 def refines(noise_model: NoiseModel, refine: bool = True) -> bool:
-    """Whether ``estimate`` (asked to ``refine``) refines a network's values of this noise model on the reference:
-    the sRGB model's only; the paper model stays the paper's."""
+    """Whether ``estimate`` (asked to ``refine``) measures the spectrum after a network of this noise model: the
+    sRGB model's only; the paper model stays the paper's."""
     return refine and noise_model == "srgb"
 
 
 REFINE_MIN_SIDE = 64
-"""Smallest side the refinement reads a reference of: below it, its 30 % smoothest pixels split into eight level
-bins leave too few pixels per bin for a variance (about 150 at 64 px), and the network's values stay."""
-
-
-def _refine(
-    reference: torch.Tensor,
-    noise: NoiseValues,
-    ranges: dict[str, tuple[tuple[float, float], ...]],
-    meta: dict[str, Any],
-    warnings: list[str],
-    source: str,
-) -> NoiseValues:
-    """The network's values refined on the reference, with ``ranges`` carried along (see :func:`moved_ranges`)
-    and what the network had said in ``meta["refined"]``."""
-    if min(reference.shape[-2:]) < REFINE_MIN_SIDE:
-        warnings.append(
-            f"{source}: {reference.shape[-1]}x{reference.shape[-2]} is too small to refine the noise on (needs "
-            f"{REFINE_MIN_SIDE} px a side); the profile keeps the network's values, which are weaker and greyer "
-            "than real noise (docs/refine.md)"
-        )
-        meta["refined"] = {"method": "not refined: reference too small"}
-        return noise
-    refined = refine_profile(reference, noise)
-    ranges.update(moved_ranges(ranges, noise, refined))
-    meta["refined"] = {
-        "method": "analysis by synthesis on the reference (docs/refine.md); ranges moved with the values",
-        "network_values": {name: [round(float(v), 5) for v in noise[name].tolist()] for name in noise},
-    }
-    return refined
+"""Smallest side the spectrum is measured on: below it the flat blocks of each level are too few, and the
+network's values stay."""
 
 
 SPECTRUM_REPLACES = ("shot", "read", "channel_gain", "correlation_length", "channel_correlation", "chroma_length")
@@ -292,6 +250,14 @@ def _measure_spectrum(
 ) -> NoiseValues:
     """The network's values with the heteroscedastic part and compression replaced by the measured spectrum; the
     replaced parameters lose their ranges (``apply --jitter`` would otherwise add the network's noise back)."""
+    if min(reference.shape[-2:]) < REFINE_MIN_SIDE:
+        warnings.append(
+            f"{source}: {reference.shape[-1]}x{reference.shape[-2]} is too small to measure the noise's spectrum on "
+            f"(needs {REFINE_MIN_SIDE} px a side); the profile keeps the network's values, which are weaker and "
+            "greyer than real noise (docs/spectral-noise.md)"
+        )
+        meta["spectrum"] = {"method": "not measured: reference too small"}
+        return noise
     found = estimate_spectrum(reference, name=source, prior_curve=network_level_curve(noise))
     neutral = {name: noise_parameter(name).neutral for name in SPECTRUM_REPLACES}
     measured = noise.replace(**neutral, **{name: value for name, value in found.values.items()})
@@ -312,37 +278,6 @@ def network_level_curve(noise: NoiseValues) -> torch.Tensor:
     the profile keeps beside the curve are not counted in it."""
     parameters = {p.name: noise[p.name] for p in noise_component("heteroscedastic").parameters}
     return channel_noise_std(parameters, torch.tensor(LEVEL_KNOTS, dtype=torch.float64)).T.contiguous()
-
-
-def moved_ranges(
-    ranges: Mapping[str, tuple[tuple[float, float], ...]], before: NoiseValues, after: NoiseValues
-) -> dict[str, tuple[tuple[float, float], ...]]:
-    """The network's per-crop ranges carried to refined values.
-
-    ``apply`` draws every parameter that has a range within it, so ranges left around the network's values would
-    undo the refinement. Levels (parameters with a log floor: positive, spanning decades) move by the ratio of
-    the values, every other parameter by their difference, each clipped to its bounds and widened to hold the
-    value; compression, which the refinement chooses among a few strengths, keeps no spread. Parameters the
-    refinement left unchanged keep their ranges.
-    """
-    moved: dict[str, tuple[tuple[float, float], ...]] = {}
-    for name, intervals in ranges.items():
-        if name not in before or name not in after or torch.equal(before[name], after[name]):
-            continue
-        parameter = noise_parameter(name)
-        entries = []
-        for (low, high), old, new in zip(intervals, before[name].tolist(), after[name].tolist(), strict=True):
-            if name == "compression":
-                low = high = new
-            elif parameter.log_floor is not None and old > 0.0:
-                low, high = low * new / old, high * new / old
-            else:
-                low, high = low + new - old, high + new - old
-            low = min(max(low, parameter.minimum), new)
-            high = max(min(high, parameter.maximum), new)
-            entries.append((float(low), float(high)))
-        moved[name] = tuple(entries)
-    return moved
 
 
 def profile_noise_std(noise: NoiseValues, reference: torch.Tensor, frames: Sequence[int] | None = None) -> float:

@@ -2,8 +2,7 @@
 
 The estimate of every crop is a full v; the median over crops is robust to crops where content, clipping or a
 light source misleads the network, and the 10th to 90th percentile across crops, the ``ranges``, lets ``apply``
-reproduce the spread the reference shows. Also here: the dark clean frames a v3 DEN's decoder reconstructs
-(:func:`den_denoise`), a denoiser for the refinement.
+reproduce the spread the reference shows.
 """
 
 from __future__ import annotations
@@ -13,7 +12,7 @@ from dataclasses import dataclass
 import torch
 
 from darksynth.estimation.reference import crop_grid
-from darksynth.models.den import DEN, DENOutput
+from darksynth.models.den import DEN
 from darksynth.noise.components import model_parameters
 from darksynth.noise.values import NoiseValues
 
@@ -54,15 +53,3 @@ def run_network(
         for p in model_parameters(noise_model, network.config.table_version)
     }
     return NetworkEstimate(per_crop=per_crop, noise=noise, ranges=ranges)
-
-
-@torch.no_grad()
-def den_denoise(network: DEN, frames: torch.Tensor) -> torch.Tensor:
-    """The dark clean frames a v3 DEN's decoder reconstructs from noisy frames (T, 3, H, W), as one clip."""
-    if network.config.variant != "v3":
-        raise ValueError(f"only a v3 DEN has a decoder, this one is {network.config.variant}")
-    parameter = next(network.parameters())
-    output: DENOutput = network.eval()(frames.to(device=parameter.device, dtype=parameter.dtype)[None])
-    if output.dark is None:
-        raise ValueError("the DEN returned no dark clean clip")
-    return output.dark[0].to(device=frames.device, dtype=frames.dtype)

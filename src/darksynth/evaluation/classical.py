@@ -6,11 +6,12 @@ Poisson-Gaussian law var(x) = a * x + b (Foi et al. 2008), a Gaussian being a = 
 
 from __future__ import annotations
 
+from dataclasses import dataclass
+
 import numpy as np
 import torch
 import torch.nn.functional as F
 
-from darksynth.noise.fit import LEVEL_BINS, PoissonGaussian, oracle_poisson_gaussian, weighted_line
 from darksynth.tensors import to_8bit_levels
 
 __all__ = [
@@ -26,6 +27,57 @@ BLOCK = 8
 
 SMOOTH_FRACTION = 0.3
 """Share of the blocks of each intensity bin, the least textured, that the single-image fit keeps."""
+
+LEVEL_BINS = 16
+"""Intensity bins of the variance-against-level fits."""
+
+
+@dataclass(frozen=True)
+class PoissonGaussian:
+    """Per-channel variance law var = a * x + b; a Gaussian has a = 0."""
+
+    a: tuple[float, float, float]
+    b: tuple[float, float, float]
+
+    def std(self, signal: torch.Tensor) -> torch.Tensor:
+        """Per-pixel standard deviation for a clean signal (3, H, W)."""
+        a = torch.tensor(self.a, dtype=signal.dtype, device=signal.device).view(3, 1, 1)
+        b = torch.tensor(self.b, dtype=signal.dtype, device=signal.device).view(3, 1, 1)
+        return (a * signal.clamp_min(0.0) + b).clamp_min(0.0).sqrt()
+
+
+def weighted_line(level: np.ndarray, variance: np.ndarray, weight: np.ndarray) -> tuple[float, float]:
+    """Least-squares a, b >= 0 of variance = a * level + b."""
+    design = np.stack([level, np.ones_like(level)], axis=1) * weight[:, None]
+    (a, b), *_ = np.linalg.lstsq(design, variance * weight, rcond=None)
+    if a < 0.0:  # the variance does not grow with the level: a Gaussian fits best
+        a, b = 0.0, float(np.average(variance, weights=weight**2))
+    if b < 0.0:
+        b = 0.0
+        a = float(np.sum(weight**2 * level * variance) / max(np.sum(weight**2 * level * level), 1e-20))
+    return float(a), float(b)
+
+
+def oracle_poisson_gaussian(noisy: torch.Tensor, clean: torch.Tensor) -> PoissonGaussian:
+    """Poisson-Gaussian parameters fitted with the clean image: variance of noisy - clean against clean."""
+    a_values, b_values = [], []
+    for noisy_channel, clean_channel in zip(noisy, clean, strict=True):
+        level = clean_channel.flatten()
+        noise = (noisy_channel - clean_channel).flatten()
+        order = torch.argsort(level)
+        levels, variances, sizes = [], [], []
+        for chunk in torch.tensor_split(order, LEVEL_BINS):
+            if len(chunk) < 16:
+                continue
+            levels.append(float(level[chunk].mean()))
+            variances.append(float(noise[chunk].var()))
+            sizes.append(len(chunk))
+        variance_array = np.array(variances)
+        weights = np.sqrt(np.array(sizes, dtype=np.float64)) / np.maximum(variance_array, 1e-8)
+        a, b = weighted_line(np.array(levels), variance_array, weights)
+        a_values.append(a)
+        b_values.append(b)
+    return PoissonGaussian(a=(a_values[0], a_values[1], a_values[2]), b=(b_values[0], b_values[1], b_values[2]))
 
 
 def add_poisson_gaussian(clean: torch.Tensor, law: PoissonGaussian, generator: torch.Generator) -> torch.Tensor:

@@ -23,7 +23,6 @@ from darksynth.evaluation.classical import (
     blind_poisson_gaussian,
     oracle_poisson_gaussian,
 )
-from darksynth.evaluation.srgb_fit import OracleComponents
 from darksynth.models.den import DEN
 from darksynth.noise.simulate import add_noise
 from darksynth.noise.values import NoiseValues
@@ -93,7 +92,13 @@ def load_den_weights(name: str, weights: Path, device: str) -> DEN:
         raise MethodUnavailableError(f"{name}: {error}") from None
 
 
-def _den_method(name: str, weights: Path, device: str, *, refine: bool = True, spectrum: bool = True) -> NoiseMethod:
+def synthesize_image(clean: torch.Tensor, values: NoiseValues, generator: torch.Generator) -> torch.Tensor:
+    """clean + f(v) through the composer (:func:`~darksynth.noise.simulate.add_noise`) on the clean image as it is
+    (it already has the reference's brightness), on 8-bit levels: (3, H, W) in [0, 1] in and out."""
+    return to_8bit_levels(add_noise(clean[None], values, generator=generator)[0])
+
+
+def _den_method(name: str, weights: Path, device: str, *, refine: bool = True) -> NoiseMethod:
     from darksynth.estimation.assemble import estimate, refines
 
     model = load_den_weights(name, weights, device)
@@ -101,23 +106,15 @@ def _den_method(name: str, weights: Path, device: str, *, refine: bool = True, s
 
     def fit(noisy: torch.Tensor, clean: torch.Tensor) -> NoiseValues:
         reference = noisy.to(torch.float32)[None]
-        return estimate(reference, model, device=device, refine=refine, spectrum=spectrum).profile.noise
-
-    def synthesize(clean: torch.Tensor, values: NoiseValues, generator: torch.Generator) -> torch.Tensor:
-        # The paper's model f(v) on the clean image as it is: it already has the reference's brightness.
-        return to_8bit_levels(add_noise(clean[None], values, generator=generator)[0])
+        return estimate(reference, model, device=device, refine=refine).profile.noise
 
     return NoiseMethod(
         name=name,
         summary=f"DEN {model.config.variant}, {model.noise_model} noise model ({weights.name}): v from the noisy "
-        + (
-            ("image, its spectrum measured on it" if spectrum else "image, refined on it by analysis by synthesis")
-            if refined
-            else "image"
-        )
+        + ("image, its spectrum measured on it" if refined else "image")
         + ", f(v) added to the clean",
         fit=fit,
-        synthesize=synthesize,
+        synthesize=synthesize_image,
         details={"weights": str(weights)},
     )
 
@@ -173,57 +170,7 @@ def _starlight_method(device: str) -> NoiseMethod:
     )
 
 
-_SRGB_ORACLES: dict[str, tuple[str, OracleComponents]] = {
-    "srgb-oracle": (
-        "sRGB noise model of the parameter table fitted with the clean image: green's shot and read, red and "
-        "blue gains, one correlation length, red-green/green-blue/red-blue correlations, JPEG compression (or "
-        "none) by search with a level correction",
-        OracleComponents(),
-    ),
-    "srgb-nochroma-oracle": (
-        "srgb-oracle without the colour part's own length (chroma_length 0): one correlation length for "
-        "brightness and colour noise alike",
-        OracleComponents(chroma=False),
-    ),
-    "srgb-nojpeg-oracle": (
-        "Heteroscedastic law with channel gains + spatial correlation + per-pair channel correlations, fitted "
-        "with the clean image; no JPEG",
-        OracleComponents(jpeg=False),
-    ),
-    "srgb-gains-oracle": (
-        "Heteroscedastic law with channel gains + spatial + per-pair channel correlations, levels corrected to "
-        "the real per-channel std, fitted with the clean image; no JPEG",
-        OracleComponents(candidates=(None,)),
-    ),
-    "pg-corr-oracle": (
-        "Heteroscedastic law with channel gains + spatial correlation (one length), fitted with the clean image",
-        OracleComponents(chromatic=False, jpeg=False),
-    ),
-    "pg-rho-oracle": (
-        "Heteroscedastic law with channel gains + one channel correlation rho for all pairs, fitted with the "
-        "clean image",
-        OracleComponents(spatial=False, pairwise=False, jpeg=False),
-    ),
-}
-"""The sRGB model's oracle and its ablations: summary and which parts are fitted
-(:class:`~darksynth.evaluation.srgb_fit.OracleComponents`)."""
-
-
-def _srgb_method(name: str) -> NoiseMethod:
-    from darksynth.evaluation.srgb_fit import fit_srgb_noise, synthesize_image
-
-    summary, components = _SRGB_ORACLES[name]
-    return NoiseMethod(
-        name=name,
-        summary=summary,
-        fit=lambda noisy, clean: fit_srgb_noise(noisy, clean, components),
-        synthesize=synthesize_image,
-        oracle=True,
-    )
-
-
 def _spectral_oracle_method() -> NoiseMethod:
-    from darksynth.evaluation.srgb_fit import synthesize_image
     from darksynth.noise.spectral_fit import oracle_spectral_fit
 
     def fit(noisy: torch.Tensor, clean: torch.Tensor) -> NoiseValues:
@@ -241,19 +188,15 @@ def _spectral_oracle_method() -> NoiseMethod:
 
 DEN_METHODS: dict[str, tuple[str, str]] = {
     "den": ("srgb", "v3"),
-    "den-srgb": ("srgb", "v3"),
     "den-network": ("srgb", "v3"),
     "den-paper": ("paper", "v3"),
     "den-v2": ("paper", "v2"),
 }
 """The DEN methods and the (noise model, variant) of the shipped DEN each uses unless given weights. ``den`` is
-what ``darksynth estimate`` gives (the sRGB DEN, refined on the reference); ``den-network`` the same network's
-values without the refinement (its ablation)."""
+what ``darksynth estimate`` gives (the sRGB DEN, the spectrum measured on the reference); ``den-network`` the same
+network's values alone (its ablation)."""
 
 UNREFINED_DEN_METHODS = frozenset({"den-network"})
-UNMEASURED_SPECTRUM_METHODS = frozenset({"den-srgb"})
-"""``den-srgb``: the version-3 profile (the sRGB structure refined by analysis by synthesis, docs/refine.md), as
-``estimate --no-spectrum`` gives it."""
 
 DEFAULT_METHODS: tuple[str, ...] = (
     "den",
@@ -272,12 +215,9 @@ DEFAULT_METHODS: tuple[str, ...] = (
 
 METHOD_NAMES: tuple[str, ...] = (
     *DEFAULT_METHODS,
-    # Clean-aided ablations of the extended sRGB noise model (docs/srgb-noise.md), run by name only.
-    *_SRGB_ORACLES,
-    # The sRGB DEN without the refinement on the reference (docs/refine.md), run by name only.
+    # The sRGB DEN's values alone, without the spectrum measured on the reference, run by name only.
     "den-network",
-    # The version-3 estimate (sRGB structure refined, no spectrum) and the spectral model's clean-aided fit.
-    "den-srgb",
+    # The spectral model's clean-aided fit.
     "spectral-oracle",
 )
 
@@ -296,13 +236,7 @@ def build_method(name: str, *, weights: dict[str, Path] | None = None, device: s
     if name in DEN_METHODS:
         noise_model, variant = DEN_METHODS[name]
         path = DENChoice(weights.get(name), noise_model=noise_model, variant=variant).path()
-        return _den_method(
-            name,
-            path,
-            device,
-            refine=name not in UNREFINED_DEN_METHODS,
-            spectrum=name not in UNMEASURED_SPECTRUM_METHODS,
-        )
+        return _den_method(name, path, device, refine=name not in UNREFINED_DEN_METHODS)
     if name == "den-v1":
         return _den_v1_method(weights.get(name), device)
     if name == "awgn":
@@ -332,8 +266,6 @@ def build_method(name: str, *, weights: dict[str, Path] | None = None, device: s
         )
     if name == "starlight":
         return _starlight_method(device)
-    if name in _SRGB_ORACLES:
-        return _srgb_method(name)
     if name == "spectral-oracle":
         return _spectral_oracle_method()
     raise MethodUnavailableError(f"{name}: unknown method (known: {', '.join(METHOD_NAMES)})")

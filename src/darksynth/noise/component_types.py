@@ -1,8 +1,8 @@
 """How a noise component is declared: the records of the component table and their vocabulary.
 
 The table itself is :data:`darksynth.noise.components.NOISE_COMPONENTS`; the components are declared by noise
-model in :mod:`~darksynth.noise.paper_components`, :mod:`~darksynth.noise.srgb_components` and
-:mod:`~darksynth.noise.spectral_components`.
+model in :mod:`~darksynth.noise.paper_components`, :mod:`~darksynth.noise.heteroscedastic_components`,
+:mod:`~darksynth.noise.spectral_components` and :mod:`~darksynth.noise.compression`.
 
 All values are on the [0, 1] intensity scale of the image.
 """
@@ -35,30 +35,26 @@ LIGHT_STRUCTURES: frozenset[str] = frozenset({"scene", "exposure"})
 
 NoiseModel = Literal["paper", "srgb", "spectral"]
 """``paper``: the paper's five components (profile version 1, DEN model version 1). ``srgb``: those plus the
-structure of real sRGB noise (per-channel gains, spatial and cross-channel correlation, JPEG), measured in
-docs/srgb-noise.md (profile version 2, DEN model version 2). ``spectral``: those plus the measured spectrum
-(per-octave colour covariances, level curves, temporal correlation; docs/spectral-noise.md, profile version 4),
-estimated by measurement on the reference rather than by the network."""
+structure of real sRGB noise (per-channel gains, spatial and cross-channel correlation, JPEG; profile versions 2
+and 3): the vocabulary of the estimation network's vector, drawn as the spectral model
+(:mod:`darksynth.noise.structure_translation`). ``spectral``: those plus the measured spectrum (per-octave colour
+covariances, level curves, temporal correlation; docs/spectral-noise.md, profile version 4), estimated by
+measurement on the reference rather than by the network."""
 
 Role = Literal["amplitude", "shape"]
 """``amplitude``: the component draws nothing when all its amplitude parameters are neutral. ``shape``: shapes
 what the amplitudes draw (a correlation length, a channel gain) and draws nothing by itself."""
 
-FastPath = Literal["fused_8bit", "structured_8bit", "spectral_8bit"]
-"""A specialised implementation of part of f(v). ``fused_8bit``: :mod:`darksynth.noise.kernel8`, one pass over
-an 8-bit frame that draws white heteroscedastic and quantization noise and adds the column components.
-``structured_8bit``: the same pass fed with the sRGB model's structured unit noise (channel gains, spatial and
-colour correlation, drawn by the composer's own function) instead of its counter-based normal, then the
-compression stage: the compiled path of an sRGB profile. ``spectral_8bit``: :mod:`darksynth.noise.spectral_8bit`,
-the spectral model's unit noise scaled by the level curve's std read from a table of the 256 input levels, then
-the composer's quantization, column components and compression: the default path of a profile from ``estimate``."""
+FastPath = Literal["fused_8bit", "spectral_8bit"]
+"""A specialised implementation of part of f(v). ``fused_8bit``: :mod:`darksynth.noise.fused_8bit`, one pass over
+an 8-bit frame that draws white heteroscedastic and quantization noise and adds the column components: the path of
+the paper's model. ``spectral_8bit``: :mod:`darksynth.noise.spectral_8bit`, the spectral model's unit noise scaled by
+the level curve's std read from a table of the 256 input levels, then the composer's quantization, column components
+and compression: the default path of a profile from ``estimate``, and of a translated sRGB structure."""
 
-FUSED_PATHS: frozenset[FastPath] = frozenset({"fused_8bit", "structured_8bit"})
-"""Both 8-bit kernels: the levels (shot, read), quantization, which they draw themselves, and the column components,
-which the composer draws and they add."""
-
-STRUCTURED_PATHS: frozenset[FastPath] = frozenset({"structured_8bit"})
-"""The sRGB structure (gains, spatial and colour correlation): the structured path only."""
+FUSED_PATHS: frozenset[FastPath] = frozenset({"fused_8bit"})
+"""The white 8-bit kernel: the levels (shot, read), quantization, which it draws itself, and the column components,
+which the composer draws and it adds."""
 
 SPECTRAL_PATHS: frozenset[FastPath] = frozenset({"spectral_8bit"})
 """The spectrum and the level curve: the spectral path only."""
@@ -66,11 +62,11 @@ SPECTRAL_PATHS: frozenset[FastPath] = frozenset({"spectral_8bit"})
 ALL_8BIT_PATHS: frozenset[FastPath] = FUSED_PATHS | SPECTRAL_PATHS
 """Quantization and the column components, which every 8-bit path draws as the composer does."""
 
-ALL_PATHS: frozenset[FastPath] = ALL_8BIT_PATHS | STRUCTURED_PATHS
+ALL_PATHS: frozenset[FastPath] = ALL_8BIT_PATHS
 """Every fast path: what a parameter that none of them needs to draw declares (light, which runs outside them)."""
 
-COMPRESSION_PATHS: frozenset[FastPath] = STRUCTURED_PATHS | SPECTRAL_PATHS
-"""The compression stage, which the structured and the spectral path run after their per-pixel pass."""
+COMPRESSION_PATHS: frozenset[FastPath] = SPECTRAL_PATHS
+"""The compression stage, which the spectral path runs after its per-pixel pass."""
 
 DrawFunction = Callable[[torch.Tensor, Mapping[str, torch.Tensor], torch.Generator | None], torch.Tensor]
 """``draw(signal, values, generator) -> noise``: ``signal`` is the darkened clean clip (..., T, C, H, W),

@@ -6,8 +6,9 @@ reveal it, the fast paths that can draw it) and the pure functions that draw it 
 noise variance. The profile schema, the carrier of values (:mod:`darksynth.noise.values`), the estimation
 network's vector and statistics, the samplers, the composer and the fused kernel's choice all read this table
 through the functions below (never a copy of it), so a new component is declared next to its functions in the
-module of its noise model (:mod:`~darksynth.noise.paper_components`, :mod:`~darksynth.noise.srgb_components`,
-:mod:`~darksynth.noise.spectral_components`, with the records of :mod:`~darksynth.noise.component_types`), listed
+module of its noise model (:mod:`~darksynth.noise.paper_components`,
+:mod:`~darksynth.noise.heteroscedastic_components`, :mod:`~darksynth.noise.spectral_components`,
+:mod:`~darksynth.noise.compression`, with the records of :mod:`~darksynth.noise.component_types`), listed
 here, and nowhere else; ``tests/noise/test_new_component.py`` declares one inside a test and runs it end to end.
 
 All values are on the [0, 1] intensity scale of the image.
@@ -28,10 +29,11 @@ from darksynth.noise.component_types import (
     VarianceFunction,
     shapes_neutral,
 )
+from darksynth.noise.compression import COMPRESSION
+from darksynth.noise.heteroscedastic_components import HETEROSCEDASTIC
 from darksynth.noise.light_components import FLICKER, SCENE
 from darksynth.noise.paper_components import BANDING, PERIODIC, QUANTIZATION, TEMPORAL_BANDING
 from darksynth.noise.spectral_components import SPECTRAL
-from darksynth.noise.srgb_components import COMPRESSION, HETEROSCEDASTIC, structured_unit_noise
 from darksynth.noise.statistics import EstimatorStatistics
 
 __all__ = [
@@ -57,7 +59,6 @@ __all__ = [
     "profile_section",
     "profile_version",
     "shapes_neutral",
-    "structured_unit_noise",
     "vector_size",
 ]
 

@@ -75,12 +75,14 @@ _SPECTRAL_PARAMETERS: tuple[Parameter, ...] = (
 )
 
 
-def _spectral_clips(
+def spectral_clips(
     signal: torch.Tensor,
     values: Mapping[str, torch.Tensor],
     generator: torch.Generator | None,
     held: dict[str, Any] | None,
 ) -> torch.Tensor:
+    """The spectral noise of ``signal`` (*batch, T, C, H, W), or a single frame (C, H, W), with ``values`` batched
+    like it; ``held``: a stream's state (see :func:`darksynth.noise.spectral.spectral_clip_noise`)."""
     if generator is None:
         generator = torch.default_generator
     # A single frame (C, H, W), as streaming passes it, is a clip of one frame.
@@ -111,13 +113,13 @@ def _spectral_clips(
 def _draw_spectral(
     signal: torch.Tensor, values: Mapping[str, torch.Tensor], generator: torch.Generator | None
 ) -> torch.Tensor:
-    return _spectral_clips(signal, values, generator, None)
+    return spectral_clips(signal, values, generator, None)
 
 
 def _draw_spectral_in_stream(
     signal: torch.Tensor, values: Mapping[str, torch.Tensor], generator: torch.Generator | None, held: dict[str, Any]
 ) -> torch.Tensor:
-    return _spectral_clips(signal, values, generator, held)
+    return spectral_clips(signal, values, generator, held)
 
 
 def _spectral_variance(values: Mapping[str, torch.Tensor], channel_means: torch.Tensor) -> torch.Tensor:

@@ -17,7 +17,7 @@ Here two ``torch.compile`` kernels do the work in vectorised loops on every core
 
 It draws the same law as the eager path (same spectrum, same colour covariance per octave, same AR(1) in time,
 same level curve, normal values), not the same bits: the white values come from a hash, not from the
-generator, as the sRGB model's compiled kernel already does (:func:`darksynth.noise.kernel8.srgb_pixel_kernel_8bit`).
+generator, as the white model's kernel does (:func:`darksynth.noise.fused_8bit.pixel_kernel_8bit`).
 Eagerly these functions give the compiled ones' values (the tests run them both ways), only slower; they are
 used compiled.
 """
@@ -31,7 +31,7 @@ import torch
 
 from darksynth.darkening import Darkening
 from darksynth.noise.counter_rng import byte_from_word, first_word, flat_index, random_key, triangular_from_word
-from darksynth.noise.kernel8 import FULL_SCALE, compiled_function
+from darksynth.noise.fused_8bit import FULL_SCALE, compiled_function
 from darksynth.noise.quantization import QUANTIZATION_LEVELS
 from darksynth.noise.spectral import crop_unit, spectral_tables
 from darksynth.noise.spectral_8bit import LEVELS, level_tables

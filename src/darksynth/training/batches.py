@@ -10,6 +10,7 @@ from darksynth.darkening import darken
 from darksynth.noise.components import NoiseModel, model_parameters, noise_components
 from darksynth.noise.sampling import random_darkening_values, random_noise_values
 from darksynth.noise.simulate import add_noise
+from darksynth.noise.structure_translation import spectral_tensors
 from darksynth.noise.values import NoiseValues
 from darksynth.tensors import to_8bit_levels
 
@@ -81,9 +82,12 @@ def random_noisy_version(
     ``absent_probability``; a parameter with a ``training_off_probability`` is also switched off alone with
     that probability (white, uncompressed noise stays in the training data).
 
+    The sRGB structure is drawn as the spectral model draws it
+    (:func:`darksynth.noise.structure_translation.spectral_tensors`), as ``apply`` draws a profile's.
+
     Returns:
         The noisy clips and the values drawn, each (B, size) by parameter name (every parameter of the table;
-        those outside the model neutral).
+        those outside the model neutral): the network's vocabulary, not their translation.
     """
     batch = dark.shape[0]
     drawn = random_noise_values(
@@ -104,4 +108,5 @@ def random_noisy_version(
                 keep = keep & (alone >= parameter.training_off_probability)
             switched[parameter.name] = torch.where(keep, drawn[parameter.name], parameter.neutral)
     values = drawn.replace(**switched)
-    return to_8bit_levels(add_noise(dark, values, generator=generator)), values
+    noisy = add_noise(dark, NoiseValues(spectral_tensors(values)), generator=generator)
+    return to_8bit_levels(noisy), values

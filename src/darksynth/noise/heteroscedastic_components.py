@@ -1,26 +1,22 @@
-"""The heteroscedastic component (the paper's shot and read noise, shaped by the structure of real sRGB noise:
-channel gains, spatial, colour and chroma correlation) and the sRGB model's compression stage.
+"""The heteroscedastic component: the paper's shot and read noise, and the sRGB structure that version-2 and
+version-3 profiles (and the estimation network's vector) give it: channel gains, spatial, colour and chroma
+correlation. Shot and read alone draw white noise; with a structure the noise is drawn as the spectral model
+(:mod:`darksynth.noise.structure_translation`).
 
 All values are on the [0, 1] intensity scale of the image.
 """
 
 from __future__ import annotations
 
-from collections.abc import Mapping, Sequence
+from collections.abc import Mapping
 
 import torch
 
-from darksynth.noise.component_types import (
-    COMPRESSION_PATHS,
-    FUSED_PATHS,
-    STRUCTURED_PATHS,
-    NoiseComponent,
-    Parameter,
-    shapes_neutral,
-)
-from darksynth.noise.correlated import jpeg_compress_clips, structured_normal
-from darksynth.noise.heteroscedastic import heteroscedastic_noise, heteroscedastic_std
+from darksynth.noise.component_types import FUSED_PATHS, NoiseComponent, Parameter, shapes_neutral
+from darksynth.noise.heteroscedastic import heteroscedastic_noise
+from darksynth.noise.spectral_components import spectral_clips
 from darksynth.noise.statistics import SRGB_STATISTICS
+from darksynth.noise.structure_translation import spectral_tensors
 
 _HETEROSCEDASTIC_PARAMETERS: tuple[Parameter, ...] = (
     Parameter(
@@ -52,7 +48,6 @@ _HETEROSCEDASTIC_PARAMETERS: tuple[Parameter, ...] = (
         minimum=0.25,
         neutral=1.0,
         noise_model="srgb",
-        fast_paths=STRUCTURED_PATHS,
         since_version=2,
         statistics=SRGB_STATISTICS,
         role="shape",
@@ -65,7 +60,6 @@ _HETEROSCEDASTIC_PARAMETERS: tuple[Parameter, ...] = (
         8.0,
         (0.0, 2.0),
         noise_model="srgb",
-        fast_paths=STRUCTURED_PATHS,
         since_version=2,
         statistics=SRGB_STATISTICS,
         role="shape",
@@ -79,7 +73,6 @@ _HETEROSCEDASTIC_PARAMETERS: tuple[Parameter, ...] = (
         (0.0, 0.7),
         minimum=-0.45,
         noise_model="srgb",
-        fast_paths=STRUCTURED_PATHS,
         since_version=2,
         statistics=SRGB_STATISTICS,
         role="shape",
@@ -94,7 +87,6 @@ _HETEROSCEDASTIC_PARAMETERS: tuple[Parameter, ...] = (
         8.0,
         (0.0, 3.0),
         noise_model="srgb",
-        fast_paths=STRUCTURED_PATHS,
         since_version=3,
         statistics=SRGB_STATISTICS,
         role="shape",
@@ -106,35 +98,17 @@ _HETEROSCEDASTIC_PARAMETERS: tuple[Parameter, ...] = (
 def _draw_heteroscedastic(
     signal: torch.Tensor, values: Mapping[str, torch.Tensor], generator: torch.Generator | None
 ) -> torch.Tensor:
-    shot, read = values["shot"][..., 0], values["read"][..., 0]
     if shapes_neutral(_HETEROSCEDASTIC_PARAMETERS, values):
-        return heteroscedastic_noise(signal, shot, read, generator=generator)
-    # A single frame (C, H, W), as streaming passes it, is a clip of one frame.
-    shape = signal.shape if signal.dim() >= 4 else (1, *signal.shape)
-    unit = structured_unit_noise(shape, values, generator=generator, dtype=signal.dtype).reshape(signal.shape)
-    return heteroscedastic_std(signal, shot, read) * unit
-
-
-def structured_unit_noise(
-    shape: Sequence[int],
-    values: Mapping[str, torch.Tensor],
-    *,
-    generator: torch.Generator | None,
-    dtype: torch.dtype = torch.float32,
-) -> torch.Tensor:
-    """The heteroscedastic component's unit noise for clips ``shape`` (*batch, T, C, H, W): channel gains,
-    spatial and colour correlation of ``values`` (batched like the clips, or unbatched), before the per-pixel
-    std; the compiled sRGB kernel draws the same law from the same factors (:mod:`darksynth.noise.kernel8`)."""
-    batch = tuple(shape[: len(shape) - 4])
-    return structured_normal(
-        shape,
-        values["correlation_length"].expand(*batch, 1)[..., 0],
-        values["channel_correlation"].expand(*batch, 3),
-        values["channel_gain"].expand(*batch, 2),
-        generator=generator,
-        dtype=dtype,
-        chroma_lengths=values["chroma_length"].expand(*batch, 1)[..., 0],
-    )
+        return heteroscedastic_noise(signal, values["shot"][..., 0], values["read"][..., 0], generator=generator)
+    # Clip parameters come translated (darksynth.synthesize, the training batches); values given to the composer
+    # directly are translated here, so that no route draws the structure any other way.
+    spectral = spectral_tensors(values)
+    noise = spectral_clips(signal, spectral, generator, None)
+    shot, read = spectral["shot"][..., 0], spectral["read"][..., 0]
+    if bool((shot != 0.0).any() or (read != 0.0).any()):
+        # A batch that mixes structured clips with white ones.
+        noise = noise + heteroscedastic_noise(signal, shot, read, generator=generator)
+    return noise
 
 
 def _heteroscedastic_variance(values: Mapping[str, torch.Tensor], channel_means: torch.Tensor) -> torch.Tensor:
@@ -153,36 +127,5 @@ HETEROSCEDASTIC = NoiseComponent(
     draw=_draw_heteroscedastic,
     variance=_heteroscedastic_variance,
     reference="Foi et al. 2008, Practical Poissonian-Gaussian noise modeling and fitting; "
-    "structure: docs/srgb-noise.md",
-)
-
-
-def _draw_compression(
-    noisy: torch.Tensor, values: Mapping[str, torch.Tensor], generator: torch.Generator | None
-) -> torch.Tensor:
-    if noisy.dim() < 4:
-        return jpeg_compress_clips(noisy[None], values["compression"][..., 0])[0]
-    return jpeg_compress_clips(noisy, values["compression"][..., 0])
-
-
-COMPRESSION = NoiseComponent(
-    name="compression",
-    parameters=(
-        Parameter(
-            "compression",
-            1,
-            "JPEG compression strength c: quality round(100 (1 - c)), 0 for none",
-            0.95,
-            (0.0, 0.7),
-            noise_model="srgb",
-            fast_paths=COMPRESSION_PATHS,
-            since_version=2,
-            statistics=SRGB_STATISTICS,
-            training_off_probability=0.4,
-        ),
-    ),
-    structure="output",
-    draw=_draw_compression,
-    variance=None,
-    reference="JPEG (ITU-T T.81) through Pillow, 4:2:0; docs/srgb-noise.md",
+    "structure: docs/srgb-noise.md (retired drawing), docs/spectral-noise.md",
 )

@@ -24,15 +24,7 @@ from typing import Any
 import torch
 
 from darksynth.noise.components import FastPath
-from darksynth.noise.correlated import normalised_taps, unit_noise_factors
-from darksynth.noise.counter_rng import (
-    advance,
-    byte_from_word,
-    first_word,
-    flat_index,
-    normal_and_byte,
-    normal_from_word,
-)
+from darksynth.noise.counter_rng import advance, normal_and_byte
 from darksynth.noise.quantization import QUANTIZATION_LEVELS
 from darksynth.noise.values import NoiseValues
 
@@ -43,11 +35,6 @@ FULL_SCALE = 255.0
 FAST_PATH: FastPath = "fused_8bit"
 """The name under which the table declares what this kernel covers (:attr:`Parameter.fast_paths`): white
 heteroscedastic and quantization noise per pixel; the column components come in as a precomputed pattern."""
-
-STRUCTURED_PATH: FastPath = "structured_8bit"
-"""The sRGB model's path: :func:`srgb_pixel_kernel_8bit`, which draws the structured unit noise (counter-based
-normals, the spatial filter of each component, the channel mixing) and does the per-pixel pass in one compiled
-function; the compression stage runs after it."""
 
 PixelKernel = Callable[..., torch.Tensor]
 
@@ -101,10 +88,9 @@ def pixel_pass_8bit(
     quantization_step: torch.Tensor,
     column_pattern: torch.Tensor,
 ) -> torch.Tensor:
-    """The per-pixel pass of both kernels: darkening, std * ``unit`` (the heteroscedastic draw), the quantization
-    draw from ``byte`` (C, H, W) int32 in 0..255 (:func:`darksynth.noise.quantization.quantization_noise`'s law), the
-    column pattern, rounding and clamping. ``unit`` (C, H, W) float32 is white for :func:`pixel_kernel_8bit` and
-    the structured unit noise for :func:`srgb_pixel_kernel_8bit`."""
+    """The per-pixel pass of :func:`pixel_kernel_8bit`: darkening, std * ``unit`` (the heteroscedastic draw, white
+    (C, H, W) float32), the quantization draw from ``byte`` (C, H, W) int32 in 0..255
+    (:func:`darksynth.noise.quantization.quantization_noise`'s law), the column pattern, rounding and clamping."""
     # 8-bit input has 256 levels: the darkened level and its noise std are read from two 256-entry tables
     # computed here. exp(log(x) / gamma) is x ** (1 / gamma), with log(0) = -inf giving exactly 0 at black.
     levels = torch.arange(256, dtype=torch.float32, device=frame.device) * (1.0 / FULL_SCALE)
@@ -116,103 +102,6 @@ def pixel_pass_8bit(
     level = (darkened + std * unit + quantization) * FULL_SCALE + column_pattern
     # Rounding before clamping equals clamping before rounding here because the bounds are integers.
     return level.round().clamp(0.0, FULL_SCALE).to(torch.uint8)
-
-
-def srgb_pixel_kernel_8bit(
-    frame: torch.Tensor,
-    key: torch.Tensor,
-    taps: torch.Tensor,
-    mixing: torch.Tensor,
-    first_row: torch.Tensor,
-    frame_rows: torch.Tensor,
-    alpha: torch.Tensor,
-    inverse_gamma: torch.Tensor,
-    shot_squared: torch.Tensor,
-    read_squared: torch.Tensor,
-    quantization_step: torch.Tensor,
-    column_pattern: torch.Tensor,
-) -> torch.Tensor:
-    """Rows ``first_row ..`` of one frame of darkening + f(v) for the sRGB model on 8-bit values, the structured
-    unit noise drawn inside: :func:`pixel_pass_8bit` fed with counter-based draws.
-
-    The unit noise is the general path's law (:func:`darksynth.noise.correlated.structured_normal`): N white
-    components on a grid padded by the kernel radius, each filtered along x and y by its row of ``taps`` (variance
-    kept at 1), mixed into the channels by ``mixing``. Normal n at padded row y and column x is the draw of index
-    (n * (frame_rows + K - 1) + y) * (W + K - 1) + x, the quantization byte of channel c at row y, column x the
-    draw of index N * (frame_rows + K - 1) * (W + K - 1) + (c * frame_rows + y) * W + x, so a block of rows
-    gets exactly its numbers in the whole frame: the eager kernel runs in blocks that stay in cache and the
-    output does not depend on the blocking.
-
-    Args:
-        frame: rows of the clean frame (C, R, W) uint8.
-        key: (2,) int32 key of the frame (:func:`darksynth.noise.counter_rng.random_key`).
-        taps: (N, K) float32 normalised taps (:func:`darksynth.noise.correlated.normalised_taps`), K odd.
-        mixing: (C, N) float32 mixing of the components into the channels.
-        first_row, frame_rows: 0-dim int32, the block's first row in the frame and the frame's height.
-        alpha ... column_pattern: as :func:`pixel_kernel_8bit`.
-    """
-    channels, rows, width = frame.shape
-    count, size = taps.shape
-    device = frame.device
-    padded_width = width + size - 1
-    padded_rows = frame_rows + (size - 1)
-    component = torch.arange(count, dtype=torch.int32, device=device)[:, None, None]
-    row = (torch.arange(rows + size - 1, dtype=torch.int32, device=device) + first_row)[None, :, None]
-    column = torch.arange(padded_width, dtype=torch.int32, device=device)[None, None, :]
-    white, _ = normal_from_word(first_word((component * padded_rows + row) * padded_width + column, key))
-    along_x = taps[:, 0, None, None] * white[:, :, :width]
-    for tap in range(1, size):
-        along_x = along_x + taps[:, tap, None, None] * white[:, :, tap : tap + width]
-    both = taps[:, 0, None, None] * along_x[:, :rows]
-    for tap in range(1, size):
-        both = both + taps[:, tap, None, None] * along_x[:, tap : tap + rows]
-    unit = mixing[:, 0, None, None] * both[0]
-    for component_index in range(1, count):
-        unit = unit + mixing[:, component_index, None, None] * both[component_index]
-    channel = torch.arange(channels, dtype=torch.int32, device=device)[:, None, None]
-    frame_row = (torch.arange(rows, dtype=torch.int32, device=device) + first_row)[None, :, None]
-    byte_index = (channel * frame_rows + frame_row) * width + flat_index((1, 1, width), device)
-    byte = byte_from_word(first_word(byte_index + count * padded_rows * padded_width, key))
-    return pixel_pass_8bit(
-        frame, unit, byte, alpha, inverse_gamma, shot_squared, read_squared, quantization_step, column_pattern
-    )
-
-
-def srgb_kernel_factors(values: NoiseValues, channels: int, *, device: torch.device) -> tuple[torch.Tensor, ...]:
-    """The (taps, mixing) arguments of :func:`srgb_pixel_kernel_8bit` for unbatched ``values`` and ``channels``:
-    the general path's own factors (:func:`darksynth.noise.correlated.unit_noise_factors`)."""
-    pairs = values["channel_correlation"].tolist()
-    red, blue = values["channel_gain"].tolist()
-    lengths, mixing = unit_noise_factors(
-        channels, values.scalar("correlation_length"), values.scalar("chroma_length"), pairs, (red, blue)
-    )
-    return normalised_taps(lengths).to(device), mixing.to(device=device, dtype=torch.float32)
-
-
-def srgb_kernel_in_pieces(
-    kernel: PixelKernel,
-    frame: torch.Tensor,
-    key: torch.Tensor,
-    factors: tuple[torch.Tensor, ...],
-    scalars: tuple[torch.Tensor, ...],
-    column_pattern: torch.Tensor,
-    *,
-    piece_values: int = EAGER_CHUNK_VALUES,
-) -> torch.Tensor:
-    """Run the sRGB kernel on blocks of rows (all channels, which the mixing needs); bit-identical to one call."""
-    channels, height, width = frame.shape
-    rows = max(1, piece_values // max(channels * width, 1))
-    frame_rows = torch.tensor(height, dtype=torch.int32, device=frame.device)
-    if rows >= height:
-        first = torch.zeros((), dtype=torch.int32, device=frame.device)
-        return kernel(frame, key, *factors, first, frame_rows, *scalars, column_pattern)
-    out = torch.empty_like(frame)
-    for top in range(0, height, rows):
-        first = torch.tensor(top, dtype=torch.int32, device=frame.device)
-        out[:, top : top + rows] = kernel(
-            frame[:, top : top + rows], key, *factors, first, frame_rows, *scalars, column_pattern
-        )
-    return out
 
 
 def kernel_scalars(
@@ -290,8 +179,3 @@ def compiled_pixel_kernel() -> PixelKernel:
     callers use it for streams of many same-sized frames and the eager kernel for a single image.
     """
     return compiled_function(pixel_kernel_8bit)
-
-
-def compiled_srgb_kernel() -> PixelKernel:
-    """:func:`srgb_pixel_kernel_8bit` through ``torch.compile`` (the eager one where that is unavailable)."""
-    return compiled_function(srgb_pixel_kernel_8bit)

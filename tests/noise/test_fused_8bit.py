@@ -14,11 +14,10 @@ import darksynth
 from darksynth.darkening import Darkening
 from darksynth.noise.components import model_parameters
 from darksynth.noise.counter_rng import advance, random_key
-from darksynth.noise.kernel8 import compiled_pixel_kernel, pixel_kernel_8bit
+from darksynth.noise.fused_8bit import compiled_pixel_kernel, pixel_kernel_8bit
 from darksynth.noise.values import NoiseValues
 from darksynth.profile import default_profile_path, load_profile
 from darksynth.synthesize import ClipParameters, ClipSynthesizer, draw_clip_parameters
-from tests.noise.test_fast_paths import SRGB
 
 
 def _per_level_moments(clean: torch.Tensor, noisy: torch.Tensor) -> tuple[torch.Tensor, torch.Tensor]:
@@ -162,7 +161,7 @@ def test_compiled_kernel_is_bit_identical_to_eager() -> None:
 
 
 def test_kernel_in_pieces_is_bit_identical_to_one_call() -> None:
-    from darksynth.noise.kernel8 import kernel_scalars, pixel_kernel_in_pieces
+    from darksynth.noise.fused_8bit import kernel_scalars, pixel_kernel_in_pieces
 
     generator = torch.Generator().manual_seed(5)
     frame = torch.randint(0, 256, (3, 301, 517), dtype=torch.uint8, generator=generator)
@@ -181,32 +180,6 @@ def test_kernel_in_pieces_is_bit_identical_to_one_call() -> None:
     assert torch.equal(
         whole, pixel_kernel_in_pieces(pixel_kernel_8bit, frame, wrapped, scalars, columns, piece_values=3619)
     )
-
-
-@pytest.mark.parametrize("channels", [3, 1])
-def test_srgb_kernel_in_pieces_is_bit_identical_to_one_call(channels: int) -> None:
-    from darksynth.noise.kernel8 import (
-        kernel_scalars,
-        srgb_kernel_factors,
-        srgb_kernel_in_pieces,
-        srgb_pixel_kernel_8bit,
-    )
-
-    generator = torch.Generator().manual_seed(6)
-    frame = torch.randint(0, 256, (channels, 157, 211), dtype=torch.uint8, generator=generator)
-    columns = torch.randn(channels, 1, 211, generator=generator) * 3
-    key = random_key(generator)
-    values = NoiseValues.from_values(SRGB)  # type: ignore[arg-type]
-    factors = srgb_kernel_factors(values, channels, device=torch.device("cpu"))
-    scalars = kernel_scalars(0.3, 0.6, values, device=torch.device("cpu"))
-    whole = srgb_kernel_in_pieces(srgb_pixel_kernel_8bit, frame, key, factors, scalars, columns)
-    # Blocks of 5 rows: the padded margins of neighbouring blocks overlap, and the last block is partial.
-    pieces = srgb_kernel_in_pieces(
-        srgb_pixel_kernel_8bit, frame, key, factors, scalars, columns, piece_values=5 * channels * 211
-    )
-    assert torch.equal(whole, pieces)
-    other = srgb_kernel_in_pieces(srgb_pixel_kernel_8bit, frame, random_key(generator), factors, scalars, columns)
-    assert (other != whole).double().mean().item() > 0.3
 
 
 def test_counter_normals_and_bytes_have_their_laws_and_are_independent() -> None:
