@@ -10,8 +10,9 @@ Each case (its own seed; the same seed gives the same case on any machine):
 * darkened as ``apply`` darkens, ``alpha * x ** (1 / gamma)``: gamma ~ U(0.4, 1), alpha set so that the mean level
   is log-uniform over [0.02, 0.35] (very dark to mid-grey; the darkest cases clip much of their noise at 0);
 * noise of one of three kinds: ``white`` (Poisson-Gaussian, shot log-uniform over [0.01, 0.16], read over [0.003,
-  0.04]), ``structured`` (the same levels with the sRGB model's channel gains, spatial and channel correlation
-  drawn from its training ranges), ``spectral`` (the level curve of such a shot and read with channel gains, and a
+  0.04]), ``structured`` (the same levels with the sRGB vocabulary's channel gains, spatial and channel
+  correlation drawn from its training ranges, drawn as a version-3 profile is: translated into the spectral
+  model), ``spectral`` (the level curve of such a shot and read with channel gains, and a
   spectrum like a camera's: brightness rising toward coarse scales by up to 4x, colour mottle peaking at 16-64 px at
   up to 60x white noise); a third of the cases JPEG-compressed (quality 80 or 60); one case in eight a 4-frame
   clip of a still scene whose noise persists from frame to frame (AR(1) per octave up to 0.8);
