@@ -177,3 +177,10 @@ def test_a_profile_without_structure_draws_exactly_the_papers_white_noise() -> N
     profile = Profile(noise=NoiseValues.from_values({"shot": 0.06, "read": 0.012}))
     parameters = draw_clip_parameters(profile, darkening=None)
     assert parameters.noise == profile.noise
+
+
+def test_the_structures_neutral_values_are_the_tables() -> None:
+    from darksynth.noise.components import noise_parameter
+    from darksynth.noise.structure_translation import STRUCTURE_NEUTRAL
+
+    assert {name: noise_parameter(name).neutral for name in STRUCTURE_NEUTRAL} == STRUCTURE_NEUTRAL

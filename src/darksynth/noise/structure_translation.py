@@ -40,8 +40,9 @@ from darksynth.noise.spectral import (
     octave_weights,
 )
 
-STRUCTURE_PARAMETERS = ("channel_gain", "correlation_length", "channel_correlation", "chroma_length")
-"""The parameters of the sRGB structure, which the spectral model takes over; shot and read go with them."""
+STRUCTURE_NEUTRAL = {"channel_gain": 1.0, "correlation_length": 0.0, "channel_correlation": 0.0, "chroma_length": 0.0}
+"""The parameters of the sRGB structure and their neutral values (the table's): the spectral model takes them over,
+with shot and read."""
 
 KERNEL_RADIUS_STDS = 3.0
 """The version-3 model cut its Gaussian kernels at this many standard deviations (at least one pixel each side)."""
@@ -200,8 +201,7 @@ def _level_curve(shot: float, read: float, gains: Sequence[float]) -> torch.Tens
 
 def structure_set(values: Mapping[str, torch.Tensor]) -> torch.Tensor:
     """(*batch,) bool: the clips whose sRGB structure is set (some structure parameter not neutral)."""
-    neutral = {"channel_gain": 1.0, "correlation_length": 0.0, "channel_correlation": 0.0, "chroma_length": 0.0}
-    flags = [(values[name] != value).any(dim=-1) for name, value in neutral.items()]
+    flags = [(values[name] != value).any(dim=-1) for name, value in STRUCTURE_NEUTRAL.items()]
     return torch.stack(flags).any(dim=0)
 
 
@@ -239,10 +239,8 @@ def spectral_tensors(values: Mapping[str, torch.Tensor]) -> dict[str, torch.Tens
         curve = _level_curve(float(flat["shot"][index, 0]), float(flat["read"][index, 0]), gains)
         for name, value in (("level_curve", curve), ("octave_power", power), ("octave_correlation", correlation)):
             flat[name][index] = value
-        for name, neutral in (("shot", 0.0), ("read", 0.0), ("channel_gain", 1.0)):
+        for name, neutral in (("shot", 0.0), ("read", 0.0), *STRUCTURE_NEUTRAL.items()):
             flat[name][index] = neutral
-        for name in ("correlation_length", "channel_correlation", "chroma_length"):
-            flat[name][index] = 0.0
     for name, tensor in values.items():
         translated[name] = flat[name].reshape(*batch, tensor.shape[-1]).to(tensor.device, tensor.dtype)
     return translated
