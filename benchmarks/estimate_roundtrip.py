@@ -41,7 +41,7 @@ import torch
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 from darksynth.darkening import darken
 from darksynth.estimation.assemble import estimate
-from darksynth.evaluation.structure import band_powers, band_ratios
+from darksynth.evaluation.measures.structure import band_powers, band_ratios
 from darksynth.io.arrays import hwc_to_chw
 from darksynth.io.images import read_image
 from darksynth.noise.simulate import add_noise

@@ -26,7 +26,7 @@ import torch
 
 from darksynth.darkening import darken
 from darksynth.estimation.assemble import estimate
-from darksynth.evaluation.metrics import kl_divergence_noise_flow
+from darksynth.evaluation.measures.metrics import kl_divergence_noise_flow
 from darksynth.io.arrays import hwc_to_chw
 from darksynth.io.images import read_image
 from darksynth.noise.sampling import random_darkening_values, random_noise_values

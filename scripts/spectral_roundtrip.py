@@ -20,7 +20,7 @@ import numpy as np
 import torch
 
 from darksynth.estimation.spectrum import estimate_spectrum
-from darksynth.evaluation.structure import band_powers, band_ratios
+from darksynth.evaluation.measures.structure import band_powers, band_ratios
 from darksynth.io.arrays import hwc_to_chw
 from darksynth.io.images import read_image
 from darksynth.noise.sampling import random_noise_values

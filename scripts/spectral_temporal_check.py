@@ -23,7 +23,7 @@ import torch
 
 from darksynth.estimation.assemble import estimate
 from darksynth.estimation.reference import load_reference
-from darksynth.evaluation.structure import temporal_lag_correlation
+from darksynth.evaluation.measures.structure import temporal_lag_correlation
 from darksynth.io.arrays import hwc_to_chw
 from darksynth.io.images import read_image
 from darksynth.noise.values import NoiseValues

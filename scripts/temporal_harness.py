@@ -32,7 +32,7 @@ import torch
 sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "benchmarks"))
 from darksynth.darkening import darken
 from darksynth.estimation.spectrum import estimate_spectrum
-from darksynth.evaluation.structure import temporal_lag_correlation
+from darksynth.evaluation.measures.structure import temporal_lag_correlation
 from darksynth.io.arrays import hwc_to_chw
 from darksynth.io.images import read_image
 from darksynth.noise.simulate import add_noise

@@ -27,7 +27,8 @@ Inside ``estimation`` the stages have layers of their own: the reading of the re
 denoiser, the flat blocks and the refinement's statistics import no other stage; the coarse anchor, the still
 blocks of a clip and the frame-to-frame fit read the flat blocks; the spectrum's checks read the anchor, and the
 spectrum all of them; the network reads the crop grid and the refinement its statistics; ``assemble`` alone runs
-them all.
+them all. Inside ``evaluation`` the parts (the pairs, methods, measures, report, run) have layers of their own
+in the same way (``EVALUATION_PARTS``).
 """
 
 from __future__ import annotations
@@ -184,6 +185,74 @@ def test_estimation_stages_import_only_lower_stages(path: Path) -> None:
     assert not wrong, (
         f"estimation/{path.name} (stage {ESTIMATION_STAGES[path.stem]}) imports upward or sideways: {wrong}"
     )
+
+
+EVALUATION_PARTS: dict[str, int] = {
+    "__init__": 0,
+    "pairs": 0,
+    "srgb_fit": 0,
+    "methods": 1,
+    "measures": 2,
+    "report": 3,
+    "run": 4,
+}
+"""The layer of every part of the ``evaluation`` package: the real pairs, the methods that make synthetic noise for
+them, the measures that compare it with the real (a downstream denoiser runs the methods), the reports of the
+results, and the run that does it all."""
+
+EVALUATION_SOURCES = sorted((SOURCE / "evaluation").rglob("*.py"))
+
+
+def _evaluation_part(path: Path) -> str:
+    return path.relative_to(SOURCE / "evaluation").parts[0].removesuffix(".py")
+
+
+def _imported_evaluation_parts(path: Path) -> set[str]:
+    """The parts of the ``evaluation`` package a source file imports, in any of the three import forms."""
+    parts_seen = set()
+    for node in ast.walk(ast.parse(path.read_text(encoding="utf-8"))):
+        if isinstance(node, ast.ImportFrom) and node.module == "darksynth.evaluation" and node.level == 0:
+            parts_seen.update(alias.name for alias in node.names)
+            continue
+        if isinstance(node, ast.ImportFrom) and node.module and node.level == 0:
+            names = [node.module]
+        elif isinstance(node, ast.Import):
+            names = [alias.name for alias in node.names]
+        else:
+            continue
+        for name in names:
+            parts = name.split(".")
+            if parts[:2] == ["darksynth", "evaluation"] and len(parts) > 2:
+                parts_seen.add(parts[2])
+    return parts_seen
+
+
+def test_every_evaluation_part_has_a_layer() -> None:
+    parts = {_evaluation_part(p) for p in EVALUATION_SOURCES}
+    assert parts == set(EVALUATION_PARTS), f"parts without a layer: {sorted(parts - set(EVALUATION_PARTS))}"
+
+
+@pytest.mark.parametrize("path", EVALUATION_SOURCES, ids=lambda p: str(p.relative_to(SOURCE)))
+def test_evaluation_parts_import_only_lower_parts(path: Path) -> None:
+    own = _evaluation_part(path)
+    wrong = [
+        f"{part} (layer {EVALUATION_PARTS[part]})"
+        for part in _imported_evaluation_parts(path) - {own}
+        if EVALUATION_PARTS.get(part, 0) >= EVALUATION_PARTS[own]
+    ]
+    assert not wrong, f"{path.relative_to(SOURCE)} (layer {EVALUATION_PARTS[own]}) imports upward or sideways: {wrong}"
+
+
+def test_the_evaluation_check_sees_a_part_import(tmp_path: Path) -> None:
+    """The control: a module importing parts in each of the three forms is seen to."""
+    module = tmp_path / "bad.py"
+    module.write_text(
+        "from darksynth.evaluation.run.job import run_evaluation\n"
+        "import darksynth.evaluation.report.summary\n"
+        "from darksynth.evaluation import pairs\n",
+        encoding="utf-8",
+    )
+    assert _imported_evaluation_parts(module) == {"run", "report", "pairs"}
 
 
 def test_the_check_sees_an_upward_import(tmp_path: Path) -> None:

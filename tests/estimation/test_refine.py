@@ -105,7 +105,7 @@ def test_gaussian_denoise_keeps_a_constant_and_smooths_noise() -> None:
 
 @pytest.mark.parametrize(("name", "summary"), [("den-srgb", "refined"), ("den", "spectrum measured")])
 def test_the_den_methods_read_the_noisy_image_only(name: str, summary: str) -> None:
-    from darksynth.evaluation.methods import build_method
+    from darksynth.evaluation.methods.catalogue import build_method
 
     method = build_method(name)
     assert summary in method.summary

@@ -5,7 +5,7 @@ from __future__ import annotations
 import pytest
 import torch
 
-from darksynth.evaluation.classical import (
+from darksynth.evaluation.methods.classical import (
     PoissonGaussian,
     add_poisson_gaussian,
     blind_gaussian_sigma,

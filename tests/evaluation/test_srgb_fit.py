@@ -7,7 +7,7 @@ import math
 import pytest
 import torch
 
-from darksynth.evaluation.classical import PoissonGaussian
+from darksynth.evaluation.methods.classical import PoissonGaussian
 from darksynth.evaluation.srgb_fit import (
     WHITE,
     OracleComponents,

@@ -1,12 +1,12 @@
 """`darksynth evaluate`: every method on every real pair, metrics per pair, per camera and per set.
 
-For each pair the real noise map is noisy - clean; each method makes a synthetic noisy image from the clean
-one (8-bit, like the real one) and its noise map is synthetic - clean. Histogram KL divergences and the AKLD are
-computed per pair and summarised by their mean and a 95% interval; the noise level per channel is pooled over a
-set's pairs (and divided by the real one's) and the channel correlations averaged over them; the noise's power
-in five spatial frequency bands (brightness and colour, :mod:`darksynth.evaluation.structure`) is compared per pair
-with the real one's and summarised by the median ratio per band and its RMS log error; FID and KID compare,
-per set, the Inception features of crops of all real noise maps with those of all of a method's maps.
+For each pair the real noise map is noisy - clean; each method makes a synthetic noisy image from the clean one
+(8-bit, like the real one) and its noise map is synthetic - clean. Histogram KL divergences and the AKLD are computed
+per pair and summarised by their mean and a 95% interval; the noise level per channel is pooled over a set's pairs
+(and divided by the real one's) and the channel correlations averaged over them; the noise's power in five spatial
+frequency bands (brightness and colour, :mod:`darksynth.evaluation.measures.structure`) is compared per pair with the
+real one's and summarised by the median ratio per band and its RMS log error; FID and KID compare, per set, the
+Inception features of crops of all real noise maps with those of all of a method's maps.
 """
 
 from __future__ import annotations
@@ -21,8 +21,7 @@ import numpy as np
 import torch
 
 from darksynth.errors import DarksynthError
-from darksynth.evaluation.methods import NoiseMethod, build_methods
-from darksynth.evaluation.metrics import (
+from darksynth.evaluation.measures.metrics import (
     CHANNEL_PAIRS,
     average_kl_divergence,
     channel_correlations,
@@ -35,10 +34,17 @@ from darksynth.evaluation.metrics import (
     mean_and_interval,
     pooled_std,
 )
-from darksynth.evaluation.options import EvaluationOptions
+from darksynth.evaluation.measures.structure import (
+    band_medians,
+    band_powers,
+    band_ratios,
+    band_summary,
+    relative_to_white,
+)
+from darksynth.evaluation.methods.catalogue import NoiseMethod, build_methods
 from darksynth.evaluation.pairs import LoadedPair, PairSet, list_pair_sets, load_pair
-from darksynth.evaluation.report_html import ReportExample
-from darksynth.evaluation.structure import band_medians, band_powers, band_ratios, band_summary, relative_to_white
+from darksynth.evaluation.report.html import ReportExample
+from darksynth.evaluation.run.options import EvaluationOptions
 from darksynth.seeding import derive_seed, seeded_generator
 
 METRIC_DESCRIPTIONS = {
@@ -185,7 +191,7 @@ class _Features:
     def __init__(self, device: str, problems: list[str]) -> None:
         self.extractor: Any = None
         try:
-            from darksynth.evaluation.inception import InceptionFeatures
+            from darksynth.evaluation.measures.inception import InceptionFeatures
 
             self.extractor = InceptionFeatures(device=device)
         except DarksynthError as error:
@@ -196,7 +202,7 @@ class _Features:
         """Features of ``crops`` tiles spread evenly over the map (all of them if it has fewer)."""
         if self.extractor is None:
             return
-        from darksynth.evaluation.inception import noise_map_images
+        from darksynth.evaluation.measures.inception import noise_map_images
 
         side = min(FID_CROP, noise.shape[-2], noise.shape[-1])
         images = noise_map_images(_noise_array(noise), crop=side)
@@ -342,7 +348,7 @@ def evaluate_pairs(
     examples: list[ReportExample] = []
     features = _Features(options.device, problems) if options.inception else None
     if features is not None and features.extractor is not None:
-        from darksynth.evaluation.inception import INCEPTION_PROVENANCE
+        from darksynth.evaluation.measures.inception import INCEPTION_PROVENANCE
 
         results["provenance"]["inception"] = INCEPTION_PROVENANCE
     for pair_set in pair_sets:

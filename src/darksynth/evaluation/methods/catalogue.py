@@ -16,7 +16,7 @@ from typing import Any
 import torch
 
 from darksynth.errors import DarksynthError
-from darksynth.evaluation.classical import (
+from darksynth.evaluation.methods.classical import (
     PoissonGaussian,
     add_poisson_gaussian,
     blind_gaussian_sigma,
