@@ -7,6 +7,17 @@ import math
 import pytest
 import torch
 
+from darksynth.estimation.spectral_fit import (
+    SpectralStatistics,
+    band_fields,
+    fit_by_resynthesis,
+    knot_binning,
+    knot_variances,
+    measure,
+    measure_weight,
+    oracle_spectral_fit,
+    quantised,
+)
 from darksynth.noise.simulate import add_noise
 from darksynth.noise.spectral import (
     LEVEL_KNOTS,
@@ -17,17 +28,6 @@ from darksynth.noise.spectral import (
     level_std,
     octave_covariances,
     spectral_tables,
-)
-from darksynth.noise.spectral_fit import (
-    SpectralStatistics,
-    band_fields,
-    fit_by_resynthesis,
-    knot_binning,
-    knot_variances,
-    measure,
-    measure_weight,
-    oracle_spectral_fit,
-    quantised,
 )
 from darksynth.noise.values import NoiseValues
 
@@ -261,8 +261,8 @@ def test_knot_variances_and_band_products_equal_their_definitions() -> None:
 
 
 def test_unmeasured_octaves_continue_the_colour_roll_off_of_a_gaussian_low_pass() -> None:
+    from darksynth.estimation.spectral_fit import SpectralParameters, continue_octaves
     from darksynth.noise.spectral import OCTAVE_FREQUENCIES
-    from darksynth.noise.spectral_fit import SpectralParameters, continue_octaves
 
     # Octaves 0-2 measured: white noise through a Gaussian low-pass of f0 = 0.1 cycles/px in colour 1, a falling
     # colour 2, a rising brightness; octaves 3-5 unmeasured (garbage that must be replaced).
@@ -289,7 +289,7 @@ def test_unmeasured_octaves_continue_the_colour_roll_off_of_a_gaussian_low_pass(
 
 
 def test_unmeasured_knots_follow_the_prior_curve_through_the_measured_ones() -> None:
-    from darksynth.noise.spectral_fit import fill_knots_along
+    from darksynth.estimation.spectral_fit import fill_knots_along
 
     prior = torch.linspace(1.0, 8.0, 8, dtype=torch.float64).expand(3, 8).clone()
     curve = 2.0 * prior
@@ -312,7 +312,7 @@ def test_unmeasured_knots_follow_the_prior_curve_through_the_measured_ones() -> 
 
 @pytest.mark.parametrize("signal", [-0.05, -0.01, 0.0, 0.02, 0.1, 0.97, 1.01])
 def test_the_uncensored_signal_is_the_mean_before_the_clip(signal: float) -> None:
-    from darksynth.noise.spectral_fit import uncensored_signal
+    from darksynth.estimation.spectral_fit import uncensored_signal
 
     std = 0.03
     clipped = (signal + std * torch.randn(400_000, generator=torch.Generator().manual_seed(1))).clamp(0.0, 1.0)
@@ -323,7 +323,7 @@ def test_the_uncensored_signal_is_the_mean_before_the_clip(signal: float) -> Non
 def test_uncensored_signal_searches_only_where_the_cut_reaches() -> None:
     """The signal under a clipped mean: far from 0 it is the mean itself, near 0 the table's inversion, as a full
     search of every pixel gives."""
-    from darksynth.noise.spectral_fit import _CENSORED_MEAN, _CENSORED_T, uncensored_signal
+    from darksynth.estimation.spectral_fit import _CENSORED_MEAN, _CENSORED_T, uncensored_signal
 
     generator = torch.Generator().manual_seed(0)
     observed = torch.rand(3, 40, 40, generator=generator) ** 3

@@ -3,7 +3,7 @@
 The estimate of every crop is a full v; the profile holds their median (robust to crops where content,
 clipping or a light source misleads the network) and, as ``ranges``, the 10th to 90th percentile across crops,
 so that ``apply`` can reproduce the spread the reference shows. The darkening (alpha, gamma) is read from the
-reference's tone distribution (:mod:`darksynth.tones`); for a clip, its ``ranges`` are the 10th
+reference's tone distribution (:mod:`darksynth.light.tones`); for a clip, its ``ranges`` are the 10th
 to 90th percentile of the per-frame estimates.
 
 Two things are measured on the reference itself rather than taken from the network: whether it shows column
@@ -22,7 +22,6 @@ from typing import Any
 import numpy as np
 import torch
 
-from darksynth.darkening import ALPHA_RANGE, GAMMA_RANGE, Darkening
 from darksynth.errors import DarksynthError
 from darksynth.estimation.columns import decide_columns
 from darksynth.estimation.motion import SHUTTER_LIMIT, estimate_motion
@@ -38,14 +37,9 @@ from darksynth.estimation.reference import (
 from darksynth.estimation.refine import refine_profile
 from darksynth.estimation.refine_statistics import ANALYSIS_FRAMES
 from darksynth.estimation.spectrum import estimate_spectrum
-from darksynth.models.den import DEN
-from darksynth.noise.components import NoiseModel, noise_component, noise_parameter
-from darksynth.noise.level import channel_noise_std, mean_noise_variance
-from darksynth.noise.spectral import LEVEL_KNOTS
-from darksynth.noise.values import NoiseValues
-from darksynth.profile import Profile
-from darksynth.tone_blocks import block_statistics
-from darksynth.tones import (
+from darksynth.light.darkening import ALPHA_RANGE, GAMMA_RANGE, Darkening
+from darksynth.light.tone_blocks import block_statistics
+from darksynth.light.tones import (
     ALPHA_BOUNDS,
     GAMMA_BOUNDS,
     PROBABILITIES,
@@ -57,9 +51,15 @@ from darksynth.tones import (
     luminance_quantiles,
     sampled_blocks,
 )
-from darksynth.tones import (
+from darksynth.light.tones import (
     BLOCK as TONE_BLOCK,
 )
+from darksynth.models.den import DEN
+from darksynth.noise.components import NoiseModel, noise_component, noise_parameter
+from darksynth.noise.level import channel_noise_std, mean_noise_variance
+from darksynth.noise.spectral import LEVEL_KNOTS
+from darksynth.noise.values import NoiseValues
+from darksynth.profile import Profile
 
 BRIGHT_MEAN = 0.35
 """A reference whose mean level is above this is not low-light; its estimate is less reliable."""

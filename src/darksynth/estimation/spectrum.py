@@ -10,10 +10,10 @@ from the scene) and what it takes of the scene. The steps:
 2. ``D``: OpenCV's non-local means, its strength from the fine-scale noise of the window's flattest blocks.
 3. The flat blocks: the :data:`FLAT_SHARE` of 32x32 blocks of ``D(y)`` with the least gradient energy (texture
    is read as noise elsewhere), for a clip those that also stay still between the frames.
-4. The statistics (:func:`darksynth.noise.spectral_fit.measure`): the residual band-passed as a whole, then its
+4. The statistics (:func:`darksynth.estimation.spectral_fit.measure`): the residual band-passed as a whole, then its
    band cross-powers averaged over the flat blocks (a masked spectrum would leak mid frequencies into the coarse
    bands), the variance per channel and intensity knot, and for a clip the frame-to-frame correlation per band.
-5. The fit by re-synthesis for each JPEG strength of :data:`~darksynth.noise.spectral_fit.COMPRESSION_CANDIDATES`;
+5. The fit by re-synthesis for each JPEG strength of :data:`~darksynth.estimation.spectral_fit.COMPRESSION_CANDIDATES`;
    the best match is refined further.
 
 A reference that cannot show something gets the prior for it, with a warning: a single image has no temporal
@@ -42,16 +42,7 @@ from darksynth.estimation.flat_blocks import (
 )
 from darksynth.estimation.nonlocal_means import nlm_denoise
 from darksynth.estimation.persistence_fit import fit_persistence
-from darksynth.estimation.spectrum_checks import (
-    fitted_noise_8bit,
-    level_checks,
-    mean_level,
-    readability_warnings,
-)
-from darksynth.estimation.still_blocks import still_flat_mask
-from darksynth.noise.simulate import add_noise
-from darksynth.noise.spectral import OCTAVES, level_std
-from darksynth.noise.spectral_fit import (
+from darksynth.estimation.spectral_fit import (
     COMPRESSION_CANDIDATES,
     KnotBinning,
     SpectralParameters,
@@ -67,6 +58,15 @@ from darksynth.noise.spectral_fit import (
     quantised,
     uncensored_signal,
 )
+from darksynth.estimation.spectrum_checks import (
+    fitted_noise_8bit,
+    level_checks,
+    mean_level,
+    readability_warnings,
+)
+from darksynth.estimation.still_blocks import still_flat_mask
+from darksynth.noise.simulate import add_noise
+from darksynth.noise.spectral import OCTAVES, level_std
 from darksynth.noise.values import NoiseValues
 
 TEXTURED_GRADIENT = 4.0 / 255
@@ -311,7 +311,7 @@ def _anchored_fit(
 ) -> tuple[SpectralParameters, float]:
     """The last fit, on all analysed frames with the chosen JPEG ``compression``; with an ``anchor``, each step also
     simulates about its planes, so that ``constrain`` moves the coarse colour octaves with the rest. Returns the
-    parameters and what was left over (:func:`~darksynth.noise.spectral_fit.fit_by_resynthesis`)."""
+    parameters and what was left over (:func:`~darksynth.estimation.spectral_fit.fit_by_resynthesis`)."""
     simulate = resynthesis.simulator(compression)
 
     def simulate_with_anchor(parameters: SpectralParameters, draw: int) -> SpectralStatistics:

@@ -26,10 +26,10 @@ from dataclasses import dataclass, field
 import numpy as np
 import torch
 
-from darksynth.darkening import ALPHA_RANGE, GAMMA_RANGE, Darkening
 from darksynth.errors import DarksynthError
+from darksynth.light.darkening import ALPHA_RANGE, GAMMA_RANGE, Darkening
+from darksynth.light.tone_blocks import NOISE_BLOCKS, BlockStatistics, block_side, block_statistics, tiles
 from darksynth.tensors import luminance
-from darksynth.tone_blocks import NOISE_BLOCKS, BlockStatistics, block_side, block_statistics, tiles
 
 BLOCK = 4
 """Side of the square blocks whose per-channel medians make the tone distribution."""
@@ -284,7 +284,7 @@ def estimate_darkening_pooled_and_per_frame(
     statistics: list[BlockStatistics] | None = None,
 ) -> tuple[DarkeningEstimate, list[DarkeningEstimate | None]]:
     """:func:`estimate_darkening` of frames (T, C, H, W) pooled, and of each frame alone (None where one is too
-    dark or flat), from one sort of each frame's blocks (:func:`~darksynth.tone_blocks.block_statistics`; given
+    dark or flat), from one sort of each frame's blocks (:func:`~darksynth.light.tone_blocks.block_statistics`; given
     as ``statistics`` when the caller has them) instead of four passes.
 
     The pooled figures are read from the frames' block statistics concatenated in frame order, the order in which
@@ -490,7 +490,7 @@ def estimate_darkening_spread(
 
     The spread of these estimates shows how much the content, rather than the camera, moves the estimate;
     regions too dark to fit are skipped (the list may be empty). ``statistics``: each frame's
-    :func:`~darksynth.tone_blocks.block_statistics`, which a region on their block grid reads its own from.
+    :func:`~darksynth.light.tone_blocks.block_statistics`, which a region on their block grid reads its own from.
     """
     if frames.dim() == 3:
         frames = frames[None]

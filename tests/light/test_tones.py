@@ -6,11 +6,9 @@ import numpy as np
 import pytest
 import torch
 
-from darksynth.darkening import Darkening, darken
 from darksynth.errors import DarksynthError
-from darksynth.noise.simulate import add_noise
-from darksynth.noise.values import NoiseValues
-from darksynth.tones import (
+from darksynth.light.darkening import Darkening, darken
+from darksynth.light.tones import (
     PROBABILITIES,
     TONE_PRIOR_LOG_QUANTILES,
     TONE_PRIOR_LOG_SPREAD,
@@ -20,6 +18,8 @@ from darksynth.tones import (
     fit_darkening,
     tone_quantiles,
 )
+from darksynth.noise.simulate import add_noise
+from darksynth.noise.values import NoiseValues
 
 
 def _scene(seed: int, size: int = 192, shift: float = 0.0) -> torch.Tensor:
@@ -166,7 +166,7 @@ def test_prior_share_grows_as_the_tones_say_less() -> None:
 
 def test_the_pooled_and_per_frame_estimate_equals_the_separate_calls() -> None:
     from darksynth.errors import DarksynthError
-    from darksynth.tones import estimate_darkening, estimate_darkening_pooled_and_per_frame
+    from darksynth.light.tones import estimate_darkening, estimate_darkening_pooled_and_per_frame
 
     generator = torch.Generator().manual_seed(0)
     frames = (0.2 * torch.rand(3, 3, 96, 128, generator=generator) ** 2 * 255).round() / 255
@@ -182,8 +182,8 @@ def test_the_pooled_and_per_frame_estimate_equals_the_separate_calls() -> None:
 def test_matching_a_reference_recovers_the_darkening_of_its_own_scene(alpha: float, gamma: float) -> None:
     """Round trip: a scene darkened with known (alpha, gamma) and made noisy is the reference; matched against
     the clean scene (and against another scene, shifted in tone: the fit then follows that scene's tones)."""
-    from darksynth.exposure import match_darkening
-    from darksynth.tones import median_noise
+    from darksynth.light.exposure import match_darkening
+    from darksynth.light.tones import median_noise
 
     clean = _scene(3)
     reference = _noisy(clean, Darkening(alpha, gamma), read=0.004, seed=1)
@@ -203,8 +203,8 @@ def test_matching_a_reference_recovers_the_darkening_of_its_own_scene(alpha: flo
 
 
 def test_matching_against_a_uniform_input_is_refused_naming_why() -> None:
-    from darksynth.exposure import match_darkening
-    from darksynth.tones import median_noise
+    from darksynth.light.exposure import match_darkening
+    from darksynth.light.tones import median_noise
 
     reference = _noisy(_scene(3), Darkening(0.2, 0.7), read=0.004, seed=1)
     grey = torch.full((3, 96, 96), 0.4)
