@@ -20,16 +20,11 @@ import numpy as np
 import torch
 
 from darksynth.errors import DarksynthError
+from darksynth.estimation.darkening import estimate_darkening, estimate_darkening_spread
 from darksynth.estimation.reference import load_reference
 from darksynth.light.darkening import ALPHA_RANGE, GAMMA_RANGE, Darkening, darken
-from darksynth.light.tones import (
-    BLOCK,
-    PROBABILITIES,
-    TONE_PRIOR_LOG_QUANTILES,
-    estimate_darkening,
-    estimate_darkening_spread,
-    tone_quantiles,
-)
+from darksynth.light.tone_fit import TONE_PRIOR_LOG_QUANTILES
+from darksynth.light.tones import BLOCK, PROBABILITIES, tone_quantiles
 from darksynth.noise.components import model_parameters
 from darksynth.noise.sampling import random_noise_values
 from darksynth.noise.simulate import add_noise

@@ -27,10 +27,11 @@ The pure core (``tensors``, ``light``, ``noise``) also never imports ``io``: rea
 for the edges, so the core runs on tensors alone.
 
 Inside ``estimation`` the stages have layers of their own: the reading of the reference, the column decision, the
-denoiser, the flat blocks, the spectral fit's statistics and the refinement's statistics import no other stage; the
-coarse anchor, the still blocks of a clip and the frame-to-frame fit read the flat blocks and the spectral fit; the
-spectrum's checks read the anchor, and the spectrum all of them; the network reads the crop grid and the refinement
-its statistics; ``assemble`` alone runs them all.
+denoiser, the flat blocks, the spectral statistics and the refinement's statistics import no other stage; the
+spectral fit reads the spectral statistics; the coarse anchor, the still blocks of a clip and the frame-to-frame fit
+read the flat blocks and the spectral fit; the spectrum's checks read the anchor, and the spectrum all of them; the
+network reads the crop grid, the refinement its statistics and the darkening the reference's frames; ``assemble``
+alone runs them all.
 """
 
 from __future__ import annotations
@@ -82,20 +83,22 @@ ESTIMATION_STAGES: dict[str, int] = {
     "refine_statistics": 0,
     "nonlocal_means": 0,
     "flat_blocks": 0,
-    "spectral_fit": 0,
-    "coarse_anchor": 1,
-    "still_blocks": 1,
-    "persistence_fit": 1,
-    "spectrum_checks": 2,
-    "spectrum": 3,
+    "spectral_statistics": 0,
+    "spectral_fit": 1,
+    "coarse_anchor": 2,
+    "still_blocks": 2,
+    "persistence_fit": 2,
+    "spectrum_checks": 3,
+    "spectrum": 4,
     "network": 1,
     "refine": 1,
+    "darkening": 1,
     "flicker": 0,
     "cross_spectra": 0,
     "shutter_confidence": 0,
     "shutter_fit": 1,
     "motion": 2,
-    "assemble": 4,
+    "assemble": 5,
 }
 """The layer of every module of the ``estimation`` package among its siblings."""
 

@@ -9,7 +9,7 @@ import pytest
 import scipy.stats
 import torch
 
-from darksynth.estimation.spectral_fit import measure
+from darksynth.estimation.spectral_statistics import measure
 from darksynth.light.darkening import Darkening
 from darksynth.noise.counter_rng import random_key
 from darksynth.noise.spectral import OCTAVES, crop_unit, octave_covariances, spectral_tables

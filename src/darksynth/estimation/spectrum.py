@@ -10,9 +10,10 @@ from the scene) and what it takes of the scene. The steps:
 2. ``D``: OpenCV's non-local means, its strength from the fine-scale noise of the window's flattest blocks.
 3. The flat blocks: the :data:`FLAT_SHARE` of 32x32 blocks of ``D(y)`` with the least gradient energy (texture
    is read as noise elsewhere), for a clip those that also stay still between the frames.
-4. The statistics (:func:`darksynth.estimation.spectral_fit.measure`): the residual band-passed as a whole, then its
-   band cross-powers averaged over the flat blocks (a masked spectrum would leak mid frequencies into the coarse
-   bands), the variance per channel and intensity knot, and for a clip the frame-to-frame correlation per band.
+4. The statistics (:func:`~darksynth.estimation.spectral_statistics.measure`): the residual band-passed as a whole,
+   then its band cross-powers averaged over the flat blocks (a masked spectrum would leak mid frequencies into the
+   coarse bands), the variance per channel and intensity knot, and for a clip the frame-to-frame correlation per
+   band.
 5. The fit by re-synthesis for each JPEG strength of :data:`~darksynth.estimation.spectral_fit.COMPRESSION_CANDIDATES`;
    the best match is refined further.
 
@@ -44,19 +45,21 @@ from darksynth.estimation.nonlocal_means import nlm_denoise
 from darksynth.estimation.persistence_fit import fit_persistence
 from darksynth.estimation.spectral_fit import (
     COMPRESSION_CANDIDATES,
-    KnotBinning,
     SpectralParameters,
-    SpectralStatistics,
     continue_octaves,
     fill_knots_along,
     fit_by_resynthesis,
     initial_parameters,
-    knot_binning,
-    measure,
-    measure_weight,
     mismatch,
     quantised,
     uncensored_signal,
+)
+from darksynth.estimation.spectral_statistics import (
+    KnotBinning,
+    SpectralStatistics,
+    knot_binning,
+    measure,
+    measure_weight,
 )
 from darksynth.estimation.spectrum_checks import (
     fitted_noise_8bit,

@@ -17,17 +17,8 @@ import torch
 
 from darksynth.errors import DarksynthError
 from darksynth.light.darkening import Darkening, darken
-from darksynth.light.tones import (
-    ALPHA_BOUNDS,
-    BLOCK,
-    GAMMA_BOUNDS,
-    PROBABILITIES,
-    DarkeningEstimate,
-    ToneTarget,
-    colour_cast,
-    fit_darkening,
-    sampled_tone_quantiles,
-)
+from darksynth.light.tone_fit import ALPHA_BOUNDS, GAMMA_BOUNDS, DarkeningEstimate, fit_darkening
+from darksynth.light.tones import BLOCK, PROBABILITIES, ToneTarget, colour_cast, sampled_tone_quantiles
 from darksynth.noise.level import channel_noise_std
 from darksynth.noise.simulate import noise_sum
 from darksynth.noise.values import NoiseValues
@@ -45,7 +36,7 @@ def match_darkening(
     source: str = "reference",
 ) -> DarkeningEstimate:
     """Alpha and gamma that darken ``clean`` to the tones of a reference: the fit of
-    :func:`darksynth.light.tones.fit_darkening` with the clean input's own log tone quantiles (every block, or every
+    :func:`darksynth.light.tone_fit.fit_darkening` with the clean input's own log tone quantiles (every block, or every
     k-th of a large frame: :func:`darksynth.light.tones.sampled_tone_quantiles`) in place of the prior of average
     scenes (and no pull to the paper's ranges), so the darkened input's block-median quantiles follow the
     reference's. The exposure is then "as dark as the reference" for this input, which one (alpha, gamma) read off
@@ -60,7 +51,7 @@ def match_darkening(
         source: the name error messages start with.
 
     Raises:
-        DarksynthError: as :func:`darksynth.light.tones.fit_darkening`: the reference is too dark or too flat to
+        DarksynthError: as :func:`darksynth.light.tone_fit.fit_darkening`: the reference is too dark or too flat to
             match.
     """
     clean_quantiles = sampled_tone_quantiles(clean, block=block)
@@ -322,7 +313,7 @@ def fit_output_darkening(target: np.ndarray, model: OutputModel, start: Darkenin
 
 
 def _bounded(alpha: float, gamma: float) -> Darkening:
-    """alpha and gamma clipped to :data:`darksynth.light.tones.ALPHA_BOUNDS` and ``GAMMA_BOUNDS``."""
+    """alpha and gamma clipped to :data:`darksynth.light.tone_fit.ALPHA_BOUNDS` and ``GAMMA_BOUNDS``."""
     return Darkening(alpha=float(np.clip(alpha, *ALPHA_BOUNDS)), gamma=float(np.clip(gamma, *GAMMA_BOUNDS)))
 
 
