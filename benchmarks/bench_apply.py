@@ -38,9 +38,9 @@ import numpy as np
 import torch
 from PIL import Image
 
-from darksynth.darkening import Darkening
 from darksynth.estimation.assemble import estimate
 from darksynth.estimation.reference import load_reference
+from darksynth.light.darkening import Darkening
 from darksynth.noise.components import noise_component
 from darksynth.noise.spectral import SpectralGrid, octave_covariances
 from darksynth.noise.values import NoiseValues

@@ -27,9 +27,9 @@ import cv2
 import numpy as np
 import torch
 
-from darksynth.darkening import Darkening
 from darksynth.io.arrays import hwc_to_chw
 from darksynth.io.video import VideoWriter
+from darksynth.light.darkening import Darkening
 from darksynth.noise.values import NoiseValues
 from darksynth.synthesize import ClipParameters, ClipSynthesizer
 from machine import cpu_summary

@@ -1,4 +1,4 @@
-"""Measure the darkening estimate (darksynth.tones) and make its tone prior.
+"""Measure the darkening estimate (darksynth.light.tones) and make its tone prior.
 
     .venv/bin/python scripts/evaluate_darkening.py prior      # the TONE_PRIOR_LOG_QUANTILES table
     .venv/bin/python scripts/evaluate_darkening.py evaluate   # the figures in docs/darkening-estimate.md
@@ -19,20 +19,15 @@ from pathlib import Path
 import numpy as np
 import torch
 
-from darksynth.darkening import ALPHA_RANGE, GAMMA_RANGE, Darkening, darken
 from darksynth.errors import DarksynthError
+from darksynth.estimation.darkening import estimate_darkening, estimate_darkening_spread
 from darksynth.estimation.reference import load_reference
+from darksynth.light.darkening import ALPHA_RANGE, GAMMA_RANGE, Darkening, darken
+from darksynth.light.tone_fit import TONE_PRIOR_LOG_QUANTILES
+from darksynth.light.tones import BLOCK, PROBABILITIES, tone_quantiles
 from darksynth.noise.components import model_parameters
 from darksynth.noise.sampling import random_noise_values
 from darksynth.noise.simulate import add_noise
-from darksynth.tones import (
-    BLOCK,
-    PROBABILITIES,
-    TONE_PRIOR_LOG_QUANTILES,
-    estimate_darkening,
-    estimate_darkening_spread,
-    tone_quantiles,
-)
 
 DATA = Path(__file__).resolve().parents[2] / "shared" / "data"
 TRAINING_SETS = ("cbsd68", "mcmaster", "mirflickr")

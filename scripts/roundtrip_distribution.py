@@ -24,11 +24,11 @@ from pathlib import Path
 import numpy as np
 import torch
 
-from darksynth.darkening import darken
 from darksynth.estimation.assemble import estimate
 from darksynth.evaluation.measures.metrics import kl_divergence_noise_flow
 from darksynth.io.arrays import hwc_to_chw
 from darksynth.io.images import read_image
+from darksynth.light.darkening import darken
 from darksynth.noise.sampling import random_darkening_values, random_noise_values
 from darksynth.noise.simulate import add_noise
 from darksynth.noise.values import NoiseValues

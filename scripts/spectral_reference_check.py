@@ -28,8 +28,8 @@ from darksynth.estimation.assemble import estimate
 from darksynth.estimation.flat_blocks import BLOCK, STRENGTH_CLIPPED_SHARE, clipped_share, flat_block_std
 from darksynth.estimation.nonlocal_means import nlm_denoise
 from darksynth.estimation.reference import load_reference
+from darksynth.estimation.spectral_fit import quantised
 from darksynth.noise.simulate import add_noise
-from darksynth.noise.spectral_fit import quantised
 from darksynth.training.weights import default_weights_path, load_weights
 
 CROP = 128

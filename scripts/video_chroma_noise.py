@@ -21,9 +21,9 @@ import numpy as np
 import torch
 from PIL import Image
 
-from darksynth.darkening import darken
 from darksynth.io.arrays import chw_to_hwc, hwc_to_chw
 from darksynth.io.video import DEFAULT_CODEC, DEFAULT_CRF, VideoWriter, iter_video_frames, probe_video
+from darksynth.light.darkening import darken
 from darksynth.profile import default_profile_path, load_profile
 from darksynth.synthesize import ClipSynthesizer, draw_clip_parameters
 

@@ -15,8 +15,8 @@ import pytest
 import torch
 from PIL import Image
 
-from darksynth.darkening import Darkening
 from darksynth.io.video import VideoWriter, iter_video_frames
+from darksynth.light.darkening import Darkening
 from darksynth.light.motion_blur import MotionBlurStream, shake_blur
 from darksynth.profile import Profile, load_profile, save_profile
 from darksynth.synthesize import ClipParameters, ClipSynthesizer

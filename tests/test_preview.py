@@ -11,10 +11,10 @@ import numpy as np
 import pytest
 from PIL import Image
 
-from darksynth.darkening import Darkening
 from darksynth.estimation.assemble import estimate
 from darksynth.estimation.reference import load_reference
 from darksynth.io.video import VideoWriter
+from darksynth.light.darkening import Darkening
 from darksynth.models.den import DEN
 from darksynth.preview import (
     LABEL_HEIGHT,

@@ -17,7 +17,7 @@ from typing import TYPE_CHECKING, Any
 from darksynth.version import __version__
 
 if TYPE_CHECKING:
-    from darksynth.darkening import Darkening, darken
+    from darksynth.light.darkening import Darkening, darken
     from darksynth.profile import Profile, load_profile, save_profile
     from darksynth.synthesize import (
         ClipParameters,
@@ -30,10 +30,10 @@ if TYPE_CHECKING:
 _PUBLIC: dict[str, str] = {
     "ClipParameters": "darksynth.synthesize",
     "ClipSynthesizer": "darksynth.synthesize",
-    "Darkening": "darksynth.darkening",
+    "Darkening": "darksynth.light.darkening",
     "LowLightResult": "darksynth.synthesize",
     "Profile": "darksynth.profile",
-    "darken": "darksynth.darkening",
+    "darken": "darksynth.light.darkening",
     "draw_clip_parameters": "darksynth.synthesize",
     "load_profile": "darksynth.profile",
     "save_profile": "darksynth.profile",

@@ -27,12 +27,12 @@ import torch
 from darksynth import __version__
 from darksynth.apply_outputs import claim_outputs, read_state, write_record, write_state
 from darksynth.errors import DarksynthError, error_reason
-from darksynth.exposure import matched_colour, matched_darkening
 from darksynth.io.arrays import chw_to_hwc, hwc_to_chw
 from darksynth.io.atomic import write_text_atomic
 from darksynth.io.discover import check_output_location, classify_input, scan_folder
 from darksynth.io.images import IMAGE_SUFFIXES, Image, read_image, write_image
 from darksynth.io.video import VIDEO_SUFFIXES, VideoWriter, iter_video_frames, probe_video, to_stream_size
+from darksynth.light.exposure import matched_colour, matched_darkening
 from darksynth.profile import Profile, profile_to_dict, without_light
 from darksynth.seeding import derive_seed
 from darksynth.synthesize import (
@@ -214,7 +214,7 @@ def start_task(
     """A task's seed, the generator its noise is drawn from and its parameters, all fixed by the run seed and the
     task's key (its path relative to the input; for a single input file, its name). With ``first_frame`` (H, W, C)
     and a profile that carries the reference's tones, the darkening is matched to them
-    (:func:`darksynth.exposure.matched_darkening`), and with ``match_colour`` the colour cast too."""
+    (:func:`darksynth.light.exposure.matched_darkening`), and with ``match_colour`` the colour cast too."""
     seed = task_seed(options.seed, key)
     generator = torch.Generator(device=options.device).manual_seed(seed)
     profile, darkening = options.drawing()

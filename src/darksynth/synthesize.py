@@ -19,9 +19,9 @@ from typing import Any, Literal
 import numpy as np
 import torch
 
-from darksynth.darkening import ALPHA_RANGE, GAMMA_RANGE, Darkening, darken
-from darksynth.exposure import ColourScale, matched_darkening
 from darksynth.io.arrays import clips_from_numpy, clips_to_numpy
+from darksynth.light.darkening import ALPHA_RANGE, GAMMA_RANGE, Darkening, darken
+from darksynth.light.exposure import ColourScale, matched_darkening
 from darksynth.light.flicker import FlickerGains
 from darksynth.light.shutter import ShutterStage
 from darksynth.noise.components import noise_component, noise_parameter, noise_parameters
@@ -65,7 +65,7 @@ ranges. A :class:`Darkening`: exactly that. None: no darkening (the input alread
 @dataclass(frozen=True)
 class ClipParameters:
     """The parameters drawn for one clip (or one image): noise values, the darkening, if any, and the channel factors
-    that give it the reference's colour cast (:func:`darksynth.exposure.matched_colour`)."""
+    that give it the reference's colour cast (:func:`darksynth.light.exposure.matched_colour`)."""
 
     noise: NoiseValues
     darkening: Darkening | None
@@ -448,7 +448,7 @@ def synthesize(
     outputs = []
     records = []
     for clip in flat:
-        # With the reference's tones in the profile, each clip is darkened to them (darksynth.exposure).
+        # With the reference's tones in the profile, each clip is darkened to them (darksynth.light.exposure).
         matched = matched_darkening(clip[0], profile.tone, noise=profile.noise) if darkening == "profile" else None
         parameters = draw_clip_parameters(profile, darkening=matched or darkening, generator=generator)
         records.append(parameters.to_json())

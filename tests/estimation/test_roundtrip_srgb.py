@@ -13,8 +13,8 @@ import numpy as np
 import pytest
 import torch
 
-from darksynth.darkening import Darkening
 from darksynth.estimation.assemble import estimate
+from darksynth.light.darkening import Darkening
 from darksynth.models.den import DEN
 from darksynth.noise.components import model_parameters, noise_parameter
 from darksynth.noise.values import NoiseValues

@@ -8,7 +8,7 @@ import sys
 import pytest
 import torch
 
-from darksynth.darkening import Darkening, darken
+from darksynth.light.darkening import Darkening, darken
 from darksynth.noise import kernel8
 from darksynth.noise.kernel8 import FAST_PATH, STRUCTURED_PATH
 from darksynth.noise.simulate import add_noise

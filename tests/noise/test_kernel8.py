@@ -11,7 +11,7 @@ import scipy.stats
 import torch
 
 import darksynth
-from darksynth.darkening import Darkening
+from darksynth.light.darkening import Darkening
 from darksynth.noise.components import model_parameters
 from darksynth.noise.counter_rng import advance, random_key
 from darksynth.noise.kernel8 import compiled_pixel_kernel, pixel_kernel_8bit

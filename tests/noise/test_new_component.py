@@ -21,8 +21,8 @@ from PIL import Image
 
 import darksynth
 from darksynth.apply import ApplyOptions, apply
-from darksynth.darkening import Darkening
 from darksynth.errors import ProfileError
+from darksynth.light.darkening import Darkening
 from darksynth.noise import components
 from darksynth.noise.components import NoiseComponent, Parameter
 from darksynth.noise.level import mean_noise_variance

@@ -9,11 +9,11 @@ import pytest
 import scipy.stats
 import torch
 
-from darksynth.darkening import Darkening
+from darksynth.estimation.spectral_statistics import measure
+from darksynth.light.darkening import Darkening
 from darksynth.noise.counter_rng import random_key
 from darksynth.noise.spectral import OCTAVES, crop_unit, octave_covariances, spectral_tables
 from darksynth.noise.spectral_8bit import level_tables
-from darksynth.noise.spectral_fit import measure
 from darksynth.noise.spectral_kernel import (
     spectral_ar_mix_kernel,
     spectral_mix_kernel,

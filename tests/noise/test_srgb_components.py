@@ -13,7 +13,7 @@ import math
 import pytest
 import torch
 
-from darksynth.darkening import Darkening
+from darksynth.light.darkening import Darkening
 from darksynth.noise.correlated import (
     jpeg_compress,
     jpeg_compress_clips,

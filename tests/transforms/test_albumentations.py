@@ -10,7 +10,7 @@ import pytest
 import torch
 import torch.utils.data
 
-from darksynth.darkening import Darkening
+from darksynth.light.darkening import Darkening
 from darksynth.profile import Profile
 from darksynth.transforms.low_light import low_light
 from tests.conftest import build_profile

@@ -38,8 +38,8 @@ from darksynth.baselines.starlight_training import (
     discriminator_step,
     histogram_kl,
 )
-from darksynth.darkening import darken
 from darksynth.io.atomic import write_text_atomic
+from darksynth.light.darkening import darken
 from darksynth.noise.sampling import random_darkening_values
 from darksynth.noise.simulate import add_noise
 from darksynth.noise.statistics import noise_statistics

@@ -11,8 +11,8 @@ from typing import Any, get_args
 import typer
 from rich.console import Console
 
-from darksynth.darkening import Darkening
 from darksynth.errors import DarksynthError
+from darksynth.light.darkening import Darkening
 from darksynth.models.den import Variant
 from darksynth.synthesize import DarkeningChoice
 

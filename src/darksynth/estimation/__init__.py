@@ -6,7 +6,7 @@
 - :mod:`~darksynth.estimation.columns`: whether the reference shows column patterns (banding decisions);
 - :mod:`~darksynth.estimation.refine_statistics` and :mod:`~darksynth.estimation.refine`: the analysis-by-synthesis
   refinement of the network's values on the reference itself;
-- the darkening is read from the reference's tone distribution by :mod:`darksynth.tones` (below ``apply``, which
+- the darkening is read from the reference's tone distribution by :mod:`darksynth.light.tones` (below ``apply``, which
   also matches each input's exposure to the reference with it);
 - :mod:`~darksynth.estimation.assemble`: ``estimate``, which runs the stages in order and assembles the profile.
 """

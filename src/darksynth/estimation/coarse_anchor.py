@@ -9,9 +9,9 @@ import torch
 import torch.nn.functional as F
 
 from darksynth.estimation.flat_blocks import BLOCK, block_planes, detrended_block_variance
+from darksynth.estimation.spectral_fit import SpectralParameters, quantised, uncensored_signal
 from darksynth.noise.simulate import add_noise
 from darksynth.noise.spectral import level_std
-from darksynth.noise.spectral_fit import SpectralParameters, quantised, uncensored_signal
 from darksynth.noise.values import NoiseValues
 
 ANCHOR_GAIN = 1.5

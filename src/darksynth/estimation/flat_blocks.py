@@ -27,7 +27,7 @@ CLIPPED_SHARE = 0.5
 """A block with more than this share of clipped pixels does not measure the level: its noise was mostly cut off
 at 0 or at full scale (crushed blacks, a lamp) and its residual hardly moves with the noise's strength. Blocks
 clipped less are measured, and the re-synthesis clips as the camera did (on the signal the clipped mean came
-from: :func:`darksynth.noise.spectral_fit.uncensored_signal`)."""
+from: :func:`darksynth.estimation.spectral_fit.uncensored_signal`)."""
 
 STRENGTH_CLIPPED_SHARE = 0.01
 """The denoiser's strength is read on blocks clipped at most this much when there are :data:`MIN_LEVEL_BLOCKS`

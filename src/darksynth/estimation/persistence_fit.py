@@ -43,9 +43,10 @@ import torch
 import torch.nn.functional as F
 
 from darksynth.estimation.flat_blocks import BLOCK
+from darksynth.estimation.spectral_fit import SpectralParameters, quantised, uncensored_signal
+from darksynth.estimation.spectral_statistics import band_masks
 from darksynth.noise.simulate import add_noise
 from darksynth.noise.spectral import OCTAVES, level_std
-from darksynth.noise.spectral_fit import SpectralParameters, band_masks, quantised, uncensored_signal
 from darksynth.noise.values import NoiseValues
 
 MAX_COEFFICIENT = 0.99
@@ -69,7 +70,7 @@ SEARCH_GRID = (0.0, 0.2, 0.4, 0.55, 0.7, 0.8, 0.9, 0.95, MAX_COEFFICIENT)
 
 def _band_weights(height: int, width: int, device: torch.device) -> torch.Tensor:
     """(OCTAVES, H, W // 2 + 1) which half-plane frequencies of an ``rfft2`` fall in each band of
-    :data:`~darksynth.noise.spectral_fit.BANDS`, counted twice where the half-plane stands for two."""
+    :data:`~darksynth.estimation.spectral_statistics.BANDS`, counted twice where the half-plane stands for two."""
     twice = torch.full((height, width // 2 + 1), 2.0, dtype=torch.float64, device=device)
     twice[:, 0] = 1.0
     if width % 2 == 0:

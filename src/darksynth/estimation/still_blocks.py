@@ -10,8 +10,9 @@ import torch.nn.functional as F
 
 from darksynth.estimation.flat_blocks import BLOCK, blocks_to_mask
 from darksynth.estimation.nonlocal_means import nlm_denoise
+from darksynth.estimation.spectral_fit import initial_parameters, quantised
+from darksynth.estimation.spectral_statistics import measure
 from darksynth.noise.simulate import add_noise
-from darksynth.noise.spectral_fit import initial_parameters, measure, quantised
 from darksynth.noise.values import NoiseValues
 
 STILL_CHANGE = 2.0 / 255

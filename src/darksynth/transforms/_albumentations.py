@@ -19,8 +19,8 @@ from typing import Any
 import numpy as np
 import torch
 
-from darksynth.darkening import Darkening
 from darksynth.io.arrays import numpy_to_tensor, tensor_to_numpy
+from darksynth.light.darkening import Darkening
 from darksynth.profile import Profile, profile_to_dict
 from darksynth.synthesize import DarkeningChoice
 from darksynth.transforms.low_light import (

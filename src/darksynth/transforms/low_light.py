@@ -32,7 +32,7 @@ import numpy as np
 import torch
 import torch.utils.data
 
-from darksynth.darkening import Darkening
+from darksynth.light.darkening import Darkening
 from darksynth.profile import Profile, load_profile, parse_profile, validate_profile
 from darksynth.seeding import derive_seed
 from darksynth.synthesize import DarkeningChoice, LowLightResult, synthesize

@@ -223,8 +223,8 @@ def _srgb_method(name: str) -> NoiseMethod:
 
 
 def _spectral_oracle_method() -> NoiseMethod:
+    from darksynth.estimation.spectral_fit import oracle_spectral_fit
     from darksynth.evaluation.srgb_fit import synthesize_image
-    from darksynth.noise.spectral_fit import oracle_spectral_fit
 
     def fit(noisy: torch.Tensor, clean: torch.Tensor) -> NoiseValues:
         return NoiseValues.from_values(oracle_spectral_fit(noisy.to(torch.float32), clean.to(torch.float32)))
