@@ -14,7 +14,7 @@ from PIL import Image
 from darksynth.darkening import Darkening
 from darksynth.estimation.assemble import estimate
 from darksynth.estimation.reference import load_reference
-from darksynth.io.video import VideoWriter
+from darksynth.io.video import VideoEncoding, VideoWriter
 from darksynth.models.den import DEN
 from darksynth.preview import (
     LABEL_HEIGHT,
@@ -144,7 +144,7 @@ def test_video_reference_shows_its_first_frame(
     rgb_image: Path, tmp_path: Path, write_profile: Callable[..., Path]
 ) -> None:
     video = tmp_path / "night.mkv"
-    with VideoWriter(video, width=64, height=48, fps=Fraction(10), codec="ffv1") as writer:
+    with VideoWriter(video, width=64, height=48, fps=Fraction(10), encoding=VideoEncoding(codec="ffv1")) as writer:
         for level in (40, 200):
             writer.write(np.full((48, 64, 3), level, np.uint8))
     profile = _estimated_profile(write_profile, str(video))
