@@ -9,7 +9,7 @@ from __future__ import annotations
 
 import contextlib
 import logging
-from collections.abc import Iterable, Iterator
+from collections.abc import Iterator
 from dataclasses import dataclass
 from fractions import Fraction
 from pathlib import Path
@@ -196,7 +196,7 @@ class VideoWriter:
 
     def __enter__(self) -> Self:
         if self.path.suffix.lower() not in VIDEO_SUFFIXES:
-            raise DarksynthError(f"{self.path}: not a video suffix (use one of {_sorted(VIDEO_SUFFIXES)})")
+            raise DarksynthError(f"{self.path}: not a video suffix (use one of {' '.join(sorted(VIDEO_SUFFIXES))})")
         stack = contextlib.ExitStack()
         try:
             tmp = stack.enter_context(atomic_output(self.path))
@@ -348,10 +348,6 @@ def _decoded_frames(path: Path, container: InputContainer, stream: VideoStream) 
 def _quarter_turns(frame: av.VideoFrame) -> int:
     """Counter-clockwise quarter turns that make a frame upright, from its display matrix (0 when absent)."""
     return round(frame.rotation / 90) % 4
-
-
-def _sorted(names: Iterable[str]) -> str:
-    return " ".join(sorted(names))
 
 
 def to_stream_size(source: Path, frame: np.ndarray, width: int, height: int, *, first: bool) -> np.ndarray:
