@@ -6,7 +6,7 @@ from __future__ import annotations
 import dataclasses
 import logging
 from collections.abc import Sequence
-from typing import Any, get_args
+from typing import Annotated, Any, get_args
 
 import typer
 from rich.console import Console
@@ -85,3 +85,4 @@ def darkening_choice(alpha: float | None, gamma: float | None, no_darken: bool) 
 
 
 QUIET_HELP = "No progress and no summary; warnings and errors are still printed."
+QuietOption = Annotated[bool, typer.Option("--quiet", "-q", help=QUIET_HELP)]

@@ -11,7 +11,7 @@ import typer
 
 from darksynth.apply import ApplyOptions, ApplyReport, Task, apply
 from darksynth.cli.common import (
-    QUIET_HELP,
+    QuietOption,
     checked_choice,
     console,
     darkening_choice,
@@ -85,7 +85,7 @@ def apply_command(
     compile_kernel: Annotated[
         bool | None, typer.Option("--compile/--no-compile", help="Fuse the 8-bit kernel (default: for long clips).")
     ] = default_of(ApplyOptions, "compile"),
-    quiet: Annotated[bool, typer.Option("--quiet", "-q", help=QUIET_HELP)] = False,
+    quiet: QuietOption = False,
 ) -> None:
     try:
         options = ApplyOptions(
@@ -158,7 +158,7 @@ def convert_command(
             "needs darksynth[ray].",
         ),
     ] = False,
-    quiet: Annotated[bool, typer.Option("--quiet", "-q", help=QUIET_HELP)] = False,
+    quiet: QuietOption = False,
 ) -> None:
     from darksynth.datasets import convert_dataset
 
