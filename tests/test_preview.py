@@ -27,6 +27,7 @@ from darksynth.preview import (
 )
 from darksynth.profile import save_profile
 from tests.command_line import assert_one_line_error, run_cli
+from tests.conftest import build_profile
 
 
 def _pixels(path: Path) -> np.ndarray:
@@ -104,6 +105,24 @@ def test_noisy_panel_is_what_apply_writes(
     # The control: another seed gives another panel, so the equality above is the seed's doing.
     run_cli("preview", rgb_image, "-p", profile_file, "--out", out, "--seed", "10", "--crop", "40x30", "--overwrite")
     assert not np.array_equal(_panel(_pixels(out), 0, noisy_column, 40, 30), noisy)
+
+
+@pytest.mark.parametrize("light", [(), ("--no-blur",), ("--no-flicker",)], ids=["blur", "no-blur", "no-flicker"])
+def test_the_light_flags_reach_the_preview_as_they_reach_apply(
+    rgb_image: Path, tmp_path: Path, light: tuple[str, ...]
+) -> None:
+    profile = tmp_path / "shaken.json"
+    save_profile(profile, build_profile(read=0.01, shake_length=0.1, shake_angle=30.0, exposure_fraction=1.0))
+    applied = tmp_path / "applied.png"
+    assert run_cli("apply", rgb_image, applied, "-p", profile, "--seed", "9", "--no-darken", *light)[0] == 0
+    out = tmp_path / "sheet.png"
+    flags = ("--out", out, "--seed", "9", "--crop", "40x30", "--no-darken")
+    assert run_cli("preview", rgb_image, "-p", profile, *flags, *light)[0] == 0
+    assert np.array_equal(_panel(_pixels(out), 0, 1, 40, 30), centre_crop(_pixels(applied), 30, 40))
+    # The control: the shake is visible, so the equality above is the flag's doing.
+    other = ("--blur",) if light == ("--no-blur",) else ("--no-blur",)
+    assert run_cli("preview", rgb_image, "-p", profile, *flags, *other, "--overwrite")[0] == 0
+    assert not np.array_equal(_panel(_pixels(out), 0, 1, 40, 30), centre_crop(_pixels(applied), 30, 40))
 
 
 def test_reference_panel_shown_and_brightened_by_the_synthetic_panels_gain(
