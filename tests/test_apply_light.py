@@ -15,7 +15,7 @@ import pytest
 import torch
 from PIL import Image
 
-from darksynth.io.video import VideoWriter, iter_video_frames
+from darksynth.io.video import VideoEncoding, VideoWriter, iter_video_frames
 from darksynth.light.darkening import Darkening
 from darksynth.light.motion_blur import MotionBlurStream, shake_blur
 from darksynth.profile import Profile, load_profile, save_profile
@@ -42,7 +42,9 @@ def _light_profile(path: Path, **light: float) -> Path:
 def test_a_video_is_blurred_along_its_motion_in_order(tmp_path: Path) -> None:
     frames = _moving_frames()
     source = tmp_path / "in.mkv"
-    with VideoWriter(source, width=WIDTH, height=HEIGHT, fps=Fraction(25), codec="ffv1") as writer:
+    with VideoWriter(
+        source, width=WIDTH, height=HEIGHT, fps=Fraction(25), encoding=VideoEncoding(codec="ffv1")
+    ) as writer:
         for frame in frames:
             writer.write(frame)
     decoded = list(iter_video_frames(source))
@@ -150,7 +152,9 @@ def test_the_training_transform_blurs_a_float_clip_and_shakes_an_image() -> None
 def test_a_one_frame_video_with_blur_is_written_unblurred(tmp_path: Path) -> None:
     frame = _moving_frames(1)[0]
     source = tmp_path / "one.mkv"
-    with VideoWriter(source, width=WIDTH, height=HEIGHT, fps=Fraction(25), codec="ffv1") as writer:
+    with VideoWriter(
+        source, width=WIDTH, height=HEIGHT, fps=Fraction(25), encoding=VideoEncoding(codec="ffv1")
+    ) as writer:
         writer.write(frame)
     profile = _light_profile(tmp_path / "light.json", exposure_fraction=1.0)
     out = tmp_path / "out.mkv"

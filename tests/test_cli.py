@@ -26,6 +26,7 @@ from darksynth.errors import DarksynthError
 from darksynth.estimation.assemble import EstimateOptions
 from darksynth.evaluation.run.job import EvaluationRun
 from darksynth.evaluation.run.options import EvaluationOptions
+from darksynth.io.video_encoding import VideoEncoding
 from darksynth.models.den import DENConfig
 from darksynth.profile import load_profile
 from darksynth.training.loop import TrainConfig
@@ -163,8 +164,7 @@ def test_convert_flags_reach_the_options(monkeypatch: pytest.MonkeyPatch, profil
         shard=Shard(2, 3),
         images_root=Path("pictures"),
         overwrite=True,
-        codec="ffv1",
-        crf=0,
+        encoding=VideoEncoding(codec="ffv1", crf=0),
         device="meta",
     )
     assert built == [expected]

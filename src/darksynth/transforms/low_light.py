@@ -24,6 +24,7 @@ Seeding: the transform owns a ``torch.Generator``, created on the first call in 
 
 from __future__ import annotations
 
+import dataclasses
 import os
 from pathlib import Path
 from typing import Any
@@ -33,9 +34,10 @@ import torch
 import torch.utils.data
 
 from darksynth.light.darkening import Darkening
+from darksynth.light.exposure import matched_darkening
 from darksynth.profile import Profile, load_profile, parse_profile, validate_profile
 from darksynth.seeding import derive_seed
-from darksynth.synthesize import DarkeningChoice, LowLightResult, synthesize
+from darksynth.synthesize import ClipParameters, DarkeningChoice, LowLightResult, draw_clip_parameters, synthesize
 from darksynth.tensors import to_8bit_levels
 
 FLOAT_RANGE_TOLERANCE = 0.25
@@ -111,6 +113,33 @@ def check_image(image: object) -> torch.Tensor:
     elif image.dtype not in (torch.uint8, torch.uint16):
         raise ValueError(f"unsupported pixel type {image.dtype}; use uint8, uint16 or float in [0, 1]")
     return image
+
+
+def draw_parameters(
+    image: torch.Tensor, profile: Profile, *, generator: torch.Generator, darkening: DarkeningChoice = "profile"
+) -> ClipParameters:
+    """The parameters :func:`low_light` would draw for a checked image (C, H, W) or clip (T, C, H, W): alpha and
+    gamma matched to its first frame's tones where the profile has the reference's
+    (:func:`darksynth.light.exposure.matched_darkening`), else drawn; the noise values within the profile's ranges."""
+    first = image if image.dim() == 3 else image[0]
+    matched = matched_darkening(first, profile.tone, noise=profile.noise) if darkening == "profile" else None
+    return draw_clip_parameters(profile, darkening=matched or darkening, generator=generator)
+
+
+def low_light_with(
+    image: torch.Tensor,
+    profile: Profile,
+    parameters: ClipParameters,
+    *,
+    generator: torch.Generator,
+    round_to_8bit: bool = True,
+) -> torch.Tensor:
+    """The low-light version of a checked image or clip with parameters drawn before (:func:`draw_parameters`):
+    the profile without ranges and the parameters' darkening, so that only the noise itself is drawn."""
+    fixed = dataclasses.replace(profile, noise=parameters.noise, ranges={})
+    result = low_light(image, fixed, generator=generator, darkening=parameters.darkening, round_to_8bit=round_to_8bit)
+    assert isinstance(result.image, torch.Tensor)
+    return result.image
 
 
 def low_light(
