@@ -45,7 +45,8 @@ from darksynth.noise.components import noise_component
 from darksynth.noise.spectral import SpectralGrid, octave_covariances
 from darksynth.noise.values import NoiseValues
 from darksynth.profile import Profile
-from darksynth.synthesize import ClipParameters, ClipSynthesizer, synthesize
+from darksynth.recipe import ClipParameters
+from darksynth.synthesize import ClipSynthesizer, synthesize
 from darksynth.training.weights import default_weights_path, load_weights
 from machine import cpu_summary
 

@@ -25,7 +25,8 @@ from darksynth.io.images import read_image
 from darksynth.light.exposure import matched_colour, matched_darkening
 from darksynth.light.tones import ToneTarget, colour_cast, median_noise, tone_quantiles
 from darksynth.profile import default_profile_path, load_profile
-from darksynth.synthesize import ClipParameters, ClipSynthesizer
+from darksynth.recipe import ClipParameters
+from darksynth.synthesize import ClipSynthesizer
 
 # The same references and luminance measure as the exposure check (this script's folder is on the path).
 from exposure_match_check import luminance_quantiles, references  # isort: skip

@@ -28,7 +28,8 @@ from darksynth.io.arrays import hwc_to_chw
 from darksynth.io.images import read_image
 from darksynth.noise.values import NoiseValues
 from darksynth.profile import Profile
-from darksynth.synthesize import ClipParameters, ClipSynthesizer
+from darksynth.recipe import ClipParameters
+from darksynth.synthesize import ClipSynthesizer
 from darksynth.training.weights import default_weights_path, load_weights
 
 

@@ -25,7 +25,8 @@ from darksynth.io.arrays import chw_to_hwc, hwc_to_chw
 from darksynth.io.video import DEFAULT_CODEC, DEFAULT_CRF, VideoEncoding, VideoWriter, iter_video_frames, probe_video
 from darksynth.light.darkening import darken
 from darksynth.profile import default_profile_path, load_profile
-from darksynth.synthesize import ClipSynthesizer, draw_clip_parameters
+from darksynth.recipe import draw_clip_parameters
+from darksynth.synthesize import ClipSynthesizer
 
 DEFAULT_VIDEO = Path(__file__).resolve().parents[2] / "shared" / "data" / "clean" / "videos" / "bikes.mp4"
 

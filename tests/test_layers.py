@@ -12,12 +12,14 @@ sibling of its own layer):
 2. ``noise``: the components, their table, the carrier of values, the composer;
 3. ``profile``, ``light.exposure`` (an input's darkening matched to the reference's tones: it simulates the
    profile's noise on the input, so it sits above ``noise`` while the rest of ``light`` sits below);
-4. ``synthesize``, ``models``, ``apply_outputs`` (what ``apply`` may write where: claiming outputs, resuming);
-5. ``apply``, ``training``, ``transforms``;
-6. ``baselines``, ``datasets``, ``estimation`` (reference -> profile, one module per stage, see below), ``preview``
+4. ``recipe`` (a clip's parameters chosen in one place: the draws, the matched darkening and colour cast),
+   ``models``, ``apply_outputs`` (what ``apply`` may write where: claiming outputs, resuming);
+5. ``synthesize`` (the composer run on images, clips and streams);
+6. ``apply``, ``training``, ``transforms``;
+7. ``baselines``, ``datasets``, ``estimation`` (reference -> profile, one module per stage, see below), ``preview``
    (it runs ``apply``'s synthesis);
-7. ``evaluation``, ``demo``;
-8. ``cli``, the package ``__init__``; 9. ``main``, the entry point (the light app, or the cli); 10. ``__main__``,
+8. ``evaluation``, ``demo``;
+9. ``cli``, the package ``__init__``; 10. ``main``, the entry point (the light app, or the cli); 11. ``__main__``,
    which only calls it.
 
 A unit is a top-level module or package, or a module of a package named on its own (``light.exposure``): such a
@@ -57,22 +59,23 @@ LAYERS: dict[str, int] = {
     "noise": 2,
     "profile": 3,
     "light.exposure": 3,
-    "synthesize": 4,
+    "recipe": 4,
     "models": 4,
     "apply_outputs": 4,
-    "apply": 5,
-    "training": 5,
-    "transforms": 5,
-    "baselines": 6,
-    "datasets": 6,
-    "estimation": 6,
-    "preview": 6,
-    "evaluation": 7,
-    "demo": 7,
-    "cli": 8,
-    "main": 9,
-    "__main__": 10,
-    "__init__": 8,
+    "synthesize": 5,
+    "apply": 6,
+    "training": 6,
+    "transforms": 6,
+    "baselines": 7,
+    "datasets": 7,
+    "estimation": 7,
+    "preview": 7,
+    "evaluation": 8,
+    "demo": 8,
+    "cli": 9,
+    "main": 10,
+    "__main__": 11,
+    "__init__": 9,
 }
 
 PURE_CORE = frozenset({"tensors", "light", "light.exposure", "noise"})

@@ -40,16 +40,10 @@ from darksynth.io.video import (
     probe_video,
     to_stream_size,
 )
-from darksynth.light.exposure import matched_colour, matched_darkening
-from darksynth.profile import Profile, profile_to_dict, without_light
+from darksynth.profile import Profile, profile_to_dict
+from darksynth.recipe import ClipParameters, ClipRecipe, DarkeningChoice
 from darksynth.seeding import derive_seed
-from darksynth.synthesize import (
-    ClipParameters,
-    ClipSynthesizer,
-    DarkeningChoice,
-    draw_clip_parameters,
-    fixed_darkening,
-)
+from darksynth.synthesize import ClipSynthesizer
 from darksynth.worker_pool import init_worker
 
 logger = logging.getLogger(__name__)
@@ -81,9 +75,9 @@ class ApplyOptions:
     Attributes:
         profile: the noise profile.
         seed: run seed; each task's seed derives from it and the task's relative path.
-        darkening: see :data:`darksynth.synthesize.DarkeningChoice`.
+        darkening: see :data:`darksynth.recipe.DarkeningChoice`.
         jitter: draw each file's (or clip's) parameters within the profile's ranges; otherwise every file gets the
-            profile's values (see :meth:`drawing`).
+            profile's values (see :class:`darksynth.recipe.ClipRecipe`).
         overwrite: replace outputs that exist before the run (otherwise the run is refused).
         clip: treat each folder of images as one clip (shared parameters and temporal banding).
         workers: processes for folders.
@@ -112,18 +106,16 @@ class ApplyOptions:
     flicker: bool = True
     match_colour: bool = False
 
-    def drawing(self) -> tuple[Profile, DarkeningChoice]:
-        """The profile and darkening each file's parameters are drawn from.
-
-        With ``jitter``, the profile as it is (its ranges drawn from per file). Without, the profile without ranges
-        and a fixed darkening (:func:`darksynth.synthesize.fixed_darkening`): nothing is drawn, every file gets the
-        same values and its seed only drives the noise itself.
-        """
-        profile = without_light(self.profile, blur=not self.blur, flicker=not self.flicker)
-        if self.jitter:
-            return profile, self.darkening
-        darkening = fixed_darkening(profile) if self.darkening == "profile" else self.darkening
-        return dataclasses.replace(profile, ranges={}), darkening
+    def recipe(self) -> ClipRecipe:
+        """How each file's (or clip's) parameters are chosen (:class:`darksynth.recipe.ClipRecipe`)."""
+        return ClipRecipe(
+            self.profile,
+            darkening=self.darkening,
+            jitter=self.jitter,
+            blur=self.blur,
+            flicker=self.flicker,
+            match_colour=self.match_colour,
+        )
 
 
 @dataclass(frozen=True)
@@ -222,16 +214,8 @@ def start_task(
     (:func:`darksynth.light.exposure.matched_darkening`), and with ``match_colour`` the colour cast too."""
     seed = task_seed(options.seed, key)
     generator = torch.Generator(device=options.device).manual_seed(seed)
-    profile, darkening = options.drawing()
     first = None if first_frame is None else hwc_to_chw(first_frame)
-    if first is not None and options.darkening == "profile":
-        darkening = matched_darkening(first, options.profile.tone, noise=options.profile.noise, source=key) or darkening
-    parameters = draw_clip_parameters(profile, darkening=darkening, generator=generator)
-    chosen = parameters.darkening
-    if options.match_colour and first is not None and chosen is not None:
-        colour = matched_colour(first, options.profile.tone, chosen)
-        if colour is not None:
-            parameters = dataclasses.replace(parameters, colour_scale=colour[0], darkening=colour[1])
+    parameters = options.recipe().choose(generator, first, source=key)
     return seed, generator, parameters
 
 

@@ -86,10 +86,10 @@ def test_bad_options_are_refused_by_check(options: ConvertOptions, change: dict[
 def test_apply_options_fix_the_parameters_unless_jitter(options: ConvertOptions) -> None:
     fixed = options.apply_options()
     assert not fixed.jitter and fixed.profile == options.profile
-    drawn_from, darkening = fixed.drawing()
+    drawn_from, darkening = fixed.recipe().drawn_from()
     assert drawn_from.ranges == {} and darkening == fixed_darkening(options.profile)
     jittered = dataclasses.replace(options, jitter=True).apply_options()
-    assert jittered.jitter and jittered.drawing() == (options.profile, "profile")
+    assert jittered.jitter and jittered.recipe().drawn_from() == (options.profile, "profile")
     assert (fixed.seed, fixed.workers, fixed.encoding, fixed.device) == (3, 1, VideoEncoding(), "cpu")
     encoded = dataclasses.replace(options, encoding=VideoEncoding(codec="ffv1", crf=None)).apply_options()
     assert encoded.encoding == VideoEncoding(codec="ffv1")

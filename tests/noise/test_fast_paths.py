@@ -16,7 +16,8 @@ from darksynth.noise.spectral import OCTAVES
 from darksynth.noise.spectral_8bit import read_levels, read_levels_by_index
 from darksynth.noise.values import NoiseValues
 from darksynth.profile import Profile
-from darksynth.synthesize import ClipParameters, ClipSynthesizer, draw_clip_parameters, synthesize
+from darksynth.recipe import ClipParameters, draw_clip_parameters
+from darksynth.synthesize import ClipSynthesizer, synthesize
 
 PAPER = {"shot": 0.05, "read": 0.01, "quantization": 0.004, "banding": 0.003, "temporal_banding": 0.002}
 

@@ -17,7 +17,8 @@ from darksynth.noise.counter_rng import advance, random_key
 from darksynth.noise.kernel8 import compiled_pixel_kernel, pixel_kernel_8bit
 from darksynth.noise.values import NoiseValues
 from darksynth.profile import default_profile_path, load_profile
-from darksynth.synthesize import ClipParameters, ClipSynthesizer, draw_clip_parameters
+from darksynth.recipe import ClipParameters, draw_clip_parameters
+from darksynth.synthesize import ClipSynthesizer
 from tests.noise.test_fast_paths import SRGB
 
 

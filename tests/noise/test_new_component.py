@@ -29,7 +29,8 @@ from darksynth.noise.level import mean_noise_variance
 from darksynth.noise.sampling import random_noise_values
 from darksynth.noise.values import NoiseValues
 from darksynth.profile import load_profile, profile_schema, save_profile
-from darksynth.synthesize import ClipParameters, ClipSynthesizer
+from darksynth.recipe import ClipParameters
+from darksynth.synthesize import ClipSynthesizer
 
 DITHER = 0.08
 

@@ -20,7 +20,8 @@ from darksynth.noise.spectral_kernel import (
     spectral_pixel_kernel,
 )
 from darksynth.noise.values import NoiseValues
-from darksynth.synthesize import ClipParameters, ClipSynthesizer
+from darksynth.recipe import ClipParameters
+from darksynth.synthesize import ClipSynthesizer
 
 SPECTRAL = {
     "level_curve": [0.01, 0.012, 0.014, 0.016, 0.018, 0.02, 0.022, 0.024] * 3,

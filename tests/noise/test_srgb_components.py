@@ -25,7 +25,8 @@ from darksynth.noise.correlated import (
 from darksynth.noise.heteroscedastic import heteroscedastic_noise
 from darksynth.noise.simulate import add_noise, noise_sum
 from darksynth.noise.values import NoiseValues
-from darksynth.synthesize import ClipParameters, ClipSynthesizer
+from darksynth.recipe import ClipParameters
+from darksynth.synthesize import ClipSynthesizer
 
 
 def _values(**set_values: float | list[float]) -> NoiseValues:

@@ -14,8 +14,8 @@ import torch.utils.data
 from darksynth.light.darkening import Darkening
 from darksynth.noise.values import NoiseValues
 from darksynth.profile import Profile
-from darksynth.synthesize import ClipParameters
-from darksynth.transforms.low_light import low_light_with, mix_seed
+from darksynth.recipe import ClipParameters
+from darksynth.transforms.low_light import low_light, mix_seed
 from tests.conftest import build_profile
 from tests.transforms.test_low_light import _everything_profile
 
@@ -60,12 +60,13 @@ def test_albumentations_transform_is_the_torch_transform_with_the_parameters_it_
         noise=NoiseValues.from_json({**params["noise"], **params["light"]}),
         darkening=Darkening(alpha=params["alpha"], gamma=params["gamma"]),
     )
-    expected = low_light_with(
+    expected = low_light(
         torch.from_numpy(image).permute(2, 0, 1),
         _everything_profile(),
-        parameters,
         generator=torch.Generator().manual_seed(mix_seed("noise", 42)),
-    )
+        parameters=parameters,
+    ).image
+    assert isinstance(expected, torch.Tensor)
     assert np.array_equal(transform.apply(image, **params), expected.permute(1, 2, 0).numpy())  # type: ignore[attr-defined]
 
 

@@ -14,7 +14,7 @@ from rich.console import Console
 from darksynth.errors import DarksynthError
 from darksynth.light.darkening import Darkening
 from darksynth.models.den import Variant
-from darksynth.synthesize import DarkeningChoice
+from darksynth.recipe import DarkeningChoice
 
 console = Console(stderr=True)
 

@@ -31,7 +31,7 @@ from darksynth.datasets.formats import (
     plan_dataset,
     rewrite_yolo_yaml,
 )
-from darksynth.synthesize import fixed_darkening
+from darksynth.recipe import fixed_darkening
 
 __all__ = [
     "FORMATS",

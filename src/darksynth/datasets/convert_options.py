@@ -70,7 +70,7 @@ class ConvertOptions:
         format: the dataset format, one of :data:`darksynth.datasets.formats.FORMATS`.
         seed: run seed; each item's seed derives from it and the item's relative path.
         jitter: draw parameters per item within the profile's ranges; otherwise every item gets the profile's
-            values (see :func:`darksynth.synthesize.fixed_darkening` for the darkening).
+            values (see :func:`darksynth.recipe.fixed_darkening` for the darkening).
         workers: processes on this machine.
         shard: the part of the dataset this run handles, or None for all of it.
         images_root: COCO: the folder ``file_name`` entries are relative to (tried first).

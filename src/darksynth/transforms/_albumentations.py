@@ -26,14 +26,13 @@ from darksynth.io.arrays import numpy_to_tensor, tensor_to_numpy
 from darksynth.light.darkening import Darkening
 from darksynth.noise.values import NoiseValues
 from darksynth.profile import Profile, profile_to_dict
-from darksynth.synthesize import ClipParameters, DarkeningChoice
+from darksynth.recipe import ClipParameters, ClipRecipe, DarkeningChoice
 from darksynth.transforms.low_light import (
     as_profile,
     check_darkening,
     check_image,
     dataloader_worker_seed,
-    draw_parameters,
-    low_light_with,
+    low_light,
     mix_seed,
 )
 
@@ -131,7 +130,8 @@ class AlbumentationsLowLight(ImageOnlyTransform):  # type: ignore[misc]  # album
         seed = int(params["seed"])
         clean = check_image(_target_tensor(data))
         generator = torch.Generator().manual_seed(mix_seed("parameters", seed))
-        drawn = draw_parameters(clean, self._profile, generator=generator, darkening=self._darkening_choice)
+        first = clean if clean.dim() == 3 else clean[0]
+        drawn = ClipRecipe(self._profile, darkening=self._darkening_choice).choose(generator, first)
         darkening = drawn.darkening
         return {
             "seed": seed,
@@ -147,13 +147,15 @@ class AlbumentationsLowLight(ImageOnlyTransform):  # type: ignore[misc]  # album
             noise=NoiseValues.from_json({**drawn["noise"], **drawn["light"]}),
             darkening=None if alpha is None or gamma is None else Darkening(alpha=alpha, gamma=gamma),
         )
-        return low_light_with(
+        result = low_light(
             check_image(clean),
             self._profile,
-            parameters,
             generator=torch.Generator().manual_seed(mix_seed("noise", int(drawn["seed"]))),
             round_to_8bit=self.round_to_8bit,
+            parameters=parameters,
         )
+        assert isinstance(result.image, torch.Tensor)  # a tensor input gives a tensor result
+        return result.image
 
     def apply(self, img: np.ndarray, **params: Any) -> np.ndarray:
         """The low-light version of one (H, W) or (H, W, C) image with the parameters drawn for it."""
