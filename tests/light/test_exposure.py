@@ -1,4 +1,4 @@
-"""The reference's exposure carried by the profile and matched per input by ``apply`` (issue 25, item 0)."""
+"""The reference's exposure carried by the profile and matched per input by ``apply``."""
 
 from __future__ import annotations
 

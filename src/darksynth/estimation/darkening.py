@@ -159,12 +159,12 @@ column beyond): a 1080p or smaller frame is read whole, a 12 MP photo on a quart
 
 LOW_DARKENING_CONFIDENCE = 0.1
 """Below this confidence (:attr:`~darksynth.light.tone_fit.DarkeningEstimate.confidence`) the darkening estimate
-comes with a warning.
+comes with a note in the profile's ``meta``.
 
 On held-out Kodak images (``scripts/estimate_warnings.py --confidence``) the median tone-curve error is 0.43
-below 0.1 (90th percentile 1.12) against 0.21-0.33 above it; at the former 0.2 the warning fired on half of
-those images and of the real references while the estimates between 0.1 and 0.2 (error 0.33) were about as
-good as those between 0.2 and 0.3 (0.31)."""
+below 0.1 (90th percentile 1.12) against 0.21-0.33 above it; a threshold of 0.2 would flag half of those images
+and of the real references, while the estimates between 0.1 and 0.2 (error 0.33) are about as good as those
+between 0.2 and 0.3 (0.31)."""
 
 
 SEARCH_BOUNDS = {"alpha": ALPHA_BOUNDS, "gamma": GAMMA_BOUNDS}
@@ -225,21 +225,48 @@ def estimate_profile_darkening(
         return None, None
     # A single image has no frames to spread over: its four regions say how much the estimate depends on content.
     regions = estimate_darkening_spread(sampled[:1], statistics=statistics) if reference.shape[0] == 1 else []
-    meta["darkening"] = {
+    meta["darkening"] = _darkening_meta(found, regions)
+    notes = _darkening_notes(found, source)
+    if notes:
+        meta["darkening"]["notes"] = [
+            *notes,
+            "apply and synthesize match each input to the reference's tones (the profile's tone), not to this alpha "
+            "and gamma, which remain the profile's darkening for readers that do not match",
+        ]
+    if frames.shape[0] > 1:
+        per_frame = [estimated.darkening for estimated in per_frame_found if estimated is not None]
+        if len(per_frame) > 1:
+            ranges.update(_per_frame_ranges(found.darkening, per_frame))
+            meta["darkening"]["ranges"] = "10th-90th percentile over frames"
+    return found.darkening, _tone_target(found, frames)
+
+
+def _darkening_meta(found: DarkeningEstimate, regions: list[DarkeningEstimate]) -> dict[str, Any]:
+    """How the darkening was found: the fit's figures, where alpha and gamma came from, and for an image the 10th
+    and 90th percentile of its regions' estimates (None for a clip)."""
+
+    def region_percentiles(name: str) -> list[float] | None:
+        if not regions:
+            return None
+        return [round(float(v), 4) for v in np.percentile([getattr(e.darkening, name) for e in regions], [10, 90])]
+
+    return {
         "method": "tone quantiles of 4x4 block medians fitted to the clean-image prior (docs/darkening-estimate.md)",
         "quantiles_used": found.quantiles_used,
         "fit_rms": round(found.fit_rms, 4),
         "confidence": round(found.confidence, 3),
         **{name: _darkening_origin(name, float(getattr(found.darkening, name)), found) for name in ("alpha", "gamma")},
-        "region_alpha": [round(float(v), 4) for v in np.percentile([e.darkening.alpha for e in regions], [10, 90])]
-        if regions
-        else None,
-        "region_gamma": [round(float(v), 4) for v in np.percentile([e.darkening.gamma for e in regions], [10, 90])]
-        if regions
-        else None,
+        "region_alpha": region_percentiles("alpha"),
+        "region_gamma": region_percentiles("gamma"),
     }
-    # apply matches each input to the reference's tones (the profile's tone, returned below), not to this one
-    # (alpha, gamma): doubts about it are notes in meta, not warnings (it fired on 19 of 20 held-out photos).
+
+
+def _darkening_notes(found: DarkeningEstimate, source: str) -> list[str]:
+    """Doubts about the fitted alpha and gamma: a bound hit, a low confidence.
+
+    ``apply`` matches each input to the reference's tones (the profile's tone), not to this (alpha, gamma), so the
+    doubts are notes in ``meta``, not warnings (as warnings they fired on 19 of 20 held-out photos).
+    """
     notes: list[str] = []
     for name, side in found.bounds_hit.items():
         low, high = SEARCH_BOUNDS[name]
@@ -255,22 +282,18 @@ def estimate_profile_darkening(
             f"fit rms {found.fit_rms:.2f}{', a bound hit' if found.clipped else ''}); on held-out images such "
             "estimates have about twice the tone-curve error"
         )
-    if notes:
-        meta["darkening"]["notes"] = [
-            *notes,
-            "apply and synthesize match each input to the reference's tones (the profile's tone), not to this alpha "
-            "and gamma, which remain the profile's darkening for readers that do not match",
-        ]
-    if frames.shape[0] > 1:
-        per_frame = [estimated.darkening for estimated in per_frame_found if estimated is not None]
-        if len(per_frame) > 1:
-            for name in ("alpha", "gamma"):
-                values = [getattr(d, name) for d in per_frame]
-                point = getattr(found.darkening, name)
-                low, high = np.percentile(values, [10, 90])
-                ranges[name] = ((min(float(low), point), max(float(high), point)),)
-            meta["darkening"]["ranges"] = "10th-90th percentile over frames"
-    return found.darkening, _tone_target(found, frames)
+    return notes
+
+
+def _per_frame_ranges(point: Darkening, per_frame: list[Darkening]) -> dict[str, tuple[tuple[float, float], ...]]:
+    """The ranges of alpha and gamma over a clip's frames: their 10th to 90th percentile, widened to hold the
+    pooled estimate ``point``."""
+    ranges: dict[str, tuple[tuple[float, float], ...]] = {}
+    for name in ("alpha", "gamma"):
+        value = getattr(point, name)
+        low, high = np.percentile([getattr(d, name) for d in per_frame], [10, 90])
+        ranges[name] = ((min(float(low), value), max(float(high), value)),)
+    return ranges
 
 
 def _tone_target(found: DarkeningEstimate, frames: torch.Tensor) -> ToneTarget:

@@ -1,5 +1,5 @@
 """An input's darkening matched to the reference's exposure: the profile's tone target against the input's own
-tones (issue 25; docs/darkening-estimate.md). ``apply``, ``convert`` and ``synthesize`` (the training transforms)
+tones (docs/darkening-estimate.md). ``apply``, ``convert`` and ``synthesize`` (the training transforms)
 take it for each image, clip and video, from its first frame, unless the darkening is given (``--alpha/--gamma``,
 ``--no-darken``, a ``darkening`` argument)."""
 
@@ -40,8 +40,8 @@ def match_darkening(
     k-th of a large frame: :func:`darksynth.light.tones.sampled_tone_quantiles`) in place of the prior of average
     scenes (and no pull to the paper's ranges), so the darkened input's block-median quantiles follow the
     reference's. The exposure is then "as dark as the reference" for this input, which one (alpha, gamma) read off
-    the reference against average scenes is not (issue 25: the luminance quantiles of `apply`'s output were 0.137
-    from the reference's, median).
+    the reference against average scenes is not (with that one, the luminance quantiles of ``apply``'s output lay
+    0.137 from the reference's, median).
 
     Args:
         reference_quantiles: the reference's :func:`darksynth.light.tones.tone_quantiles` at its ``PROBABILITIES``.

@@ -56,7 +56,7 @@ SCENE = NoiseComponent(
     structure="scene",
     draw=scene_blur,
     variance=None,
-    reference="darksynth (issue 25): the shutter's integral along the scene's flow; Brooks & Barron 2019 for "
+    reference="darksynth, docs/motion-blur.md: the shutter's integral along the scene's flow; Brooks & Barron 2019 for "
     "averaging in linear light",
 )
 
@@ -80,5 +80,5 @@ FLICKER = NoiseComponent(
     structure="exposure",
     draw=flicker_gains,
     variance=None,
-    reference="darksynth (issue 25): mains flicker and auto-exposure hunting as an AR(1) gain",
+    reference="darksynth, docs/motion-blur.md: mains flicker and auto-exposure hunting as an AR(1) gain",
 )
