@@ -23,8 +23,8 @@ from darksynth.light.tone_fit import (
     fit_darkening,
 )
 from darksynth.light.tones import (
-    BLOCK,
     PROBABILITIES,
+    TONE_BLOCK,
     ToneTarget,
     colour_cast,
     luminance_quantiles,
@@ -38,7 +38,7 @@ from darksynth.light.tones import (
 def estimate_darkening(
     frames: torch.Tensor,
     *,
-    block: int = BLOCK,
+    block: int = TONE_BLOCK,
     prior: tuple[float, ...] | np.ndarray = TONE_PRIOR_LOG_QUANTILES,
     use_prior: bool = True,
     source: str = "reference",
@@ -48,7 +48,8 @@ def estimate_darkening(
     Args:
         frames: reference frames (T, C, H, W) or one frame (C, H, W), values on the [0, 1] scale; all frames
             are pooled.
-        block: side of the median blocks (the prior was measured with :data:`~darksynth.light.tones.BLOCK`; keep it).
+        block: side of the median blocks (the prior was measured with :data:`~darksynth.light.tones.TONE_BLOCK`;
+            keep it).
         prior: mean clean log quantiles measured with the same ``block``.
         use_prior: see :func:`fit_darkening`.
         source: the name error messages start with.
@@ -68,7 +69,7 @@ def estimate_darkening(
 def estimate_darkening_pooled_and_per_frame(
     frames: torch.Tensor,
     *,
-    block: int = BLOCK,
+    block: int = TONE_BLOCK,
     source: str = "reference",
     statistics: list[BlockStatistics] | None = None,
 ) -> tuple[DarkeningEstimate, list[DarkeningEstimate | None]]:
@@ -114,7 +115,7 @@ def estimate_darkening_spread(
     frames: torch.Tensor,
     *,
     regions: int = 2,
-    block: int = BLOCK,
+    block: int = TONE_BLOCK,
     source: str = "reference",
     statistics: list[BlockStatistics] | None = None,
 ) -> list[DarkeningEstimate]:
@@ -211,7 +212,7 @@ def estimate_profile_darkening(
     # Each frame's blocks sorted once (a photo's regions below are read from the same sort), on a sample of a large
     # frame's blocks: a 12 MP photo's 750 k a channel fix its tone quantiles no better than a quarter of them.
     sampled = sampled_blocks(frames, most=DARKENING_BLOCKS)
-    statistics = [block_statistics(frame, BLOCK) for frame in sampled]
+    statistics = [block_statistics(frame, TONE_BLOCK) for frame in sampled]
     try:
         # The pooled estimate and each frame's own (for the clip's range) from one pass over the frames.
         found, per_frame_found = estimate_darkening_pooled_and_per_frame(sampled, source=source, statistics=statistics)

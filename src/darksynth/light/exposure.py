@@ -18,7 +18,7 @@ import torch
 from darksynth.errors import DarksynthError
 from darksynth.light.darkening import Darkening, darken
 from darksynth.light.tone_fit import ALPHA_BOUNDS, GAMMA_BOUNDS, DarkeningEstimate, fit_darkening
-from darksynth.light.tones import BLOCK, PROBABILITIES, ToneTarget, colour_cast, sampled_tone_quantiles
+from darksynth.light.tones import PROBABILITIES, TONE_BLOCK, ToneTarget, colour_cast, sampled_tone_quantiles
 from darksynth.noise.level import channel_noise_std
 from darksynth.noise.simulate import noise_sum
 from darksynth.noise.values import NoiseValues
@@ -32,7 +32,7 @@ def match_darkening(
     reference_noise: float,
     clean: torch.Tensor,
     *,
-    block: int = BLOCK,
+    block: int = TONE_BLOCK,
     source: str = "reference",
 ) -> DarkeningEstimate:
     """Alpha and gamma that darken ``clean`` to the tones of a reference: the fit of

@@ -2,7 +2,7 @@
 (:mod:`darksynth.light.tone_fit`), by ``estimate`` on a real low-light reference and by ``apply`` on each clean input.
 
 The tone distribution is the quantile function q(p) of the pooled R, G and B values, taken over the medians of small
-blocks (:data:`BLOCK` pixels square, per channel): a median commutes with any increasing function, so the block
+blocks (:data:`TONE_BLOCK` pixels square, per channel): a median commutes with any increasing function, so the block
 medians of a darkened image are exactly the darkened block medians, while noise in them shrinks by about the block
 side and clipping at 0 does not bias them (the median of clip(x + n) is clip(x) for symmetric noise). The noise left
 in a block median (:func:`median_noise`) sets the floor below which the fit leaves quantiles out. What a viewer sees
@@ -21,7 +21,7 @@ import torch
 from darksynth.light.tone_blocks import NOISE_BLOCKS, block_side, tiles
 from darksynth.tensors import luminance
 
-BLOCK = 4
+TONE_BLOCK = 4
 """Side of the square blocks whose per-channel medians make the tone distribution."""
 
 PROBABILITIES: tuple[float, ...] = tuple(round(0.02 * i, 2) for i in range(1, 50))
@@ -64,7 +64,7 @@ def luminance_quantiles(frames: torch.Tensor, *, probabilities: tuple[float, ...
     return np.quantile(values.numpy().astype(np.float64), probabilities)
 
 
-def colour_cast(frames: torch.Tensor, *, block: int = BLOCK) -> tuple[float, float, float] | None:
+def colour_cast(frames: torch.Tensor, *, block: int = TONE_BLOCK) -> tuple[float, float, float] | None:
     """The colour cast of frames (..., 3, H, W): each channel's share of the light, as the sum of its block medians
     over the mean of the three channels' sums (1, 1, 1 for grey; a sodium-lit street is about 1.4, 0.9, 0.6).
 
@@ -83,7 +83,7 @@ def colour_cast(frames: torch.Tensor, *, block: int = BLOCK) -> tuple[float, flo
     return (red, green, blue)
 
 
-def block_medians(frames: torch.Tensor, block: int = BLOCK) -> torch.Tensor:
+def block_medians(frames: torch.Tensor, block: int = TONE_BLOCK) -> torch.Tensor:
     """Per-channel medians of non-overlapping ``block`` x ``block`` tiles.
 
     Args:
@@ -107,7 +107,7 @@ column): its 49 quantiles are as well determined by 16k blocks as by a 1080p fra
 about 5)."""
 
 
-def sampled_blocks(frames: torch.Tensor, *, block: int = BLOCK, most: int = MATCH_BLOCKS) -> torch.Tensor:
+def sampled_blocks(frames: torch.Tensor, *, block: int = TONE_BLOCK, most: int = MATCH_BLOCKS) -> torch.Tensor:
     """Every k-th block row and column of ``frames`` (..., C, H, W), put side by side, k the smallest that leaves
     at most ``most`` blocks per channel and frame (``frames`` itself for small frames)."""
     rows, columns = frames.shape[-2] // block, frames.shape[-1] // block
@@ -122,13 +122,13 @@ def sampled_blocks(frames: torch.Tensor, *, block: int = BLOCK, most: int = MATC
     return grouped[..., :block, :, :block].reshape(*frames.shape[:-2], rows * block, columns * block)
 
 
-def sampled_tone_quantiles(frames: torch.Tensor, *, block: int = BLOCK) -> np.ndarray:
+def sampled_tone_quantiles(frames: torch.Tensor, *, block: int = TONE_BLOCK) -> np.ndarray:
     """:func:`tone_quantiles` of :func:`sampled_blocks` of ``frames`` (the same numbers for small frames)."""
     return tone_quantiles(sampled_blocks(frames, block=block), block=block)
 
 
 def tone_quantiles(
-    frames: torch.Tensor, *, block: int = BLOCK, probabilities: tuple[float, ...] = PROBABILITIES
+    frames: torch.Tensor, *, block: int = TONE_BLOCK, probabilities: tuple[float, ...] = PROBABILITIES
 ) -> np.ndarray:
     """Quantiles q(p) of the block medians of all channels and frames.
 
@@ -143,7 +143,7 @@ def tone_quantiles(
     return np.quantile(values, probabilities)
 
 
-def median_noise(frames: torch.Tensor, block: int = BLOCK) -> float:
+def median_noise(frames: torch.Tensor, block: int = TONE_BLOCK) -> float:
     """Standard deviation of the noise left in one block median, on the [0, 1] scale.
 
     The noise of a block is read from its upper half, (75th percentile - median) / 0.6745, which clipping at
