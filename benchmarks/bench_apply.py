@@ -39,15 +39,16 @@ import numpy as np
 import torch
 from PIL import Image
 
-from darksynth.darkening import Darkening
 from darksynth.estimation.assemble import estimate
 from darksynth.estimation.reference import load_reference
+from darksynth.light.darkening import Darkening
 from darksynth.noise.components import noise_component
 from darksynth.noise.spectral import SpectralGrid, octave_covariances
 from darksynth.noise.structure_translation import spectral_tensors
 from darksynth.noise.values import NoiseValues
 from darksynth.profile import Profile
-from darksynth.synthesize import ClipParameters, ClipSynthesizer, synthesize
+from darksynth.recipe import ClipParameters
+from darksynth.synthesize import ClipSynthesizer, synthesize
 from darksynth.training.weights import default_weights_path, load_weights
 from machine import cpu_summary
 

@@ -27,11 +27,12 @@ import cv2
 import numpy as np
 import torch
 
-from darksynth.darkening import Darkening
 from darksynth.io.arrays import hwc_to_chw
 from darksynth.io.video import VideoWriter
+from darksynth.light.darkening import Darkening
 from darksynth.noise.values import NoiseValues
-from darksynth.synthesize import ClipParameters, ClipSynthesizer
+from darksynth.recipe import ClipParameters
+from darksynth.synthesize import ClipSynthesizer
 from machine import cpu_summary
 
 HEIGHT, WIDTH, FRAMES = 1080, 1920, 16

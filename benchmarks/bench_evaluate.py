@@ -16,7 +16,7 @@ import tempfile
 import time
 from pathlib import Path
 
-from darksynth.evaluation.methods import DEFAULT_METHODS
+from darksynth.evaluation.methods.catalogue import DEFAULT_METHODS
 from machine import cpu_summary
 
 

@@ -356,7 +356,8 @@ def profile_stages(
 
     from darksynth.io.video import VideoWriter, iter_video_frames, probe_video
     from darksynth.profile import load_profile
-    from darksynth.synthesize import ClipSynthesizer, draw_clip_parameters
+    from darksynth.recipe import draw_clip_parameters
+    from darksynth.synthesize import ClipSynthesizer
 
     info = probe_video(source)
     decoded: list[np.ndarray] = []

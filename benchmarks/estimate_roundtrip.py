@@ -40,14 +40,14 @@ import numpy as np
 import torch
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
-from darksynth.darkening import darken
 from darksynth.estimation.assemble import estimate
-from darksynth.evaluation.structure import band_powers, band_ratios
+from darksynth.estimation.spectral_fit import quantised
+from darksynth.evaluation.measures.structure import band_powers, band_ratios
 from darksynth.io.arrays import hwc_to_chw
 from darksynth.io.images import read_image
+from darksynth.light.darkening import darken
 from darksynth.noise.simulate import add_noise
 from darksynth.noise.spectral import LEVEL_KNOTS, OCTAVE_FREQUENCIES, OCTAVES
-from darksynth.noise.spectral_fit import quantised
 from darksynth.noise.values import NoiseValues
 from darksynth.training.weights import default_weights_path, load_weights
 from machine import cpu_summary

@@ -15,8 +15,8 @@ from pathlib import Path
 
 import numpy as np
 
-from darksynth.evaluation.methods import build_method
-from darksynth.evaluation.metrics import channel_correlations, kl_divergence_noise_flow, kl_divergence_srgb
+from darksynth.evaluation.measures.metrics import channel_correlations, kl_divergence_noise_flow, kl_divergence_srgb
+from darksynth.evaluation.methods.catalogue import build_method
 from darksynth.evaluation.pairs import list_pair_set, load_pair
 from darksynth.seeding import seeded_generator
 

@@ -3,11 +3,11 @@
 Run: ``PYTHONPATH=src .venv/bin/python scripts/colour_match_check.py [--data ../shared/data] [--images 6]``.
 
 For every shared real low-light reference (LOL and LIME images, the first frame of each phone clip and of the
-starlight video), its tone target (:func:`darksynth.tones.tone_quantiles`, ``median_noise``, ``colour_cast``),
+starlight video), its tone target (:func:`darksynth.light.tones.tone_quantiles`, ``median_noise``, ``colour_cast``),
 then the first ``--images`` Kodak images darkened to it as ``apply`` does (``matched_darkening``), with the
 shipped profile's noise, (a) as today and (b) with the colour matched (``matched_colour``). Printed per reference
 and over all pairs: the colour gap, the mean absolute difference between the output's channel shares
-(:func:`darksynth.tones.colour_cast`) and the reference's, and the luminance gap of
+(:func:`darksynth.light.tones.colour_cast`) and the reference's, and the luminance gap of
 ``scripts/exposure_match_check.py``, which the colour match must not worsen.
 """
 
@@ -21,11 +21,12 @@ import numpy as np
 import torch
 
 from darksynth.estimation.reference import load_reference
-from darksynth.exposure import matched_colour, matched_darkening
 from darksynth.io.images import read_image
+from darksynth.light.exposure import matched_colour, matched_darkening
+from darksynth.light.tones import ToneTarget, colour_cast, median_noise, tone_quantiles
 from darksynth.profile import default_profile_path, load_profile
-from darksynth.synthesize import ClipParameters, ClipSynthesizer
-from darksynth.tones import ToneTarget, colour_cast, median_noise, tone_quantiles
+from darksynth.recipe import ClipParameters
+from darksynth.synthesize import ClipSynthesizer
 
 # The same references and luminance measure as the exposure check (this script's folder is on the path).
 from exposure_match_check import luminance_quantiles, references  # isort: skip

@@ -25,14 +25,14 @@ from pathlib import Path
 import numpy as np
 import torch
 
-from darksynth.darkening import ALPHA_RANGE, GAMMA_RANGE, Darkening, darken
 from darksynth.errors import DarksynthError
 from darksynth.estimation.assemble import NOISE_FREE_STD, EstimateOptions, estimate_file
+from darksynth.estimation.darkening import estimate_darkening
 from darksynth.estimation.reference import load_reference
+from darksynth.light.darkening import ALPHA_RANGE, GAMMA_RANGE, Darkening, darken
 from darksynth.noise.level import mean_noise_variance
 from darksynth.noise.sampling import random_noise_values
 from darksynth.noise.simulate import add_noise
-from darksynth.tones import estimate_darkening
 from darksynth.training.weights import default_weights_path, load_weights
 
 

@@ -1,4 +1,4 @@
-"""Measure the darkening estimate (darksynth.tones) and make its tone prior.
+"""Measure the darkening estimate (darksynth.light.tones) and make its tone prior.
 
     .venv/bin/python scripts/evaluate_darkening.py prior      # the TONE_PRIOR_LOG_QUANTILES table
     .venv/bin/python scripts/evaluate_darkening.py evaluate   # the figures in docs/darkening-estimate.md
@@ -19,20 +19,15 @@ from pathlib import Path
 import numpy as np
 import torch
 
-from darksynth.darkening import ALPHA_RANGE, GAMMA_RANGE, Darkening, darken
 from darksynth.errors import DarksynthError
+from darksynth.estimation.darkening import estimate_darkening, estimate_darkening_spread
 from darksynth.estimation.reference import load_reference
+from darksynth.light.darkening import ALPHA_RANGE, GAMMA_RANGE, Darkening, darken
+from darksynth.light.tone_fit import TONE_PRIOR_LOG_QUANTILES
+from darksynth.light.tones import PROBABILITIES, TONE_BLOCK, tone_quantiles
 from darksynth.noise.components import model_parameters
 from darksynth.noise.sampling import random_noise_values
 from darksynth.noise.simulate import add_noise
-from darksynth.tones import (
-    BLOCK,
-    PROBABILITIES,
-    TONE_PRIOR_LOG_QUANTILES,
-    estimate_darkening,
-    estimate_darkening_spread,
-    tone_quantiles,
-)
 
 DATA = Path(__file__).resolve().parents[2] / "shared" / "data"
 TRAINING_SETS = ("cbsd68", "mcmaster", "mirflickr")
@@ -168,7 +163,7 @@ def real(block: int, prior: np.ndarray) -> None:
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     parser.add_argument("command", choices=("prior", "evaluate"))
-    parser.add_argument("--block", type=int, default=BLOCK)
+    parser.add_argument("--block", type=int, default=TONE_BLOCK)
     parser.add_argument("--draws", type=int, default=4, help="darkenings per held-out image")
     parser.add_argument("--seed", type=int, default=0)
     parser.add_argument("--noise-scale", type=float, default=1.0, help="scale the drawn noise (0: none)")
@@ -185,7 +180,7 @@ def main() -> None:
                 print("    " + " ".join(f"{v:.4f}," for v in table[start : start + 8]))
             print(")")
         return
-    shipped = args.block == BLOCK and len(TONE_PRIOR_LOG_QUANTILES) == len(PROBABILITIES)
+    shipped = args.block == TONE_BLOCK and len(TONE_PRIOR_LOG_QUANTILES) == len(PROBABILITIES)
     prior = np.asarray(TONE_PRIOR_LOG_QUANTILES) if shipped else measure_prior(args.block)[0]
     evaluate(args.block, args.draws, args.seed, prior, args.noise_scale, not args.no_paper_prior)
     if not args.no_real:

@@ -23,9 +23,9 @@ from pathlib import Path
 import torch
 
 from darksynth.apply import ApplyOptions, apply
-from darksynth.darkening import Darkening
 from darksynth.estimation.assemble import estimate
 from darksynth.estimation.reference import load_reference
+from darksynth.light.darkening import Darkening
 from darksynth.noise.components import NoiseModel
 from darksynth.noise.sampling import random_darkening_values, random_noise_values
 from darksynth.noise.values import NoiseValues

@@ -22,8 +22,8 @@ from pathlib import Path
 import numpy as np
 import torch
 
-from darksynth.darkening import darken
 from darksynth.io.images import read_image
+from darksynth.light.darkening import darken
 from darksynth.noise.sampling import random_darkening_values, random_noise_values
 from darksynth.noise.simulate import add_noise
 from darksynth.noise.values import NoiseValues

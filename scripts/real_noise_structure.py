@@ -19,7 +19,7 @@ from pathlib import Path
 import numpy as np
 import torch
 
-from darksynth.evaluation.methods import build_method
+from darksynth.evaluation.methods.catalogue import build_method
 from darksynth.evaluation.pairs import list_pair_set, load_pair
 
 

@@ -25,11 +25,11 @@ import torch.nn.functional as F
 from PIL import Image, ImageDraw
 
 from darksynth.estimation.assemble import estimate
-from darksynth.estimation.flat_blocks import BLOCK, STRENGTH_CLIPPED_SHARE, clipped_share, flat_block_std
+from darksynth.estimation.flat_blocks import FLAT_BLOCK, STRENGTH_CLIPPED_SHARE, clipped_share, flat_block_std
 from darksynth.estimation.nonlocal_means import nlm_denoise
 from darksynth.estimation.reference import load_reference
+from darksynth.estimation.spectral_fit import quantised
 from darksynth.noise.simulate import add_noise
-from darksynth.noise.spectral_fit import quantised
 from darksynth.training.weights import default_weights_path, load_weights
 
 CROP = 128
@@ -38,11 +38,11 @@ CROP = 128
 def flattest_block_std(frame: torch.Tensor, usable: torch.Tensor | None = None) -> float:
     """Std in 8-bit levels of the 10% flattest 32-px blocks of ``frame`` (3, H, W) among the ``usable`` ones (all by
     default), flatness judged on a 5-px mean so that the noise itself does not decide it."""
-    blocks = F.unfold(frame[:, None], BLOCK, stride=BLOCK).std(dim=1).mean(0)
+    blocks = F.unfold(frame[:, None], FLAT_BLOCK, stride=FLAT_BLOCK).std(dim=1).mean(0)
     smooth = F.avg_pool2d(frame[None], 5, stride=1, padding=2)[0].mean(0)
     dx = (smooth[:, 1:] - smooth[:, :-1]).abs()[:-1]
     dy = (smooth[1:] - smooth[:-1]).abs()[:, :-1]
-    gradient = F.avg_pool2d(F.pad(dx + dy, (0, 1, 0, 1))[None, None], BLOCK)[0, 0].flatten()[: blocks.numel()]
+    gradient = F.avg_pool2d(F.pad(dx + dy, (0, 1, 0, 1))[None, None], FLAT_BLOCK)[0, 0].flatten()[: blocks.numel()]
     if usable is not None and bool(usable.any()):
         blocks, gradient = blocks[usable], gradient[usable]
     count = max(1, round(0.1 * gradient.numel()))

@@ -19,13 +19,13 @@ from pathlib import Path
 import numpy as np
 import torch
 
+from darksynth.estimation.spectral_fit import quantised
 from darksynth.estimation.spectrum import estimate_spectrum
-from darksynth.evaluation.structure import band_powers, band_ratios
+from darksynth.evaluation.measures.structure import band_powers, band_ratios
 from darksynth.io.arrays import hwc_to_chw
 from darksynth.io.images import read_image
 from darksynth.noise.sampling import random_noise_values
 from darksynth.noise.simulate import add_noise
-from darksynth.noise.spectral_fit import quantised
 from darksynth.noise.values import NoiseValues
 
 SPECTRAL = ("level_curve", "octave_power", "octave_correlation")

@@ -23,12 +23,13 @@ import torch
 
 from darksynth.estimation.assemble import estimate
 from darksynth.estimation.reference import load_reference
-from darksynth.evaluation.structure import temporal_lag_correlation
+from darksynth.evaluation.measures.structure import temporal_lag_correlation
 from darksynth.io.arrays import hwc_to_chw
 from darksynth.io.images import read_image
 from darksynth.noise.values import NoiseValues
 from darksynth.profile import Profile
-from darksynth.synthesize import ClipParameters, ClipSynthesizer
+from darksynth.recipe import ClipParameters
+from darksynth.synthesize import ClipSynthesizer
 from darksynth.training.weights import default_weights_path, load_weights
 
 

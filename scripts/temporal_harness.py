@@ -30,14 +30,14 @@ import numpy as np
 import torch
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "benchmarks"))
-from darksynth.darkening import darken
+from darksynth.estimation.spectral_fit import quantised
 from darksynth.estimation.spectrum import estimate_spectrum
-from darksynth.evaluation.structure import temporal_lag_correlation
+from darksynth.evaluation.measures.structure import temporal_lag_correlation
 from darksynth.io.arrays import hwc_to_chw
 from darksynth.io.images import read_image
+from darksynth.light.darkening import darken
 from darksynth.noise.simulate import add_noise
 from darksynth.noise.spectral import LEVEL_KNOTS, OCTAVES
-from darksynth.noise.spectral_fit import quantised
 from darksynth.noise.values import NoiseValues
 from estimate_roundtrip import _camera_spectrum, _log_uniform, _uniform, draw_darkening
 

@@ -27,8 +27,8 @@ from typing import Any
 import numpy as np
 import torch
 
-from darksynth.darkening import Darkening, darken
-from darksynth.evaluation.structure import band_powers
+from darksynth.evaluation.measures.structure import band_powers
+from darksynth.light.darkening import Darkening, darken
 from darksynth.noise.values import NoiseValues
 from darksynth.profile import Profile
 from darksynth.synthesize import synthesize

@@ -21,11 +21,12 @@ import numpy as np
 import torch
 from PIL import Image
 
-from darksynth.darkening import darken
 from darksynth.io.arrays import chw_to_hwc, hwc_to_chw
-from darksynth.io.video import DEFAULT_CODEC, DEFAULT_CRF, VideoWriter, iter_video_frames, probe_video
+from darksynth.io.video import DEFAULT_CODEC, DEFAULT_CRF, VideoEncoding, VideoWriter, iter_video_frames, probe_video
+from darksynth.light.darkening import darken
 from darksynth.profile import default_profile_path, load_profile
-from darksynth.synthesize import ClipSynthesizer, draw_clip_parameters
+from darksynth.recipe import draw_clip_parameters
+from darksynth.synthesize import ClipSynthesizer
 
 DEFAULT_VIDEO = Path(__file__).resolve().parents[2] / "shared" / "data" / "clean" / "videos" / "bikes.mp4"
 
@@ -107,7 +108,9 @@ def main() -> None:
     with tempfile.TemporaryDirectory() as folder:
         for pix_fmt in ("yuv420p", "yuv444p"):
             path = Path(folder) / f"{pix_fmt}.mp4"
-            with VideoWriter(path, width=width, height=height, fps=Fraction(info.fps), pix_fmt=pix_fmt) as writer:
+            with VideoWriter(
+                path, width=width, height=height, fps=Fraction(info.fps), encoding=VideoEncoding(pix_fmt=pix_fmt)
+            ) as writer:
                 for noisy in noisy_frames:
                     writer.write(noisy)
             stats = NoiseStats()

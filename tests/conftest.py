@@ -11,7 +11,7 @@ import pytest
 import torch
 from PIL import Image
 
-from darksynth.darkening import Darkening
+from darksynth.light.darkening import Darkening
 from darksynth.models.den import DEN, DENConfig
 from darksynth.noise.values import NoiseValues
 from darksynth.profile import Profile, default_profile_path, validate_profile

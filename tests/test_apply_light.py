@@ -15,11 +15,12 @@ import pytest
 import torch
 from PIL import Image
 
-from darksynth.darkening import Darkening
-from darksynth.io.video import VideoWriter, iter_video_frames
+from darksynth.io.video import VideoEncoding, VideoWriter, iter_video_frames
+from darksynth.light.darkening import Darkening
 from darksynth.light.motion_blur import MotionBlurStream, shake_blur
 from darksynth.profile import Profile, load_profile, save_profile
-from darksynth.synthesize import ClipParameters, ClipSynthesizer
+from darksynth.recipe import ClipParameters
+from darksynth.synthesize import ClipSynthesizer
 from tests.command_line import run_cli
 from tests.conftest import build_profile
 
@@ -42,7 +43,9 @@ def _light_profile(path: Path, **light: float) -> Path:
 def test_a_video_is_blurred_along_its_motion_in_order(tmp_path: Path) -> None:
     frames = _moving_frames()
     source = tmp_path / "in.mkv"
-    with VideoWriter(source, width=WIDTH, height=HEIGHT, fps=Fraction(25), codec="ffv1") as writer:
+    with VideoWriter(
+        source, width=WIDTH, height=HEIGHT, fps=Fraction(25), encoding=VideoEncoding(codec="ffv1")
+    ) as writer:
         for frame in frames:
             writer.write(frame)
     decoded = list(iter_video_frames(source))
@@ -122,10 +125,10 @@ def test_no_flicker_and_no_blur_leave_the_profile_without_light(tmp_path: Path) 
 
     profile = build_profile(exposure_fraction=0.5, flicker=0.05, ranges={"flicker": [(0.0, 0.1)]})
     options = ApplyOptions(profile=profile, seed=0, blur=False, flicker=False, jitter=True)
-    drawn, _ = options.drawing()
+    drawn, _ = options.recipe().drawn_from()
     assert drawn.noise.scalar("exposure_fraction") == 0.0 and drawn.noise.scalar("flicker") == 0.0
     assert "flicker" not in drawn.ranges
-    kept, _ = dataclasses.replace(options, blur=True, flicker=True).drawing()
+    kept, _ = dataclasses.replace(options, blur=True, flicker=True).recipe().drawn_from()
     assert kept.noise.scalar("exposure_fraction") == 0.5 and "flicker" in kept.ranges
     assert isinstance(load_profile(_light_profile(tmp_path / "p.json", flicker=0.05)), Profile)
 
@@ -150,7 +153,9 @@ def test_the_training_transform_blurs_a_float_clip_and_shakes_an_image() -> None
 def test_a_one_frame_video_with_blur_is_written_unblurred(tmp_path: Path) -> None:
     frame = _moving_frames(1)[0]
     source = tmp_path / "one.mkv"
-    with VideoWriter(source, width=WIDTH, height=HEIGHT, fps=Fraction(25), codec="ffv1") as writer:
+    with VideoWriter(
+        source, width=WIDTH, height=HEIGHT, fps=Fraction(25), encoding=VideoEncoding(codec="ffv1")
+    ) as writer:
         writer.write(frame)
     profile = _light_profile(tmp_path / "light.json", exposure_fraction=1.0)
     out = tmp_path / "out.mkv"

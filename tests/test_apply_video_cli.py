@@ -11,13 +11,15 @@ import av
 import numpy as np
 import pytest
 
-from darksynth.io.video import VideoWriter
+from darksynth.io.video import VideoEncoding, VideoWriter
 from tests.command_line import run_cli
 from tests.videos_with_audio import audio_packets, video_with_audio
 
 
 def _clean_video(path: Path, frames: int = 6, width: int = 48, height: int = 32) -> Path:
-    with VideoWriter(path, width=width, height=height, fps=Fraction(25), codec="ffv1") as writer:
+    with VideoWriter(
+        path, width=width, height=height, fps=Fraction(25), encoding=VideoEncoding(codec="ffv1")
+    ) as writer:
         for index in range(frames):
             writer.write(np.full((height, width, 3), 40 + 20 * index, np.uint8))
     return path

@@ -15,7 +15,7 @@ import typer
 from typer.testing import CliRunner
 
 import darksynth.datasets
-import darksynth.evaluation.job
+import darksynth.evaluation.run.job
 import darksynth.training.corpus
 import darksynth.training.loop
 import darksynth.training.weights
@@ -24,8 +24,9 @@ from darksynth.cli import app, synthesis
 from darksynth.datasets import ConversionReport, ConvertOptions, Shard
 from darksynth.errors import DarksynthError
 from darksynth.estimation.assemble import EstimateOptions
-from darksynth.evaluation.job import EvaluationRun
-from darksynth.evaluation.options import EvaluationOptions
+from darksynth.evaluation.run.job import EvaluationRun
+from darksynth.evaluation.run.options import EvaluationOptions
+from darksynth.io.video_encoding import VideoEncoding
 from darksynth.models.den import DENConfig
 from darksynth.profile import load_profile
 from darksynth.training.loop import TrainConfig
@@ -163,8 +164,7 @@ def test_convert_flags_reach_the_options(monkeypatch: pytest.MonkeyPatch, profil
         shard=Shard(2, 3),
         images_root=Path("pictures"),
         overwrite=True,
-        codec="ffv1",
-        crf=0,
+        encoding=VideoEncoding(codec="ffv1", crf=0),
         device="meta",
     )
     assert built == [expected]
@@ -222,7 +222,7 @@ def test_evaluate_without_flags_builds_the_default_options(monkeypatch: pytest.M
         built.append(options)
         return EvaluationRun({"problems": [], "sets": {}}, (out / "a", out / "b", out / "c"))
 
-    monkeypatch.setattr(darksynth.evaluation.job, "run_evaluation", run)
+    monkeypatch.setattr(darksynth.evaluation.run.job, "run_evaluation", run)
     code, _, err = run_cli("evaluate", "--pairs", tmp_path / "pairs", "--out", tmp_path / "out")
     assert code == 0, err
     (options,) = built

@@ -32,7 +32,7 @@ from hypothesis import strategies as st
 
 from darksynth.errors import DarksynthError
 from darksynth.io.images import IMAGE_SUFFIXES, Image, read_image
-from darksynth.io.video import VideoWriter, iter_video_frames, probe_video
+from darksynth.io.video import VideoEncoding, VideoWriter, iter_video_frames, probe_video
 from darksynth.noise.components import noise_parameters, profile_version
 from darksynth.profile import DARKENING_LIMITS, PROFILE_FORMAT, Profile, load_profile, parse_profile
 
@@ -385,7 +385,9 @@ def _valid_clip(suffix: str) -> bytes:
     rng = np.random.default_rng(7)
     with tempfile.TemporaryDirectory() as folder:
         path = Path(folder) / f"clip{suffix}"
-        with VideoWriter(path, width=16, height=12, fps=Fraction(25), codec=_CLIPS[suffix]) as writer:
+        with VideoWriter(
+            path, width=16, height=12, fps=Fraction(25), encoding=VideoEncoding(codec=_CLIPS[suffix])
+        ) as writer:
             for _ in range(4):
                 writer.write(rng.integers(0, 256, (12, 16, 3), dtype=np.uint8))
         return path.read_bytes()

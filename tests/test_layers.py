@@ -4,29 +4,36 @@ Layers, lowest first (a module may import its own package and any lower layer, n
 sibling of its own layer):
 
 0. ``errors``, ``tensors``, ``seeding``, ``version``: conventions that import nothing of darksynth;
-1. ``io`` (files, videos, atomic writes), ``darkening``, ``light`` (motion blur, camera shake, flicker: light
-   beyond noise), ``commands`` (the command line's shape, without its code), ``console_progress`` (how a command
-   shows its progress), ``worker_pool`` (worker processes that end with their parent) and ``tone_blocks`` (the
-   per-block tone statistics of a frame, sorted once for every darkening fit);
+1. ``io`` (files, videos, atomic writes), ``light`` (light beyond noise, pure: the darkening, the tone distribution
+   of images and the darkening line fitted between two of them, the per-block tone statistics, motion blur, camera
+   shake, flicker, the shutter stage), ``commands`` (the command line's shape, without its code),
+   ``console_progress`` (how a command shows its progress), ``worker_pool`` (worker processes that end with their
+   parent);
 2. ``noise``: the components, their table, the carrier of values, the composer;
-2b. ``tones`` (the tone distribution of images and the darkening line fitted between two of them) is on the
-   layer of ``noise``;
-3. ``profile``, ``exposure`` (an input's darkening matched to the reference's tones);
-4. ``synthesize``, ``models``, ``apply_outputs`` (what ``apply`` may write where: claiming outputs, resuming);
-5. ``apply``, ``training``, ``transforms``;
-6. ``baselines``, ``datasets``, ``estimation`` (reference -> profile, one module per stage, see below), ``preview``
+3. ``profile``, ``light.exposure`` (an input's darkening matched to the reference's tones: it simulates the
+   profile's noise on the input, so it sits above ``noise`` while the rest of ``light`` sits below);
+4. ``recipe`` (a clip's parameters chosen in one place: the draws, the matched darkening and colour cast),
+   ``models``, ``apply_outputs`` (what ``apply`` may write where: claiming outputs, resuming);
+5. ``synthesize`` (the composer run on images, clips and streams);
+6. ``apply``, ``training``, ``transforms``;
+7. ``baselines``, ``datasets``, ``estimation`` (reference -> profile, one module per stage, see below), ``preview``
    (it runs ``apply``'s synthesis);
-7. ``evaluation``, ``demo``;
-8. ``cli``, the package ``__init__``; 9. ``main``, the entry point (the light app, or the cli); 10. ``__main__``,
+8. ``evaluation``, ``demo``;
+9. ``cli``, the package ``__init__``; 10. ``main``, the entry point (the light app, or the cli); 11. ``__main__``,
    which only calls it.
 
-The pure core (``tensors``, ``darkening``, ``light``, ``noise``) also never imports ``io``: reading and writing files is
+A unit is a top-level module or package, or a module of a package named on its own (``light.exposure``): such a
+module has its layer, the rest of its package the package's.
+
+The pure core (``tensors``, ``light``, ``noise``) also never imports ``io``: reading and writing files is
 for the edges, so the core runs on tensors alone.
 
 Inside ``estimation`` the stages have layers of their own: the reading of the reference, the column decision, the
-denoiser and the flat blocks import no other stage; the coarse anchor, the still blocks of a clip and the
-frame-to-frame fit read the flat blocks; the spectrum's checks read the anchor, and the spectrum all of them; the
-network reads the crop grid; ``assemble`` alone runs them all.
+denoiser, the flat blocks and the spectral statistics import no other stage; the spectral fit reads the spectral
+statistics; the coarse anchor, the still blocks of a clip and the frame-to-frame fit read the flat blocks and the
+spectral fit; the spectrum's checks read the anchor, and the spectrum all of them; the network reads the crop grid
+and the darkening the reference's frames; ``assemble`` alone runs them all. Inside ``evaluation`` the parts (the
+pairs, methods, measures, report, run) have layers of their own in the same way (``EVALUATION_PARTS``).
 """
 
 from __future__ import annotations
@@ -46,33 +53,31 @@ LAYERS: dict[str, int] = {
     "commands": 1,
     "console_progress": 1,
     "io": 1,
-    "darkening": 1,
     "light": 1,
     "worker_pool": 1,
-    "tone_blocks": 1,
     "noise": 2,
     "profile": 3,
-    "tones": 2,
-    "exposure": 3,
-    "synthesize": 4,
+    "light.exposure": 3,
+    "recipe": 4,
     "models": 4,
     "apply_outputs": 4,
-    "apply": 5,
-    "training": 5,
-    "transforms": 5,
-    "baselines": 6,
-    "datasets": 6,
-    "estimation": 6,
-    "preview": 6,
-    "evaluation": 7,
-    "demo": 7,
-    "cli": 8,
-    "main": 9,
-    "__main__": 10,
-    "__init__": 8,
+    "synthesize": 5,
+    "apply": 6,
+    "training": 6,
+    "transforms": 6,
+    "baselines": 7,
+    "datasets": 7,
+    "estimation": 7,
+    "preview": 7,
+    "evaluation": 8,
+    "demo": 8,
+    "cli": 9,
+    "main": 10,
+    "__main__": 11,
+    "__init__": 9,
 }
 
-PURE_CORE = frozenset({"tensors", "darkening", "light", "noise"})
+PURE_CORE = frozenset({"tensors", "light", "light.exposure", "noise"})
 
 ESTIMATION_STAGES: dict[str, int] = {
     "__init__": 0,
@@ -80,25 +85,35 @@ ESTIMATION_STAGES: dict[str, int] = {
     "columns": 0,
     "nonlocal_means": 0,
     "flat_blocks": 0,
-    "coarse_anchor": 1,
-    "still_blocks": 1,
-    "persistence_fit": 1,
-    "spectrum_checks": 2,
-    "spectrum": 3,
+    "spectral_statistics": 0,
+    "spectral_fit": 1,
+    "coarse_anchor": 2,
+    "still_blocks": 2,
+    "persistence_fit": 2,
+    "spectrum_checks": 3,
+    "spectrum": 4,
     "network": 1,
+    "darkening": 1,
     "flicker": 0,
     "cross_spectra": 0,
     "shutter_confidence": 0,
     "shutter_fit": 1,
     "motion": 2,
-    "assemble": 4,
+    "assemble": 5,
 }
 """The layer of every module of the ``estimation`` package among its siblings."""
 
 
+def _named_unit(parts: list[str]) -> str:
+    """The unit of a module's dotted path below ``darksynth``: the module itself where :data:`LAYERS` names it,
+    else its top-level module or package."""
+    module = ".".join(parts[:2])
+    return module if module in LAYERS else parts[0]
+
+
 def _unit(path: Path) -> str:
-    """The top-level module or package a source file belongs to."""
-    return path.relative_to(SOURCE).parts[0].removesuffix(".py")
+    """The unit (see :data:`LAYERS`) a source file belongs to."""
+    return _named_unit([part.removesuffix(".py") for part in path.relative_to(SOURCE).parts])
 
 
 def _imported_units(path: Path) -> set[str]:
@@ -112,7 +127,12 @@ def _imported_units(path: Path) -> set[str]:
             continue
         for name in names:
             parts = name.split(".")
-            if parts[0] == "darksynth" and len(parts) > 1:
+            if parts[0] == "darksynth" and len(parts) > 2:
+                units.add(_named_unit(parts[1:]))
+            elif parts[0] == "darksynth" and len(parts) > 1 and isinstance(node, ast.ImportFrom):
+                # `from darksynth.light import x`: x may be a unit of its own.
+                units.update(_named_unit([parts[1], alias.name]) for alias in node.names)
+            elif parts[0] == "darksynth" and len(parts) > 1:
                 units.add(parts[1])
             elif parts[0] == "darksynth" and isinstance(node, ast.ImportFrom):
                 # `from darksynth import x`: x is the unit.
@@ -183,11 +203,94 @@ def test_estimation_stages_import_only_lower_stages(path: Path) -> None:
     )
 
 
+EVALUATION_PARTS: dict[str, int] = {
+    "__init__": 0,
+    "pairs": 0,
+    "methods": 1,
+    "measures": 2,
+    "report": 3,
+    "run": 4,
+}
+"""The layer of every part of the ``evaluation`` package: the real pairs, the methods that make synthetic noise for
+them, the measures that compare it with the real (a downstream denoiser runs the methods), the reports of the
+results, and the run that does it all."""
+
+EVALUATION_SOURCES = sorted((SOURCE / "evaluation").rglob("*.py"))
+
+
+def _evaluation_part(path: Path) -> str:
+    return path.relative_to(SOURCE / "evaluation").parts[0].removesuffix(".py")
+
+
+def _imported_evaluation_parts(path: Path) -> set[str]:
+    """The parts of the ``evaluation`` package a source file imports, in any of the three import forms."""
+    parts_seen = set()
+    for node in ast.walk(ast.parse(path.read_text(encoding="utf-8"))):
+        if isinstance(node, ast.ImportFrom) and node.module == "darksynth.evaluation" and node.level == 0:
+            parts_seen.update(alias.name for alias in node.names)
+            continue
+        if isinstance(node, ast.ImportFrom) and node.module and node.level == 0:
+            names = [node.module]
+        elif isinstance(node, ast.Import):
+            names = [alias.name for alias in node.names]
+        else:
+            continue
+        for name in names:
+            parts = name.split(".")
+            if parts[:2] == ["darksynth", "evaluation"] and len(parts) > 2:
+                parts_seen.add(parts[2])
+    return parts_seen
+
+
+def test_every_evaluation_part_has_a_layer() -> None:
+    parts = {_evaluation_part(p) for p in EVALUATION_SOURCES}
+    assert parts == set(EVALUATION_PARTS), f"parts without a layer: {sorted(parts - set(EVALUATION_PARTS))}"
+
+
+@pytest.mark.parametrize("path", EVALUATION_SOURCES, ids=lambda p: str(p.relative_to(SOURCE)))
+def test_evaluation_parts_import_only_lower_parts(path: Path) -> None:
+    own = _evaluation_part(path)
+    wrong = [
+        f"{part} (layer {EVALUATION_PARTS[part]})"
+        for part in _imported_evaluation_parts(path) - {own}
+        if EVALUATION_PARTS.get(part, 0) >= EVALUATION_PARTS[own]
+    ]
+    assert not wrong, f"{path.relative_to(SOURCE)} (layer {EVALUATION_PARTS[own]}) imports upward or sideways: {wrong}"
+
+
+def test_the_evaluation_check_sees_a_part_import(tmp_path: Path) -> None:
+    """The control: a module importing parts in each of the three forms is seen to."""
+    module = tmp_path / "bad.py"
+    module.write_text(
+        "from darksynth.evaluation.run.job import run_evaluation\n"
+        "import darksynth.evaluation.report.summary\n"
+        "from darksynth.evaluation import pairs\n",
+        encoding="utf-8",
+    )
+    assert _imported_evaluation_parts(module) == {"run", "report", "pairs"}
+
+
 def test_the_check_sees_an_upward_import(tmp_path: Path) -> None:
     """The control: a module of the noise layer importing the profile is caught."""
     module = tmp_path / "bad.py"
     module.write_text("from darksynth.profile import load_profile\nimport darksynth.io.arrays\n", encoding="utf-8")
     assert _imported_units(module) == {"profile", "io"}
+
+
+def test_a_module_with_a_layer_of_its_own_is_its_own_unit(tmp_path: Path) -> None:
+    """The control: ``light.exposure`` is a unit apart from ``light`` both as a file and as an import, so a module of
+    ``light`` importing it is caught as importing upward."""
+    assert _unit(SOURCE / "light" / "exposure.py") == "light.exposure"
+    assert _unit(SOURCE / "light" / "tones.py") == "light"
+    module = tmp_path / "bad.py"
+    module.write_text(
+        "from darksynth.light.exposure import matched_darkening\n"
+        "from darksynth.light import exposure, tones\n"
+        "import darksynth.light.darkening\n",
+        encoding="utf-8",
+    )
+    assert _imported_units(module) == {"light.exposure", "light"}
+    assert LAYERS["light.exposure"] > LAYERS["noise"] > LAYERS["light"]
 
 
 def test_the_stage_check_sees_a_stage_import(tmp_path: Path) -> None:

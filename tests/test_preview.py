@@ -11,10 +11,10 @@ import numpy as np
 import pytest
 from PIL import Image
 
-from darksynth.darkening import Darkening
 from darksynth.estimation.assemble import estimate
 from darksynth.estimation.reference import load_reference
-from darksynth.io.video import VideoWriter
+from darksynth.io.video import VideoEncoding, VideoWriter
+from darksynth.light.darkening import Darkening
 from darksynth.models.den import DEN
 from darksynth.preview import (
     LABEL_HEIGHT,
@@ -27,6 +27,7 @@ from darksynth.preview import (
 )
 from darksynth.profile import save_profile
 from tests.command_line import assert_one_line_error, run_cli
+from tests.conftest import build_profile
 
 
 def _pixels(path: Path) -> np.ndarray:
@@ -106,6 +107,24 @@ def test_noisy_panel_is_what_apply_writes(
     assert not np.array_equal(_panel(_pixels(out), 0, noisy_column, 40, 30), noisy)
 
 
+@pytest.mark.parametrize("light", [(), ("--no-blur",), ("--no-flicker",)], ids=["blur", "no-blur", "no-flicker"])
+def test_the_light_flags_reach_the_preview_as_they_reach_apply(
+    rgb_image: Path, tmp_path: Path, light: tuple[str, ...]
+) -> None:
+    profile = tmp_path / "shaken.json"
+    save_profile(profile, build_profile(read=0.01, shake_length=0.1, shake_angle=30.0, exposure_fraction=1.0))
+    applied = tmp_path / "applied.png"
+    assert run_cli("apply", rgb_image, applied, "-p", profile, "--seed", "9", "--no-darken", *light)[0] == 0
+    out = tmp_path / "sheet.png"
+    flags = ("--out", out, "--seed", "9", "--crop", "40x30", "--no-darken")
+    assert run_cli("preview", rgb_image, "-p", profile, *flags, *light)[0] == 0
+    assert np.array_equal(_panel(_pixels(out), 0, 1, 40, 30), centre_crop(_pixels(applied), 30, 40))
+    # The control: the shake is visible, so the equality above is the flag's doing.
+    other = ("--blur",) if light == ("--no-blur",) else ("--no-blur",)
+    assert run_cli("preview", rgb_image, "-p", profile, *flags, *other, "--overwrite")[0] == 0
+    assert not np.array_equal(_panel(_pixels(out), 0, 1, 40, 30), centre_crop(_pixels(applied), 30, 40))
+
+
 def test_reference_panel_shown_and_brightened_by_the_synthetic_panels_gain(
     rgb_image: Path, tmp_path: Path, write_profile: Callable[..., Path]
 ) -> None:
@@ -144,7 +163,7 @@ def test_video_reference_shows_its_first_frame(
     rgb_image: Path, tmp_path: Path, write_profile: Callable[..., Path]
 ) -> None:
     video = tmp_path / "night.mkv"
-    with VideoWriter(video, width=64, height=48, fps=Fraction(10), codec="ffv1") as writer:
+    with VideoWriter(video, width=64, height=48, fps=Fraction(10), encoding=VideoEncoding(codec="ffv1")) as writer:
         for level in (40, 200):
             writer.write(np.full((48, 64, 3), level, np.uint8))
     profile = _estimated_profile(write_profile, str(video))

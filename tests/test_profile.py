@@ -11,8 +11,8 @@ from typing import Any
 import pytest
 import torch
 
-from darksynth.darkening import Darkening
 from darksynth.errors import DarksynthError, ProfileError
+from darksynth.light.darkening import Darkening
 from darksynth.noise.components import noise_parameter_names, profile_version
 from darksynth.profile import (
     Profile,

@@ -11,10 +11,11 @@ import pytest
 import torch
 
 import darksynth
-from darksynth.darkening import ALPHA_RANGE, GAMMA_RANGE, Darkening, darken
+from darksynth.light.darkening import ALPHA_RANGE, GAMMA_RANGE, Darkening, darken
 from darksynth.noise.values import NoiseValues
 from darksynth.profile import default_profile_path, load_profile
-from darksynth.synthesize import ClipParameters, ClipSynthesizer, draw_clip_parameters
+from darksynth.recipe import ClipParameters, draw_clip_parameters
+from darksynth.synthesize import ClipSynthesizer
 from tests.conftest import ProfileFactory
 from tests.noise.test_simulate import ALL_ON, ALPHA, GAMMA, _ramp_clip
 

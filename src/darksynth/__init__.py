@@ -17,24 +17,20 @@ from typing import TYPE_CHECKING, Any
 from darksynth.version import __version__
 
 if TYPE_CHECKING:
-    from darksynth.darkening import Darkening, darken
+    from darksynth.light.darkening import Darkening, darken
     from darksynth.profile import Profile, load_profile, save_profile
-    from darksynth.synthesize import (
-        ClipParameters,
-        ClipSynthesizer,
-        LowLightResult,
-        draw_clip_parameters,
-        synthesize,
-    )
+    from darksynth.recipe import ClipParameters, ClipRecipe, draw_clip_parameters
+    from darksynth.synthesize import ClipSynthesizer, LowLightResult, synthesize
 
 _PUBLIC: dict[str, str] = {
-    "ClipParameters": "darksynth.synthesize",
+    "ClipParameters": "darksynth.recipe",
+    "ClipRecipe": "darksynth.recipe",
     "ClipSynthesizer": "darksynth.synthesize",
-    "Darkening": "darksynth.darkening",
+    "Darkening": "darksynth.light.darkening",
     "LowLightResult": "darksynth.synthesize",
     "Profile": "darksynth.profile",
-    "darken": "darksynth.darkening",
-    "draw_clip_parameters": "darksynth.synthesize",
+    "darken": "darksynth.light.darkening",
+    "draw_clip_parameters": "darksynth.recipe",
     "load_profile": "darksynth.profile",
     "save_profile": "darksynth.profile",
     "synthesize": "darksynth.synthesize",
@@ -42,6 +38,7 @@ _PUBLIC: dict[str, str] = {
 
 __all__ = [
     "ClipParameters",
+    "ClipRecipe",
     "ClipSynthesizer",
     "Darkening",
     "LowLightResult",

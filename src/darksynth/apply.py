@@ -27,21 +27,23 @@ import torch
 from darksynth import __version__
 from darksynth.apply_outputs import claim_outputs, read_state, write_record, write_state
 from darksynth.errors import DarksynthError, error_reason
-from darksynth.exposure import matched_colour, matched_darkening
 from darksynth.io.arrays import chw_to_hwc, hwc_to_chw
 from darksynth.io.atomic import write_text_atomic
 from darksynth.io.discover import check_output_location, classify_input, scan_folder
 from darksynth.io.images import IMAGE_SUFFIXES, Image, read_image, write_image
-from darksynth.io.video import VIDEO_SUFFIXES, VideoWriter, iter_video_frames, probe_video, to_stream_size
-from darksynth.profile import Profile, profile_to_dict, without_light
-from darksynth.seeding import derive_seed
-from darksynth.synthesize import (
-    ClipParameters,
-    ClipSynthesizer,
-    DarkeningChoice,
-    draw_clip_parameters,
-    fixed_darkening,
+from darksynth.io.video import (
+    DEFAULT_ENCODING,
+    VIDEO_SUFFIXES,
+    VideoEncoding,
+    VideoWriter,
+    iter_video_frames,
+    probe_video,
+    to_stream_size,
 )
+from darksynth.profile import Profile, profile_to_dict
+from darksynth.recipe import ClipParameters, ClipRecipe, DarkeningChoice
+from darksynth.seeding import derive_seed
+from darksynth.synthesize import ClipSynthesizer
 from darksynth.worker_pool import init_worker
 
 logger = logging.getLogger(__name__)
@@ -73,14 +75,13 @@ class ApplyOptions:
     Attributes:
         profile: the noise profile.
         seed: run seed; each task's seed derives from it and the task's relative path.
-        darkening: see :data:`darksynth.synthesize.DarkeningChoice`.
+        darkening: see :data:`darksynth.recipe.DarkeningChoice`.
         jitter: draw each file's (or clip's) parameters within the profile's ranges; otherwise every file gets the
-            profile's values (see :meth:`drawing`).
+            profile's values (see :class:`darksynth.recipe.ClipRecipe`).
         overwrite: replace outputs that exist before the run (otherwise the run is refused).
         clip: treat each folder of images as one clip (shared parameters and temporal banding).
         workers: processes for folders.
-        codec: video codec (None: the writer's high-quality default); crf: its quality setting; pix_fmt: the
-            pixel format it codes (None: the writer's default for the codec, yuv420p for H.264).
+        encoding: the videos' codec, quality and pixel format (the writer's defaults where it leaves a choice).
         device: torch device for the computation.
         compile: fuse the 8-bit kernel with torch.compile; None decides by stream length.
         profile_source: where the profile came from, for the manifest.
@@ -97,9 +98,7 @@ class ApplyOptions:
     overwrite: bool = False
     clip: bool = False
     workers: int = 1
-    codec: str | None = None
-    crf: int | None = None
-    pix_fmt: str | None = None
+    encoding: VideoEncoding = DEFAULT_ENCODING
     device: str = "cpu"
     compile: bool | None = None
     profile_source: str = ""
@@ -107,18 +106,16 @@ class ApplyOptions:
     flicker: bool = True
     match_colour: bool = False
 
-    def drawing(self) -> tuple[Profile, DarkeningChoice]:
-        """The profile and darkening each file's parameters are drawn from.
-
-        With ``jitter``, the profile as it is (its ranges drawn from per file). Without, the profile without ranges
-        and a fixed darkening (:func:`darksynth.synthesize.fixed_darkening`): nothing is drawn, every file gets the
-        same values and its seed only drives the noise itself.
-        """
-        profile = without_light(self.profile, blur=not self.blur, flicker=not self.flicker)
-        if self.jitter:
-            return profile, self.darkening
-        darkening = fixed_darkening(profile) if self.darkening == "profile" else self.darkening
-        return dataclasses.replace(profile, ranges={}), darkening
+    def recipe(self) -> ClipRecipe:
+        """How each file's (or clip's) parameters are chosen (:class:`darksynth.recipe.ClipRecipe`)."""
+        return ClipRecipe(
+            self.profile,
+            darkening=self.darkening,
+            jitter=self.jitter,
+            blur=self.blur,
+            flicker=self.flicker,
+            match_colour=self.match_colour,
+        )
 
 
 @dataclass(frozen=True)
@@ -214,19 +211,11 @@ def start_task(
     """A task's seed, the generator its noise is drawn from and its parameters, all fixed by the run seed and the
     task's key (its path relative to the input; for a single input file, its name). With ``first_frame`` (H, W, C)
     and a profile that carries the reference's tones, the darkening is matched to them
-    (:func:`darksynth.exposure.matched_darkening`), and with ``match_colour`` the colour cast too."""
+    (:func:`darksynth.light.exposure.matched_darkening`), and with ``match_colour`` the colour cast too."""
     seed = task_seed(options.seed, key)
     generator = torch.Generator(device=options.device).manual_seed(seed)
-    profile, darkening = options.drawing()
     first = None if first_frame is None else hwc_to_chw(first_frame)
-    if first is not None and options.darkening == "profile":
-        darkening = matched_darkening(first, options.profile.tone, noise=options.profile.noise, source=key) or darkening
-    parameters = draw_clip_parameters(profile, darkening=darkening, generator=generator)
-    chosen = parameters.darkening
-    if options.match_colour and first is not None and chosen is not None:
-        colour = matched_colour(first, options.profile.tone, chosen)
-        if colour is not None:
-            parameters = dataclasses.replace(parameters, colour_scale=colour[0], darkening=colour[1])
+    parameters = options.recipe().choose(generator, first, source=key)
     return seed, generator, parameters
 
 
@@ -322,11 +311,11 @@ def _run_video(
     synthesizer = ClipSynthesizer(parameters, generator=generator, device=options.device, compile=compile_kernel)
     # The source's audio goes into the output unchanged (a track the output's container cannot hold is left out
     # with a notice).
-    writer_options: dict[str, Any] = {"width": info.width, "height": info.height, "fps": info.fps}
-    writer_options.update(audio_from=source, **_encoder_options(options))
     count = 0
     resized = False
-    with VideoWriter(target, **writer_options) as writer:
+    with VideoWriter(
+        target, width=info.width, height=info.height, fps=info.fps, encoding=options.encoding, audio_from=source
+    ) as writer:
         for frame in iter_video_frames(source):
             if frame.shape[:2] != (info.height, info.width):
                 frame = to_stream_size(source, frame, info.width, info.height, first=not resized)
@@ -345,12 +334,6 @@ def _run_video(
     return count
 
 
-def _encoder_options(options: ApplyOptions) -> dict[str, Any]:
-    """The writer arguments the user chose (codec, crf, pixel format); the writer's defaults for the others."""
-    chosen: dict[str, Any] = {"codec": options.codec, "crf": options.crf, "pix_fmt": options.pix_fmt}
-    return {name: value for name, value in chosen.items() if value is not None and value != ""}
-
-
 def check_video_options(options: ApplyOptions, output: Path) -> None:
     """Refuse a codec, crf or pixel format the writer cannot use, once, before a run writes any video (else
     every video of a folder would fail with the same line). ``output``: the first video output, named in the error.
@@ -359,7 +342,7 @@ def check_video_options(options: ApplyOptions, output: Path) -> None:
         DarksynthError: the writer refuses the options.
     """
     # Constructing a writer checks its options without opening a file; an even size leaves odd-size rules out.
-    VideoWriter(output, width=16, height=16, fps=Fraction(25), **_encoder_options(options))
+    VideoWriter(output, width=16, height=16, fps=Fraction(25), encoding=options.encoding)
 
 
 def _worth_compiling(options: ApplyOptions, values: int) -> bool:
@@ -412,9 +395,7 @@ def write_manifest(path: Path, input_path: Path, output_path: Path, options: App
         "darkening": options.darkening if isinstance(options.darkening, str | type(None)) else vars(options.darkening),
         "jitter": options.jitter,
         "clip": options.clip,
-        "codec": options.codec,
-        "crf": options.crf,
-        "pix_fmt": options.pix_fmt,
+        **options.encoding.to_json(),
         "files": sorted(report.records, key=lambda r: r["input"]),
         "failures": report.failures,
         "skipped": report.skipped,

@@ -24,6 +24,7 @@ from typing import Any, Final
 
 from darksynth.errors import DarksynthError, error_reason
 from darksynth.io.atomic import remove_stale_temps, write_text_atomic
+from darksynth.io.video_encoding import VideoEncoding
 from darksynth.profile import Profile, profile_to_dict
 
 STATE_FOLDER: Final = ".darksynth"
@@ -35,7 +36,7 @@ RECORDS: Final = "apply-records"
 UNRECORDED_OPTIONS: Final = frozenset({"overwrite", "workers", "profile_source"})
 """Options of :class:`~darksynth.apply.ApplyOptions` that change no output byte: a run may resume with others."""
 
-VIDEO_OPTIONS: Final = frozenset({"codec", "crf", "pix_fmt"})
+VIDEO_OPTIONS: Final = frozenset({"encoding"})
 """Options that change only videos: they do not decide the resume of a folder without videos."""
 
 
@@ -48,6 +49,10 @@ def options_fingerprint(options: Any, *, left_out: frozenset[str] | set[str]) ->
         if option.name in left_out:
             continue
         value = getattr(options, option.name)
+        if isinstance(value, VideoEncoding):
+            # Each choice under its own name, as the command line and the manifest name them.
+            fingerprint.update(value.to_json())
+            continue
         if isinstance(value, Profile):
             value = profile_to_dict(value)
         elif isinstance(value, Path):

@@ -5,11 +5,11 @@ from __future__ import annotations
 from pathlib import Path
 
 from darksynth.apply import ApplyOptions, apply
-from darksynth.darkening import Darkening
 from darksynth.errors import DarksynthError
 from darksynth.estimation.assemble import estimate
 from darksynth.estimation.reference import load_reference
 from darksynth.io.images import Image, read_image, write_image
+from darksynth.light.darkening import Darkening
 from darksynth.preview import centre_crop, compose_sheet, darkened_pixels
 from darksynth.profile import Profile, default_profile_path, load_profile, save_profile
 from darksynth.training.weights import default_weights_path, load_weights

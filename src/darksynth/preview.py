@@ -17,11 +17,11 @@ from PIL import ImageDraw
 
 from darksynth.apply import ApplyOptions, synthesize_image
 from darksynth.apply_outputs import claim_outputs
-from darksynth.darkening import Darkening, darken
 from darksynth.errors import DarksynthError
 from darksynth.io.discover import check_output_location, classify_input, scan_folder
 from darksynth.io.images import IMAGE_SUFFIXES, Image, read_image, write_image
 from darksynth.io.video import VIDEO_SUFFIXES, iter_video_frames
+from darksynth.light.darkening import Darkening, darken
 from darksynth.profile import Profile
 
 LABEL_HEIGHT = 18

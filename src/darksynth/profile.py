@@ -41,9 +41,10 @@ import pydantic
 from pydantic import BaseModel, BeforeValidator, ConfigDict, WithJsonSchema
 from pydantic_core import PydanticCustomError
 
-from darksynth.darkening import Darkening
 from darksynth.errors import ProfileError
 from darksynth.io.atomic import write_text_atomic
+from darksynth.light.darkening import Darkening
+from darksynth.light.tones import ToneTarget
 from darksynth.noise.components import (
     NoiseComponent,
     Parameter,
@@ -54,7 +55,6 @@ from darksynth.noise.components import (
     profile_version,
 )
 from darksynth.noise.values import NoiseValues
-from darksynth.tones import ToneTarget
 
 PROFILE_FORMAT = "darksynth-profile"
 
@@ -65,7 +65,7 @@ Range = tuple[float, float]
 
 
 TONE_QUANTILE_COUNT = 49
-"""Quantiles in a tone target: at 0.02, 0.04, ..., 0.98 (:data:`darksynth.tones.PROBABILITIES`)."""
+"""Quantiles in a tone target: at 0.02, 0.04, ..., 0.98 (:data:`darksynth.light.tones.PROBABILITIES`)."""
 
 
 @dataclass(frozen=True)

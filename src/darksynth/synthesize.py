@@ -14,17 +14,16 @@ from __future__ import annotations
 
 import logging
 from dataclasses import dataclass
-from typing import Any, Literal
+from typing import Any
 
 import numpy as np
 import torch
 
-from darksynth.darkening import ALPHA_RANGE, GAMMA_RANGE, Darkening, darken
-from darksynth.exposure import ColourScale, matched_darkening
 from darksynth.io.arrays import clips_from_numpy, clips_to_numpy
+from darksynth.light.darkening import Darkening, darken
 from darksynth.light.flicker import FlickerGains
 from darksynth.light.shutter import ShutterStage
-from darksynth.noise.components import noise_component, noise_parameter, noise_parameters
+from darksynth.noise.components import noise_component, noise_parameter
 from darksynth.noise.counter_rng import random_key
 from darksynth.noise.fused_8bit import (
     FAST_PATH,
@@ -35,7 +34,6 @@ from darksynth.noise.fused_8bit import (
     pixel_kernel_8bit,
     pixel_kernel_in_pieces,
 )
-from darksynth.noise.sampling import random_uniform
 from darksynth.noise.simulate import (
     add_noise,
     apply_output_stages,
@@ -47,81 +45,11 @@ from darksynth.noise.simulate import (
 from darksynth.noise.spectral import clip_grid, octave_covariances
 from darksynth.noise.spectral_8bit import SPECTRAL_PATH, SpectralPixelPass, level_tables, to_8bit
 from darksynth.noise.spectral_kernel import SpectralKernelStream, compiled_spectral_kernels
-from darksynth.noise.structure_translation import spectral_tensors
-from darksynth.noise.values import NoiseValues
 from darksynth.profile import Profile
+from darksynth.recipe import ClipParameters, ClipRecipe, DarkeningChoice
 from darksynth.tensors import CLIP_DIMS, eight_bit_levels, full_scale, scale_channels, to_dtype
 
 logger = logging.getLogger(__name__)
-
-DarkeningChoice = Darkening | Literal["profile"] | None
-"""``"profile"``: the profile's darkening, else alpha/gamma drawn from its ranges, else from the paper's
-ranges. A :class:`Darkening`: exactly that. None: no darkening (the input already has the target brightness)."""
-
-
-@dataclass(frozen=True)
-class ClipParameters:
-    """The parameters drawn for one clip (or one image): noise values, the darkening, if any, and the channel factors
-    that give it the reference's colour cast (:func:`darksynth.exposure.matched_colour`)."""
-
-    noise: NoiseValues
-    darkening: Darkening | None
-    colour_scale: ColourScale | None = None
-
-    def to_json(self) -> dict[str, Any]:
-        """JSON-ready record for manifests: the noise and light values as a profile writes them, the darkening and
-        (when matched) the colour scale."""
-        darkening = None if self.darkening is None else {"alpha": self.darkening.alpha, "gamma": self.darkening.gamma}
-        record = {"noise": self.noise.to_json("noise"), "light": self.noise.to_json("light"), "darkening": darkening}
-        return record if self.colour_scale is None else record | {"colour_scale": list(self.colour_scale)}
-
-
-def draw_clip_parameters(
-    profile: Profile, *, darkening: DarkeningChoice = "profile", generator: torch.Generator | None = None
-) -> ClipParameters:
-    """Fix the parameters for one clip: values from the profile, drawn within its ranges where it has them.
-
-    Draws happen in the order of the parameter table, then alpha and gamma, so a seed fixes them all. The sRGB
-    structure of a version-2 or version-3 profile, once drawn, is given as the spectral model's values
-    (:func:`darksynth.noise.structure_translation.spectral_tensors`): what the clip draws and what its record says.
-    """
-    # Draws happen on the generator's device (a CUDA generator cannot fill a CPU tensor).
-    device = generator.device if generator is not None else None
-    drawn: dict[str, torch.Tensor] = {}
-    for parameter in noise_parameters():
-        if parameter.name in profile.ranges:
-            drawn[parameter.name] = random_uniform(
-                profile.ranges[parameter.name], generator=generator, device=device, dtype=torch.float64
-            ).cpu()
-    noise = profile.noise.replace(**drawn) if drawn else profile.noise
-    noise = NoiseValues(spectral_tensors(noise))
-    chosen: Darkening | None
-    if darkening is None or isinstance(darkening, Darkening):
-        chosen = darkening
-    else:
-        # Fixed values stay exact; only what has a range (or no value at all) is drawn, alpha before gamma.
-        fixed = profile.darkening
-        values = {}
-        for name, paper_range in (("alpha", ALPHA_RANGE), ("gamma", GAMMA_RANGE)):
-            if name in profile.ranges or fixed is None:
-                interval = profile.ranges[name][0] if name in profile.ranges else paper_range
-                drawn_value = random_uniform((interval,), generator=generator, device=device, dtype=torch.float64)
-                values[name] = float(drawn_value[0])
-            else:
-                values[name] = getattr(fixed, name)
-        chosen = Darkening(alpha=values["alpha"], gamma=values["gamma"])
-    return ClipParameters(noise=noise, darkening=chosen)
-
-
-def fixed_darkening(profile: Profile) -> Darkening:
-    """The darkening when nothing is drawn: the profile's, else the centre of its alpha/gamma ranges or the paper's."""
-    if profile.darkening is not None:
-        return profile.darkening
-    centres = {}
-    for name, paper in (("alpha", ALPHA_RANGE), ("gamma", GAMMA_RANGE)):
-        low, high = profile.ranges[name][0] if name in profile.ranges else paper
-        centres[name] = (low + high) / 2
-    return Darkening(alpha=centres["alpha"], gamma=centres["gamma"])
 
 
 class ClipSynthesizer:
@@ -379,6 +307,7 @@ def synthesize(
     generator: torch.Generator | None = None,
     darkening: DarkeningChoice = "profile",
     device: torch.device | str | None = None,
+    parameters: ClipParameters | None = None,
 ) -> LowLightResult:
     """Make a low-light version of a clean image or clip with a noise profile.
 
@@ -389,8 +318,10 @@ def synthesize(
             run through the vectorised composer.
         profile: the noise profile (see :func:`darksynth.profile.load_profile`).
         generator: source of randomness; pass a seeded one for reproducible output.
-        darkening: see :data:`DarkeningChoice`.
+        darkening: see :data:`darksynth.recipe.DarkeningChoice`.
         device: where to compute; the input's device by default.
+        parameters: the parameters every clip takes, chosen before (a transform's replay); None chooses each clip's
+            by the recipe of ``profile`` and ``darkening`` (:meth:`darksynth.recipe.ClipRecipe.choose`).
 
     Returns:
         The low-light result in the input's layout and dtype, with the parameters used.
@@ -408,20 +339,19 @@ def synthesize(
     flat = clips.reshape(-1, *clips.shape[-CLIP_DIMS:])
     outputs = []
     records = []
+    recipe = ClipRecipe(profile, darkening=darkening)
     for clip in flat:
-        # With the reference's tones in the profile, each clip is darkened to them (darksynth.exposure).
-        matched = matched_darkening(clip[0], profile.tone, noise=profile.noise) if darkening == "profile" else None
-        parameters = draw_clip_parameters(profile, darkening=matched or darkening, generator=generator)
-        records.append(parameters.to_json())
+        chosen = parameters if parameters is not None else recipe.choose(generator, clip[0])
+        records.append(chosen.to_json())
         if clip.dtype == torch.uint8:
-            synthesizer = ClipSynthesizer(parameters, generator=generator, device=target)
+            synthesizer = ClipSynthesizer(chosen, generator=generator, device=target)
             if clip.shape[0] == 1:
                 outputs.append(synthesizer.image(clip[0])[None])
             else:
                 frames = [low for frame in clip for low in synthesizer.push(frame)] + synthesizer.finish()
                 outputs.append(torch.stack(frames))
         else:
-            outputs.append(_synthesize_clip(clip, parameters, generator))
+            outputs.append(_synthesize_clip(clip, chosen, generator))
     result = torch.stack(outputs).reshape(clips.shape)
     record: dict[str, Any] | list[dict[str, Any]] = records[0] if not batch_shape else records
     if as_numpy:
@@ -451,10 +381,7 @@ def _synthesize_clip(clip: torch.Tensor, parameters: ClipParameters, generator: 
 
 
 __all__ = [
-    "ClipParameters",
     "ClipSynthesizer",
     "LowLightResult",
-    "draw_clip_parameters",
-    "fixed_darkening",
     "synthesize",
 ]

@@ -10,8 +10,9 @@ import pytest
 import torch
 from safetensors.torch import save_file
 
+from darksynth.baselines.adversarial import per_clip_statistics_loss
 from darksynth.baselines.den_v1 import DENv1, DENv1Config, default_den_v1_path, load_den_v1, save_den_v1
-from darksynth.baselines.den_v1_training import V1TrainConfig, draw_sample, per_clip_statistics_loss, train_den_v1
+from darksynth.baselines.den_v1_training import V1TrainConfig, draw_sample, train_den_v1
 from darksynth.errors import DarksynthError
 from darksynth.tensors import to_8bit_levels
 from darksynth.training.corpus import CleanCorpus

@@ -1,5 +1,5 @@
-"""Starlight training (baselines/starlight_training.py): deterministic GAN training, and the histogram KL of its
-summaries."""
+"""Starlight training (baselines/starlight_training.py on baselines/adversarial.py): deterministic GAN training,
+and the histogram KL of its summaries."""
 
 from __future__ import annotations
 
@@ -13,6 +13,7 @@ import pytest
 import scipy.stats
 import torch
 
+from darksynth.baselines.adversarial import KL_BINS, KL_RANGE, KL_SMOOTHING
 from darksynth.baselines.starlight import (
     PHYSICS_NAMES,
     StarlightGenerator,
@@ -24,7 +25,6 @@ from darksynth.baselines.starlight import (
     train_starlight,
     validation_batches,
 )
-from darksynth.baselines.starlight_training import KL_BINS, KL_RANGE, KL_SMOOTHING
 from darksynth.training.corpus import CleanCorpus
 from tests.baselines.test_starlight_model import TINY, _generator
 

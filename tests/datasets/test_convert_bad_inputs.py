@@ -11,8 +11,8 @@ from typing import Any
 import av
 import pytest
 
+from darksynth.apply_outputs import STATE_FOLDER
 from darksynth.datasets import MANIFEST_NAME, ConvertOptions, convert_dataset
-from darksynth.datasets.convert import STATE_FOLDER
 from darksynth.errors import DarksynthError
 from darksynth.profile import load_profile
 from tests.command_line import run_cli

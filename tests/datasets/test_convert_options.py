@@ -11,6 +11,7 @@ import darksynth.console_progress
 from darksynth.datasets import SCHEDULING_OPTIONS, ConvertOptions, Shard, fixed_darkening
 from darksynth.datasets.ray_convert import convert_dataset_with_ray
 from darksynth.errors import DarksynthError
+from darksynth.io.video_encoding import VideoEncoding
 from darksynth.profile import load_profile, profile_to_dict
 from tests.command_line import run_cli
 
@@ -44,16 +45,17 @@ def test_fingerprint_is_the_state_earlier_runs_recorded(options: ConvertOptions)
 
 
 def test_only_scheduling_options_leave_the_fingerprint_unchanged(options: ConvertOptions) -> None:
-    names = {option.name for option in dataclasses.fields(ConvertOptions)}
-    assert set(options.fingerprint()) == names - SCHEDULING_OPTIONS
+    names = {option.name for option in dataclasses.fields(ConvertOptions)} - {"encoding"}
+    # The encoding's choices are recorded one by one.
+    assert set(options.fingerprint()) == names - SCHEDULING_OPTIONS | {"codec", "crf", "pix_fmt"}
     scheduled = dataclasses.replace(options, output=Path("elsewhere"), workers=4, shard=Shard(1, 2), overwrite=True)
     assert scheduled.fingerprint() == options.fingerprint()
     for change in (
         {"seed": 4},
         {"jitter": True},
-        {"codec": "ffv1"},
-        {"crf": 3},
-        {"pix_fmt": "yuv444p"},
+        {"encoding": VideoEncoding(codec="ffv1")},
+        {"encoding": VideoEncoding(crf=3)},
+        {"encoding": VideoEncoding(pix_fmt="yuv444p")},
         {"images_root": Path("x")},
     ):
         assert dataclasses.replace(options, **change).fingerprint() != options.fingerprint(), change
@@ -84,11 +86,13 @@ def test_bad_options_are_refused_by_check(options: ConvertOptions, change: dict[
 def test_apply_options_fix_the_parameters_unless_jitter(options: ConvertOptions) -> None:
     fixed = options.apply_options()
     assert not fixed.jitter and fixed.profile == options.profile
-    drawn_from, darkening = fixed.drawing()
+    drawn_from, darkening = fixed.recipe().drawn_from()
     assert drawn_from.ranges == {} and darkening == fixed_darkening(options.profile)
     jittered = dataclasses.replace(options, jitter=True).apply_options()
-    assert jittered.jitter and jittered.drawing() == (options.profile, "profile")
-    assert (fixed.seed, fixed.workers, fixed.codec, fixed.crf, fixed.device) == (3, 1, None, None, "cpu")
+    assert jittered.jitter and jittered.recipe().drawn_from() == (options.profile, "profile")
+    assert (fixed.seed, fixed.workers, fixed.encoding, fixed.device) == (3, 1, VideoEncoding(), "cpu")
+    encoded = dataclasses.replace(options, encoding=VideoEncoding(codec="ffv1", crf=None)).apply_options()
+    assert encoded.encoding == VideoEncoding(codec="ffv1")
 
 
 @pytest.mark.parametrize(

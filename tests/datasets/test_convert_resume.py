@@ -11,8 +11,8 @@ from pathlib import Path
 
 import pytest
 
+from darksynth.apply_outputs import STATE_FOLDER
 from darksynth.datasets import MANIFEST_NAME, ConvertOptions, Shard, convert_dataset, shard_of
-from darksynth.datasets.convert import STATE_FOLDER
 from darksynth.profile import load_profile
 from tests.datasets.conftest import tree_bytes, write_image
 

@@ -8,13 +8,13 @@ import numpy as np
 import pytest
 import torch
 
-from darksynth.darkening import darken
 from darksynth.estimation.assemble import estimate
+from darksynth.light.darkening import darken
+from darksynth.light.tones import luminance_quantiles, tone_quantiles
 from darksynth.models.den import DEN
 from darksynth.noise.components import model_parameters, noise_parameter, vector_size
 from darksynth.noise.values import NoiseValues
 from darksynth.profile import validate_profile
-from darksynth.tones import luminance_quantiles, tone_quantiles
 
 
 def _reference(

@@ -14,10 +14,10 @@ import numpy as np
 import pytest
 import torch
 
-from darksynth.darkening import darken
 from darksynth.estimation.assemble import estimate
 from darksynth.estimation.columns import COLUMN_RATIO, column_presence
 from darksynth.estimation.reference import load_reference
+from darksynth.light.darkening import darken
 from darksynth.models.den import DEN
 from darksynth.noise.simulate import add_noise
 from darksynth.noise.values import NoiseValues

@@ -5,7 +5,7 @@ from __future__ import annotations
 
 import torch
 
-from darksynth.estimation.flat_blocks import BLOCK, flat_block_std
+from darksynth.estimation.flat_blocks import FLAT_BLOCK, flat_block_std
 
 
 def _frame(levels: list[float], stds: list[float], textured: list[bool], seed: int = 0) -> torch.Tensor:
@@ -14,9 +14,9 @@ def _frame(levels: list[float], stds: list[float], textured: list[bool], seed: i
     generator = torch.Generator().manual_seed(seed)
     rows = []
     for level, std, texture in zip(levels, stds, textured, strict=True):
-        row = torch.full((3, BLOCK, 12 * BLOCK), level)
+        row = torch.full((3, FLAT_BLOCK, 12 * FLAT_BLOCK), level)
         if texture:
-            y, x = torch.meshgrid(torch.arange(BLOCK), torch.arange(12 * BLOCK), indexing="ij")
+            y, x = torch.meshgrid(torch.arange(FLAT_BLOCK), torch.arange(12 * FLAT_BLOCK), indexing="ij")
             row = row + ((x // 2 + y // 2) % 2).to(row) * (20 / 255) - 10 / 255
         rows.append(row + torch.randn(row.shape, generator=generator) * std / 255)
     return torch.cat(rows, dim=1).clamp(0.0, 1.0)[None]

@@ -17,7 +17,6 @@ import torch
 from PIL import Image
 
 import darksynth
-from darksynth.darkening import Darkening, darken
 from darksynth.estimation.cross_spectra import phase_ramp
 from darksynth.estimation.motion import EXPOSURE_FRACTION_PRIOR, MIN_SPEED, MotionEstimate, estimate_motion
 from darksynth.estimation.reference import load_reference
@@ -31,6 +30,7 @@ from darksynth.estimation.shutter_confidence import (
     reading_confidence,
     resampled_readings,
 )
+from darksynth.light.darkening import Darkening, darken
 from darksynth.profile import default_profile_path
 
 CLIPS = Path(__file__).resolve().parents[3] / "shared" / "data" / "real-lowlight" / "clips"

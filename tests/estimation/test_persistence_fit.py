@@ -15,10 +15,10 @@ from darksynth.estimation.persistence_fit import (
     persistence_statistic,
     solve_coefficients,
 )
+from darksynth.estimation.spectral_fit import quantised
 from darksynth.estimation.spectrum import estimate_spectrum
 from darksynth.noise.simulate import add_noise
 from darksynth.noise.spectral import OCTAVES
-from darksynth.noise.spectral_fit import quantised
 from darksynth.noise.values import NoiseValues
 
 

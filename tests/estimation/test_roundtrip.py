@@ -11,10 +11,11 @@ import numpy as np
 import pytest
 import torch
 
-from darksynth.darkening import Darkening
 from darksynth.estimation.assemble import estimate
+from darksynth.light.darkening import Darkening
 from darksynth.noise.values import NoiseValues
-from darksynth.synthesize import ClipParameters, ClipSynthesizer
+from darksynth.recipe import ClipParameters
+from darksynth.synthesize import ClipSynthesizer
 from darksynth.training.weights import default_weights_path, load_weights
 
 NAMES = ("shot", "read", "quantization", "banding", "temporal_banding")

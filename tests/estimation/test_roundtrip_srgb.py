@@ -14,12 +14,13 @@ import numpy as np
 import pytest
 import torch
 
-from darksynth.darkening import Darkening
 from darksynth.estimation.assemble import estimate
+from darksynth.light.darkening import Darkening
 from darksynth.models.den import DEN
 from darksynth.noise.components import model_parameters, noise_parameter
 from darksynth.noise.values import NoiseValues
-from darksynth.synthesize import ClipParameters, ClipSynthesizer
+from darksynth.recipe import ClipParameters
+from darksynth.synthesize import ClipSynthesizer
 from darksynth.training.weights import default_weights_path, load_weights
 from tests.estimation.test_roundtrip import _clean_scene
 

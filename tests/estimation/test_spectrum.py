@@ -9,12 +9,12 @@ import numpy as np
 import pytest
 import torch
 
+from darksynth.estimation.spectral_fit import quantised
 from darksynth.estimation.spectrum import estimate_spectrum
 from darksynth.estimation.spectrum_checks import compression_ambiguity
-from darksynth.evaluation.structure import band_powers, band_ratios
+from darksynth.evaluation.measures.structure import band_powers, band_ratios
 from darksynth.noise.simulate import add_noise
 from darksynth.noise.spectral import OCTAVES
-from darksynth.noise.spectral_fit import quantised
 from darksynth.noise.values import NoiseValues
 
 

@@ -6,7 +6,7 @@ import numpy as np
 import pytest
 import torch
 
-from darksynth.evaluation.classical import (
+from darksynth.evaluation.methods.classical import (
     PoissonGaussian,
     add_poisson_gaussian,
     blind_gaussian_sigma,

@@ -12,9 +12,8 @@ import torch
 from PIL import Image
 
 from darksynth.errors import DarksynthError
-from darksynth.evaluation import downstream
-from darksynth.evaluation.classical import PoissonGaussian, add_poisson_gaussian
-from darksynth.evaluation.downstream import (
+from darksynth.evaluation.measures import downstream
+from darksynth.evaluation.measures.downstream import (
     LPIPS_STATUS,
     NOISY_INPUT,
     DownstreamSettings,
@@ -23,7 +22,8 @@ from darksynth.evaluation.downstream import (
     run_downstream,
     train_denoiser,
 )
-from darksynth.evaluation.methods import NoiseMethod, build_method
+from darksynth.evaluation.methods.catalogue import NoiseMethod, build_method
+from darksynth.evaluation.methods.classical import PoissonGaussian, add_poisson_gaussian
 from darksynth.evaluation.pairs import list_pair_set, load_pair
 from tests.evaluation.conftest import MakeSet, smooth_clean
 

@@ -10,8 +10,8 @@ import pytest
 from PIL import Image
 
 from darksynth.errors import DarksynthError
-from darksynth.evaluation.job import rank_by_kld, run_evaluation
-from darksynth.evaluation.options import EvaluationOptions
+from darksynth.evaluation.run.job import rank_by_kld, run_evaluation
+from darksynth.evaluation.run.options import EvaluationOptions
 from tests.command_line import run_cli
 from tests.evaluation.conftest import MakeSet
 

@@ -10,8 +10,8 @@ import pytest
 import torch
 
 from darksynth.errors import DarksynthError
-from darksynth.evaluation import inception
-from darksynth.evaluation.inception import (
+from darksynth.evaluation.measures import inception
+from darksynth.evaluation.measures.inception import (
     FEATURE_DIM,
     INCEPTION_PROVENANCE,
     INSTALL_COMMAND,

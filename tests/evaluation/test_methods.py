@@ -7,7 +7,7 @@ from pathlib import Path
 import pytest
 import torch
 
-from darksynth.evaluation.methods import (
+from darksynth.evaluation.methods.catalogue import (
     AWGN_SIGMA,
     METHOD_NAMES,
     MethodUnavailableError,
@@ -87,7 +87,7 @@ def test_adaptive_methods_follow_the_reference_noise_level(name: str, clean: tor
 
 
 def test_the_default_comparison_is_the_papers_and_every_name_is_known() -> None:
-    from darksynth.evaluation.methods import DEFAULT_METHODS
+    from darksynth.evaluation.methods.catalogue import DEFAULT_METHODS
 
     assert DEFAULT_METHODS == (
         "den", "den-paper", "den-v1", "den-v2", "awgn", "awgn-blind", "pg", "pg-blind", "pg-oracle", "starlight",
@@ -96,7 +96,7 @@ def test_the_default_comparison_is_the_papers_and_every_name_is_known() -> None:
 
 
 def test_every_den_method_uses_a_shipped_den_of_its_noise_model_and_variant() -> None:
-    from darksynth.evaluation.methods import DEN_METHODS
+    from darksynth.evaluation.methods.catalogue import DEN_METHODS
     from darksynth.training.weights import SHIPPED_WEIGHTS
 
     assert DEN_METHODS == {

@@ -8,7 +8,7 @@ import numpy as np
 import pytest
 import torch
 
-from darksynth.evaluation.metrics import (
+from darksynth.evaluation.measures.metrics import (
     AKLD_WINDOW_SIGMA,
     NAFLOW_EPS,
     _trace_sqrt_product_factors,

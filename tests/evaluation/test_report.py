@@ -14,9 +14,9 @@ import numpy as np
 import pytest
 from PIL import Image as PILImage
 
-from darksynth.evaluation.report import render_markdown, write_markdown
-from darksynth.evaluation.report_html import ReportExample, render_html, write_html_report
-from darksynth.evaluation.results_model import parse_results
+from darksynth.evaluation.report.html import ReportExample, render_html, write_html_report
+from darksynth.evaluation.report.results_model import parse_results
+from darksynth.evaluation.report.summary import render_markdown, write_markdown
 
 needs_matplotlib = pytest.mark.skipif(
     importlib.util.find_spec("matplotlib") is None,
@@ -111,7 +111,7 @@ def make_results() -> dict[str, Any]:
                 },
             },
         },
-        "downstream": {  # the shape of darksynth.evaluation.downstream.run_downstream's document
+        "downstream": {  # the shape of darksynth.evaluation.measures.downstream.run_downstream's document
             "settings": {"network": "DnCNN-S", "epochs": 3},
             "lpips": "not computed: no backbone weights",
             "methods": {"den": {"oracle": False, "summary": "DEN"}, "pg-oracle": {"oracle": True, "summary": "PG"}},
@@ -343,7 +343,7 @@ def test_markdown_of_a_run_without_results_still_says_so(tmp_path: Path) -> None
 
 @needs_matplotlib
 def test_radar_scores_put_the_best_outward() -> None:
-    from darksynth.evaluation.figures import radar_scores
+    from darksynth.evaluation.report.figures import radar_scores
 
     values: dict[str, dict[str, float | None]] = {
         "a": {"kld": 0.1, "kid": -0.002, "fid": None},
@@ -358,7 +358,7 @@ def test_radar_scores_put_the_best_outward() -> None:
 
 @needs_matplotlib
 def test_power_spectrum_is_flat_for_white_noise_and_falls_for_correlated_noise() -> None:
-    from darksynth.evaluation.figures import radial_power_spectrum
+    from darksynth.evaluation.report.figures import radial_power_spectrum
 
     rng = np.random.default_rng(1)
     white = rng.normal(0.0, 0.02, (256, 256, 3)).astype(np.float32)
@@ -373,7 +373,7 @@ def test_power_spectrum_is_flat_for_white_noise_and_falls_for_correlated_noise()
 
 @needs_matplotlib
 def test_noise_histogram_bins_whole_levels_and_keeps_outliers_in_the_total() -> None:
-    from darksynth.evaluation.figures import noise_histogram
+    from darksynth.evaluation.report.figures import noise_histogram
 
     noise = np.array([0, 0, 1, -25, 26, 200], dtype=np.float32) / 255
     edges, fractions = noise_histogram(noise)

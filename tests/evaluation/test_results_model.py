@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import math
 
-from darksynth.evaluation.results_model import (
+from darksynth.evaluation.report.results_model import (
     BandStatistics,
     CameraScores,
     ChannelStatistics,

@@ -1,4 +1,4 @@
-"""darksynth.evaluation.runner: evaluate_pairs on small sets made on the spot, without the CLI."""
+"""darksynth.evaluation.run.runner: evaluate_pairs on small sets made on the spot, without the CLI."""
 
 from __future__ import annotations
 
@@ -7,10 +7,10 @@ import math
 import pytest
 import torch
 
-from darksynth.evaluation import runner
-from darksynth.evaluation.methods import NoiseMethod
-from darksynth.evaluation.options import EvaluationOptions
-from darksynth.evaluation.runner import evaluate_pairs
+from darksynth.evaluation.methods.catalogue import NoiseMethod
+from darksynth.evaluation.run import runner
+from darksynth.evaluation.run.options import EvaluationOptions
+from darksynth.evaluation.run.runner import evaluate_pairs
 from tests.evaluation.conftest import MakeSet
 
 

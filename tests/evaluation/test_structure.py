@@ -1,4 +1,4 @@
-"""darksynth.evaluation.structure: band powers of known noise, their ratios and summary, and the temporal lag
+"""darksynth.evaluation.measures.structure: band powers of known noise, their ratios and summary, and the temporal lag
 correlation of clips with a known persistence."""
 
 from __future__ import annotations
@@ -9,7 +9,7 @@ import math
 import numpy as np
 import pytest
 
-from darksynth.evaluation.structure import (
+from darksynth.evaluation.measures.structure import (
     BAND_LABELS,
     BANDS,
     band_powers,

@@ -7,9 +7,9 @@ from typing import Any
 
 import pytest
 
-from darksynth.evaluation.report import beyond_paper_lines, headline_lines
-from darksynth.evaluation.results_model import parse_results
-from darksynth.evaluation.verdicts import (
+from darksynth.evaluation.report.results_model import parse_results
+from darksynth.evaluation.report.summary import beyond_paper_lines, headline_lines
+from darksynth.evaluation.report.verdicts import (
     BeyondPaperCheck,
     Headline,
     best_methods,

@@ -4,6 +4,7 @@ import ctypes
 import tracemalloc
 from fractions import Fraction
 from pathlib import Path
+from typing import Any
 
 import av
 import numpy as np
@@ -14,6 +15,7 @@ from darksynth.io.video import (
     DEFAULT_CODEC,
     DEFAULT_CRF,
     VIDEO_SUFFIXES,
+    VideoEncoding,
     VideoInfo,
     VideoWriter,
     iter_video_frames,
@@ -33,9 +35,9 @@ def _gradient_frames(count: int, height: int = 48, width: int = 64) -> list[np.n
     return frames
 
 
-def _write(path: Path, frames: list[np.ndarray], fps: Fraction = Fraction(25), **kwargs: object) -> None:
+def _write(path: Path, frames: list[np.ndarray], fps: Fraction = Fraction(25), **encoding: Any) -> None:
     height, width = frames[0].shape[:2]
-    with VideoWriter(path, width=width, height=height, fps=fps, **kwargs) as writer:  # type: ignore[arg-type]
+    with VideoWriter(path, width=width, height=height, fps=fps, encoding=VideoEncoding(**encoding)) as writer:
         for frame in frames:
             writer.write(frame)
 
@@ -125,12 +127,18 @@ def test_odd_size_with_default_codec(tmp_path: Path, caplog: pytest.LogCaptureFi
 @pytest.mark.parametrize(("width", "height"), [(175, 144), (176, 143)])
 def test_odd_size_with_explicit_420_is_refused(tmp_path: Path, width: int, height: int) -> None:
     with pytest.raises(DarksynthError, match=f"cannot code {width}x{height} in yuv420p.*use yuv444p"):
-        VideoWriter(tmp_path / "odd.mp4", width=width, height=height, fps=Fraction(25), pix_fmt="yuv420p")
+        VideoWriter(
+            tmp_path / "odd.mp4",
+            width=width,
+            height=height,
+            fps=Fraction(25),
+            encoding=VideoEncoding(pix_fmt="yuv420p"),
+        )
 
 
 def test_even_size_keeps_420_without_notice(tmp_path: Path, caplog: pytest.LogCaptureFixture) -> None:
     writer = VideoWriter(tmp_path / "even.mp4", width=176, height=144, fps=Fraction(25))
-    assert writer.pix_fmt == "yuv420p"
+    assert writer.encoding.pix_fmt == "yuv420p"
     assert not caplog.records
 
 
@@ -178,7 +186,9 @@ def test_a_two_frame_x265_clip_gets_its_own_timestamps_whatever_the_heap_held(
 
 def test_full_range_yuvj_format_is_refused_naming_its_replacement(tmp_path: Path) -> None:
     with pytest.raises(DarksynthError, match=r"yuvj420p is FFmpeg's deprecated full-range format; use yuv420p$"):
-        VideoWriter(tmp_path / "clip.mp4", width=16, height=16, fps=Fraction(25), pix_fmt="yuvj420p")
+        VideoWriter(
+            tmp_path / "clip.mp4", width=16, height=16, fps=Fraction(25), encoding=VideoEncoding(pix_fmt="yuvj420p")
+        )
 
 
 def _noisy_frames(count: int) -> tuple[np.ndarray, list[np.ndarray]]:
@@ -220,7 +230,7 @@ def test_default_420_keeps_luma_noise_and_averages_chroma_noise(tmp_path: Path) 
 def test_frames_are_streamed(tmp_path: Path) -> None:
     path = tmp_path / "long.mkv"
     frame = _gradient_frames(1, height=120, width=160)[0]
-    with VideoWriter(path, width=160, height=120, fps=Fraction(25), codec="ffv1") as writer:
+    with VideoWriter(path, width=160, height=120, fps=Fraction(25), encoding=VideoEncoding(codec="ffv1")) as writer:
         for _ in range(60):
             writer.write(frame)
     tracemalloc.start()
@@ -293,6 +303,10 @@ def test_wrong_frame_shape_is_a_programming_error(tmp_path: Path) -> None:
     assert list(tmp_path.iterdir()) == []
 
 
+STREAM = frozenset({"width", "height", "fps"})
+"""The writer's arguments that describe the stream; the others of the table below are its encoding's."""
+
+
 @pytest.mark.parametrize(
     ("name", "kwargs", "message"),
     [
@@ -315,10 +329,11 @@ def test_wrong_frame_shape_is_a_programming_error(tmp_path: Path) -> None:
 def test_unusable_settings_raise_one_line_errors(
     tmp_path: Path, name: str, kwargs: dict[str, object], message: str
 ) -> None:
-    settings: dict[str, object] = {"width": 64, "height": 48, "fps": Fraction(25)} | kwargs
+    stream = {"width": 64, "height": 48, "fps": Fraction(25)} | {k: v for k, v in kwargs.items() if k in STREAM}
+    encoding = VideoEncoding(**{k: v for k, v in kwargs.items() if k not in STREAM})  # type: ignore[arg-type]
     with (
         pytest.raises(DarksynthError, match=message) as info,
-        VideoWriter(tmp_path / name, **settings) as writer,  # type: ignore[arg-type]
+        VideoWriter(tmp_path / name, encoding=encoding, **stream) as writer,  # type: ignore[arg-type]
     ):
         writer.write(_gradient_frames(1)[0])
     assert "\n" not in str(info.value)
@@ -336,8 +351,10 @@ def test_default_codec_is_libx264() -> None:
 
 
 def test_codec_names_resolve_to_the_encoder(tmp_path: Path) -> None:
-    writer = VideoWriter(tmp_path / "a.mp4", width=64, height=48, fps=Fraction(25), codec="h264")
-    assert (writer.codec, writer.crf) == ("libx264", DEFAULT_CRF)
+    writer = VideoWriter(
+        tmp_path / "a.mp4", width=64, height=48, fps=Fraction(25), encoding=VideoEncoding(codec="h264")
+    )
+    assert writer.encoding == VideoEncoding(codec="libx264", crf=DEFAULT_CRF, pix_fmt="yuv420p")
 
 
 # --- bad inputs --------------------------------------------------------------------------------------------------
@@ -439,7 +456,9 @@ def test_audio_is_interleaved_as_frames_are_written(tmp_path: Path, monkeypatch:
 
     monkeypatch.setattr(av.container.OutputContainer, "mux", spying_mux)
     fps = Fraction(25)
-    with VideoWriter(tmp_path / "out.mkv", width=48, height=32, fps=fps, codec="ffv1", audio_from=source) as writer:
+    with VideoWriter(
+        tmp_path / "out.mkv", width=48, height=32, fps=fps, encoding=VideoEncoding(codec="ffv1"), audio_from=source
+    ) as writer:
         for index in range(50):
             writer.write(np.zeros((32, 48, 3), np.uint8))
             audio_end = max((pts for kind, pts in muxed if kind == "audio"), default=-1) / 8000  # pcm at 8 kHz

@@ -8,7 +8,7 @@ import sys
 import pytest
 import torch
 
-from darksynth.darkening import Darkening, darken
+from darksynth.light.darkening import Darkening, darken
 from darksynth.noise import fused_8bit
 from darksynth.noise.fused_8bit import FAST_PATH
 from darksynth.noise.simulate import add_noise
@@ -16,7 +16,8 @@ from darksynth.noise.spectral import OCTAVES
 from darksynth.noise.spectral_8bit import read_levels, read_levels_by_index
 from darksynth.noise.values import NoiseValues
 from darksynth.profile import Profile
-from darksynth.synthesize import ClipParameters, ClipSynthesizer, draw_clip_parameters, synthesize
+from darksynth.recipe import ClipParameters, draw_clip_parameters
+from darksynth.synthesize import ClipSynthesizer, synthesize
 
 PAPER = {"shot": 0.05, "read": 0.01, "quantization": 0.004, "banding": 0.003, "temporal_banding": 0.002}
 

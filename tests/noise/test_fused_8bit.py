@@ -11,13 +11,14 @@ import scipy.stats
 import torch
 
 import darksynth
-from darksynth.darkening import Darkening
+from darksynth.light.darkening import Darkening
 from darksynth.noise.components import model_parameters
 from darksynth.noise.counter_rng import advance, random_key
 from darksynth.noise.fused_8bit import compiled_pixel_kernel, pixel_kernel_8bit
 from darksynth.noise.values import NoiseValues
 from darksynth.profile import default_profile_path, load_profile
-from darksynth.synthesize import ClipParameters, ClipSynthesizer, draw_clip_parameters
+from darksynth.recipe import ClipParameters, draw_clip_parameters
+from darksynth.synthesize import ClipSynthesizer
 
 
 def _per_level_moments(clean: torch.Tensor, noisy: torch.Tensor) -> tuple[torch.Tensor, torch.Tensor]:

@@ -21,15 +21,16 @@ from PIL import Image
 
 import darksynth
 from darksynth.apply import ApplyOptions, apply
-from darksynth.darkening import Darkening
 from darksynth.errors import ProfileError
+from darksynth.light.darkening import Darkening
 from darksynth.noise import components
 from darksynth.noise.components import NoiseComponent, Parameter
 from darksynth.noise.level import mean_noise_variance
 from darksynth.noise.sampling import random_noise_values
 from darksynth.noise.values import NoiseValues
 from darksynth.profile import load_profile, profile_schema, save_profile
-from darksynth.synthesize import ClipParameters, ClipSynthesizer
+from darksynth.recipe import ClipParameters
+from darksynth.synthesize import ClipSynthesizer
 
 DITHER = 0.08
 

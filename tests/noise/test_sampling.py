@@ -6,7 +6,7 @@ import math
 
 import torch
 
-from darksynth.darkening import ALPHA_RANGE, GAMMA_RANGE
+from darksynth.light.darkening import ALPHA_RANGE, GAMMA_RANGE
 from darksynth.noise.components import model_parameters
 from darksynth.noise.sampling import random_darkening_values, random_noise_values
 

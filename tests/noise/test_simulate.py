@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import torch
 
-from darksynth.darkening import darken
+from darksynth.light.darkening import darken
 from darksynth.noise.banding import banding_noise, temporal_banding_noise
 from darksynth.noise.heteroscedastic import heteroscedastic_noise
 from darksynth.noise.periodic import periodic_noise

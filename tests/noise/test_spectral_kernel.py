@@ -9,18 +9,19 @@ import pytest
 import scipy.stats
 import torch
 
-from darksynth.darkening import Darkening
+from darksynth.estimation.spectral_statistics import measure
+from darksynth.light.darkening import Darkening
 from darksynth.noise.counter_rng import random_key
 from darksynth.noise.spectral import OCTAVES, crop_unit, octave_covariances, spectral_tables
 from darksynth.noise.spectral_8bit import level_tables
-from darksynth.noise.spectral_fit import measure
 from darksynth.noise.spectral_kernel import (
     spectral_ar_mix_kernel,
     spectral_mix_kernel,
     spectral_pixel_kernel,
 )
 from darksynth.noise.values import NoiseValues
-from darksynth.synthesize import ClipParameters, ClipSynthesizer
+from darksynth.recipe import ClipParameters
+from darksynth.synthesize import ClipSynthesizer
 
 SPECTRAL = {
     "level_curve": [0.01, 0.012, 0.014, 0.016, 0.018, 0.02, 0.022, 0.024] * 3,

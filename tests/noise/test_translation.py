@@ -24,7 +24,8 @@ from darksynth.noise.structure_translation import (
 )
 from darksynth.noise.values import NoiseValues
 from darksynth.profile import Profile, parse_profile
-from darksynth.synthesize import draw_clip_parameters, synthesize
+from darksynth.recipe import draw_clip_parameters
+from darksynth.synthesize import synthesize
 
 ROOT = Path(__file__).resolve().parents[2]
 

@@ -3,6 +3,7 @@ without albumentations."""
 
 from __future__ import annotations
 
+import copy
 import math
 
 import numpy as np
@@ -10,9 +11,11 @@ import pytest
 import torch
 import torch.utils.data
 
-from darksynth.darkening import Darkening
+from darksynth.light.darkening import Darkening
+from darksynth.noise.values import NoiseValues
 from darksynth.profile import Profile
-from darksynth.transforms.low_light import low_light
+from darksynth.recipe import ClipParameters
+from darksynth.transforms.low_light import low_light, mix_seed
 from tests.conftest import build_profile
 from tests.transforms.test_low_light import _everything_profile
 
@@ -49,16 +52,22 @@ def test_albumentations_compose_with_a_seed_is_reproducible(dtype: type, shape: 
         assert np.abs(a1 * 255 - np.round(a1 * 255)).max() < 1e-3
 
 
-def test_albumentations_transform_is_the_torch_transform_seeded_by_albumentations() -> None:
+def test_albumentations_transform_is_the_torch_transform_with_the_parameters_it_drew() -> None:
     image = _image(np.float32)
     transform = _albumentations_transform()
+    params = transform.get_params_dependent_on_data(params={"seed": 42}, data={"image": image})  # type: ignore[attr-defined]
+    parameters = ClipParameters(
+        noise=NoiseValues.from_json({**params["noise"], **params["light"]}),
+        darkening=Darkening(alpha=params["alpha"], gamma=params["gamma"]),
+    )
     expected = low_light(
         torch.from_numpy(image).permute(2, 0, 1),
         _everything_profile(),
-        generator=torch.Generator().manual_seed(42),
+        generator=torch.Generator().manual_seed(mix_seed("noise", 42)),
+        parameters=parameters,
     ).image
     assert isinstance(expected, torch.Tensor)
-    assert np.array_equal(transform.apply(image, seed=42), expected.permute(1, 2, 0).numpy())  # type: ignore[attr-defined]
+    assert np.array_equal(transform.apply(image, **params), expected.permute(1, 2, 0).numpy())  # type: ignore[attr-defined]
 
 
 def test_albumentations_respects_p() -> None:
@@ -95,6 +104,44 @@ def test_albumentations_serialisation_and_replay() -> None:
     recorded = replay(image=image)
     again = A.ReplayCompose.replay(recorded["replay"], image=image)
     assert np.array_equal(again["image"], recorded["image"])
+
+
+RANGED = build_profile(
+    shot=0.02, read=0.01, ranges={"alpha": [(0.1, 0.3)], "gamma": [(0.5, 0.9)], "read": [(0.005, 0.02)]}
+)
+"""A profile whose alpha, gamma and read noise are drawn for each call."""
+
+
+def test_a_replay_shows_the_drawn_parameters_and_applies_exactly_those() -> None:
+    image = _image(np.uint8, (32, 40, 3))
+    replay = A.ReplayCompose([_albumentations_transform(profile=RANGED)])
+    replay.set_random_seed(5)
+    recorded = replay(image=image)
+    shown = recorded["replay"]["transforms"][0]["params"]
+    assert 0.1 <= shown["alpha"] <= 0.3 and 0.5 <= shown["gamma"] <= 0.9
+    assert 0.005 <= shown["noise"]["read"] <= 0.02 and shown["noise"]["shot"] == pytest.approx(0.02)
+    assert set(shown["light"]) >= {"exposure_fraction", "flicker"}
+    assert np.array_equal(A.ReplayCompose.replay(recorded["replay"], image=image)["image"], recorded["image"])
+    # The replay applies what it shows: a brighter alpha written into it brightens the output.
+    edited = copy.deepcopy(recorded["replay"])
+    edited["transforms"][0]["params"]["alpha"] = 1.0
+    brighter = A.ReplayCompose.replay(edited, image=image)["image"]
+    assert brighter.mean() > 2 * recorded["image"].mean()
+
+
+def test_the_drawn_parameters_are_uniform_within_the_profiles_ranges() -> None:
+    transform = _albumentations_transform(profile=RANGED)
+    image = _image(np.uint8, (16, 16, 3))
+    draws = [
+        transform.get_params_dependent_on_data(params={"seed": seed}, data={"image": image})  # type: ignore[attr-defined]
+        for seed in range(400)
+    ]
+    alphas = np.array([d["alpha"] for d in draws])
+    reads = np.array([d["noise"]["read"] for d in draws])
+    assert alphas.min() >= 0.1 and alphas.max() <= 0.3 and reads.min() >= 0.005 and reads.max() <= 0.02
+    # U(0.1, 0.3) over 400 draws: mean 0.2, standard error 0.2 / sqrt(12 * 400) = 0.0029; 4 of them.
+    assert abs(alphas.mean() - 0.2) < 4 * 0.2 / math.sqrt(12 * 400)
+    assert np.corrcoef(alphas, reads)[0, 1] ** 2 < 0.05
 
 
 @pytest.mark.parametrize(

@@ -13,7 +13,7 @@ import torch
 import torch.utils.data
 
 import darksynth
-from darksynth.darkening import Darkening, darken
+from darksynth.light.darkening import Darkening, darken
 from darksynth.profile import Profile
 from darksynth.transforms import LowLight
 from tests.conftest import build_profile

@@ -14,6 +14,7 @@ Public API::
 
 from __future__ import annotations
 
+from darksynth.baselines.adversarial import PatchDiscriminator, histogram_kl, summary_path
 from darksynth.baselines.starlight_model import (
     MODEL_NAME,
     MODEL_VERSION,
@@ -25,11 +26,8 @@ from darksynth.baselines.starlight_model import (
     save_starlight,
 )
 from darksynth.baselines.starlight_training import (
-    PatchDiscriminator,
     StarlightTrainConfig,
     evaluate_starlight,
-    histogram_kl,
-    summary_path,
     train_starlight,
     validation_batches,
 )

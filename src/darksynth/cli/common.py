@@ -6,15 +6,15 @@ from __future__ import annotations
 import dataclasses
 import logging
 from collections.abc import Sequence
-from typing import Any, get_args
+from typing import Annotated, Any, get_args
 
 import typer
 from rich.console import Console
 
-from darksynth.darkening import Darkening
 from darksynth.errors import DarksynthError
+from darksynth.light.darkening import Darkening
 from darksynth.models.den import Variant
-from darksynth.synthesize import DarkeningChoice
+from darksynth.recipe import DarkeningChoice
 
 console = Console(stderr=True)
 
@@ -84,8 +84,5 @@ def darkening_choice(alpha: float | None, gamma: float | None, no_darken: bool) 
     return Darkening(alpha=alpha, gamma=gamma)
 
 
-BLUR_HELP = "Motion blur along each clip's flow with the profile's exposure fraction, camera shake for images."
-MATCH_COLOUR_HELP = "Also give each input the reference's colour cast (per-channel gains), e.g. sodium-orange streets."
-FLICKER_HELP = "The profile's per-frame brightness flicker on clips and videos."
-JITTER_HELP = "Draw each file's or clip's parameters within the profile's ranges (default: the profile's values)."
 QUIET_HELP = "No progress and no summary; warnings and errors are still printed."
+QuietOption = Annotated[bool, typer.Option("--quiet", "-q", help=QUIET_HELP)]

@@ -13,7 +13,7 @@ import typer
 from darksynth.cli.common import QUIET_HELP, console, default_of, fail, say
 from darksynth.console_progress import progress_display
 from darksynth.errors import DarksynthError
-from darksynth.evaluation.options import EvaluationOptions
+from darksynth.evaluation.run.options import EvaluationOptions
 
 
 def parse_weights(entries: list[str]) -> dict[str, Path]:
@@ -74,7 +74,7 @@ def evaluate_command(
     ),
     quiet: Annotated[bool, typer.Option("--quiet", "-q", help=QUIET_HELP)] = False,
 ) -> None:
-    from darksynth.evaluation.job import rank_by_kld, run_evaluation
+    from darksynth.evaluation.run.job import rank_by_kld, run_evaluation
 
     chosen = [m.strip() for m in methods.split(",") if m.strip()]
     try:

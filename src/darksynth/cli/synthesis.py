@@ -11,11 +11,7 @@ import typer
 
 from darksynth.apply import ApplyOptions, ApplyReport, Task, apply
 from darksynth.cli.common import (
-    BLUR_HELP,
-    FLICKER_HELP,
-    JITTER_HELP,
-    MATCH_COLOUR_HELP,
-    QUIET_HELP,
+    QuietOption,
     checked_choice,
     console,
     darkening_choice,
@@ -23,9 +19,24 @@ from darksynth.cli.common import (
     fail,
     say,
 )
+from darksynth.cli.synthesis_options import (
+    AlphaOption,
+    BlurOption,
+    CodecOption,
+    CrfOption,
+    DeviceOption,
+    FlickerOption,
+    GammaOption,
+    JitterOption,
+    MatchColourOption,
+    NoDarkenOption,
+    PixFmtOption,
+    ProfileOption,
+)
 from darksynth.console_progress import progress_display
 from darksynth.datasets import FORMATS, ConversionReport, ConvertOptions, DatasetFormat, Shard
 from darksynth.errors import DarksynthError
+from darksynth.io.video_encoding import VideoEncoding
 from darksynth.preview import PANEL_SIZE
 from darksynth.profile import load_profile
 
@@ -51,42 +62,30 @@ def run_with_progress(
 def apply_command(
     input_path: Annotated[Path, typer.Argument(metavar="INPUT", help="Clean image, video, or folder of them.")],
     output_path: Annotated[Path, typer.Argument(metavar="OUTPUT", help="Output file or folder (never inside INPUT).")],
-    profile: Annotated[Path, typer.Option("--profile", "-p", help="Noise profile JSON.")],
+    profile: ProfileOption,
     seed: Annotated[int | None, typer.Option(help="Run seed; random (and recorded) when omitted.")] = None,
-    alpha: Annotated[float | None, typer.Option(help="Darkening scale, with --gamma.")] = None,
-    gamma: Annotated[float | None, typer.Option(help="Darkening exponent: x_d = alpha * x ** (1/gamma).")] = None,
-    no_darken: Annotated[bool, typer.Option("--no-darken", help="Add noise only, keep the brightness.")] = False,
+    alpha: AlphaOption = None,
+    gamma: GammaOption = None,
+    no_darken: NoDarkenOption = False,
     clip: Annotated[bool, typer.Option("--clip", help="Each folder of frames is one clip.")] = default_of(
         ApplyOptions, "clip"
     ),
-    jitter: Annotated[bool, typer.Option("--jitter", help=JITTER_HELP)] = default_of(ApplyOptions, "jitter"),
+    jitter: JitterOption = default_of(ApplyOptions, "jitter"),
     overwrite: Annotated[
         bool, typer.Option("--overwrite", help="Replace outputs that exist (otherwise the run is refused).")
     ] = default_of(ApplyOptions, "overwrite"),
     workers: Annotated[int, typer.Option(min=1, help="Processes for folders.")] = default_of(ApplyOptions, "workers"),
-    codec: Annotated[str | None, typer.Option(help="Video codec, e.g. libx264 (default), ffv1.")] = default_of(
-        ApplyOptions, "codec"
-    ),
-    crf: Annotated[int | None, typer.Option(min=0, max=63, help="Video quality (lower is better).")] = default_of(
-        ApplyOptions, "crf"
-    ),
-    pix_fmt: Annotated[
-        str | None, typer.Option("--pix-fmt", help="Video pixel format, e.g. yuv444p (default yuv420p for H.264).")
-    ] = default_of(ApplyOptions, "pix_fmt"),
-    device: Annotated[str, typer.Option(help="torch device: cpu, cuda, cuda:1 ...")] = default_of(
-        ApplyOptions, "device"
-    ),
-    blur: Annotated[bool, typer.Option("--blur/--no-blur", help=BLUR_HELP)] = default_of(ApplyOptions, "blur"),
-    flicker: Annotated[bool, typer.Option("--flicker/--no-flicker", help=FLICKER_HELP)] = default_of(
-        ApplyOptions, "flicker"
-    ),
-    match_colour: Annotated[bool, typer.Option("--match-colour", help=MATCH_COLOUR_HELP)] = default_of(
-        ApplyOptions, "match_colour"
-    ),
+    codec: CodecOption = default_of(VideoEncoding, "codec"),
+    crf: CrfOption = default_of(VideoEncoding, "crf"),
+    pix_fmt: PixFmtOption = default_of(VideoEncoding, "pix_fmt"),
+    device: DeviceOption = default_of(ApplyOptions, "device"),
+    blur: BlurOption = default_of(ApplyOptions, "blur"),
+    flicker: FlickerOption = default_of(ApplyOptions, "flicker"),
+    match_colour: MatchColourOption = default_of(ApplyOptions, "match_colour"),
     compile_kernel: Annotated[
         bool | None, typer.Option("--compile/--no-compile", help="Fuse the 8-bit kernel (default: for long clips).")
     ] = default_of(ApplyOptions, "compile"),
-    quiet: Annotated[bool, typer.Option("--quiet", "-q", help=QUIET_HELP)] = False,
+    quiet: QuietOption = False,
 ) -> None:
     try:
         options = ApplyOptions(
@@ -97,9 +96,7 @@ def apply_command(
             overwrite=overwrite,
             clip=clip,
             workers=workers,
-            codec=codec,
-            crf=crf,
-            pix_fmt=pix_fmt,
+            encoding=VideoEncoding(codec=codec, crf=crf, pix_fmt=pix_fmt),
             device=device,
             blur=blur,
             flicker=flicker,
@@ -126,7 +123,7 @@ def apply_command(
 def convert_command(
     dataset: Annotated[Path, typer.Argument(metavar="DATASET", help="Root folder of the annotated dataset.")],
     output: Annotated[Path, typer.Argument(metavar="OUTPUT", help="Output folder (never inside DATASET).")],
-    profile: Annotated[Path, typer.Option("--profile", "-p", help="Noise profile JSON.")],
+    profile: ProfileOption,
     dataset_format: Annotated[
         str, typer.Option("--format", "-f", help="coco, yolo, folder (class per folder) or video-folder.")
     ],
@@ -136,35 +133,23 @@ def convert_command(
     workers: Annotated[int, typer.Option(min=1, help="Processes on this machine.")] = default_of(
         ConvertOptions, "workers"
     ),
-    jitter: Annotated[bool, typer.Option("--jitter", help=JITTER_HELP)] = default_of(ConvertOptions, "jitter"),
+    jitter: JitterOption = default_of(ConvertOptions, "jitter"),
     shard: Annotated[str | None, typer.Option(help="Convert only part K of N (1-based), e.g. 3/8.")] = default_of(
         ConvertOptions, "shard"
     ),
     images_root: Annotated[
         Path | None, typer.Option("--images-root", help="COCO: folder that file_name entries are relative to.")
-    ] = default_of(ConvertOptions, "images_root"),  # noqa: B008 (a dataclass default: immutable, read once)
+    ] = default_of(ConvertOptions, "images_root"),
     overwrite: Annotated[
         bool, typer.Option("--overwrite", help="Start over in an output written with other options.")
     ] = default_of(ConvertOptions, "overwrite"),
-    codec: Annotated[str | None, typer.Option(help="Video codec, e.g. libx264 (default), ffv1.")] = default_of(
-        ConvertOptions, "codec"
-    ),
-    crf: Annotated[int | None, typer.Option(min=0, max=63, help="Video quality (lower is better).")] = default_of(
-        ConvertOptions, "crf"
-    ),
-    pix_fmt: Annotated[
-        str | None, typer.Option("--pix-fmt", help="Video pixel format, e.g. yuv444p (default yuv420p for H.264).")
-    ] = default_of(ConvertOptions, "pix_fmt"),
-    device: Annotated[str, typer.Option(help="torch device: cpu, cuda, cuda:1 ...")] = default_of(
-        ConvertOptions, "device"
-    ),
-    blur: Annotated[bool, typer.Option("--blur/--no-blur", help=BLUR_HELP)] = default_of(ConvertOptions, "blur"),
-    flicker: Annotated[bool, typer.Option("--flicker/--no-flicker", help=FLICKER_HELP)] = default_of(
-        ConvertOptions, "flicker"
-    ),
-    match_colour: Annotated[bool, typer.Option("--match-colour", help=MATCH_COLOUR_HELP)] = default_of(
-        ConvertOptions, "match_colour"
-    ),
+    codec: CodecOption = default_of(VideoEncoding, "codec"),
+    crf: CrfOption = default_of(VideoEncoding, "crf"),
+    pix_fmt: PixFmtOption = default_of(VideoEncoding, "pix_fmt"),
+    device: DeviceOption = default_of(ConvertOptions, "device"),
+    blur: BlurOption = default_of(ConvertOptions, "blur"),
+    flicker: FlickerOption = default_of(ConvertOptions, "flicker"),
+    match_colour: MatchColourOption = default_of(ConvertOptions, "match_colour"),
     use_ray: Annotated[
         bool,
         typer.Option(
@@ -173,7 +158,7 @@ def convert_command(
             "needs darksynth[ray].",
         ),
     ] = False,
-    quiet: Annotated[bool, typer.Option("--quiet", "-q", help=QUIET_HELP)] = False,
+    quiet: QuietOption = False,
 ) -> None:
     from darksynth.datasets import convert_dataset
 
@@ -189,9 +174,7 @@ def convert_command(
             shard=None if shard is None else Shard.parse(shard),
             images_root=images_root,
             overwrite=overwrite,
-            codec=codec,
-            crf=crf,
-            pix_fmt=pix_fmt,
+            encoding=VideoEncoding(codec=codec, crf=crf, pix_fmt=pix_fmt),
             device=device,
             blur=blur,
             flicker=flicker,
@@ -240,26 +223,20 @@ def _convert_counts(report: ConversionReport) -> None:
 
 def preview_command(
     image: Annotated[Path, typer.Argument(metavar="IMAGE", help="One clean image.")],
-    profile: Annotated[Path, typer.Option("--profile", "-p", help="Noise profile JSON.")],
+    profile: ProfileOption,
     out: Annotated[Path, typer.Option("--out", help="Preview image to write.")] = Path("preview.png"),
     seed: Annotated[int | None, typer.Option(help="Run seed, as apply's; random (and printed) when omitted.")] = None,
-    alpha: Annotated[float | None, typer.Option(help="Darkening scale, with --gamma.")] = None,
-    gamma: Annotated[float | None, typer.Option(help="Darkening exponent: x_d = alpha * x ** (1/gamma).")] = None,
-    no_darken: Annotated[bool, typer.Option("--no-darken", help="Add noise only, keep the brightness.")] = False,
+    alpha: AlphaOption = None,
+    gamma: GammaOption = None,
+    no_darken: NoDarkenOption = False,
     crop: Annotated[
         str, typer.Option(help="Largest panel, WIDTHxHEIGHT or SIDE; a larger image is shown by its centre.")
     ] = "x".join(map(str, PANEL_SIZE)),
     overwrite: Annotated[bool, typer.Option("--overwrite", help="Replace an existing OUT.")] = False,
-    device: Annotated[str, typer.Option(help="torch device: cpu, cuda, cuda:1 ...")] = default_of(
-        ApplyOptions, "device"
-    ),
-    blur: Annotated[bool, typer.Option("--blur/--no-blur", help=BLUR_HELP)] = default_of(ApplyOptions, "blur"),
-    flicker: Annotated[bool, typer.Option("--flicker/--no-flicker", help=FLICKER_HELP)] = default_of(
-        ApplyOptions, "flicker"
-    ),
-    match_colour: Annotated[bool, typer.Option("--match-colour", help=MATCH_COLOUR_HELP)] = default_of(
-        ApplyOptions, "match_colour"
-    ),
+    device: DeviceOption = default_of(ApplyOptions, "device"),
+    blur: BlurOption = default_of(ApplyOptions, "blur"),
+    flicker: FlickerOption = default_of(ApplyOptions, "flicker"),
+    match_colour: MatchColourOption = default_of(ApplyOptions, "match_colour"),
 ) -> None:
     from darksynth.preview import PreviewOptions, parse_panel_size, run_preview
 
@@ -270,6 +247,9 @@ def preview_command(
                 seed=seed if seed is not None else secrets.randbits(31),
                 darkening=darkening_choice(alpha, gamma, no_darken),
                 device=device,
+                blur=blur,
+                flicker=flicker,
+                match_colour=match_colour,
                 profile_source=str(profile),
             ),
             panel_size=parse_panel_size(crop),

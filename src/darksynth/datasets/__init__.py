@@ -7,25 +7,20 @@ Importing this package needs neither rich nor typer.
 
 from __future__ import annotations
 
+from darksynth.apply import MANIFEST_NAME
 from darksynth.datasets.convert import (
-    MANIFEST_NAME,
-    SCHEDULING_OPTIONS,
-    ConversionReport,
-    ConvertOptions,
-    Shard,
     StartedConversion,
     carry_file,
     convert_dataset,
     convert_item,
-    fixed_darkening,
     is_done,
     prepare_output,
     record_path,
     remove_stale_temps,
-    shard_of,
     start_conversion,
     write_manifest_if_complete,
 )
+from darksynth.datasets.convert_options import SCHEDULING_OPTIONS, ConversionReport, ConvertOptions, Shard, shard_of
 from darksynth.datasets.formats import (
     FORMATS,
     CarriedFile,
@@ -36,6 +31,7 @@ from darksynth.datasets.formats import (
     plan_dataset,
     rewrite_yolo_yaml,
 )
+from darksynth.recipe import fixed_darkening
 
 __all__ = [
     "FORMATS",

@@ -40,41 +40,13 @@ from darksynth.apply_outputs import (
     write_record_file,
 )
 from darksynth.apply_outputs import record_path as shared_record_path
-from darksynth.datasets.convert_options import (
-    SCHEDULING_OPTIONS,
-    ConversionReport,
-    ConvertOptions,
-    Shard,
-    shard_of,
-)
+from darksynth.datasets.convert_options import ConversionReport, ConvertOptions
 from darksynth.datasets.formats import CarriedFile, DatasetPlan, MediaItem, plan_dataset
 from darksynth.datasets.formats import rewrite_yolo_yaml as _rewrite_yolo_yaml
 from darksynth.errors import DarksynthError, error_reason
 from darksynth.io.atomic import atomic_output, write_text_atomic
 from darksynth.io.atomic import remove_stale_temps as remove_temps_of
 from darksynth.profile import profile_to_dict
-from darksynth.synthesize import fixed_darkening
-
-__all__ = [
-    "MANIFEST_NAME",
-    "SCHEDULING_OPTIONS",
-    "STATE_FOLDER",
-    "ConversionReport",
-    "ConvertOptions",
-    "Shard",
-    "StartedConversion",
-    "carry_file",
-    "convert_dataset",
-    "convert_item",
-    "fixed_darkening",
-    "is_done",
-    "prepare_output",
-    "record_path",
-    "remove_stale_temps",
-    "shard_of",
-    "start_conversion",
-    "write_manifest_if_complete",
-]
 
 _STATE_NAME: Final = "convert-state.json"
 _RECORDS: Final = "records"
@@ -357,9 +329,7 @@ def write_manifest_if_complete(options: ConvertOptions, plan: DatasetPlan) -> tu
         "seed": options.seed,
         "jitter": options.jitter,
         "device": options.device,
-        "codec": options.codec,
-        "crf": options.crf,
-        "pix_fmt": options.pix_fmt,
+        **options.encoding.to_json(),
         "images_root": None if options.images_root is None else str(options.images_root),
         "profile": profile_to_dict(options.profile),
         "files": done,

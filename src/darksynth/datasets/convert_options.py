@@ -17,6 +17,7 @@ from darksynth.apply_outputs import VIDEO_OPTIONS, options_fingerprint
 from darksynth.datasets.formats import FORMATS, DatasetFormat
 from darksynth.errors import DarksynthError
 from darksynth.io.discover import check_output_location
+from darksynth.io.video_encoding import DEFAULT_ENCODING, VideoEncoding
 from darksynth.profile import Profile
 
 
@@ -69,12 +70,12 @@ class ConvertOptions:
         format: the dataset format, one of :data:`darksynth.datasets.formats.FORMATS`.
         seed: run seed; each item's seed derives from it and the item's relative path.
         jitter: draw parameters per item within the profile's ranges; otherwise every item gets the profile's
-            values (see :func:`darksynth.synthesize.fixed_darkening` for the darkening).
+            values (see :func:`darksynth.recipe.fixed_darkening` for the darkening).
         workers: processes on this machine.
         shard: the part of the dataset this run handles, or None for all of it.
         images_root: COCO: the folder ``file_name`` entries are relative to (tried first).
         overwrite: start over in an output written with other options.
-        codec, crf, pix_fmt, device, blur, flicker, match_colour: as for ``apply``.
+        encoding, device, blur, flicker, match_colour: as for ``apply``.
     """
 
     dataset: Path
@@ -87,9 +88,7 @@ class ConvertOptions:
     shard: Shard | None = None
     images_root: Path | None = None
     overwrite: bool = False
-    codec: str | None = None
-    crf: int | None = None
-    pix_fmt: str | None = None
+    encoding: VideoEncoding = DEFAULT_ENCODING
     device: str = "cpu"
     blur: bool = True
     flicker: bool = True
@@ -115,9 +114,7 @@ class ConvertOptions:
             seed=self.seed,
             jitter=self.jitter,
             workers=self.workers,
-            codec=self.codec,
-            crf=self.crf,
-            pix_fmt=self.pix_fmt,
+            encoding=self.encoding,
             device=self.device,
             blur=self.blur,
             flicker=self.flicker,

@@ -18,13 +18,8 @@ import time
 from collections.abc import Callable
 from typing import Any, Final
 
-from darksynth.datasets.convert import (
-    ConversionReport,
-    ConvertOptions,
-    convert_item,
-    start_conversion,
-    write_manifest_if_complete,
-)
+from darksynth.datasets.convert import convert_item, start_conversion, write_manifest_if_complete
+from darksynth.datasets.convert_options import ConversionReport, ConvertOptions
 from darksynth.errors import DarksynthError
 
 RAY_SCHEDULES: Final = ("shard", "workers", "device")

@@ -3,7 +3,7 @@
 The estimate of every crop is a full v; the profile holds their median (robust to crops where content,
 clipping or a light source misleads the network) and, as ``ranges``, the 10th to 90th percentile across crops,
 so that ``apply`` can reproduce the spread the reference shows. The darkening (alpha, gamma) is read from the
-reference's tone distribution (:mod:`darksynth.tones`); for a clip, its ``ranges`` are the 10th
+reference's tone distribution (:mod:`darksynth.estimation.darkening`); for a clip, its ``ranges`` are the 10th
 to 90th percentile of the per-frame estimates.
 
 Two things are measured on the reference itself rather than taken from the network: whether it shows column
@@ -19,12 +19,10 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
-import numpy as np
 import torch
 
-from darksynth.darkening import ALPHA_RANGE, GAMMA_RANGE, Darkening
-from darksynth.errors import DarksynthError
 from darksynth.estimation.columns import decide_columns
+from darksynth.estimation.darkening import estimate_profile_darkening
 from darksynth.estimation.motion import SHUTTER_LIMIT, estimate_motion
 from darksynth.estimation.network import run_network
 from darksynth.estimation.reference import (
@@ -42,22 +40,6 @@ from darksynth.noise.level import channel_noise_std, mean_noise_variance
 from darksynth.noise.spectral import LEVEL_KNOTS
 from darksynth.noise.values import NoiseValues
 from darksynth.profile import Profile
-from darksynth.tone_blocks import block_statistics
-from darksynth.tones import (
-    ALPHA_BOUNDS,
-    GAMMA_BOUNDS,
-    PROBABILITIES,
-    DarkeningEstimate,
-    ToneTarget,
-    colour_cast,
-    estimate_darkening_pooled_and_per_frame,
-    estimate_darkening_spread,
-    luminance_quantiles,
-    sampled_blocks,
-)
-from darksynth.tones import (
-    BLOCK as TONE_BLOCK,
-)
 
 BRIGHT_MEAN = 0.35
 """A reference whose mean level is above this is not low-light; its estimate is less reliable."""
@@ -183,7 +165,7 @@ def estimate(
             "single image: temporal banding cannot be told from banding; their split is the network's prior "
             "(what it learned from the training table's ranges), not a measurement"
         )
-    darkening, tone = _estimate_darkening(reference, name, ranges, meta, warnings)
+    darkening, tone = estimate_profile_darkening(reference, name, ranges, meta, warnings)
     noise = _estimate_light(reference, noise, meta, warnings, name, uniform=uniform, cuts=cuts)
     profile = Profile(noise=noise, darkening=darkening, ranges=ranges, meta=meta, tone=tone)
     return Estimate(profile=profile, per_crop=per_crop, warnings=warnings)
@@ -292,136 +274,3 @@ def profile_noise_std(noise: NoiseValues, reference: torch.Tensor, frames: Seque
     channel_means = channel_means.to(torch.float64).reshape(1, -1, 1, 1)
     batched = noise.map(lambda t: t[None].to(torch.float64))
     return float(mean_noise_variance(batched, channel_means).clamp_min(0).sqrt())
-
-
-DARKENING_FRAMES = 3
-"""Frames (evenly spread) on which the darkening and its per-frame range are estimated."""
-
-DARKENING_BLOCKS = 1 << 18
-"""At most about this many 4x4 blocks per channel and frame are read for the darkening (every k-th block row and
-column beyond): a 1080p or smaller frame is read whole, a 12 MP photo on a quarter of its blocks."""
-
-LOW_DARKENING_CONFIDENCE = 0.1
-"""Below this confidence (:attr:`DarkeningEstimate.confidence`) the darkening estimate comes with a warning.
-
-On held-out Kodak images (``scripts/estimate_warnings.py --confidence``) the median tone-curve error is 0.43
-below 0.1 (90th percentile 1.12) against 0.21-0.33 above it; at the former 0.2 the warning fired on half of
-those images and of the real references while the estimates between 0.1 and 0.2 (error 0.33) were about as
-good as those between 0.2 and 0.3 (0.31)."""
-
-
-SEARCH_BOUNDS = {"alpha": ALPHA_BOUNDS, "gamma": GAMMA_BOUNDS}
-
-PRIOR_DOMINATES = 0.5
-"""A darkening parameter whose precision comes more than this share from the prior is reported as the prior's."""
-
-_BOUND_MEANING = {
-    ("alpha", "lower"): "darker",
-    ("alpha", "upper"): "brighter",
-    ("gamma", "lower"): "steeper in the shadows",
-    ("gamma", "upper"): "flatter (brighter mid-tones)",
-}
-
-
-def _darkening_origin(name: str, value: float, found: DarkeningEstimate) -> dict[str, Any]:
-    """Where an estimated alpha or gamma came from: the reference's tones, the paper's prior, or a bound."""
-    share = found.prior_share.get(name)
-    if name in found.bounds_hit:
-        origin = f"fit, clipped to the {found.bounds_hit[name]} bound of its search range {list(SEARCH_BOUNDS[name])}"
-    elif share is not None and share > PRIOR_DOMINATES:
-        origin = "mostly prior: the reference's tones leave it undetermined, the paper's range sets it"
-    else:
-        origin = "fit to the reference's tones"
-    return {"value": round(value, 4), "source": origin, "prior_share": None if share is None else round(share, 3)}
-
-
-def _estimate_darkening(
-    reference: torch.Tensor,
-    source: str,
-    ranges: dict[str, tuple[tuple[float, float], ...]],
-    meta: dict[str, Any],
-    warnings: list[str],
-) -> tuple[Darkening | None, ToneTarget | None]:
-    """The reference's darkening, its per-frame range for a clip, and how it was found (in ``meta``); and its tone
-    quantiles, which ``apply`` matches each input's exposure to.
-
-    A reference too dark to read gives no darkening (``apply`` then falls back to the paper's ranges) and a
-    warning, not an error: the noise estimate is still good.
-    """
-    # The tone distribution is read on a few frames spread over the clip: more frames of one scene add time,
-    # not information (all 16 frames of a 1080p clip took 6 s more).
-    frames = reference[spread_frames(reference.shape[0], DARKENING_FRAMES)]
-    # Each frame's blocks sorted once (a photo's regions below are read from the same sort), on a sample of a large
-    # frame's blocks: a 12 MP photo's 750 k a channel fix its tone quantiles no better than a quarter of them.
-    sampled = sampled_blocks(frames, most=DARKENING_BLOCKS)
-    statistics = [block_statistics(frame, TONE_BLOCK) for frame in sampled]
-    try:
-        # The pooled estimate and each frame's own (for the clip's range) from one pass over the frames.
-        found, per_frame_found = estimate_darkening_pooled_and_per_frame(sampled, source=source, statistics=statistics)
-    except DarksynthError as error:
-        warnings.append(f"{error}; the profile has no darkening, apply will draw it from the paper's ranges")
-        meta["darkening"] = {
-            "method": "not estimated: too dark or too flat",
-            "alpha": {"source": f"prior: apply draws it from the paper's range {list(ALPHA_RANGE)}"},
-            "gamma": {"source": f"prior: apply draws it from the paper's range {list(GAMMA_RANGE)}"},
-        }
-        return None, None
-    # A single image has no frames to spread over: its four regions say how much the estimate depends on content.
-    regions = estimate_darkening_spread(sampled[:1], statistics=statistics) if reference.shape[0] == 1 else []
-    meta["darkening"] = {
-        "method": "tone quantiles of 4x4 block medians fitted to the clean-image prior (docs/darkening-estimate.md)",
-        "quantiles_used": found.quantiles_used,
-        "fit_rms": round(found.fit_rms, 4),
-        "confidence": round(found.confidence, 3),
-        **{name: _darkening_origin(name, float(getattr(found.darkening, name)), found) for name in ("alpha", "gamma")},
-        "region_alpha": [round(float(v), 4) for v in np.percentile([e.darkening.alpha for e in regions], [10, 90])]
-        if regions
-        else None,
-        "region_gamma": [round(float(v), 4) for v in np.percentile([e.darkening.gamma for e in regions], [10, 90])]
-        if regions
-        else None,
-    }
-    # apply matches each input to the reference's tones (the profile's tone, returned below), not to this one
-    # (alpha, gamma): doubts about it are notes in meta, not warnings (it fired on 19 of 20 held-out photos).
-    notes: list[str] = []
-    for name, side in found.bounds_hit.items():
-        low, high = SEARCH_BOUNDS[name]
-        notes.append(
-            f"{source}: the fitted {name} sits on the {side} bound {high if side == 'upper' else low:g} of its "
-            f"search range [{low:g}, {high:g}]: the tone curve is {_BOUND_MEANING[name, side]} than the darkening "
-            "can express"
-        )
-    if found.confidence < LOW_DARKENING_CONFIDENCE:
-        notes.append(
-            f"{source}: the darkening estimate is uncertain (confidence {found.confidence:.2f} < "
-            f"{LOW_DARKENING_CONFIDENCE}: {found.quantiles_used} of {len(PROBABILITIES)} tone quantiles usable, "
-            f"fit rms {found.fit_rms:.2f}{', a bound hit' if found.clipped else ''}); on held-out images such "
-            "estimates have about twice the tone-curve error"
-        )
-    if notes:
-        meta["darkening"]["notes"] = [
-            *notes,
-            "apply and synthesize match each input to the reference's tones (the profile's tone), not to this alpha "
-            "and gamma, which remain the profile's darkening for readers that do not match",
-        ]
-    if frames.shape[0] > 1:
-        per_frame = [estimated.darkening for estimated in per_frame_found if estimated is not None]
-        if len(per_frame) > 1:
-            for name in ("alpha", "gamma"):
-                values = [getattr(d, name) for d in per_frame]
-                point = getattr(found.darkening, name)
-                low, high = np.percentile(values, [10, 90])
-                ranges[name] = ((min(float(low), point), max(float(high), point)),)
-            meta["darkening"]["ranges"] = "10th-90th percentile over frames"
-    return found.darkening, _tone_target(found, frames)
-
-
-def _tone_target(found: DarkeningEstimate, frames: torch.Tensor) -> ToneTarget:
-    """What ``apply`` matches each input's exposure to: the reference's block-median tone quantiles and their
-    noise (from ``found``), its colour cast and the quantiles of its pixels' luminance, read on ``frames``."""
-    return ToneTarget(
-        quantiles=found.tone_quantiles,
-        noise=found.block_noise,
-        colour=colour_cast(frames),
-        luminance=tuple(float(q) for q in luminance_quantiles(frames)),
-    )

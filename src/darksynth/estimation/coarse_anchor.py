@@ -8,10 +8,10 @@ from dataclasses import dataclass, field
 import torch
 import torch.nn.functional as F
 
-from darksynth.estimation.flat_blocks import BLOCK, block_planes, detrended_block_variance
+from darksynth.estimation.flat_blocks import FLAT_BLOCK, block_planes, detrended_block_variance
+from darksynth.estimation.spectral_fit import SpectralParameters, quantised, uncensored_signal
 from darksynth.noise.simulate import add_noise
 from darksynth.noise.spectral import level_std
-from darksynth.noise.spectral_fit import SpectralParameters, quantised, uncensored_signal
 from darksynth.noise.values import NoiseValues
 
 ANCHOR_GAIN = 1.5
@@ -79,7 +79,7 @@ class CoarseAnchor:
         """The anchor of a reference frame (3, H, W), its denoised version, and the measured pixels ``mask``
         ((H, W), or (T, H, W) of which the last frame's counts)."""
         last_mask = mask[-1] if mask.dim() == 3 else mask
-        blocks = F.avg_pool2d(last_mask[None, None], BLOCK)[0, 0] > 0.5
+        blocks = F.avg_pool2d(last_mask[None, None], FLAT_BLOCK)[0, 0] > 0.5
         target = (
             anchor_statistic(detrended_block_variance(frame, blocks))
             if bool(blocks.any())

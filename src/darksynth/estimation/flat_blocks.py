@@ -14,7 +14,7 @@ import torch.nn.functional as F
 
 from darksynth.noise.spectral import LEVEL_KNOTS, OPPONENT_BASIS
 
-BLOCK = 32
+FLAT_BLOCK = 32
 """Side of the blocks whose flatness is judged."""
 
 FLAT_SHARE = 0.3
@@ -27,7 +27,7 @@ CLIPPED_SHARE = 0.5
 """A block with more than this share of clipped pixels does not measure the level: its noise was mostly cut off
 at 0 or at full scale (crushed blacks, a lamp) and its residual hardly moves with the noise's strength. Blocks
 clipped less are measured, and the re-synthesis clips as the camera did (on the signal the clipped mean came
-from: :func:`darksynth.noise.spectral_fit.uncensored_signal`)."""
+from: :func:`darksynth.estimation.spectral_fit.uncensored_signal`)."""
 
 STRENGTH_CLIPPED_SHARE = 0.01
 """The denoiser's strength is read on blocks clipped at most this much when there are :data:`MIN_LEVEL_BLOCKS`
@@ -41,25 +41,25 @@ curve stands, with a warning (a black frame, a reference that is crushed black b
 
 
 def block_gradient(image: torch.Tensor) -> torch.Tensor:
-    """Mean gradient magnitude (over channels) of each BLOCK x BLOCK block of ``image`` (3, H, W):
-    (H // BLOCK, W // BLOCK)."""
+    """Mean gradient magnitude (over channels) of each FLAT_BLOCK x FLAT_BLOCK block of ``image`` (3, H, W):
+    (H // FLAT_BLOCK, W // FLAT_BLOCK)."""
     grey = image.mean(0, keepdim=True)[None]
     dx = (grey[..., :, 1:] - grey[..., :, :-1]).abs()[..., :-1, :]
     dy = (grey[..., 1:, :] - grey[..., :-1, :]).abs()[..., :, :-1]
     magnitude = F.pad(dx + dy, (0, 1, 0, 1))
-    return F.avg_pool2d(magnitude, BLOCK)[0, 0]
+    return F.avg_pool2d(magnitude, FLAT_BLOCK)[0, 0]
 
 
 def clipped_share(frames: torch.Tensor) -> torch.Tensor:
-    """Share (H // BLOCK, W // BLOCK) of the pixels of each block whose channel is clipped (within
+    """Share (H // FLAT_BLOCK, W // FLAT_BLOCK) of the pixels of each block whose channel is clipped (within
     :data:`CLIPPED_LEVEL` of 0 or 1) in any of the frames (T, 3, H, W) or in the frame (3, H, W)."""
     frames = frames if frames.dim() == 4 else frames[None]
     clipped = ((frames <= CLIPPED_LEVEL) | (frames >= 1.0 - CLIPPED_LEVEL)).any(dim=1).any(dim=0)
-    return F.avg_pool2d(clipped.to(torch.float32)[None, None], BLOCK)[0, 0]
+    return F.avg_pool2d(clipped.to(torch.float32)[None, None], FLAT_BLOCK)[0, 0]
 
 
 def blocks_to_mask(blocks: torch.Tensor, height: int, width: int) -> torch.Tensor:
-    mask = blocks.to(torch.float32).repeat_interleave(BLOCK, 0).repeat_interleave(BLOCK, 1)
+    mask = blocks.to(torch.float32).repeat_interleave(FLAT_BLOCK, 0).repeat_interleave(FLAT_BLOCK, 1)
     return F.pad(mask, (0, width - mask.shape[1], 0, height - mask.shape[0]))
 
 
@@ -69,13 +69,13 @@ def level_stratum(intensity: torch.Tensor) -> torch.Tensor:
 
 
 def flat_blocks(denoised: torch.Tensor, usable: torch.Tensor) -> torch.Tensor:
-    """The measured blocks (H // BLOCK, W // BLOCK) bool of a denoised frame (3, H, W): among the ``usable``
+    """The measured blocks (H // FLAT_BLOCK, W // FLAT_BLOCK) bool of a denoised frame (3, H, W): among the ``usable``
     blocks, the :data:`FLAT_SHARE` with the least gradient within each segment of the level curve, so that flat
     means flat for the noise at that intensity (noise left by the denoiser grows with the level: the flattest blocks
     in absolute terms are the darkest) and every intensity the reference shows reaches its knots."""
     gradient = block_gradient(denoised)
     usable = usable[: gradient.shape[0], : gradient.shape[1]]
-    stratum = level_stratum(F.avg_pool2d(denoised.mean(0)[None, None], BLOCK)[0, 0])[: gradient.shape[0]]
+    stratum = level_stratum(F.avg_pool2d(denoised.mean(0)[None, None], FLAT_BLOCK)[0, 0])[: gradient.shape[0]]
     chosen = torch.zeros_like(usable)
     for segment in sorted(set(stratum[usable].tolist())):
         members = usable & (stratum == segment)
@@ -108,8 +108,8 @@ def _plane_projection(side: int) -> torch.Tensor:
 
 
 def block_grid(frame: torch.Tensor) -> torch.Tensor:
-    """(3, BLOCK^2, rows * cols) the BLOCK x BLOCK blocks of ``frame`` (3, H, W), row by row."""
-    return F.unfold(frame[:, None], BLOCK, stride=BLOCK)
+    """(3, FLAT_BLOCK^2, rows * cols) the FLAT_BLOCK x FLAT_BLOCK blocks of ``frame`` (3, H, W), row by row."""
+    return F.unfold(frame[:, None], FLAT_BLOCK, stride=FLAT_BLOCK)
 
 
 def flat_block_std(frames: torch.Tensor) -> float:
@@ -123,12 +123,12 @@ def flat_block_std(frames: torch.Tensor) -> float:
     a fit by re-synthesis settles on far too weak a noise (a dark reference read 10x weak when the strength came
     from its darkest blocks). Which blocks count as little clipped: :data:`STRENGTH_CLIPPED_SHARE`."""
     frame = frames[0]
-    blocks = F.unfold(frame[:, None], BLOCK, stride=BLOCK)  # (3, BLOCK^2, blocks)
-    detrended = blocks - torch.einsum("ij,cjn->cin", _plane_projection(BLOCK).to(blocks), blocks)
-    std = (detrended.square().sum(dim=1) / (BLOCK * BLOCK - 3)).sqrt().mean(0)  # (blocks,)
+    blocks = F.unfold(frame[:, None], FLAT_BLOCK, stride=FLAT_BLOCK)  # (3, FLAT_BLOCK^2, blocks)
+    detrended = blocks - torch.einsum("ij,cjn->cin", _plane_projection(FLAT_BLOCK).to(blocks), blocks)
+    std = (detrended.square().sum(dim=1) / (FLAT_BLOCK * FLAT_BLOCK - 3)).sqrt().mean(0)  # (blocks,)
     smooth = F.avg_pool2d(frame[None], 5, stride=1, padding=2)[0]
     gradient = block_gradient(smooth).flatten()[: std.numel()]
-    stratum = level_stratum(F.avg_pool2d(frame.mean(0)[None, None], BLOCK)[0, 0]).flatten()[: std.numel()]
+    stratum = level_stratum(F.avg_pool2d(frame.mean(0)[None, None], FLAT_BLOCK)[0, 0]).flatten()[: std.numel()]
     share = clipped_share(frame).flatten()[: std.numel()]
     little = share <= STRENGTH_CLIPPED_SHARE
     if int(little.sum()) < MIN_LEVEL_BLOCKS:
@@ -148,21 +148,23 @@ def detrended_block_variance(frame: torch.Tensor, blocks: torch.Tensor) -> torch
     (:data:`~darksynth.noise.spectral.OPPONENT_BASIS`): (3, n) for the ``blocks`` (rows, cols) bool of ``frame``
     (3, H, W). Every scale of noise under the block size is in it."""
     components = torch.einsum("ij,jhw->ihw", OPPONENT_BASIS.to(frame), frame)
-    grid = block_grid(components)[..., blocks[: frame.shape[-2] // BLOCK, : frame.shape[-1] // BLOCK].flatten()]
-    detrended = grid - torch.einsum("ij,cjn->cin", _plane_projection(BLOCK).to(grid), grid)
-    return detrended.square().sum(dim=1) / (BLOCK * BLOCK - 3)
+    grid = block_grid(components)[
+        ..., blocks[: frame.shape[-2] // FLAT_BLOCK, : frame.shape[-1] // FLAT_BLOCK].flatten()
+    ]
+    detrended = grid - torch.einsum("ij,cjn->cin", _plane_projection(FLAT_BLOCK).to(grid), grid)
+    return detrended.square().sum(dim=1) / (FLAT_BLOCK * FLAT_BLOCK - 3)
 
 
 def block_planes(frame: torch.Tensor) -> torch.Tensor:
-    """``frame`` (3, H, W) with each whole BLOCK x BLOCK block replaced by its least-squares plane (the rest
+    """``frame`` (3, H, W) with each whole FLAT_BLOCK x FLAT_BLOCK block replaced by its least-squares plane (the rest
     kept): a flat block's scene without the noise at any scale under the block size."""
     height, width = frame.shape[-2:]
-    rows, cols = height // BLOCK, width // BLOCK
+    rows, cols = height // FLAT_BLOCK, width // FLAT_BLOCK
     grid = block_grid(frame)
-    planes = torch.einsum("ij,cjn->cin", _plane_projection(BLOCK).to(grid), grid)
-    folded = F.fold(planes, (rows * BLOCK, cols * BLOCK), BLOCK, stride=BLOCK)[:, 0]
+    planes = torch.einsum("ij,cjn->cin", _plane_projection(FLAT_BLOCK).to(grid), grid)
+    folded = F.fold(planes, (rows * FLAT_BLOCK, cols * FLAT_BLOCK), FLAT_BLOCK, stride=FLAT_BLOCK)[:, 0]
     result = frame.clone()
-    result[:, : rows * BLOCK, : cols * BLOCK] = folded
+    result[:, : rows * FLAT_BLOCK, : cols * FLAT_BLOCK] = folded
     return result
 
 
@@ -182,7 +184,7 @@ def analysis_window(frame: torch.Tensor, side: int = WINDOW) -> tuple[int, int, 
     smooth = F.avg_pool2d(frame.mean(0, keepdim=True)[None], 3, stride=1, padding=1)[0]
     gradient = block_gradient(smooth)
     unclipped = clipped_share(frame)[: gradient.shape[0], : gradient.shape[1]] <= CLIPPED_SHARE
-    rows_per, cols_per = max(window_height // BLOCK, 1), max(window_width // BLOCK, 1)
+    rows_per, cols_per = max(window_height // FLAT_BLOCK, 1), max(window_width // FLAT_BLOCK, 1)
     best, best_score = (0, 0), (math.inf, math.inf)
     for top in range(0, max(gradient.shape[0] - rows_per, 0) + 1, max(rows_per // 2, 1)):
         for left in range(0, max(gradient.shape[1] - cols_per, 0) + 1, max(cols_per // 2, 1)):
@@ -194,5 +196,5 @@ def analysis_window(frame: torch.Tensor, side: int = WINDOW) -> tuple[int, int, 
             flattest = (usable if usable.numel() else inside).sort().values[:wanted]
             score = (float(max(wanted - usable.numel(), 0)), float(flattest.mean()))
             if score < best_score:
-                best, best_score = (top * BLOCK, left * BLOCK), score
+                best, best_score = (top * FLAT_BLOCK, left * FLAT_BLOCK), score
     return best[0], best[1], window_height, window_width

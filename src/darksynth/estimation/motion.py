@@ -11,7 +11,7 @@ Exposure fraction, the steps:
    :data:`FLOW_WIDTH` px wide and lightly blurred, as 8-bit frames for OpenCV's DIS optical flow between
    consecutive frames; pairs across a scene cut or with a uniform frame are skipped, and a forward-backward check
    rejects flow that does not invert.
-2. Moving blocks (:data:`BLOCK` px at full resolution) whose flow is consistent and at least :data:`MIN_SPEED`
+2. Moving blocks (:data:`MOTION_BLOCK` px at full resolution) whose flow is consistent and at least :data:`MIN_SPEED`
    px/frame. Each block of frame t is paired with the block of frame t+1 the flow takes it to; the sub-pixel
    remainder, and what the flow missed, are read from the phase of the pair's cross spectrum (a block whose
    correction is large, or which turns out slower than :data:`MIN_SPEED`, is dropped: its flow followed noise).
@@ -84,9 +84,9 @@ from darksynth.estimation.flicker import (
 from darksynth.estimation.reference import scene_cuts, uniform_frames
 from darksynth.estimation.shutter_confidence import compression_blockiness
 from darksynth.estimation.shutter_fit import (
-    BLOCK,
     MIN_BLOCKS,
     MIN_SPEED,
+    MOTION_BLOCK,
     S_GRID,
     BlockSpectra,
     ExposureFit,
@@ -365,16 +365,16 @@ def _moving_blocks(flow: PairFlow, shape: tuple[int, int]) -> list[tuple[int, in
     height, width = shape
     small_h, small_w = flow.valid.shape
     factor_y = factor_x = flow.scale
-    size = (max(1, round(BLOCK / factor_x)), max(1, round(BLOCK / factor_y)))
+    size = (max(1, round(MOTION_BLOCK / factor_x)), max(1, round(MOTION_BLOCK / factor_y)))
     valid = flow.valid.astype(np.float32)
     fx, fy = flow.flow[..., 0] * valid, flow.flow[..., 1] * valid
     square = (flow.flow[..., 0] ** 2 + flow.flow[..., 1] ** 2) * valid
     box = [cv2.blur(a, size, borderType=cv2.BORDER_REPLICATE) for a in (valid, fx, fy, square)]
-    stride = BLOCK // 2
-    tops = np.arange(0, height - BLOCK + 1, stride)
-    lefts = np.arange(0, width - BLOCK + 1, stride)
-    rows = np.clip(((tops + BLOCK / 2) / factor_y).astype(int), 0, small_h - 1)
-    columns = np.clip(((lefts + BLOCK / 2) / factor_x).astype(int), 0, small_w - 1)
+    stride = MOTION_BLOCK // 2
+    tops = np.arange(0, height - MOTION_BLOCK + 1, stride)
+    lefts = np.arange(0, width - MOTION_BLOCK + 1, stride)
+    rows = np.clip(((tops + MOTION_BLOCK / 2) / factor_y).astype(int), 0, small_h - 1)
+    columns = np.clip(((lefts + MOTION_BLOCK / 2) / factor_x).astype(int), 0, small_w - 1)
     share, sum_x, sum_y, sum_sq = (a[np.ix_(rows, columns)] for a in box)
     count = np.maximum(share, 1e-6)
     dx, dy = sum_x / count, sum_y / count
@@ -389,9 +389,9 @@ def _moving_blocks(flow: PairFlow, shape: tuple[int, int]) -> list[tuple[int, in
         # measures less exactly).
         & (spread <= 0.35 + 0.1 * speed)
         & (target_top >= 0)
-        & (target_top <= height - BLOCK)
+        & (target_top <= height - MOTION_BLOCK)
         & (target_left >= 0)
-        & (target_left <= width - BLOCK)
+        & (target_left <= width - MOTION_BLOCK)
     )
     return [
         (int(top_grid[i, j]), int(left_grid[i, j]), float(dy[i, j]), float(dx[i, j]))
@@ -416,12 +416,12 @@ def _block_spectra(reference: torch.Tensor, flows: list[PairFlow]) -> BlockSpect
     pieces = []
     for t, top, left, dy, dx in chosen:
         ry, rx = top + round(dy), left + round(dx)
-        pieces.append(reference[t, :, top : top + BLOCK, left : left + BLOCK])
-        pieces.append(reference[t + 1, :, ry : ry + BLOCK, rx : rx + BLOCK])
+        pieces.append(reference[t, :, top : top + MOTION_BLOCK, left : left + MOTION_BLOCK])
+        pieces.append(reference[t + 1, :, ry : ry + MOTION_BLOCK, rx : rx + MOTION_BLOCK])
     luminance = _luminance(torch.stack(pieces))
     first, second = luminance[0::2], luminance[1::2]
     motion = np.array([(dy, dx) for *_, dy, dx in chosen], np.float64)
-    window = np.outer(np.hanning(BLOCK), np.hanning(BLOCK)).astype(np.float32)
+    window = np.outer(np.hanning(MOTION_BLOCK), np.hanning(MOTION_BLOCK)).astype(np.float32)
     first = (first - first.mean(axis=(1, 2), keepdims=True)) * window
     second = (second - second.mean(axis=(1, 2), keepdims=True)) * window
     spectrum_first = np.fft.rfft2(first)
@@ -429,14 +429,14 @@ def _block_spectra(reference: torch.Tensor, flows: list[PairFlow]) -> BlockSpect
     # The second block starts at the rounded shift; the sub-pixel remainder is a phase ramp, undone here.
     remainder = motion - np.round(motion)
     product = spectrum_first * np.conj(spectrum_second)
-    product *= phase_ramp(remainder, BLOCK)
+    product *= phase_ramp(remainder, MOTION_BLOCK)
     # Noise that stays in place pulls the flow and the phase towards no shift. The shift the flow missed along the
     # motion is found first with that noise in the model (align_along), then the rest of it (both directions, a
     # fraction of a pixel) on the spectra without that noise.
     error = align_along(product, motion)
-    product = product * phase_ramp(error, BLOCK)
+    product = product * phase_ramp(error, MOTION_BLOCK)
     _, missed = align_phase(without_persistent_noise(product, motion + error))
-    product = product * phase_ramp(missed, BLOCK)
+    product = product * phase_ramp(missed, MOTION_BLOCK)
     error += missed
     auto = 0.5 * (np.abs(spectrum_first) ** 2 + np.abs(spectrum_second) ** 2)
     shift = motion + error

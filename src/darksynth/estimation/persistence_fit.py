@@ -42,10 +42,11 @@ from dataclasses import dataclass
 import torch
 import torch.nn.functional as F
 
-from darksynth.estimation.flat_blocks import BLOCK
+from darksynth.estimation.flat_blocks import FLAT_BLOCK
+from darksynth.estimation.spectral_fit import SpectralParameters, quantised, uncensored_signal
+from darksynth.estimation.spectral_statistics import band_masks
 from darksynth.noise.simulate import add_noise
 from darksynth.noise.spectral import OCTAVES, level_std
-from darksynth.noise.spectral_fit import SpectralParameters, band_masks, quantised, uncensored_signal
 from darksynth.noise.values import NoiseValues
 
 MAX_COEFFICIENT = 0.99
@@ -69,7 +70,7 @@ SEARCH_GRID = (0.0, 0.2, 0.4, 0.55, 0.7, 0.8, 0.9, 0.95, MAX_COEFFICIENT)
 
 def _band_weights(height: int, width: int, device: torch.device) -> torch.Tensor:
     """(OCTAVES, H, W // 2 + 1) which half-plane frequencies of an ``rfft2`` fall in each band of
-    :data:`~darksynth.noise.spectral_fit.BANDS`, counted twice where the half-plane stands for two."""
+    :data:`~darksynth.estimation.spectral_statistics.BANDS`, counted twice where the half-plane stands for two."""
     twice = torch.full((height, width // 2 + 1), 2.0, dtype=torch.float64, device=device)
     twice[:, 0] = 1.0
     if width % 2 == 0:
@@ -78,22 +79,24 @@ def _band_weights(height: int, width: int, device: torch.device) -> torch.Tensor
 
 
 def without_block_planes(differences: torch.Tensor, mask: torch.Tensor) -> torch.Tensor:
-    """Differences of frames (P, 3, H, W) float64, masked, with each :data:`BLOCK` block's least-squares plane per
+    """Differences of frames (P, 3, H, W) float64, masked, with each :data:`FLAT_BLOCK` block's least-squares plane per
     channel taken out: a change of exposure or light between frames moves each block's level and, on its shading,
     its slope (the starlight video dims by 7 levels in 4 frames). A gain fitted over the whole mask was tried: its
     error, times the steps between blocks of different brightness, read as change in every band."""
     height, width = differences.shape[-2:]
-    pad = (0, -width % BLOCK, 0, -height % BLOCK)
+    pad = (0, -width % FLAT_BLOCK, 0, -height % FLAT_BLOCK)
     masked = F.pad(differences * mask, pad)
     weight = F.pad(mask, pad).expand_as(masked[:1, :1])
-    offsets = torch.arange(BLOCK, dtype=torch.float64, device=differences.device) - (BLOCK - 1) / 2
-    across = offsets.repeat(masked.shape[-1] // BLOCK)[None, :].expand(masked.shape[-2], -1)
-    down = offsets.repeat(masked.shape[-2] // BLOCK)[:, None].expand(-1, masked.shape[-1])
+    offsets = torch.arange(FLAT_BLOCK, dtype=torch.float64, device=differences.device) - (FLAT_BLOCK - 1) / 2
+    across = offsets.repeat(masked.shape[-1] // FLAT_BLOCK)[None, :].expand(masked.shape[-2], -1)
+    down = offsets.repeat(masked.shape[-2] // FLAT_BLOCK)[:, None].expand(-1, masked.shape[-1])
     plane = torch.zeros_like(masked)
     # Masks are whole blocks, so within one the constant and the two centred slopes are orthogonal.
     for basis in (torch.ones_like(across), across, down):
-        loading = F.avg_pool2d(masked * basis, BLOCK) / F.avg_pool2d(weight * basis.square(), BLOCK).clamp_min(1e-12)
-        plane += loading.repeat_interleave(BLOCK, dim=-2).repeat_interleave(BLOCK, dim=-1) * basis
+        loading = F.avg_pool2d(masked * basis, FLAT_BLOCK) / F.avg_pool2d(
+            weight * basis.square(), FLAT_BLOCK
+        ).clamp_min(1e-12)
+        plane += loading.repeat_interleave(FLAT_BLOCK, dim=-2).repeat_interleave(FLAT_BLOCK, dim=-1) * basis
     return ((masked - plane) * weight)[..., :height, :width]
 
 

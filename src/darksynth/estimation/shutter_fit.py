@@ -28,7 +28,7 @@ from darksynth.estimation.shutter_confidence import (
     scene_cells,
 )
 
-BLOCK = 64
+MOTION_BLOCK = 64
 """Side (px, full resolution) of the blocks whose blur is measured: 32 frequency rings, enough below the first
 zero of a box of a few px."""
 
@@ -54,10 +54,10 @@ past the end of :data:`S_GRID`: a best fit held at 2 hides how far beyond it the
 processing that smears more along the motion than frame blending does); its resampled readings, beyond 2, then
 give it a low confidence."""
 
-SCENE_CELL = 2 * BLOCK
+SCENE_CELL = 2 * MOTION_BLOCK
 """Blocks whose content sits in one cell of this side (px, the first frame's coordinates) count as one piece of
-evidence when the blocks are resampled: blocks overlap by half (a stride of BLOCK / 2), the same part of the scene
-is seen in every frame pair, and a texture's orientation holds over a few blocks."""
+evidence when the blocks are resampled: blocks overlap by half (a stride of MOTION_BLOCK / 2), the same part of the
+scene is seen in every frame pair, and a texture's orientation holds over a few blocks."""
 
 HALVES_DISAGREE = 0.5
 """The fit is repeated on alternate halves of the moving blocks; halves further apart than this mean no one s
@@ -66,7 +66,7 @@ explains the clip, and the prior is used. On the shared phone clips the halves o
 
 
 class BlockSpectra(NamedTuple):
-    """The moving block pairs' spectra, aligned: all (N, BLOCK, BLOCK//2+1) but the last three.
+    """The moving block pairs' spectra, aligned: all (N, MOTION_BLOCK, MOTION_BLOCK//2+1) but the last three.
 
     Attributes:
         scene: cross spectra with the noise that stays in place taken out (complex; the real part is the scene's
@@ -133,15 +133,15 @@ class _Rings(NamedTuple):
 
 
 def _rings(spectra: BlockSpectra) -> _Rings:
-    """The frequencies of rings 2 to BLOCK/2 - 1, axes left out. Rings 0 and 1 hold the mean and the window's
-    leakage; beyond BLOCK / 2 the ring is cut by the corners. The two axes hold the sensor's row and column
+    """The frequencies of rings 2 to MOTION_BLOCK/2 - 1, axes left out. Rings 0 and 1 hold the mean and the window's
+    leakage; beyond MOTION_BLOCK / 2 the ring is cut by the corners. The two axes hold the sensor's row and column
     patterns, which stay in place while the scene moves: their cross power oscillates with the shift and, for a
     shift of a pixel or two, reads as blur along it."""
-    ky, kx = frequencies(BLOCK)
-    ring = np.rint(np.hypot(ky, kx) * BLOCK).astype(int).ravel()
+    ky, kx = frequencies(MOTION_BLOCK)
+    ring = np.rint(np.hypot(ky, kx) * MOTION_BLOCK).astype(int).ravel()
     on_axes = ((ky == 0) | (kx == 0)).ravel()
-    in_rings = (ring >= 2) & (ring < BLOCK // 2) & ~on_axes
-    membership = ring_membership(ring[in_rings] - 2, BLOCK // 2 - 2, np.float32)
+    in_rings = (ring >= 2) & (ring < MOTION_BLOCK // 2) & ~on_axes
+    membership = ring_membership(ring[in_rings] - 2, MOTION_BLOCK // 2 - 2, np.float32)
     count = spectra.scene.shape[0]
     cross = spectra.scene.real.reshape(count, -1)[:, in_rings].astype(np.float32)
     noise = spectra.auto.reshape(count, -1)[:, in_rings].astype(np.float32) - cross
@@ -149,8 +149,8 @@ def _rings(spectra: BlockSpectra) -> _Rings:
     signal, floor = cross @ membership, noise @ membership
     snr = np.clip(signal, 0, None) / np.maximum(floor, 1e-12 * max(float(np.abs(signal).max()), 1e-30))
     # The projection of each frequency on the motion: cycles per frame's displacement.
-    ky_flat = np.broadcast_to(ky, (BLOCK, kx.shape[1])).ravel()[in_rings]
-    kx_flat = np.broadcast_to(kx, (BLOCK, kx.shape[1])).ravel()[in_rings]
+    ky_flat = np.broadcast_to(ky, (MOTION_BLOCK, kx.shape[1])).ravel()[in_rings]
+    kx_flat = np.broadcast_to(kx, (MOTION_BLOCK, kx.shape[1])).ravel()[in_rings]
     motion = spectra.motion
     along = np.abs(motion[:, 0, None] * ky_flat[None] + motion[:, 1, None] * kx_flat[None]).astype(np.float32)
     return _Rings(cross, noise, persistent, along, membership, snr / (1.0 + snr))

@@ -10,10 +10,11 @@ from the scene) and what it takes of the scene. The steps:
 2. ``D``: OpenCV's non-local means, its strength from the fine-scale noise of the window's flattest blocks.
 3. The flat blocks: the :data:`FLAT_SHARE` of 32x32 blocks of ``D(y)`` with the least gradient energy (texture
    is read as noise elsewhere), for a clip those that also stay still between the frames.
-4. The statistics (:func:`darksynth.noise.spectral_fit.measure`): the residual band-passed as a whole, then its
-   band cross-powers averaged over the flat blocks (a masked spectrum would leak mid frequencies into the coarse
-   bands), the variance per channel and intensity knot, and for a clip the frame-to-frame correlation per band.
-5. The fit by re-synthesis for each JPEG strength of :data:`~darksynth.noise.spectral_fit.COMPRESSION_CANDIDATES`;
+4. The statistics (:func:`~darksynth.estimation.spectral_statistics.measure`): the residual band-passed as a whole,
+   then its band cross-powers averaged over the flat blocks (a masked spectrum would leak mid frequencies into the
+   coarse bands), the variance per channel and intensity knot, and for a clip the frame-to-frame correlation per
+   band.
+5. The fit by re-synthesis for each JPEG strength of :data:`~darksynth.estimation.spectral_fit.COMPRESSION_CANDIDATES`;
    the best match is refined further.
 
 A reference that cannot show something gets the prior for it, with a warning: a single image has no temporal
@@ -42,6 +43,24 @@ from darksynth.estimation.flat_blocks import (
 )
 from darksynth.estimation.nonlocal_means import nlm_denoise
 from darksynth.estimation.persistence_fit import fit_persistence
+from darksynth.estimation.spectral_fit import (
+    COMPRESSION_CANDIDATES,
+    SpectralParameters,
+    continue_octaves,
+    fill_knots_along,
+    fit_by_resynthesis,
+    initial_parameters,
+    mismatch,
+    quantised,
+    uncensored_signal,
+)
+from darksynth.estimation.spectral_statistics import (
+    KnotBinning,
+    SpectralStatistics,
+    knot_binning,
+    measure,
+    measure_weight,
+)
 from darksynth.estimation.spectrum_checks import (
     fitted_noise_8bit,
     level_checks,
@@ -51,22 +70,6 @@ from darksynth.estimation.spectrum_checks import (
 from darksynth.estimation.still_blocks import still_flat_mask
 from darksynth.noise.simulate import add_noise
 from darksynth.noise.spectral import OCTAVES, level_std
-from darksynth.noise.spectral_fit import (
-    COMPRESSION_CANDIDATES,
-    KnotBinning,
-    SpectralParameters,
-    SpectralStatistics,
-    continue_octaves,
-    fill_knots_along,
-    fit_by_resynthesis,
-    initial_parameters,
-    knot_binning,
-    measure,
-    measure_weight,
-    mismatch,
-    quantised,
-    uncensored_signal,
-)
 from darksynth.noise.values import NoiseValues
 
 TEXTURED_GRADIENT = 4.0 / 255
@@ -311,7 +314,7 @@ def _anchored_fit(
 ) -> tuple[SpectralParameters, float]:
     """The last fit, on all analysed frames with the chosen JPEG ``compression``; with an ``anchor``, each step also
     simulates about its planes, so that ``constrain`` moves the coarse colour octaves with the rest. Returns the
-    parameters and what was left over (:func:`~darksynth.noise.spectral_fit.fit_by_resynthesis`)."""
+    parameters and what was left over (:func:`~darksynth.estimation.spectral_fit.fit_by_resynthesis`)."""
     simulate = resynthesis.simulator(compression)
 
     def simulate_with_anchor(parameters: SpectralParameters, draw: int) -> SpectralStatistics:

@@ -11,7 +11,7 @@ import torch
 import torch.nn.functional as F
 
 from darksynth.estimation.coarse_anchor import ANCHOR_SCALE_RANGE
-from darksynth.estimation.flat_blocks import BLOCK
+from darksynth.estimation.flat_blocks import FLAT_BLOCK
 from darksynth.noise.spectral import level_std
 
 JPEG_AMBIGUOUS = 1.5
@@ -66,8 +66,8 @@ def fitted_noise_8bit(curve: torch.Tensor, denoised: torch.Tensor, mask: torch.T
     in 8-bit levels: what the denoiser's strength was meant to be. Recorded beside the strength for diagnosis; on
     the round trip it does not separate the cases texture misleads (1.2-1.3 there as on good ones), so nothing
     warns on it."""
-    blocks = F.avg_pool2d(denoised[None], BLOCK)[0]
-    measured = F.avg_pool2d(mask.reshape(-1, *mask.shape[-2:])[-1][None, None], BLOCK)[0, 0] > 0.5
+    blocks = F.avg_pool2d(denoised[None], FLAT_BLOCK)[0]
+    measured = F.avg_pool2d(mask.reshape(-1, *mask.shape[-2:])[-1][None, None], FLAT_BLOCK)[0, 0] > 0.5
     if not bool(measured.any()):
         return math.inf
     std = level_std(blocks, curve.reshape(-1).to(blocks)).mean(0)

@@ -8,10 +8,11 @@ from typing import Any
 import torch
 import torch.nn.functional as F
 
-from darksynth.estimation.flat_blocks import BLOCK, blocks_to_mask
+from darksynth.estimation.flat_blocks import FLAT_BLOCK, blocks_to_mask
 from darksynth.estimation.nonlocal_means import nlm_denoise
+from darksynth.estimation.spectral_fit import initial_parameters, quantised
+from darksynth.estimation.spectral_statistics import measure
 from darksynth.noise.simulate import add_noise
-from darksynth.noise.spectral_fit import initial_parameters, measure, quantised
 from darksynth.noise.values import NoiseValues
 
 STILL_CHANGE = 2.0 / 255
@@ -28,13 +29,13 @@ MIN_STILL_BLOCKS = 4
 
 
 def block_change(denoised: torch.Tensor) -> torch.Tensor:
-    """Mean absolute change (H // BLOCK, W // BLOCK) of each block of denoised frames (T, 3, H, W) from the first
-    frame, over the frames and channels, after each frame's median change per channel: a change of the whole
+    """Mean absolute change (H // FLAT_BLOCK, W // FLAT_BLOCK) of each block of denoised frames (T, 3, H, W) from
+    the first frame, over the frames and channels, after each frame's median change per channel: a change of the whole
     frame's brightness (auto-exposure, flicker: the starlight video dims by 7 levels in 4 frames) moves nothing."""
     difference = denoised - denoised[:1]
     global_change = difference.flatten(-2).median(dim=-1).values[..., None, None]
     change = (difference - global_change).abs().mean(dim=(0, 1))[None, None]
-    return F.avg_pool2d(change, BLOCK)[0, 0]
+    return F.avg_pool2d(change, FLAT_BLOCK)[0, 0]
 
 
 def noise_only_change(
@@ -70,7 +71,7 @@ def still_flat_mask(
     )
     meta["still_threshold_8bit"] = round(threshold * 255, 3)
     still = block_change(denoised) < threshold
-    flat = F.avg_pool2d(mask[None, None], BLOCK)[0, 0] > 0.5
+    flat = F.avg_pool2d(mask[None, None], FLAT_BLOCK)[0, 0] > 0.5
     both = still[: flat.shape[0], : flat.shape[1]] & flat
     meta["still_flat_blocks"] = int(both.sum())
     if int(both.sum()) < MIN_STILL_BLOCKS:

@@ -115,7 +115,7 @@ def read_image(path: str | Path) -> Image:
     Raises:
         InputFileError: If the file is missing, not an image, corrupt, truncated or of an unsupported kind.
     """
-    # A str path used to reach Pillow's opener as it was and fail there as "corrupt or truncated image".
+    # A str path would reach Pillow's opener as it is and fail there as "corrupt or truncated image".
     path = Path(path)
     try:
         # Pillow warns about damage it reads past (a truncated tag, corrupt EXIF): recorded here, so that the user
@@ -134,22 +134,8 @@ def read_image(path: str | Path) -> Image:
                     pixels, alpha = _pil_to_arrays(path, pil)
     except InputFileError:
         raise
-    except FileNotFoundError:
-        raise InputFileError(path, "no such file") from None
-    except IsADirectoryError:
-        raise InputFileError(path, "is a folder, not an image file") from None
-    except PermissionError:
-        raise InputFileError(path, "permission denied") from None
-    except PIL.UnidentifiedImageError:
-        raise InputFileError(path, "not an image file, or an image format that cannot be read") from None
-    except PIL.Image.DecompressionBombError as err:
-        raise InputFileError(path, f"image too large to read safely ({err})") from None
-    except MemoryError:
-        raise InputFileError(path, "not enough memory to decode this image") from None
-    except av.FFmpegError as err:  # 16-bit PNG and TIFF are decoded by FFmpeg
-        raise InputFileError(path, f"corrupt or truncated image ({error_reason(err)})") from None
     except Exception as err:  # Pillow's decoders raise OSError, SyntaxError, ValueError, EOFError, zlib.error...
-        raise InputFileError(path, f"corrupt or truncated image ({type(err).__name__}: {err})") from None
+        raise _reading_error(path, err) from None
 
     for message in dict.fromkeys(" ".join(str(w.message).split()) for w in caught):
         logger.warning("%s: %s", path, message)
@@ -158,6 +144,25 @@ def read_image(path: str | Path) -> Image:
         alpha = _apply_orientation(alpha, orientation)
     bit_depth = 16 if pixels.dtype == np.uint16 else 8
     return Image(pixels=pixels, alpha=alpha, bit_depth=bit_depth, source_mode=source_mode)
+
+
+def _reading_error(path: Path, error: Exception) -> InputFileError:
+    """The one-line error of an image file that could not be read, by what went wrong."""
+    if isinstance(error, FileNotFoundError):
+        return InputFileError(path, "no such file")
+    if isinstance(error, IsADirectoryError):
+        return InputFileError(path, "is a folder, not an image file")
+    if isinstance(error, PermissionError):
+        return InputFileError(path, "permission denied")
+    if isinstance(error, PIL.UnidentifiedImageError):
+        return InputFileError(path, "not an image file, or an image format that cannot be read")
+    if isinstance(error, PIL.Image.DecompressionBombError):
+        return InputFileError(path, f"image too large to read safely ({error})")
+    if isinstance(error, MemoryError):
+        return InputFileError(path, "not enough memory to decode this image")
+    if isinstance(error, av.FFmpegError):  # 16-bit PNG and TIFF are decoded by FFmpeg
+        return InputFileError(path, f"corrupt or truncated image ({error_reason(error)})")
+    return InputFileError(path, f"corrupt or truncated image ({type(error).__name__}: {error})")
 
 
 def write_image(path: Path, image: Image, *, jpeg_quality: int = 95) -> None:

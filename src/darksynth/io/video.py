@@ -9,7 +9,7 @@ from __future__ import annotations
 
 import contextlib
 import logging
-from collections.abc import Iterable, Iterator
+from collections.abc import Iterator
 from dataclasses import dataclass
 from fractions import Fraction
 from pathlib import Path
@@ -19,18 +19,21 @@ from typing import Final, Self
 import av
 import numpy as np
 from av.container import InputContainer, OutputContainer
-from av.video.reformatter import ColorRange, Colorspace
+from av.video.reformatter import ColorRange
 from av.video.stream import VideoStream
 from PIL import Image as PILImage
 
 from darksynth.errors import DarksynthError, InputFileError, error_reason
 from darksynth.io.atomic import atomic_output
 from darksynth.io.audio_copy import AudioCopy
+from darksynth.io.video_encoding import DEFAULT_CODEC, DEFAULT_CRF, DEFAULT_ENCODING, VideoEncoding, configure_stream
 
 __all__ = [
     "DEFAULT_CODEC",
     "DEFAULT_CRF",
+    "DEFAULT_ENCODING",
     "VIDEO_SUFFIXES",
+    "VideoEncoding",
     "VideoInfo",
     "VideoWriter",
     "iter_video_frames",
@@ -41,56 +44,6 @@ logger = logging.getLogger(__name__)
 
 VIDEO_SUFFIXES: Final[frozenset[str]] = frozenset({".mp4", ".mov", ".avi", ".mkv"})
 
-# H.264 in 4:2:0 (yuv420p, the High profile) plays everywhere: browsers, QuickTime, phones, hardware decoders. It is
-# also what cameras record, so the colour noise of the output is subsampled as a real dark video's is.
-# ``pix_fmt="yuv444p"`` keeps per-pixel chroma noise at the price of High 4:4:4, which browsers and QuickTime do not
-# play (docs/video-output.md measures the difference).
-DEFAULT_CODEC: Final = "libx264"
-
-# x264's CRF 23 default smooths away exactly the fine, low-amplitude noise this tool synthesises. Measured on a
-# dark 175x143 clip with i.i.d. noise of std 4 (in 8-bit units): CRF 14 with tune=grain keeps the noise std
-# (4.0 -> 4.2, mean abs error 2.2), CRF 14 without tune=grain flattens it to 3.0, CRF 18 with it to 3.4, and
-# CRF 12 buys little (error 1.75) for 30% more bytes. Use libx264rgb with crf=0, or ffv1, for bit-exact output.
-# With the faster preset below, CRF 12 is the one that keeps that fidelity: on 60 1080p frames with noise of std 6,
-# preset medium CRF 14 gave mean abs error 2.27, noise std 6.09, while preset faster gave 2.72 and 6.02 at CRF 14
-# and 2.16 and 6.05 at CRF 12 (5% more bytes than medium CRF 14).
-DEFAULT_CRF: Final = 12
-
-# x264's medium preset encoded noisy 1080p 4:4:4 at 1.4 frames/s on the 2-core machine and its default 40-frame
-# rate-control lookahead held 570 MiB of frames; "faster" with a 10-frame lookahead ran at 6-7 frames/s and held
-# 225 MiB, which keeps a streamed 1080p run under 1 GiB in all (docs/performance.md).
-_X264_OPTIONS: Final[dict[str, str]] = {"tune": "grain", "preset": "faster", "rc-lookahead": "10"}
-
-# Codecs whose quality is set by a constant rate factor, with its largest value; the x264 family also gets
-# tune=grain, which lowers the dead zones and psycho-visual smoothing that would otherwise flatten noise in dark,
-# flat regions.
-_MAX_CRF: Final[dict[str, int]] = {"libx264": 51, "libx264rgb": 51, "libx265": 51, "libvpx-vp9": 63, "libaom-av1": 63}
-_X264_CODECS: Final[frozenset[str]] = frozenset({"libx264", "libx264rgb"})
-
-# H.264 and H.265 carry the colour matrix in the bitstream, so they are converted with BT.709 (the HD standard) and
-# say so. Other codecs (MPEG-4 Part 2 in AVI, for example) often reach the reader untagged, and an untagged stream
-# is decoded as BT.601 by FFmpeg and most players, so they are converted with BT.601 to round-trip.
-_BT709_CODECS: Final[frozenset[str]] = frozenset({"libx264", "libx265"})
-
-# Default pixel format per codec: the playable 4:2:0 for H.264, H.265, VP9 (profile 0; 4:4:4 is profile 1, which
-# Safari does not decode) and AV1 (main profile), RGB where the codec stores RGB losslessly.
-_PIX_FMT: Final[dict[str, str]] = {
-    "libx264": "yuv420p",
-    "libx264rgb": "rgb24",
-    "ffv1": "bgr0",
-    "libx265": "yuv420p",
-    "mpeg4": "yuv420p",
-    "libvpx-vp9": "yuv420p",
-    "libaom-av1": "yuv420p",
-    "libsvtav1": "yuv420p",
-}
-
-# x264 and x265 code subsampled chroma in whole samples and refuse a 4:2:0 picture of odd width or height (FFmpeg's
-# mpeg4 encoder, for one, takes it). Padding or cropping would change the frame size, and so every annotation of a
-# converted dataset; an odd-sized video is written in 4:4:4 instead, with a notice.
-_WHOLE_CHROMA_CODECS: Final[frozenset[str]] = frozenset({"libx264", "libx265"})
-_ODD_SIZE_PIX_FMT: Final = "yuv444p"
-
 # x265 (4.2, as bundled with PyAV) computes its first packets' decoding times as pts - m_bframeDelayTime, a field it
 # sets only once it has received b-frame-delay + 1 frames (the delay is 2 with B-frames and their pyramid, the
 # defaults, 1 or 0 otherwise) and never initialises: a clip of at most 2 frames gets a decoding time offset by
@@ -100,9 +53,6 @@ _ODD_SIZE_PIX_FMT: Final = "yuv444p"
 # first) and comes out whole at the flush, so its decoding times are set to its presentation times, as the fixed
 # x265 gives. (Moving a bad decoding time past the last one hid the error but wrote absurd presentation times.)
 _X265_MAX_BFRAME_DELAY: Final = 2
-
-# Fixed quantiser for MPEG-4 Part 2, whose default 200 kb/s bit rate would be far too low (2 is near the best).
-_MPEG4_QSCALE: Final = 2
 
 
 @dataclass(frozen=True)
@@ -203,16 +153,11 @@ class VideoWriter:
         width: Frame width in pixels (odd sizes work with the default codec).
         height: Frame height in pixels.
         fps: Frame rate, kept exactly (``Fraction(30000, 1001)`` stays 29.97...).
-        codec: FFmpeg encoder name: ``libx264`` (default), ``libx264rgb`` (RGB; crf=0 is lossless),
-            ``ffv1`` (lossless, .mkv or .avi), ``libx265``, ``mpeg4`` or any other the container accepts.
-        crf: Constant rate factor for the codecs that have one (lower is better; 0 lossless for x264);
-            None gives :data:`DEFAULT_CRF` for the x264 family and the encoder's own default otherwise.
+        encoding: The codec, CRF and pixel format (:class:`~darksynth.io.video_encoding.VideoEncoding`; the
+            defaults of each codec where it leaves a choice). ``self.encoding`` is the one used, every choice made.
         audio_from: A video whose audio tracks are copied into the output unchanged (packets remuxed, not
             re-encoded), shifted as its first video frame is to time 0 so they stay in sync; tracks whose codec
             the container cannot hold are left out with one logged notice. None writes no audio.
-        pix_fmt: Pixel format the encoder codes, one it supports (``yuv444p`` keeps full-resolution chroma);
-            None gives yuv420p for libx264 and libx265 (yuv444p, with a logged notice, when the width or height
-            is odd, which x264 and x265 cannot code in 4:2:0), RGB for libx264rgb and ffv1.
 
     Raises:
         DarksynthError: On construction, if the size, frame rate, codec, crf or pixel format is not usable; on
@@ -227,40 +172,23 @@ class VideoWriter:
         width: int,
         height: int,
         fps: Fraction,
-        codec: str = DEFAULT_CODEC,
-        crf: int | None = None,
-        pix_fmt: str | None = None,
+        encoding: VideoEncoding = DEFAULT_ENCODING,
         audio_from: Path | None = None,
     ) -> None:
         if width < 1 or height < 1:
             raise DarksynthError(f"{path}: video size must be positive, got {width}x{height}")
         if fps <= 0:
             raise DarksynthError(f"{path}: frame rate must be positive, got {fps}")
-        try:
-            encoder = av.Codec(codec, "w")
-        except av.codec.codec.UnknownCodecError:
-            raise DarksynthError(f"{path}: unknown video codec {codec!r}") from None
-        if encoder.type != "video":
-            raise DarksynthError(f"{path}: {codec} is not a video codec")
-        codec = encoder.name  # "h264" means libx264, for example
-        if crf is not None:
-            max_crf = _MAX_CRF.get(codec)
-            if max_crf is None:
-                raise DarksynthError(f"{path}: codec {codec} has no CRF setting (CRF works with {_sorted(_MAX_CRF)})")
-            if not 0 <= crf <= max_crf:
-                raise DarksynthError(f"{path}: CRF for {codec} must be in 0..{max_crf}, got {crf}")
         self.path = path
         self.width = width
         self.height = height
         self.fps = Fraction(fps)
-        self.codec = codec
-        self.crf = DEFAULT_CRF if crf is None and codec in _X264_CODECS else crf
-        self.pix_fmt = _choose_pix_fmt(path, encoder, pix_fmt, width, height)
+        self.encoding = encoding.resolved(path, width, height)
         self.audio_from = audio_from
         self.audio_codecs: tuple[str, ...] = ()
         """The codecs of the audio tracks copied from ``audio_from``, known once the writer is open."""
         self._audio: AudioCopy | None = None
-        self._colorspace = Colorspace.ITU709 if codec in _BT709_CODECS else Colorspace.ITU601
+        self._colorspace = self.encoding.colorspace()
         self._stack: contextlib.ExitStack | None = None
         self._container: OutputContainer | None = None
         self._stream: VideoStream | None = None
@@ -268,14 +196,14 @@ class VideoWriter:
 
     def __enter__(self) -> Self:
         if self.path.suffix.lower() not in VIDEO_SUFFIXES:
-            raise DarksynthError(f"{self.path}: not a video suffix (use one of {_sorted(VIDEO_SUFFIXES)})")
+            raise DarksynthError(f"{self.path}: not a video suffix (use one of {' '.join(sorted(VIDEO_SUFFIXES))})")
         stack = contextlib.ExitStack()
         try:
             tmp = stack.enter_context(atomic_output(self.path))
             container = stack.enter_context(av.open(str(tmp), mode="w"))
-            if self.codec not in container.supported_codecs:
+            if self.encoding.codec not in container.supported_codecs:
                 raise DarksynthError(
-                    f"{self.path}: the {self.path.suffix.lower()} container cannot hold {self.codec} video"
+                    f"{self.path}: the {self.path.suffix.lower()} container cannot hold {self.encoding.codec} video"
                 )
             self._stream = self._add_stream(container)
             self._container = container
@@ -349,7 +277,7 @@ class VideoWriter:
             if container is None or stream is None:
                 raise RuntimeError("VideoWriter lost its container")
             packets = stream.encode(None)
-            if self.codec == "libx265" and self._frames_written <= _X265_MAX_BFRAME_DELAY:
+            if self.encoding.codec == "libx265" and self._frames_written <= _X265_MAX_BFRAME_DELAY:
                 for packet in packets:
                     packet.dts = packet.pts
             container.mux(packets)
@@ -367,72 +295,20 @@ class VideoWriter:
         return False
 
     def _add_stream(self, container: OutputContainer) -> VideoStream:
-        stream = container.add_stream(self.codec, rate=self.fps)
+        codec = self.encoding.codec or DEFAULT_CODEC
+        stream = container.add_stream(codec, rate=self.fps)
         if not isinstance(stream, VideoStream):
-            raise DarksynthError(f"{self.path}: {self.codec} is not a video codec")
+            raise DarksynthError(f"{self.path}: {codec} is not a video codec")
         stream.width = self.width
         stream.height = self.height
-        pix_fmt = self.pix_fmt
-        stream.pix_fmt = pix_fmt
         # An explicit time base of 1/fps keeps rates like 30000/1001 exact in every container.
         stream.codec_context.time_base = 1 / self.fps
-        if not av.VideoFormat(pix_fmt).is_rgb:
-            stream.codec_context.colorspace = self._colorspace
-            stream.codec_context.color_range = ColorRange.MPEG
-        options: dict[str, object] = {}
-        if self.crf is not None:
-            options["crf"] = str(self.crf)
-        if self.codec in _X264_CODECS:
-            options.update(_X264_OPTIONS)
-        if self.codec == "mpeg4":
-            stream.codec_context.qscale = True
-            stream.codec_context.global_quality = _MPEG4_QSCALE
-        stream.options = options
+        configure_stream(stream, self.encoding)
         return stream
 
     def _describe(self) -> str:
-        return f"{self.width}x{self.height} at {self.fps} fps with {self.codec} in {self.pix_fmt}"
-
-
-def _choose_pix_fmt(path: Path, encoder: av.Codec, pix_fmt: str | None, width: int, height: int) -> str:
-    supported = {fmt.name for fmt in encoder.video_formats or ()}
-    if pix_fmt is not None:
-        if supported and pix_fmt not in supported:
-            raise DarksynthError(
-                f"{path}: {encoder.name} cannot encode pixel format {pix_fmt!r} (choices: {_sorted(supported)})"
-            )
-        try:
-            av.VideoFormat(pix_fmt)
-        except ValueError:
-            raise DarksynthError(f"{path}: unknown pixel format {pix_fmt!r}") from None
-        if pix_fmt.startswith("yuvj"):
-            # The writer tags and converts to limited range; FFmpeg's full-range "J" formats would contradict it.
-            raise DarksynthError(
-                f"{path}: {pix_fmt} is FFmpeg's deprecated full-range format; use {pix_fmt.replace('yuvj', 'yuv', 1)}"
-            )
-        if encoder.name in _WHOLE_CHROMA_CODECS and not _fits_chroma(pix_fmt, width, height):
-            raise DarksynthError(
-                f"{path}: {encoder.name} cannot code {width}x{height} in {pix_fmt}, whose chroma needs an even "
-                f"width and height; use {_ODD_SIZE_PIX_FMT}"
-            )
-        return pix_fmt
-    default = _PIX_FMT.get(encoder.name)
-    if default is None:
-        return "yuv444p" if "yuv444p" in supported or not supported else sorted(supported)[0]
-    if encoder.name in _WHOLE_CHROMA_CODECS and not _fits_chroma(default, width, height):
-        logger.warning(
-            "%s: %dx%d has an odd side, which %s cannot code in %s; written as %s",
-            path, width, height, encoder.name, default, _ODD_SIZE_PIX_FMT,
-        )  # fmt: skip
-        return _ODD_SIZE_PIX_FMT
-    return default
-
-
-def _fits_chroma(pix_fmt: str, width: int, height: int) -> bool:
-    """Whether a picture of this size has whole chroma samples in this format (any size does without subsampling)."""
-    fmt = av.VideoFormat(pix_fmt)
-    probe = 1024  # chroma_width(n) is n >> log2 of the horizontal subsampling
-    return width % (probe // fmt.chroma_width(probe)) == 0 and height % (probe // fmt.chroma_height(probe)) == 0
+        encoding = self.encoding
+        return f"{self.width}x{self.height} at {self.fps} fps with {encoding.codec} in {encoding.pix_fmt}"
 
 
 def _open_input(path: Path) -> InputContainer:
@@ -472,10 +348,6 @@ def _decoded_frames(path: Path, container: InputContainer, stream: VideoStream) 
 def _quarter_turns(frame: av.VideoFrame) -> int:
     """Counter-clockwise quarter turns that make a frame upright, from its display matrix (0 when absent)."""
     return round(frame.rotation / 90) % 4
-
-
-def _sorted(names: Iterable[str]) -> str:
-    return " ".join(sorted(names))
 
 
 def to_stream_size(source: Path, frame: np.ndarray, width: int, height: int, *, first: bool) -> np.ndarray:

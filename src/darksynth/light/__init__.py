@@ -1,8 +1,20 @@
-"""Light beyond noise: what happens to the clean scene before it is darkened and noised (motion blur along the
-scene's own flow, camera shake) and the per-frame gain on the darkening (flicker).
+"""Light: everything between the clean scene and the dark signal the noise is added to.
 
-These are components of the one table (:mod:`darksynth.noise.light_components`), carried with the noise values;
-this package holds their pure functions, on frames as images and videos are read (numpy, OpenCV).
+- the darkening of the paper, x_d = alpha * x ** (1 / gamma) (:mod:`~darksynth.light.darkening`);
+- the tone distribution of images (:mod:`~darksynth.light.tones`, from the block statistics of
+  :mod:`~darksynth.light.tone_blocks`) and the darkening line fitted between two of them
+  (:mod:`~darksynth.light.tone_fit`);
+- light beyond the darkening: motion blur along the scene's own flow and camera shake
+  (:mod:`~darksynth.light.motion_blur`, in linear light: :mod:`~darksynth.light.linear_light`), the shutter stage of
+  a stream and of a clip (:mod:`~darksynth.light.shutter`), and the per-frame gain of flicker
+  (:mod:`~darksynth.light.flicker`);
+- an input's darkening matched to a reference's exposure (:mod:`~darksynth.light.exposure`).
+
+All but the last are pure functions on frames and sit below the noise model; the exposure match simulates the
+profile's noise on the input, so :mod:`~darksynth.light.exposure` sits above it (``tests/test_layers.py``) and this
+package imports none of it. Blur and flicker are components of the one table
+(:mod:`darksynth.noise.light_components` declares them on the functions here), carried with the noise values. The
+estimators of light are in :mod:`darksynth.estimation` (``darkening``, ``motion``, ``flicker``, ``shutter_fit``).
 """
 
 from darksynth.light.flicker import FlickerGains

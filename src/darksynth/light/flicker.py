@@ -10,7 +10,9 @@ estimator reads off the still parts of a reference clip. A single image has no f
 from __future__ import annotations
 
 import math
+from collections.abc import Mapping
 
+import numpy as np
 import torch
 
 MIN_GAIN = 0.05
@@ -49,6 +51,21 @@ class FlickerGains:
     def sequence(self, frames: int, generator: torch.Generator | None) -> torch.Tensor:
         """The gains of ``frames`` frames, float64 (T,)."""
         return torch.tensor([self.next(generator) for _ in range(frames)], dtype=torch.float64)
+
+
+def flicker_gains(
+    clip: torch.Tensor, values: Mapping[str, torch.Tensor], generator: torch.Generator | None
+) -> torch.Tensor:
+    """Per-frame gains (*batch, T, 1, 1, 1) on the darkened clips (*batch, T, C, H, W); 1 for single frames."""
+    batch = clip.shape[:-4]
+    frames = clip.shape[-4]
+    stds = values["flicker"].reshape(-1).expand(int(np.prod(batch, dtype=np.int64)))
+    correlations = values["flicker_correlation"].reshape(-1).expand(stds.shape[0])
+    gains = torch.ones(stds.shape[0], frames, dtype=torch.float64)
+    if frames > 1:
+        for index in range(stds.shape[0]):
+            gains[index] = FlickerGains(float(stds[index]), float(correlations[index])).sequence(frames, generator)
+    return gains.reshape(*batch, frames, 1, 1, 1).to(device=clip.device, dtype=clip.dtype)
 
 
 def _device(generator: torch.Generator | None) -> torch.device | None:

@@ -4,7 +4,7 @@ frames come back on the stream's device."""
 
 from __future__ import annotations
 
-from collections.abc import Callable
+from collections.abc import Callable, Mapping
 from typing import Any
 
 import numpy as np
@@ -51,3 +51,26 @@ class ShutterStage:
     def _on_arrays(self, stage: Callable[[Any], list[np.ndarray]], frame: torch.Tensor | None) -> list[torch.Tensor]:
         pixels = None if frame is None else frame.permute(1, 2, 0).contiguous().cpu().numpy()
         return [torch.from_numpy(out).permute(2, 0, 1).to(self.device) for out in stage(pixels)]
+
+
+def scene_blur(
+    clip: torch.Tensor, values: Mapping[str, torch.Tensor], generator: torch.Generator | None
+) -> torch.Tensor:
+    """The clean clips (*batch, T, C, H, W) as the shutter saw them: a clip of several frames blurred along its
+    flow over its exposure fraction, a single frame by its camera shake. Deterministic (``generator`` unused: the
+    shake's length and angle are values of their own, drawn within ranges like any other)."""
+    flat = clip.reshape(-1, *clip.shape[-4:])
+    fractions = values["exposure_fraction"].reshape(-1, 1).expand(flat.shape[0], 1)
+    lengths = values["shake_length"].reshape(-1, 1).expand(flat.shape[0], 1)
+    angles = values["shake_angle"].reshape(-1, 1).expand(flat.shape[0], 1)
+    out = []
+    for index, one in enumerate(flat):
+        # The stage a stream runs (ClipSynthesizer), here on a whole clip.
+        stage = ShutterStage(float(fractions[index, 0]), float(lengths[index, 0]), float(angles[index, 0]), one.device)
+        frames = one.float() if one.dtype.is_floating_point else one
+        if len(frames) > 1:
+            blurred = [shot for frame in frames for shot in stage.push(frame)] + stage.finish()
+        else:
+            blurred = [stage.image(frames[0])]
+        out.append(torch.stack(blurred).to(one.dtype))
+    return torch.stack(out).reshape(clip.shape)

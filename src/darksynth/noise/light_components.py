@@ -12,54 +12,11 @@ flow gives the motion in pixels), so the values mean the same at any size.
 
 from __future__ import annotations
 
-from collections.abc import Mapping
-
-import numpy as np
-import torch
-
-from darksynth.light.flicker import FlickerGains
-from darksynth.light.shutter import ShutterStage
+from darksynth.light.flicker import flicker_gains
+from darksynth.light.shutter import scene_blur
 from darksynth.noise.component_types import ALL_PATHS, NoiseComponent, Parameter, Role
 
 SHAKE_LENGTH_UNIT = "of the frame's longer side"
-
-
-def scene_blur(
-    clip: torch.Tensor, values: Mapping[str, torch.Tensor], generator: torch.Generator | None
-) -> torch.Tensor:
-    """The clean clips (*batch, T, C, H, W) as the shutter saw them: a clip of several frames blurred along its
-    flow over its exposure fraction, a single frame by its camera shake. Deterministic (``generator`` unused: the
-    shake's length and angle are values of their own, drawn within ranges like any other)."""
-    flat = clip.reshape(-1, *clip.shape[-4:])
-    fractions = values["exposure_fraction"].reshape(-1, 1).expand(flat.shape[0], 1)
-    lengths = values["shake_length"].reshape(-1, 1).expand(flat.shape[0], 1)
-    angles = values["shake_angle"].reshape(-1, 1).expand(flat.shape[0], 1)
-    out = []
-    for index, one in enumerate(flat):
-        # The stage a stream runs (ClipSynthesizer), here on a whole clip.
-        stage = ShutterStage(float(fractions[index, 0]), float(lengths[index, 0]), float(angles[index, 0]), one.device)
-        frames = one.float() if one.dtype.is_floating_point else one
-        if len(frames) > 1:
-            blurred = [shot for frame in frames for shot in stage.push(frame)] + stage.finish()
-        else:
-            blurred = [stage.image(frames[0])]
-        out.append(torch.stack(blurred).to(one.dtype))
-    return torch.stack(out).reshape(clip.shape)
-
-
-def flicker_gains(
-    clip: torch.Tensor, values: Mapping[str, torch.Tensor], generator: torch.Generator | None
-) -> torch.Tensor:
-    """Per-frame gains (*batch, T, 1, 1, 1) on the darkened clips (*batch, T, C, H, W); 1 for single frames."""
-    batch = clip.shape[:-4]
-    frames = clip.shape[-4]
-    stds = values["flicker"].reshape(-1).expand(int(np.prod(batch, dtype=np.int64)))
-    correlations = values["flicker_correlation"].reshape(-1).expand(stds.shape[0])
-    gains = torch.ones(stds.shape[0], frames, dtype=torch.float64)
-    if frames > 1:
-        for index in range(stds.shape[0]):
-            gains[index] = FlickerGains(float(stds[index]), float(correlations[index])).sequence(frames, generator)
-    return gains.reshape(*batch, frames, 1, 1, 1).to(device=clip.device, dtype=clip.dtype)
 
 
 def _light_parameter(
@@ -99,7 +56,7 @@ SCENE = NoiseComponent(
     structure="scene",
     draw=scene_blur,
     variance=None,
-    reference="darksynth (issue 25): the shutter's integral along the scene's flow; Brooks & Barron 2019 for "
+    reference="darksynth, docs/motion-blur.md: the shutter's integral along the scene's flow; Brooks & Barron 2019 for "
     "averaging in linear light",
 )
 
@@ -123,5 +80,5 @@ FLICKER = NoiseComponent(
     structure="exposure",
     draw=flicker_gains,
     variance=None,
-    reference="darksynth (issue 25): mains flicker and auto-exposure hunting as an AR(1) gain",
+    reference="darksynth, docs/motion-blur.md: mains flicker and auto-exposure hunting as an AR(1) gain",
 )

@@ -7,7 +7,7 @@ from collections.abc import Mapping, Sequence
 
 import torch
 
-from darksynth.darkening import ALPHA_RANGE, GAMMA_RANGE
+from darksynth.light.darkening import ALPHA_RANGE, GAMMA_RANGE
 from darksynth.noise.components import NoiseModel, model_parameters
 from darksynth.noise.values import NoiseValues
 

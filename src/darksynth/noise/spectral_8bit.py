@@ -2,7 +2,7 @@
 
 An 8-bit frame has 256 levels per channel, so its darkened signal and the level curve's std at that signal take
 at most 256 values per channel. Computing both once per clip on the 256 levels, with the general composer's own
-functions (:func:`darksynth.darkening.darken`, :func:`darksynth.noise.spectral.level_std`), and reading them per
+functions (:func:`darksynth.light.darkening.darken`, :func:`darksynth.noise.spectral.level_std`), and reading them per
 pixel replaces a power, a clamp, the piece arithmetic and two gathers per value by two table reads (OpenCV's
 ``LUT`` on the CPU, 8-bit indices, no index array). Everything else is drawn as the composer draws it, in its
 order (:mod:`darksynth.noise.simulate`): the column components, the spectral unit noise of the stream's held
@@ -18,7 +18,7 @@ from __future__ import annotations
 
 import torch
 
-from darksynth.darkening import Darkening, darken
+from darksynth.light.darkening import Darkening, darken
 from darksynth.noise.components import FastPath
 from darksynth.noise.quantization import QUANTIZATION_LEVELS
 from darksynth.noise.spectral import level_std

@@ -29,7 +29,7 @@ from collections.abc import Callable
 
 import torch
 
-from darksynth.darkening import Darkening
+from darksynth.light.darkening import Darkening
 from darksynth.noise.counter_rng import byte_from_word, first_word, flat_index, random_key, triangular_from_word
 from darksynth.noise.fused_8bit import FULL_SCALE, compiled_function
 from darksynth.noise.quantization import QUANTIZATION_LEVELS

@@ -6,7 +6,7 @@ from dataclasses import dataclass
 
 import torch
 
-from darksynth.darkening import darken
+from darksynth.light.darkening import darken
 from darksynth.noise.components import NoiseModel, model_parameters, noise_components
 from darksynth.noise.sampling import random_darkening_values, random_noise_values
 from darksynth.noise.simulate import add_noise

@@ -8,7 +8,7 @@ from __future__ import annotations
 
 import json
 from collections.abc import Callable
-from dataclasses import asdict, dataclass, field
+from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
@@ -24,7 +24,7 @@ from darksynth.noise.level import mean_noise_variance
 from darksynth.noise.values import NoiseValues
 from darksynth.seeding import seeded_generator
 from darksynth.training.batches import TrainingBatch, synthesize_batch
-from darksynth.training.corpus import CleanCorpus, sample_clean_clips
+from darksynth.training.corpus import CleanCorpus
 from darksynth.training.distributed import (
     SINGLE_PROCESS,
     Ranks,
@@ -41,10 +41,11 @@ from darksynth.training.distributed import (
 from darksynth.training.scaffold import (
     Report,
     StepPlan,
+    SyntheticTrainingConfig,
+    calibration_clip_lengths,
     draw_validation_batches,
     initial_weights,
     run_steps,
-    single_frame_step,
 )
 from darksynth.training.weights import save_weights
 
@@ -57,42 +58,26 @@ def vector_names(noise_model: NoiseModel = "srgb") -> tuple[str, ...]:
 
 
 @dataclass(frozen=True)
-class TrainConfig:
-    """Training settings (the paper's optimiser by default). Written beside the weights.
+class TrainConfig(SyntheticTrainingConfig):
+    """The DEN's training settings (the paper's optimiser by default). Written beside the weights.
 
     ``lambda_level`` weighs a second target beyond the paper: the squared log-ratio of the mean noise variance
     the predicted v would give the clip to the true one (:func:`darksynth.noise.level.mean_noise_variance`), so
     that the network gets the overall level right even where shot and read cannot be told apart.
 
-    Every ``single_frame_every``-th batch (steps counted from 1; 0: none; see
-    :func:`~darksynth.training.scaffold.single_frame_step`) holds single frames (T = 1) instead of
-    ``frames``-frame clips, so that one network serves image references (where temporal banding cannot be told
-    from banding) and clips.
+    Single-frame batches (``single_frame_every``) let one network serve image references (where temporal banding
+    cannot be told from banding) and clips.
     """
 
-    den: DENConfig = field(default_factory=DENConfig)
     steps: int = 4000
-    batch: int = 8
-    frames: int = 4
     crop: int = 128
     learning_rate: float = 2e-4
-    betas: tuple[float, float] = (0.5, 0.999)
+    den: DENConfig = field(default_factory=DENConfig)
     lambda_parameters: float = 1.0
     lambda_reconstruction: float = 1.0
-    clip_fraction: float = 0.5
-    single_frame_every: int = 2
-    absent_probability: float = 0.15
     bright_fraction: float = 0.0
     lambda_level: float = 0.0
-    seed: int = 0
     validate_every: int = 250
-    validation_size: int = 64
-    device: str = "cpu"
-
-    def to_dict(self) -> dict[str, Any]:
-        document = asdict(self)
-        document["den"] = self.den.to_dict()
-        return document
 
 
 def training_batch(
@@ -135,14 +120,7 @@ def validation_batches(holdout: CleanCorpus, config: TrainConfig, *, frames: int
     component present."""
 
     def draw(generator: torch.Generator) -> TrainingBatch:
-        clean = sample_clean_clips(
-            holdout,
-            config.batch,
-            frames or config.frames,
-            config.crop,
-            clip_fraction=config.clip_fraction,
-            generator=generator,
-        )
+        clean = config.clean_clips(holdout, frames or config.frames, config.crop, generator)
         return training_batch(clean, config, generator, absent_probability=0.0)
 
     return draw_validation_batches(draw, config.validation_size, config.batch, config.seed)
@@ -237,14 +215,9 @@ def _load_checkpoint(
 
 def _calibrate_statistics(model: DEN, corpus: CleanCorpus, config: TrainConfig, generator: torch.Generator) -> None:
     """Measure the head's statistics on training batches of both clip lengths and standardise with them."""
-
     measured = []
-    for index in range(16):
-        frames = 1 if single_frame_step(index + 1, 2) else config.frames
-        clean = sample_clean_clips(
-            corpus, config.batch, frames, config.crop, clip_fraction=config.clip_fraction, generator=generator
-        )
-        batch = training_batch(clean, config, generator)
+    for frames in calibration_clip_lengths(config.frames):
+        batch = training_batch(config.clean_clips(corpus, frames, config.crop, generator), config, generator)
         measured.append(model.statistics(batch.noisy))
     model.set_statistics_scale(torch.cat(measured).to(next(model.parameters()).device))
 
@@ -315,14 +288,8 @@ class _DENSteps:
 
     def train_step(self, step: int) -> dict[str, float]:
         config, model, device = self.config, self.model, self.device
-        frames = 1 if single_frame_step(step, config.single_frame_every) else config.frames
-        clean = sample_clean_clips(
-            self.corpus,
-            self.batch_size,
-            frames,
-            config.crop,
-            clip_fraction=config.clip_fraction,
-            generator=self.generator,
+        clean = config.clean_clips(
+            self.corpus, config.frames_at(step), config.crop, self.generator, batch=self.batch_size
         )
         batch = training_batch(clean, config, self.generator)
         output = self.network(batch.noisy.to(device))

@@ -16,12 +16,13 @@ from __future__ import annotations
 
 import time
 from collections.abc import Callable, Sequence
-from dataclasses import dataclass, field
+from dataclasses import asdict, dataclass, field, fields
 from typing import Any, Protocol, TypeVar
 
 import torch
 
 from darksynth.seeding import seeded_generator
+from darksynth.training.corpus import CleanCorpus, sample_clean_clips
 
 VALIDATION_SEED_OFFSET = 1_000_003
 """Added to the run seed to seed the validation set: far from the seeds of nearby runs' training streams."""
@@ -49,6 +50,16 @@ def single_frame_step(step: int, every: int) -> bool:
     return every > 0 and step % every == 0
 
 
+CALIBRATION_BATCHES = 16
+"""Batches a network's input statistics are standardised on before training."""
+
+
+def calibration_clip_lengths(frames: int) -> list[int]:
+    """The clip length of each calibration batch: single frames and ``frames``-frame clips in turn, so that the
+    scale fits both kinds of reference whatever share of single-frame steps the training has."""
+    return [1 if single_frame_step(index + 1, 2) else frames for index in range(CALIBRATION_BATCHES)]
+
+
 def initial_weights(seed: int, build: Callable[[], Built]) -> Built:
     """``build()`` (networks made on the CPU) with torch's global generator seeded with ``seed`` for it alone:
     the weights are those of ``torch.manual_seed(seed); build()``, and the caller's global generator is left as
@@ -57,6 +68,73 @@ def initial_weights(seed: int, build: Callable[[], Built]) -> Built:
     with torch.random.fork_rng(devices=[]):
         torch.manual_seed(seed)
         return build()
+
+
+@dataclass(frozen=True)
+class SyntheticTrainingConfig:
+    """The settings every trainer on the DEN's synthetic data has: how its batches are drawn and how its run goes.
+
+    Each trainer's config adds its own fields (and its own defaults where they differ); all are written beside the
+    weights.
+    """
+
+    steps: int = 1500
+    """Optimiser steps."""
+    batch: int = 8
+    """Clips per step."""
+    frames: int = 4
+    """Frames per clip, but on single-frame steps (``single_frame_every``)."""
+    crop: int = 64
+    """Side of the square training crops, pixels."""
+    clip_fraction: float = 0.5
+    """Share of the clips taken from videos rather than from a still repeated
+    (:func:`~darksynth.training.corpus.sample_clean_clips`)."""
+    single_frame_every: int = 2
+    """Every this-th step trains on single frames (:func:`single_frame_step`); 0: none."""
+    absent_probability: float = 0.15
+    """Probability that each noise component of a drawn v is absent."""
+    learning_rate: float = 5e-4
+    betas: tuple[float, float] = (0.5, 0.999)
+    """Adam's learning rate and betas for the network trained."""
+    seed: int = 0
+    """The run seed: initial weights, the training stream, the validation set."""
+    validation_size: int = 64
+    """Clips of the fixed validation set."""
+    device: str = "cpu"
+    """Torch device of the networks."""
+
+    def to_dict(self) -> dict[str, Any]:
+        """The settings as a JSON document, a nested network config as its own ``to_dict`` writes it."""
+        document = asdict(self)
+        for option in fields(self):
+            value = getattr(self, option.name)
+            if hasattr(value, "to_dict"):
+                document[option.name] = value.to_dict()
+        return document
+
+    def frames_at(self, step: int) -> int:
+        """The clip length of step ``step`` (counted from 1): 1 on single-frame steps, else ``frames``."""
+        return 1 if single_frame_step(step, self.single_frame_every) else self.frames
+
+    def clean_clips(
+        self,
+        corpus: CleanCorpus,
+        frames: int,
+        crop: int,
+        generator: torch.Generator,
+        *,
+        batch: int | None = None,
+    ) -> torch.Tensor:
+        """A batch (``batch`` clips, the configured number by default) of clean ``frames``-frame clips cropped to
+        ``crop`` pixels, drawn as configured: (B, T, 3, crop, crop) in [0, 1]."""
+        return sample_clean_clips(
+            corpus,
+            self.batch if batch is None else batch,
+            frames,
+            crop,
+            clip_fraction=self.clip_fraction,
+            generator=generator,
+        )
 
 
 @dataclass(frozen=True)

@@ -2,11 +2,14 @@
 
 Imported only when ``darksynth.transforms.AlbumentationsLowLight`` is first asked for; needs albumentations.
 
-Randomness follows albumentations: ``get_params`` draws one integer from the transform's ``random_generator``
-(which ``A.Compose(..., seed=N)`` seeds), and ``apply`` seeds a torch generator with it, so a seeded Compose is
-reproducible and ``ReplayCompose`` replays the same noise. albumentations 2.0.8 itself copies one random state
-into every DataLoader worker; inside a worker the drawn integer is therefore mixed with the worker's seed, so
-workers add different noise (the ``p`` decisions and other transforms' draws remain albumentations' own).
+Randomness follows albumentations: ``get_params`` draws one integer, the call's seed, from the transform's
+``random_generator`` (which ``A.Compose(..., seed=N)`` seeds); ``get_params_dependent_on_data`` draws the clip's
+parameters from it (alpha and gamma matched to the input's tones, or drawn, and the noise values within the
+profile's ranges), and ``apply`` draws the noise itself from it, given those parameters. A seeded Compose is
+therefore reproducible, and a ``ReplayCompose`` record shows what was drawn (``seed``, ``alpha``, ``gamma``,
+``noise``, ``light``) and replays the same pixels. albumentations 2.0.8 itself copies one random state into every
+DataLoader worker; inside a worker the drawn integer is therefore mixed with the worker's seed, so workers add
+different noise (the ``p`` decisions and other transforms' draws remain albumentations' own).
 """
 
 from __future__ import annotations
@@ -19,10 +22,11 @@ from typing import Any
 import numpy as np
 import torch
 
-from darksynth.darkening import Darkening
 from darksynth.io.arrays import numpy_to_tensor, tensor_to_numpy
+from darksynth.light.darkening import Darkening
+from darksynth.noise.values import NoiseValues
 from darksynth.profile import Profile, profile_to_dict
-from darksynth.synthesize import DarkeningChoice
+from darksynth.recipe import ClipParameters, ClipRecipe, DarkeningChoice
 from darksynth.transforms.low_light import (
     as_profile,
     check_darkening,
@@ -113,40 +117,70 @@ class AlbumentationsLowLight(ImageOnlyTransform):  # type: ignore[misc]  # album
         return ("profile", "darkening", "round_to_8bit")
 
     def get_params(self) -> dict[str, Any]:
-        """The seed of this call's noise, from albumentations' generator (and the DataLoader worker's seed)."""
+        """The seed of this call, from albumentations' generator (and the DataLoader worker's seed)."""
         seed = int(self.random_generator.integers(0, _SEED_LIMIT))
         worker_seed = dataloader_worker_seed()
         if worker_seed is not None:
             seed = mix_seed("albumentations", seed, "worker", worker_seed)
         return {"seed": seed}
 
-    def _low_light(self, clean: torch.Tensor, seed: int) -> torch.Tensor:
+    def get_params_dependent_on_data(self, params: dict[str, Any], data: dict[str, Any]) -> dict[str, Any]:
+        """The parameters of this call's image or clip, drawn from its seed: ``alpha`` and ``gamma`` (None without
+        darkening), the ``noise`` and ``light`` values as a profile writes them. A replay shows and applies these."""
+        seed = int(params["seed"])
+        clean = check_image(_target_tensor(data))
+        generator = torch.Generator().manual_seed(mix_seed("parameters", seed))
+        first = clean if clean.dim() == 3 else clean[0]
+        drawn = ClipRecipe(self._profile, darkening=self._darkening_choice).choose(generator, first)
+        darkening = drawn.darkening
+        return {
+            "seed": seed,
+            "alpha": None if darkening is None else darkening.alpha,
+            "gamma": None if darkening is None else darkening.gamma,
+            "noise": drawn.noise.to_json("noise"),
+            "light": drawn.noise.to_json("light"),
+        }
+
+    def _low_light(self, clean: torch.Tensor, drawn: Mapping[str, Any]) -> torch.Tensor:
+        alpha, gamma = drawn["alpha"], drawn["gamma"]
+        parameters = ClipParameters(
+            noise=NoiseValues.from_json({**drawn["noise"], **drawn["light"]}),
+            darkening=None if alpha is None or gamma is None else Darkening(alpha=alpha, gamma=gamma),
+        )
         result = low_light(
             check_image(clean),
             self._profile,
-            generator=torch.Generator().manual_seed(seed),
-            darkening=self._darkening_choice,
+            generator=torch.Generator().manual_seed(mix_seed("noise", int(drawn["seed"]))),
             round_to_8bit=self.round_to_8bit,
+            parameters=parameters,
         )
-        assert isinstance(result.image, torch.Tensor)
+        assert isinstance(result.image, torch.Tensor)  # a tensor input gives a tensor result
         return result.image
 
-    def apply(self, img: np.ndarray, seed: int, **params: Any) -> np.ndarray:
-        """The low-light version of one (H, W) or (H, W, C) image."""
+    def apply(self, img: np.ndarray, **params: Any) -> np.ndarray:
+        """The low-light version of one (H, W) or (H, W, C) image with the parameters drawn for it."""
         if not isinstance(img, np.ndarray) or img.ndim not in (2, 3):
             raise ValueError(f"image: expected an (H, W) or (H, W, C) array, got {_describe(img)}")
-        noisy = self._low_light(_hwc_to_tensor(img, "image"), seed)
+        noisy = self._low_light(_hwc_to_tensor(img, "image"), params)
         return tensor_to_numpy(noisy.movedim(-3, -1)).reshape(img.shape)
 
-    def apply_to_images(self, images: np.ndarray, seed: int, **params: Any) -> np.ndarray:
+    def apply_to_images(self, images: np.ndarray, **params: Any) -> np.ndarray:
         """The low-light version of a clip (N, H, W) or (N, H, W, C): one parameter draw for all frames."""
         if not isinstance(images, np.ndarray) or images.ndim not in (3, 4):
             raise ValueError(f"images: expected an (N, H, W) or (N, H, W, C) array, got {_describe(images)}")
-        noisy = self._low_light(_hwc_to_tensor(images, "images"), seed)
+        noisy = self._low_light(_hwc_to_tensor(images, "images"), params)
         return tensor_to_numpy(noisy.movedim(-3, -1)).reshape(images.shape)
 
-    def apply_to_volume(self, volume: np.ndarray, seed: int, **params: Any) -> np.ndarray:
-        return self.apply_to_images(volume, seed, **params)
+    def apply_to_volume(self, volume: np.ndarray, **params: Any) -> np.ndarray:
+        return self.apply_to_images(volume, **params)
+
+
+def _target_tensor(data: Mapping[str, Any]) -> torch.Tensor:
+    """The input of a call as a tensor: ``image`` (C, H, W), else ``images`` or ``volume`` as one clip."""
+    for key in ("image", "images", "volume"):
+        if key in data:
+            return _hwc_to_tensor(np.asarray(data[key]), "image" if key == "image" else "images")
+    raise ValueError(f"AlbumentationsLowLight needs an image, images or volume target, got {sorted(data)}")
 
 
 def _describe(value: object) -> str:

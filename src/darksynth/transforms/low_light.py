@@ -1,7 +1,7 @@
 """``LowLight``: a callable transform that turns a clean tensor into a low-light one, for training loops.
 
 It is a thin wrapper of :func:`darksynth.synthesize.synthesize`: each call draws the parameters of one image
-or clip within the profile's ranges (:func:`darksynth.synthesize.draw_clip_parameters`) and new noise, so the
+or clip within the profile's ranges (:meth:`darksynth.recipe.ClipRecipe.choose`) and new noise, so the
 result is what ``darksynth apply`` would make of the same input with the same generator state.
 
 Dtypes: uint8 in gives uint8 out (the fused 8-bit kernel, as ``apply`` runs it), uint16 gives uint16, a float
@@ -32,10 +32,11 @@ import numpy as np
 import torch
 import torch.utils.data
 
-from darksynth.darkening import Darkening
+from darksynth.light.darkening import Darkening
 from darksynth.profile import Profile, load_profile, parse_profile, validate_profile
+from darksynth.recipe import ClipParameters, DarkeningChoice
 from darksynth.seeding import derive_seed
-from darksynth.synthesize import DarkeningChoice, LowLightResult, synthesize
+from darksynth.synthesize import LowLightResult, synthesize
 from darksynth.tensors import to_8bit_levels
 
 FLOAT_RANGE_TOLERANCE = 0.25
@@ -121,10 +122,12 @@ def low_light(
     darkening: DarkeningChoice = "profile",
     round_to_8bit: bool = True,
     device: torch.device | str | None = None,
+    parameters: ClipParameters | None = None,
 ) -> LowLightResult:
-    """The low-light version of a checked image (C, H, W) or clip (T, C, H, W) and the parameters drawn for it:
-    :func:`darksynth.synthesize.synthesize`, then float output rounded to 8-bit levels if asked."""
-    result = synthesize(image, profile, generator=generator, darkening=darkening, device=device)
+    """The low-light version of a checked image (C, H, W) or clip (T, C, H, W) and the parameters drawn for it
+    (or ``parameters``, chosen before): :func:`darksynth.synthesize.synthesize`, then float output rounded to 8-bit
+    levels if asked."""
+    result = synthesize(image, profile, generator=generator, darkening=darkening, device=device, parameters=parameters)
     assert isinstance(result.image, torch.Tensor)  # a tensor input gives a tensor result
     output = round_float_to_8bit(result.image) if round_to_8bit else result.image
     return LowLightResult(image=output, parameters=result.parameters)
@@ -141,7 +144,7 @@ class LowLight:
         profile: the noise profile, a path to one, or a decoded profile document.
         seed: the stream's seed (see the module docstring); None follows torch's global seed.
         darkening: ``"profile"`` (the profile's darkening or its ranges), a :class:`Darkening` to fix it, or
-            None to add noise only (see :data:`darksynth.synthesize.DarkeningChoice`).
+            None to add noise only (see :data:`darksynth.recipe.DarkeningChoice`).
         round_to_8bit: round float output to 8-bit levels (k / 255), as a camera file stores it.
         device: where to compute and return the result; the device of the first input when None.
 

@@ -6,7 +6,7 @@ import numpy as np
 import pytest
 import torch
 
-from darksynth.darkening import darken
+from darksynth.light.darkening import darken
 
 
 @pytest.mark.parametrize(("alpha", "gamma"), [(0.2, 0.7), (0.05, 0.1), (0.3, 1.0), (1.0, 0.5)])

@@ -1,4 +1,4 @@
-"""The reference's exposure carried by the profile and matched per input by ``apply`` (issue 25, item 0)."""
+"""The reference's exposure carried by the profile and matched per input by ``apply``."""
 
 from __future__ import annotations
 
@@ -13,9 +13,9 @@ import torch
 from PIL import Image
 
 from darksynth.apply import ApplyOptions, apply
-from darksynth.darkening import Darkening, darken
 from darksynth.errors import ProfileError
-from darksynth.exposure import (
+from darksynth.light.darkening import Darkening, darken
+from darksynth.light.exposure import (
     compass_search,
     fit_output_darkening,
     match_darkening,
@@ -25,12 +25,7 @@ from darksynth.exposure import (
     simulated_luminance_quantiles,
     sorted_quantiles,
 )
-from darksynth.noise.level import channel_noise_std
-from darksynth.noise.simulate import noise_sum
-from darksynth.noise.values import NoiseValues
-from darksynth.profile import Profile, parse_profile, profile_to_dict
-from darksynth.synthesize import synthesize
-from darksynth.tones import (
+from darksynth.light.tones import (
     PROBABILITIES,
     ToneTarget,
     colour_cast,
@@ -39,6 +34,11 @@ from darksynth.tones import (
     sampled_tone_quantiles,
     tone_quantiles,
 )
+from darksynth.noise.level import channel_noise_std
+from darksynth.noise.simulate import noise_sum
+from darksynth.noise.values import NoiseValues
+from darksynth.profile import Profile, parse_profile, profile_to_dict
+from darksynth.synthesize import synthesize
 
 
 def _scene(seed: int, scale: float) -> np.ndarray:
@@ -118,7 +118,7 @@ def test_apply_darkens_each_input_to_the_reference_s_tones(tmp_path: Path) -> No
 def test_no_target_or_a_uniform_input_keeps_the_profile_s_darkening(caplog: pytest.LogCaptureFixture) -> None:
     grey = torch.full((3, 64, 64), 120, dtype=torch.uint8)
     assert matched_darkening(grey, None) is None
-    with caplog.at_level(logging.WARNING, logger="darksynth.exposure"):
+    with caplog.at_level(logging.WARNING, logger="darksynth.light.exposure"):
         assert matched_darkening(grey, _target(), source="grey.png") is None
     assert any("grey.png" in r.getMessage() and "profile's darkening is used" in r.getMessage() for r in caplog.records)
     # uint8 and the same frame as float give the same match.

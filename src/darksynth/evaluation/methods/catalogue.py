@@ -16,7 +16,7 @@ from typing import Any
 import torch
 
 from darksynth.errors import DarksynthError
-from darksynth.evaluation.classical import (
+from darksynth.evaluation.methods.classical import (
     PoissonGaussian,
     add_poisson_gaussian,
     blind_gaussian_sigma,
@@ -171,7 +171,7 @@ def _starlight_method(device: str) -> NoiseMethod:
 
 
 def _spectral_oracle_method() -> NoiseMethod:
-    from darksynth.noise.spectral_fit import oracle_spectral_fit
+    from darksynth.estimation.spectral_fit import oracle_spectral_fit
 
     def fit(noisy: torch.Tensor, clean: torch.Tensor) -> NoiseValues:
         return NoiseValues.from_values(oracle_spectral_fit(noisy.to(torch.float32), clean.to(torch.float32)))

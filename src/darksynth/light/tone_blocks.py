@@ -1,7 +1,7 @@
 """The order statistics of a frame's small blocks that the darkening estimate reads, from one sort.
 
 The tone quantiles take each block's median, the noise left in a median its 50th and 75th percentiles
-(:mod:`darksynth.tones`). Sorting each block's values once gives all three, the same numbers as ``median`` and
+(:mod:`darksynth.light.tones`). Sorting each block's values once gives all three, the same numbers as ``median`` and
 ``quantile`` (which sort again each); and a region of the frame on the block grid reads its blocks' statistics
 from the frame's instead of sorting them again (a 12 MP photo's four regions are the photo).
 """

@@ -13,9 +13,9 @@ from pathlib import Path
 from typing import Any, Final
 
 from darksynth.errors import DarksynthError, error_reason
-from darksynth.evaluation.options import EvaluationOptions
-from darksynth.evaluation.report import write_markdown
-from darksynth.evaluation.report_html import write_html_report
+from darksynth.evaluation.report.html import write_html_report
+from darksynth.evaluation.report.summary import write_markdown
+from darksynth.evaluation.run.options import EvaluationOptions
 from darksynth.io.atomic import write_text_atomic
 
 Progress = Callable[[str], None]
@@ -30,7 +30,7 @@ class EvaluationRun:
     """What a run found and where it wrote it.
 
     Attributes:
-        results: the document written to ``results.json`` (see :func:`darksynth.evaluation.runner.evaluate_pairs`;
+        results: the document written to ``results.json`` (see :func:`darksynth.evaluation.run.runner.evaluate_pairs`;
             ``"downstream"`` filled in when the options ask for the check).
         files: the paths of :data:`RESULT_FILES`, in that order.
     """
@@ -58,8 +58,8 @@ def run_evaluation(
             or a file that cannot be read or written (one line naming it).
     """
     # The runner imports scipy (about 0.7 s): only a run pays for it, not the command line's start.
-    from darksynth.evaluation.downstream import DownstreamSettings, run_downstream
-    from darksynth.evaluation.runner import evaluate_pairs
+    from darksynth.evaluation.measures.downstream import DownstreamSettings, run_downstream
+    from darksynth.evaluation.run.runner import evaluate_pairs
 
     say = progress or (lambda message: None)
     try:

@@ -1,10 +1,10 @@
 """Reports of ``darksynth evaluate``: a Markdown summary and one self-contained HTML page.
 
 Both are Jinja2 templates (``templates/report.md.j2``, ``templates/report.html.j2``) filled from the typed results
-(:mod:`darksynth.evaluation.results_model`) and their verdicts (:mod:`darksynth.evaluation.verdicts`). This module
-holds what both reports say (the verdicts in words, the template environment and context) and writes the Markdown
-summary; :mod:`darksynth.evaluation.report_tables` lays out the tables both show and
-:mod:`darksynth.evaluation.report_html` assembles the HTML page.
+(:mod:`darksynth.evaluation.report.results_model`) and their verdicts (:mod:`darksynth.evaluation.report.verdicts`).
+This module holds what both reports say (the verdicts in words, the template environment and context) and writes the
+Markdown summary; :mod:`darksynth.evaluation.report.tables` lays out the tables both show and
+:mod:`darksynth.evaluation.report.html` assembles the HTML page.
 """
 
 from __future__ import annotations
@@ -17,7 +17,8 @@ from typing import Any
 
 import jinja2
 
-from darksynth.evaluation.report_tables import (
+from darksynth.evaluation.report.results_model import EvaluationResults, parse_results
+from darksynth.evaluation.report.tables import (
     BAND_LEGEND,
     CHANNEL_LEGEND,
     DOWNSTREAM_LEGEND,
@@ -26,8 +27,7 @@ from darksynth.evaluation.report_tables import (
     num,
     run_facts,
 )
-from darksynth.evaluation.results_model import EvaluationResults, parse_results
-from darksynth.evaluation.verdicts import BeyondPaperCheck, beyond_paper_checks, headlines
+from darksynth.evaluation.report.verdicts import BeyondPaperCheck, beyond_paper_checks, headlines
 from darksynth.io.atomic import write_text_atomic
 
 __all__ = [
@@ -92,7 +92,7 @@ def _md(text: str) -> str:
 def template_environment(*, autoescape: bool) -> jinja2.Environment:
     """The Jinja2 environment of the HTML report (``autoescape``) or of the Markdown one (escaped by hand: ``| md``)."""
     environment = jinja2.Environment(
-        loader=jinja2.PackageLoader("darksynth.evaluation", "templates"),
+        loader=jinja2.PackageLoader("darksynth.evaluation.report", "templates"),
         autoescape=autoescape,
         undefined=jinja2.StrictUndefined,
         trim_blocks=True,
@@ -163,7 +163,7 @@ def write_markdown(results: Mapping[str, Any], path: Path) -> None:
     Args:
         results: The runner's document: ``command``, ``provenance``, ``metrics``, ``methods``, ``problems``,
             ``sets`` and ``downstream`` (missing parts are left out of the report; see
-            :func:`darksynth.evaluation.results_model.parse_results`).
+            :func:`darksynth.evaluation.report.results_model.parse_results`).
         path: The ``.md`` file to write; parent folders are created.
     """
     write_text_atomic(path, render_markdown(results))

@@ -1,19 +1,19 @@
 """`darksynth evaluate`: every method on every real pair, metrics per pair, per camera and per set.
 
-For each pair the real noise map is noisy - clean; each method makes a synthetic noisy image from the clean
-one (8-bit, like the real one) and its noise map is synthetic - clean. Histogram KL divergences and the AKLD are
-computed per pair and summarised by their mean and a 95% interval; the noise level per channel is pooled over a
-set's pairs (and divided by the real one's) and the channel correlations averaged over them; the noise's power
-in five spatial frequency bands (brightness and colour, :mod:`darksynth.evaluation.structure`) is compared per pair
-with the real one's and summarised by the median ratio per band and its RMS log error; FID and KID compare,
-per set, the Inception features of crops of all real noise maps with those of all of a method's maps.
+For each pair the real noise map is noisy - clean; each method makes a synthetic noisy image from the clean one
+(8-bit, like the real one) and its noise map is synthetic - clean. Histogram KL divergences and the AKLD are computed
+per pair and summarised by their mean and a 95% interval; the noise level per channel is pooled over a set's pairs
+(and divided by the real one's) and the channel correlations averaged over them; the noise's power in five spatial
+frequency bands (brightness and colour, :mod:`darksynth.evaluation.measures.structure`) is compared per pair with the
+real one's and summarised by the median ratio per band and its RMS log error; FID and KID compare, per set, the
+Inception features of crops of all real noise maps with those of all of a method's maps.
 """
 
 from __future__ import annotations
 
 import time
 from collections.abc import Callable, Sequence
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
@@ -21,8 +21,7 @@ import numpy as np
 import torch
 
 from darksynth.errors import DarksynthError
-from darksynth.evaluation.methods import NoiseMethod, build_methods
-from darksynth.evaluation.metrics import (
+from darksynth.evaluation.measures.metrics import (
     CHANNEL_PAIRS,
     average_kl_divergence,
     channel_correlations,
@@ -35,10 +34,17 @@ from darksynth.evaluation.metrics import (
     mean_and_interval,
     pooled_std,
 )
-from darksynth.evaluation.options import EvaluationOptions
+from darksynth.evaluation.measures.structure import (
+    band_medians,
+    band_powers,
+    band_ratios,
+    band_summary,
+    relative_to_white,
+)
+from darksynth.evaluation.methods.catalogue import NoiseMethod, build_methods
 from darksynth.evaluation.pairs import LoadedPair, PairSet, list_pair_sets, load_pair
-from darksynth.evaluation.report_html import ReportExample
-from darksynth.evaluation.structure import band_medians, band_powers, band_ratios, band_summary, relative_to_white
+from darksynth.evaluation.report.html import ReportExample
+from darksynth.evaluation.run.options import EvaluationOptions
 from darksynth.seeding import derive_seed, seeded_generator
 
 METRIC_DESCRIPTIONS = {
@@ -185,7 +191,7 @@ class _Features:
     def __init__(self, device: str, problems: list[str]) -> None:
         self.extractor: Any = None
         try:
-            from darksynth.evaluation.inception import InceptionFeatures
+            from darksynth.evaluation.measures.inception import InceptionFeatures
 
             self.extractor = InceptionFeatures(device=device)
         except DarksynthError as error:
@@ -196,7 +202,7 @@ class _Features:
         """Features of ``crops`` tiles spread evenly over the map (all of them if it has fewer)."""
         if self.extractor is None:
             return
-        from darksynth.evaluation.inception import noise_map_images
+        from darksynth.evaluation.measures.inception import noise_map_images
 
         side = min(FID_CROP, noise.shape[-2], noise.shape[-1])
         images = noise_map_images(_noise_array(noise), crop=side)
@@ -216,6 +222,113 @@ class _Features:
         return {"fid": float(frechet_distance(real, synthetic)), "kid": float(kid), "kid_std": float(kid_std)}
 
 
+@dataclass
+class _MethodRecord:
+    """What one method left on a pair set: its metric rows per camera, the real noise of the pairs it was evaluated
+    on beside its own (channel statistics), and its octave-band powers with their ratios to the real ones."""
+
+    rows: list[tuple[str, dict[str, float]]] = field(default_factory=list)
+    real_channels: _ChannelStatistics = field(default_factory=lambda: _ChannelStatistics())
+    channels: _ChannelStatistics = field(default_factory=lambda: _ChannelStatistics())
+    bands: list[dict[str, Any]] = field(default_factory=list)
+    band_ratios: list[dict[str, Any]] = field(default_factory=list)
+
+    def add(self, camera: str, real: torch.Tensor, noise: torch.Tensor, real_bands: dict[str, Any] | None) -> None:
+        self.rows.append((camera, _pair_metrics(real, noise)))
+        self.real_channels.add(real)
+        self.channels.add(noise)
+        if real_bands is not None:
+            synthetic_bands = band_powers(_noise_array(noise))
+            self.bands.append(synthetic_bands)
+            self.band_ratios.append(band_ratios(synthetic_bands, real_bands))
+
+    def summary(self, oracle: bool, distances: dict[str, float | None]) -> dict[str, Any]:
+        entry = _kl_summary([row for _, row in self.rows])
+        entry.update(distances)
+        entry.update(self.channels.summary(reference=self.real_channels))
+        if self.bands:
+            entry["band_power"] = band_medians(self.bands)
+            entry.update(band_summary(self.band_ratios))
+        entry["oracle"] = oracle
+        cameras: dict[str, list[dict[str, float]]] = {}
+        for camera, row in self.rows:
+            cameras.setdefault(camera, []).append(row)
+        entry["per_camera"] = {
+            camera: {"pairs": len(camera_rows), **_kl_summary(camera_rows)} for camera, camera_rows in cameras.items()
+        }
+        return entry
+
+
+@dataclass
+class _SetRecord:
+    """Everything one pair set's evaluation gathers, pair by pair, before it is summarised."""
+
+    methods: dict[str, _MethodRecord]
+    real_channels: _ChannelStatistics = field(default_factory=lambda: _ChannelStatistics())
+    real_bands: list[dict[str, Any]] = field(default_factory=list)
+    examples: list[ReportExample] = field(default_factory=list)
+    evaluated: int = 0
+
+    def summary(self, methods: dict[str, NoiseMethod], features: _Features | None) -> dict[str, Any]:
+        report: dict[str, Any] = {"pairs": self.evaluated, "real": self.real_channels.summary(), "methods": {}}
+        if self.real_bands:
+            report["real"]["band_power"] = band_medians(self.real_bands)
+            report["real"]["band_white_ratio"] = band_medians([relative_to_white(row) for row in self.real_bands])
+        for name, record in self.methods.items():
+            if record.rows:
+                distances: dict[str, float | None] = (
+                    features.distances(name) if features is not None else dict.fromkeys(("fid", "kid", "kid_std"))
+                )
+                report["methods"][name] = record.summary(methods[name].oracle, distances)
+        return report
+
+
+def _evaluate_pair(
+    pair_set: PairSet,
+    loaded: LoadedPair,
+    methods: dict[str, NoiseMethod],
+    options: EvaluationOptions,
+    record: _SetRecord,
+    problems: list[str],
+    features: _Features | None,
+    crops_per_pair: int,
+) -> None:
+    pair = loaded.pair
+    real = loaded.noise
+    record.evaluated += 1
+    record.real_channels.add(real)
+    pair_bands = band_powers(_noise_array(real)) if real.shape[0] == len(CHANNELS) else None
+    if pair_bands is not None:
+        record.real_bands.append(pair_bands)
+    if features is not None:
+        features.add("real", real, crops_per_pair)
+    keep_example = len(record.examples) < options.examples_per_set
+    noisy_crops = {"real": _center_crop(loaded.noisy, options.example_crop)}
+    noise_maps = {"real": _noise_array(real)}
+    for name, method in methods.items():
+        generator = seeded_generator(derive_seed("darksynth", options.seed, f"{pair_set.name}/{pair.name}/{name}"))
+        try:
+            parameters = method.fit(loaded.noisy, loaded.clean)
+            synthetic = method.synthesize(loaded.clean, parameters, generator)
+        except DarksynthError as error:
+            problems.append(f"{pair.noisy_path}: {name}: {error}")
+            continue
+        noise = synthetic - loaded.clean
+        record.methods[name].add(pair.camera, real, noise, pair_bands)
+        if features is not None:
+            features.add(name, noise, crops_per_pair)
+        if keep_example:
+            noisy_crops[name] = _center_crop(synthetic, options.example_crop)
+            noise_maps[name] = _noise_array(noise)
+    if keep_example:
+        clean_crop = _center_crop(loaded.clean, options.example_crop)
+        record.examples.append(
+            ReportExample(
+                set_name=pair_set.name, pair_name=pair.name, clean=clean_crop, noisy=noisy_crops, noise=noise_maps
+            )
+        )
+
+
 def _evaluate_set(
     pair_set: PairSet,
     methods: dict[str, NoiseMethod],
@@ -224,15 +337,7 @@ def _evaluate_set(
     features: _Features | None,
     progress: Progress,
 ) -> tuple[dict[str, Any], list[ReportExample]]:
-    rows: dict[str, list[tuple[str, dict[str, float]]]] = {name: [] for name in methods}
-    real_channels = _ChannelStatistics()
-    # Per method, the real noise of the pairs that method was evaluated on and its own noise.
-    channels = {name: (_ChannelStatistics(), _ChannelStatistics()) for name in methods}
-    # Band powers of the real noise per pair; per method, its own and its ratios to the real ones.
-    real_bands: list[dict[str, Any]] = []
-    bands: dict[str, tuple[list[dict[str, Any]], list[dict[str, Any]]]] = {name: ([], []) for name in methods}
-    examples: list[ReportExample] = []
-    evaluated = 0
+    record = _SetRecord(methods={name: _MethodRecord() for name in methods})
     # Inception features cost ~0.1 s a tile on this CPU: a fixed budget per set keeps the run short.
     crops_per_pair = max(1, -(-options.fid_crops // max(len(pair_set.pairs), 1)))
     for index, pair in enumerate(pair_set.pairs):
@@ -242,72 +347,8 @@ def _evaluate_set(
         except DarksynthError as error:
             problems.append(str(error))
             continue
-        evaluated += 1
-        real = loaded.noise
-        real_channels.add(real)
-        pair_bands = band_powers(_noise_array(real)) if real.shape[0] == len(CHANNELS) else None
-        if pair_bands is not None:
-            real_bands.append(pair_bands)
-        if features is not None:
-            features.add("real", real, crops_per_pair)
-        keep_example = len(examples) < options.examples_per_set
-        noisy_crops = {"real": _center_crop(loaded.noisy, options.example_crop)}
-        noise_maps = {"real": _noise_array(real)}
-        for name, method in methods.items():
-            generator = seeded_generator(derive_seed("darksynth", options.seed, f"{pair_set.name}/{pair.name}/{name}"))
-            try:
-                parameters = method.fit(loaded.noisy, loaded.clean)
-                synthetic = method.synthesize(loaded.clean, parameters, generator)
-            except DarksynthError as error:
-                problems.append(f"{pair.noisy_path}: {name}: {error}")
-                continue
-            noise = synthetic - loaded.clean
-            rows[name].append((pair.camera, _pair_metrics(real, noise)))
-            channels[name][0].add(real)
-            channels[name][1].add(noise)
-            if pair_bands is not None:
-                synthetic_bands = band_powers(_noise_array(noise))
-                bands[name][0].append(synthetic_bands)
-                bands[name][1].append(band_ratios(synthetic_bands, pair_bands))
-            if features is not None:
-                features.add(name, noise, crops_per_pair)
-            if keep_example:
-                noisy_crops[name] = _center_crop(synthetic, options.example_crop)
-                noise_maps[name] = _noise_array(noise)
-        if keep_example:
-            examples.append(
-                ReportExample(
-                    set_name=pair_set.name,
-                    pair_name=pair.name,
-                    clean=_center_crop(loaded.clean, options.example_crop),
-                    noisy=noisy_crops,
-                    noise=noise_maps,
-                )
-            )
-    report: dict[str, Any] = {"pairs": evaluated, "real": real_channels.summary(), "methods": {}}
-    if real_bands:
-        report["real"]["band_power"] = band_medians(real_bands)
-        report["real"]["band_white_ratio"] = band_medians([relative_to_white(row) for row in real_bands])
-    for name, method_rows in rows.items():
-        if not method_rows:
-            continue
-        entry = _kl_summary([row for _, row in method_rows])
-        entry.update(features.distances(name) if features is not None else {"fid": None, "kid": None, "kid_std": None})
-        real_on_these, synthetic_channels = channels[name]
-        entry.update(synthetic_channels.summary(reference=real_on_these))
-        own_bands, ratios = bands[name]
-        if own_bands:
-            entry["band_power"] = band_medians(own_bands)
-            entry.update(band_summary(ratios))
-        entry["oracle"] = methods[name].oracle
-        cameras: dict[str, list[dict[str, float]]] = {}
-        for camera, row in method_rows:
-            cameras.setdefault(camera, []).append(row)
-        entry["per_camera"] = {
-            camera: {"pairs": len(camera_rows), **_kl_summary(camera_rows)} for camera, camera_rows in cameras.items()
-        }
-        report["methods"][name] = entry
-    return report, examples
+        _evaluate_pair(pair_set, loaded, methods, options, record, problems, features, crops_per_pair)
+    return record.summary(methods, features), record.examples
 
 
 def evaluate_pairs(
@@ -342,7 +383,7 @@ def evaluate_pairs(
     examples: list[ReportExample] = []
     features = _Features(options.device, problems) if options.inception else None
     if features is not None and features.extractor is not None:
-        from darksynth.evaluation.inception import INCEPTION_PROVENANCE
+        from darksynth.evaluation.measures.inception import INCEPTION_PROVENANCE
 
         results["provenance"]["inception"] = INCEPTION_PROVENANCE
     for pair_set in pair_sets:

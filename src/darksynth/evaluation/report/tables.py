@@ -9,7 +9,8 @@ from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
 from typing import Any
 
-from darksynth.evaluation.results_model import (
+from darksynth.evaluation.measures.structure import BAND_LABELS
+from darksynth.evaluation.report.results_model import (
     BAND_COMPONENTS,
     CAMERA_METRICS,
     CHANNEL_PAIRS,
@@ -19,8 +20,7 @@ from darksynth.evaluation.results_model import (
     EvaluationResults,
     Interval,
 )
-from darksynth.evaluation.structure import BAND_LABELS
-from darksynth.evaluation.verdicts import best_per_camera, best_per_downstream_metric, best_per_metric
+from darksynth.evaluation.report.verdicts import best_per_camera, best_per_downstream_metric, best_per_metric
 
 MISSING = "—"
 

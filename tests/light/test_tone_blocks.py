@@ -4,8 +4,8 @@ from __future__ import annotations
 
 import torch
 
-from darksynth.tone_blocks import NOISE_BLOCKS, block_statistics, tiles
-from darksynth.tones import _block_noise_quantiles, block_medians
+from darksynth.light.tone_blocks import NOISE_BLOCKS, block_statistics, tiles
+from darksynth.light.tones import _block_noise_quantiles, block_medians
 
 
 def test_one_sort_gives_the_median_and_the_quantiles() -> None:

@@ -1,7 +1,7 @@
 """What the evaluation results say: the best method of each table column, and whether the paper's claims hold.
 
-Pure functions from the typed results (:mod:`darksynth.evaluation.results_model`) to verdict data; the reports only
-format them. Only finite values take part: a metric that was not computed, or came out NaN, decides nothing.
+Pure functions from the typed results (:mod:`darksynth.evaluation.report.results_model`) to verdict data; the reports
+only format them. Only finite values take part: a metric that was not computed, or came out NaN, decides nothing.
 """
 
 from __future__ import annotations
@@ -11,7 +11,7 @@ from collections.abc import Collection, Mapping
 from dataclasses import dataclass
 from typing import Literal
 
-from darksynth.evaluation.results_model import CAMERA_METRICS, DOWNSTREAM_METRICS, SET_METRICS, EvaluationResults
+from darksynth.evaluation.report.results_model import CAMERA_METRICS, DOWNSTREAM_METRICS, SET_METRICS, EvaluationResults
 
 __all__ = [
     "BLIND_METHODS",

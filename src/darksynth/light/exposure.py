@@ -1,5 +1,5 @@
 """An input's darkening matched to the reference's exposure: the profile's tone target against the input's own
-tones (issue 25; docs/darkening-estimate.md). ``apply``, ``convert`` and ``synthesize`` (the training transforms)
+tones (docs/darkening-estimate.md). ``apply``, ``convert`` and ``synthesize`` (the training transforms)
 take it for each image, clip and video, from its first frame, unless the darkening is given (``--alpha/--gamma``,
 ``--no-darken``, a ``darkening`` argument)."""
 
@@ -15,23 +15,14 @@ from dataclasses import dataclass
 import numpy as np
 import torch
 
-from darksynth.darkening import Darkening, darken
 from darksynth.errors import DarksynthError
+from darksynth.light.darkening import Darkening, darken
+from darksynth.light.tone_fit import ALPHA_BOUNDS, GAMMA_BOUNDS, DarkeningEstimate, fit_darkening
+from darksynth.light.tones import PROBABILITIES, TONE_BLOCK, ToneTarget, colour_cast, sampled_tone_quantiles
 from darksynth.noise.level import channel_noise_std
 from darksynth.noise.simulate import noise_sum
 from darksynth.noise.values import NoiseValues
 from darksynth.tensors import LUMINANCE_WEIGHTS, full_scale
-from darksynth.tones import (
-    ALPHA_BOUNDS,
-    BLOCK,
-    GAMMA_BOUNDS,
-    PROBABILITIES,
-    DarkeningEstimate,
-    ToneTarget,
-    colour_cast,
-    fit_darkening,
-    sampled_tone_quantiles,
-)
 
 logger = logging.getLogger(__name__)
 
@@ -41,26 +32,27 @@ def match_darkening(
     reference_noise: float,
     clean: torch.Tensor,
     *,
-    block: int = BLOCK,
+    block: int = TONE_BLOCK,
     source: str = "reference",
 ) -> DarkeningEstimate:
     """Alpha and gamma that darken ``clean`` to the tones of a reference: the fit of
-    :func:`darksynth.tones.fit_darkening` with the clean input's own log tone quantiles (every block, or every k-th
-    of a large frame: :func:`darksynth.tones.sampled_tone_quantiles`) in place of the prior of average scenes (and
-    no pull to the paper's ranges), so the darkened input's block-median quantiles follow the reference's. The
-    exposure is then "as dark as the reference" for this input, which one (alpha, gamma) read off the reference
-    against average scenes is not (issue 25: the luminance quantiles of `apply`'s output were 0.137 from the
-    reference's, median).
+    :func:`darksynth.light.tone_fit.fit_darkening` with the clean input's own log tone quantiles (every block, or every
+    k-th of a large frame: :func:`darksynth.light.tones.sampled_tone_quantiles`) in place of the prior of average
+    scenes (and no pull to the paper's ranges), so the darkened input's block-median quantiles follow the
+    reference's. The exposure is then "as dark as the reference" for this input, which one (alpha, gamma) read off
+    the reference against average scenes is not (with that one, the luminance quantiles of ``apply``'s output lay
+    0.137 from the reference's, median).
 
     Args:
-        reference_quantiles: the reference's :func:`darksynth.tones.tone_quantiles` at its ``PROBABILITIES``.
-        reference_noise: the noise in the reference's block medians (:func:`darksynth.tones.median_noise`).
+        reference_quantiles: the reference's :func:`darksynth.light.tones.tone_quantiles` at its ``PROBABILITIES``.
+        reference_noise: the noise in the reference's block medians (:func:`darksynth.light.tones.median_noise`).
         clean: the clean input (..., C, H, W) in [0, 1] (a clip's first frame is enough).
-        block: as for :func:`darksynth.tones.tone_quantiles`.
+        block: as for :func:`darksynth.light.tones.tone_quantiles`.
         source: the name error messages start with.
 
     Raises:
-        DarksynthError: as :func:`darksynth.tones.fit_darkening`: the reference is too dark or too flat to match.
+        DarksynthError: as :func:`darksynth.light.tone_fit.fit_darkening`: the reference is too dark or too flat to
+            match.
     """
     clean_quantiles = sampled_tone_quantiles(clean, block=block)
     # Black input quantiles have no logarithm: floored, as the prior's were, at half an 8-bit level.
@@ -321,7 +313,7 @@ def fit_output_darkening(target: np.ndarray, model: OutputModel, start: Darkenin
 
 
 def _bounded(alpha: float, gamma: float) -> Darkening:
-    """alpha and gamma clipped to :data:`darksynth.tones.ALPHA_BOUNDS` and ``GAMMA_BOUNDS``."""
+    """alpha and gamma clipped to :data:`darksynth.light.tone_fit.ALPHA_BOUNDS` and ``GAMMA_BOUNDS``."""
     return Darkening(alpha=float(np.clip(alpha, *ALPHA_BOUNDS)), gamma=float(np.clip(gamma, *GAMMA_BOUNDS)))
 
 

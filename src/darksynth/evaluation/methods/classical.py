@@ -22,7 +22,7 @@ __all__ = [
     "oracle_poisson_gaussian",
 ]
 
-BLOCK = 8
+FIT_BLOCK = 8
 """Side of the blocks of the single-image Poisson-Gaussian fit."""
 
 SMOOTH_FRACTION = 0.3
@@ -108,10 +108,10 @@ def blind_poisson_gaussian(noisy: torch.Tensor) -> PoissonGaussian:
     for channel in noisy:
         image = channel[None, None]
         detail = (image[..., :-1, :-1] - image[..., 1:, :-1] - image[..., :-1, 1:] + image[..., 1:, 1:]) / 2.0
-        height = (detail.shape[-2] // BLOCK) * BLOCK
-        width = (detail.shape[-1] // BLOCK) * BLOCK
-        block_variance = F.avg_pool2d(detail[..., :height, :width].square(), BLOCK).flatten()
-        block_level = F.avg_pool2d(image[..., :height, :width], BLOCK).flatten()
+        height = (detail.shape[-2] // FIT_BLOCK) * FIT_BLOCK
+        width = (detail.shape[-1] // FIT_BLOCK) * FIT_BLOCK
+        block_variance = F.avg_pool2d(detail[..., :height, :width].square(), FIT_BLOCK).flatten()
+        block_level = F.avg_pool2d(image[..., :height, :width], FIT_BLOCK).flatten()
         order = torch.argsort(block_level)
         levels, variances, sizes = [], [], []
         for chunk in torch.tensor_split(order, LEVEL_BINS):
@@ -127,7 +127,7 @@ def blind_poisson_gaussian(noisy: torch.Tensor) -> PoissonGaussian:
             variances.append(quantile)
             sizes.append(keep)
         level_array = np.array(levels)
-        variance_array = np.array(variances) * _lower_quantile_correction(BLOCK * BLOCK, SMOOTH_FRACTION / 2)
+        variance_array = np.array(variances) * _lower_quantile_correction(FIT_BLOCK * FIT_BLOCK, SMOOTH_FRACTION / 2)
         weights = np.sqrt(np.array(sizes, dtype=np.float64)) / np.maximum(variance_array, 1e-8)
         a, b = weighted_line(level_array, variance_array, weights)
         a_values.append(a)

@@ -29,7 +29,7 @@ import torch.nn.functional as F
 from torch import nn
 
 from darksynth.errors import DarksynthError
-from darksynth.evaluation.methods import NoiseMethod, build_methods
+from darksynth.evaluation.methods.catalogue import NoiseMethod, build_methods
 from darksynth.evaluation.pairs import LoadedPair, Pair, list_pair_sets, load_pair
 from darksynth.seeding import derive_seed, seeded_generator
 from darksynth.training.scaffold import Report, StepPlan, run_steps

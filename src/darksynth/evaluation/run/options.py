@@ -8,8 +8,8 @@ from pathlib import Path
 from typing import Final
 
 from darksynth.errors import DarksynthError
-from darksynth.evaluation.downstream import DownstreamSettings
-from darksynth.evaluation.methods import DEFAULT_METHODS
+from darksynth.evaluation.measures.downstream import DownstreamSettings
+from darksynth.evaluation.methods.catalogue import DEFAULT_METHODS
 
 _DOWNSTREAM_DEFAULTS: Final = DownstreamSettings()
 
@@ -19,7 +19,7 @@ class EvaluationOptions:
     """What to evaluate and how; the defaults are those of ``darksynth evaluate``.
 
     Attributes:
-        methods: the methods to compare, by name (see :mod:`darksynth.evaluation.methods`).
+        methods: the methods to compare, by name (see :mod:`darksynth.evaluation.methods.catalogue`).
         seed: seed of the synthetic noise (each pair and method draws from a seed derived from it).
         device: torch device of the methods and of the Inception network.
         weights: weights files by DEN method name, instead of the shipped ones.

@@ -1,11 +1,11 @@
 """The results document of ``darksynth evaluate`` (results.json), parsed once into frozen dataclasses.
 
-The runner (:mod:`darksynth.evaluation.runner`) writes the document and the downstream run
-(:mod:`darksynth.evaluation.downstream`) adds its part. Any part of it may be missing or odd: a set where a method
-failed, a metric that was not computed (``None``) or came out NaN, no downstream run, problems that are not plain
-strings, methods with or without an ``oracle`` flag. :func:`parse_results` never fails on such a document: a number
-that is not a number counts as not computed, a part that is not a mapping counts as empty, and a free-text field that
-is not a string is shown as its JSON.
+The runner (:mod:`darksynth.evaluation.run.runner`) writes the document and the downstream run
+(:mod:`darksynth.evaluation.measures.downstream`) adds its part. Any part of it may be missing or odd: a set where a
+method failed, a metric that was not computed (``None``) or came out NaN, no downstream run, problems that are not
+plain strings, methods with or without an ``oracle`` flag. :func:`parse_results` never fails on such a document: a
+number that is not a number counts as not computed, a part that is not a mapping counts as empty, and a free-text
+field that is not a string is shown as its JSON.
 """
 
 from __future__ import annotations
@@ -199,7 +199,7 @@ def _bands(value: object) -> dict[str, tuple[float | None, ...]]:
 
 @dataclass(frozen=True)
 class BandStatistics:
-    """Noise power in five spatial frequency bands, fine to coarse (see :mod:`darksynth.evaluation.structure`).
+    """Noise power in five spatial frequency bands, fine to coarse (see :mod:`darksynth.evaluation.measures.structure`).
 
     Each attribute maps ``"brightness"`` and ``"colour"`` to 5 values (None: not computed); a component missing from
     the document is missing here.
@@ -345,7 +345,7 @@ class DownstreamScores:
 
 @dataclass(frozen=True)
 class Downstream:
-    """The downstream denoising run (see :func:`darksynth.evaluation.downstream.run_downstream`).
+    """The downstream denoising run (see :func:`darksynth.evaluation.measures.downstream.run_downstream`).
 
     Attributes:
         sets: set name -> row name (a method, or a reference row such as the noisy input) -> scores.

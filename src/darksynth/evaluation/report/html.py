@@ -19,10 +19,10 @@ import numpy as np
 from PIL import Image as PILImage
 
 from darksynth.errors import DarksynthError
-from darksynth.evaluation.report import template_context, template_environment, typed_results
-from darksynth.evaluation.report_tables import SET_TITLES, Layout, Method, is_finite, ordered
-from darksynth.evaluation.results_model import EvaluationResults
-from darksynth.evaluation.structure import BAND_LABELS
+from darksynth.evaluation.measures.structure import BAND_LABELS
+from darksynth.evaluation.report.results_model import EvaluationResults
+from darksynth.evaluation.report.summary import template_context, template_environment, typed_results
+from darksynth.evaluation.report.tables import SET_TITLES, Layout, Method, is_finite, ordered
 from darksynth.io.atomic import write_text_atomic
 
 __all__ = ["ReportExample", "render_html", "write_html_report"]
@@ -134,7 +134,7 @@ class _HtmlPage:
 
     def __init__(self, results: EvaluationResults, examples: Sequence[ReportExample]) -> None:
         try:
-            from darksynth.evaluation import figures
+            from darksynth.evaluation.report import figures
         except ImportError as error:  # matplotlib is in the "eval" extra
             raise DarksynthError(
                 f"the HTML report needs matplotlib ({error}); install it with: pip install 'darksynth[eval]'"
@@ -274,7 +274,7 @@ def write_html_report(results: Mapping[str, Any], examples: Sequence[ReportExamp
     Everything is inline: it opens offline and its Content-Security-Policy forbids fetching anything.
 
     Args:
-        results: The runner's document (see :func:`darksynth.evaluation.report.write_markdown`).
+        results: The runner's document (see :func:`darksynth.evaluation.report.summary.write_markdown`).
         examples: The pairs to show, each placed under its set.
         path: The ``.html`` file to write; parent folders are created.
 

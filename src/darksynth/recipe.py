@@ -1,0 +1,142 @@
+"""A clip's parameters, chosen in one place: the recipe that ``apply``, ``convert``, ``synthesize`` and the
+training transforms all follow.
+
+A :class:`ClipRecipe` is what the user asked for: the profile, how the darkening is chosen, whether the profile's
+ranges are drawn per clip (``--jitter``), whether its blur and flicker stay on, whether the reference's colour cast
+is matched. :meth:`ClipRecipe.choose` turns it, a generator and the clip's first frame into the clip's
+:class:`ClipParameters`, in one fixed order of draws, so that a seed gives the same parameters from the library,
+the command line and a transform.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+from dataclasses import dataclass
+from typing import Any, Literal
+
+import torch
+
+from darksynth.light.darkening import ALPHA_RANGE, GAMMA_RANGE, Darkening
+from darksynth.light.exposure import ColourScale, matched_colour, matched_darkening
+from darksynth.noise.components import noise_parameters
+from darksynth.noise.sampling import random_uniform
+from darksynth.noise.structure_translation import spectral_tensors
+from darksynth.noise.values import NoiseValues
+from darksynth.profile import Profile, without_light
+
+DarkeningChoice = Darkening | Literal["profile"] | None
+"""``"profile"``: the profile's darkening, else alpha/gamma drawn from its ranges, else from the paper's
+ranges. A :class:`Darkening`: exactly that. None: no darkening (the input already has the target brightness)."""
+
+
+@dataclass(frozen=True)
+class ClipParameters:
+    """The parameters chosen for one clip (or one image): noise values, the darkening, if any, and the channel
+    factors that give it the reference's colour cast (:func:`darksynth.light.exposure.matched_colour`)."""
+
+    noise: NoiseValues
+    darkening: Darkening | None
+    colour_scale: ColourScale | None = None
+
+    def to_json(self) -> dict[str, Any]:
+        """JSON-ready record for manifests: the noise and light values as a profile writes them, the darkening and
+        (when matched) the colour scale."""
+        darkening = None if self.darkening is None else {"alpha": self.darkening.alpha, "gamma": self.darkening.gamma}
+        record = {"noise": self.noise.to_json("noise"), "light": self.noise.to_json("light"), "darkening": darkening}
+        return record if self.colour_scale is None else record | {"colour_scale": list(self.colour_scale)}
+
+
+def draw_clip_parameters(
+    profile: Profile, *, darkening: DarkeningChoice = "profile", generator: torch.Generator | None = None
+) -> ClipParameters:
+    """Fix the parameters for one clip: values from the profile, drawn within its ranges where it has them.
+
+    Draws happen in the order of the parameter table, then alpha and gamma, so a seed fixes them all. The sRGB
+    structure of a version-2 or version-3 profile, once drawn, is given as the spectral model's values
+    (:func:`darksynth.noise.structure_translation.spectral_tensors`): what the clip draws and what its record says.
+    """
+    # Draws happen on the generator's device (a CUDA generator cannot fill a CPU tensor).
+    device = generator.device if generator is not None else None
+    drawn: dict[str, torch.Tensor] = {}
+    for parameter in noise_parameters():
+        if parameter.name in profile.ranges:
+            drawn[parameter.name] = random_uniform(
+                profile.ranges[parameter.name], generator=generator, device=device, dtype=torch.float64
+            ).cpu()
+    noise = profile.noise.replace(**drawn) if drawn else profile.noise
+    noise = NoiseValues(spectral_tensors(noise))
+    chosen: Darkening | None
+    if darkening is None or isinstance(darkening, Darkening):
+        chosen = darkening
+    else:
+        # Fixed values stay exact; only what has a range (or no value at all) is drawn, alpha before gamma.
+        fixed = profile.darkening
+        values = {}
+        for name, paper_range in (("alpha", ALPHA_RANGE), ("gamma", GAMMA_RANGE)):
+            if name in profile.ranges or fixed is None:
+                interval = profile.ranges[name][0] if name in profile.ranges else paper_range
+                drawn_value = random_uniform((interval,), generator=generator, device=device, dtype=torch.float64)
+                values[name] = float(drawn_value[0])
+            else:
+                values[name] = getattr(fixed, name)
+        chosen = Darkening(alpha=values["alpha"], gamma=values["gamma"])
+    return ClipParameters(noise=noise, darkening=chosen)
+
+
+def fixed_darkening(profile: Profile) -> Darkening:
+    """The darkening when nothing is drawn: the profile's, else the centre of its alpha/gamma ranges or the paper's."""
+    if profile.darkening is not None:
+        return profile.darkening
+    centres = {}
+    for name, paper in (("alpha", ALPHA_RANGE), ("gamma", GAMMA_RANGE)):
+        low, high = profile.ranges[name][0] if name in profile.ranges else paper
+        centres[name] = (low + high) / 2
+    return Darkening(alpha=centres["alpha"], gamma=centres["gamma"])
+
+
+@dataclass(frozen=True)
+class ClipRecipe:
+    """How every clip's parameters are chosen.
+
+    Attributes:
+        profile: the noise profile (its tones, when it has the reference's, match each input's darkening).
+        darkening: see :data:`DarkeningChoice`.
+        jitter: draw each clip's values within the profile's ranges; otherwise every clip gets the profile's values
+            and a fixed darkening (:func:`fixed_darkening`), and its seed drives only the noise itself.
+        blur, flicker: False switches off the profile's motion blur and camera shake, or its flicker.
+        match_colour: also give each input the reference's colour cast (needs the profile's ``tone.colour`` and a
+            darkening).
+    """
+
+    profile: Profile
+    darkening: DarkeningChoice = "profile"
+    jitter: bool = True
+    blur: bool = True
+    flicker: bool = True
+    match_colour: bool = False
+
+    def drawn_from(self) -> tuple[Profile, DarkeningChoice]:
+        """The profile and darkening choice the draws start from, before an input is seen."""
+        profile = without_light(self.profile, blur=not self.blur, flicker=not self.flicker)
+        if self.jitter:
+            return profile, self.darkening
+        darkening = fixed_darkening(profile) if self.darkening == "profile" else self.darkening
+        return dataclasses.replace(profile, ranges={}), darkening
+
+    def choose(
+        self, generator: torch.Generator | None, first_frame: torch.Tensor | None = None, *, source: str = "input"
+    ) -> ClipParameters:
+        """One clip's parameters: the draws from :meth:`drawn_from`, with the darkening matched to the reference's
+        tones on ``first_frame`` (C, H, W; uint8, uint16 or float) when the profile carries them
+        (:func:`darksynth.light.exposure.matched_darkening`), and with ``match_colour`` the colour cast too.
+        ``source`` names the input in the log when no match can be made."""
+        profile, darkening = self.drawn_from()
+        if first_frame is not None and self.darkening == "profile":
+            tone, noise = self.profile.tone, self.profile.noise
+            darkening = matched_darkening(first_frame, tone, noise=noise, source=source) or darkening
+        parameters = draw_clip_parameters(profile, darkening=darkening, generator=generator)
+        if self.match_colour and first_frame is not None and parameters.darkening is not None:
+            colour = matched_colour(first_frame, self.profile.tone, parameters.darkening)
+            if colour is not None:
+                parameters = dataclasses.replace(parameters, colour_scale=colour[0], darkening=colour[1])
+        return parameters
