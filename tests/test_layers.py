@@ -94,12 +94,14 @@ ESTIMATION_STAGES: dict[str, int] = {
     "spectrum": 4,
     "network": 1,
     "darkening": 1,
+    "noise_estimate": 5,
+    "light": 3,
     "flicker": 0,
     "cross_spectra": 0,
     "shutter_confidence": 0,
     "shutter_fit": 1,
     "motion": 2,
-    "assemble": 5,
+    "assemble": 6,
 }
 """The layer of every module of the ``estimation`` package among its siblings."""
 

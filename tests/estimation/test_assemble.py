@@ -209,7 +209,7 @@ def test_a_clean_reference_stays_nearly_noise_free_after_the_measured_spectrum(
 def test_the_measured_spectrum_drops_the_ranges_of_what_it_replaces(tiny_model: Callable[..., DEN]) -> None:
     # apply --jitter draws ranged parameters: a range left on the network's shot or compression would add the
     # network's noise back on top of the measured spectrum.
-    from darksynth.estimation.assemble import SPECTRUM_REPLACES
+    from darksynth.estimation.noise_estimate import SPECTRUM_REPLACES
 
     network = _rigged(tiny_model(), torch.full((vector_size(),), 0.3))
     profile = estimate(_reference(1, 128, 128), network).profile
@@ -377,7 +377,7 @@ def test_a_clean_daylight_photo_warns_that_its_texture_is_read_as_noise() -> Non
 
 
 def test_only_the_srgb_model_is_refined_and_only_when_asked() -> None:
-    from darksynth.estimation.assemble import refines
+    from darksynth.estimation.noise_estimate import refines
 
     assert refines("srgb") and refines("srgb", True)
     assert not refines("srgb", False) and not refines("paper") and not refines("paper", True)

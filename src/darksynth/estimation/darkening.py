@@ -12,7 +12,7 @@ import numpy as np
 import torch
 
 from darksynth.errors import DarksynthError
-from darksynth.estimation.reference import spread_frames
+from darksynth.estimation.reference import Reference, spread_frames
 from darksynth.light.darkening import ALPHA_RANGE, GAMMA_RANGE, Darkening
 from darksynth.light.tone_blocks import NOISE_BLOCKS, BlockStatistics, block_side, block_statistics
 from darksynth.light.tone_fit import (
@@ -194,8 +194,7 @@ def _darkening_origin(name: str, value: float, found: DarkeningEstimate) -> dict
 
 
 def estimate_profile_darkening(
-    reference: torch.Tensor,
-    source: str,
+    reference: Reference,
     ranges: dict[str, tuple[tuple[float, float], ...]],
     meta: dict[str, Any],
     warnings: list[str],
@@ -208,7 +207,8 @@ def estimate_profile_darkening(
     """
     # The tone distribution is read on a few frames spread over the clip: more frames of one scene add time,
     # not information (all 16 frames of a 1080p clip took 6 s more).
-    frames = reference[spread_frames(reference.shape[0], DARKENING_FRAMES)]
+    source = reference.name
+    frames = reference.frames[spread_frames(reference.frames.shape[0], DARKENING_FRAMES)]
     # Each frame's blocks sorted once (a photo's regions below are read from the same sort), on a sample of a large
     # frame's blocks: a 12 MP photo's 750 k a channel fix its tone quantiles no better than a quarter of them.
     sampled = sampled_blocks(frames, most=DARKENING_BLOCKS)
@@ -225,7 +225,7 @@ def estimate_profile_darkening(
         }
         return None, None
     # A single image has no frames to spread over: its four regions say how much the estimate depends on content.
-    regions = estimate_darkening_spread(sampled[:1], statistics=statistics) if reference.shape[0] == 1 else []
+    regions = estimate_darkening_spread(sampled[:1], statistics=statistics) if reference.frames.shape[0] == 1 else []
     meta["darkening"] = _darkening_meta(found, regions)
     notes = _darkening_notes(found, source)
     if notes:

@@ -1,14 +1,17 @@
-"""Reading a reference and the measurements of its frames that every stage shares.
+"""Reading a reference, once, into the record every measurement reads.
 
 A reference is an image, a video (its first frames) or, with ``clip``, a folder of frames, read as frames
-(T, 3, H, W) in [0, 1] (:func:`load_reference`). Here too: which frames to measure (:func:`spread_frames`),
-frames without noise to measure (:func:`uniform_frames`), scene cuts (:func:`scene_cuts`), and the grid of
+(T, 3, H, W) in [0, 1] (:func:`load_reference`). :func:`describe_reference` adds what is known of them before any
+measurement and what every stage needs alike (a :class:`Reference`): the frames to measure
+(:func:`spread_frames`), the frames without noise to measure (:func:`uniform_frames`), the scene cuts
+(:func:`scene_cuts`); :func:`reference_warnings` says what those mean for the estimate. Here too: the grid of
 crops the network reads (:func:`crop_grid`).
 """
 
 from __future__ import annotations
 
 import math
+from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
@@ -16,7 +19,7 @@ import torch
 import torch.nn.functional as F
 
 from darksynth.errors import DarksynthError
-from darksynth.io.arrays import hwc_to_chw
+from darksynth.io.arrays import rgb_chw, unit_float_frames
 from darksynth.io.discover import classify_input, scan_folder
 from darksynth.io.images import read_image
 from darksynth.io.video import iter_video_frames
@@ -38,24 +41,17 @@ FLAT_STD = 0.5 / 255
 """Below this std over all pixels of a frame (half an 8-bit level), a frame is uniform (black, saturated or flat):
 it holds no noise to measure."""
 
+MEASURED_FRAMES = 4
+"""Frames (evenly spread) on which the column presence and the profile's noise level are measured: the whole
+1080p clip took 1.5 s more."""
+
+BRIGHT_MEAN = 0.35
+"""A reference whose mean level is above this is not low-light; its estimate is less reliable."""
+
 
 def spread_frames(total: int, count: int) -> list[int]:
     """Indices of up to ``count`` frames evenly spread over ``total`` (first and last included)."""
     return np.unique(np.linspace(0, total - 1, count).round().astype(int)).tolist()  # type: ignore[no-any-return]
-
-
-def _as_rgb(pixels: np.ndarray) -> torch.Tensor:
-    tensor = hwc_to_chw(pixels)
-    return tensor.expand(3, -1, -1) if tensor.shape[0] == 1 else tensor
-
-
-def _to_unit_float(frames: list[torch.Tensor]) -> torch.Tensor:
-    # Stack the integer frames first and convert once: one pass over the clip instead of one per frame.
-    stacked = torch.stack(frames)
-    scale = 65535.0 if stacked.dtype == torch.uint16 else 255.0
-    if stacked.dtype == torch.uint16:
-        stacked = stacked.to(torch.int32)
-    return stacked.to(torch.float32).div_(scale)
 
 
 def load_reference(path: Path, *, clip: bool = False, max_frames: int = MAX_FRAMES) -> torch.Tensor:
@@ -70,10 +66,10 @@ def load_reference(path: Path, *, clip: bool = False, max_frames: int = MAX_FRAM
     kind = classify_input(path)
     frames: list[torch.Tensor] = []
     if kind == "image":
-        frames = [_as_rgb(read_image(path).pixels)]
+        frames = [rgb_chw(read_image(path).pixels)]
     elif kind == "video":
         for frame in iter_video_frames(path):
-            frames.append(_as_rgb(frame))
+            frames.append(rgb_chw(frame))
             if len(frames) == max_frames:
                 break
         if not frames:
@@ -82,13 +78,13 @@ def load_reference(path: Path, *, clip: bool = False, max_frames: int = MAX_FRAM
         if not clip:
             raise DarksynthError(f"{path}: a folder is a reference only as a clip of frames; add --clip")
         for name in scan_folder(path).images[:max_frames]:
-            image = _as_rgb(read_image(path / name).pixels)
+            image = rgb_chw(read_image(path / name).pixels)
             if frames and image.shape != frames[0].shape:
                 raise DarksynthError(
                     f"{path / name}: frame size {tuple(image.shape[1:])} differs from {tuple(frames[0].shape[1:])}"
                 )
             frames.append(image)
-    reference = _to_unit_float(frames)
+    reference = unit_float_frames(frames)
     if min(reference.shape[-2:]) < MIN_SIDE:
         raise DarksynthError(
             f"{path}: {reference.shape[-1]}x{reference.shape[-2]} is smaller than the estimator's minimum "
@@ -142,3 +138,66 @@ def scene_cuts(reference: torch.Tensor) -> list[int]:
     blocks = F.avg_pool2d(reference, 16)
     change = (blocks[1:] - blocks[:-1]).abs().mean(dim=(1, 2, 3))
     return [int(i) + 1 for i in torch.nonzero(change > SCENE_CUT_CHANGE).flatten()]
+
+
+@dataclass(frozen=True)
+class Reference:
+    """A reference's frames as every measurement reads them, with what is known of them before any measurement.
+
+    Attributes:
+        frames: (T, 3, H, W) in [0, 1].
+        name: how warnings name it (its path, or ``"reference"``).
+        measured: up to :data:`MEASURED_FRAMES` frames spread over the clip, where the column presence and the
+            profile's noise level are measured.
+        uniform: frames without noise to measure (:func:`uniform_frames`).
+        cuts: frames that start a new scene (:func:`scene_cuts`).
+    """
+
+    frames: torch.Tensor
+    name: str
+    measured: list[int]
+    uniform: list[int]
+    cuts: list[int]
+
+    @property
+    def all_uniform(self) -> bool:
+        return len(self.uniform) == self.frames.shape[0]
+
+
+def describe_reference(frames: torch.Tensor, source: str = "") -> Reference:
+    """The record of reference frames (T, 3, H, W) in [0, 1] that the measurements share."""
+    return Reference(
+        frames=frames,
+        name=source or "reference",
+        measured=spread_frames(frames.shape[0], MEASURED_FRAMES),
+        uniform=uniform_frames(frames),
+        cuts=scene_cuts(frames),
+    )
+
+
+def reference_warnings(reference: Reference, *, spectrum_frames: int) -> list[str]:
+    """What the reference itself makes doubtful before any measurement: uniform frames, scene cuts (the spectrum
+    reads the first ``spectrum_frames`` frames), a mean level too bright for a low-light reference."""
+    warnings = []
+    name, frames = reference.name, reference.frames
+    if reference.uniform:
+        which = "the reference is" if reference.all_uniform else f"frames {reference.uniform} are"
+        warnings.append(
+            f"{name}: {which} uniform (black, saturated or flat: std under {FLAT_STD * 255:.1f} 8-bit level): there "
+            "is no noise to measure there, and what the profile holds from them is the network's output on a flat "
+            "image, not a measurement"
+        )
+    if reference.cuts:
+        warnings.append(
+            f"{name}: scene cut before frame(s) {reference.cuts}: the estimate mixes more than one scene (the "
+            f"spectrum reads the first {spectrum_frames} frames, the darkening several spread over the clip); give "
+            "one shot"
+        )
+    level = float(frames.mean())
+    if level > BRIGHT_MEAN:
+        warnings.append(
+            f"{name}: mean level {level:.2f} is bright for a low-light reference; "
+            "the estimate may be unreliable (on a clean daylight photo the profile holds what it reads of the "
+            "photo's grain, JPEG residue and fine texture as noise, often several 8-bit levels)"
+        )
+    return warnings

@@ -29,6 +29,22 @@ def hwc_to_chw(array: np.ndarray) -> torch.Tensor:
     return numpy_to_tensor(array).permute(2, 0, 1)
 
 
+def rgb_chw(array: np.ndarray) -> torch.Tensor:
+    """An (H, W, 1 or 3) image array as a (3, H, W) tensor: a grey image's one channel stands for all three."""
+    tensor = hwc_to_chw(array)
+    return tensor.expand(3, -1, -1) if tensor.shape[0] == 1 else tensor
+
+
+def unit_float_frames(frames: list[torch.Tensor]) -> torch.Tensor:
+    """Integer frames (C, H, W), uint8 or uint16, stacked as float32 (T, C, H, W) on the [0, 1] scale."""
+    # Stack the integer frames first and convert once: one pass over the clip instead of one per frame.
+    stacked = torch.stack(frames)
+    scale = 65535.0 if stacked.dtype == torch.uint16 else 255.0
+    if stacked.dtype == torch.uint16:
+        stacked = stacked.to(torch.int32)
+    return stacked.to(torch.float32).div_(scale)
+
+
 def chw_to_hwc(frame: torch.Tensor) -> np.ndarray:
     """A (C, H, W) frame tensor as a contiguous (H, W, C) array."""
     return tensor_to_numpy(frame.permute(1, 2, 0))

@@ -99,7 +99,8 @@ def synthesize_image(clean: torch.Tensor, values: NoiseValues, generator: torch.
 
 
 def _den_method(name: str, weights: Path, device: str, *, refine: bool = True) -> NoiseMethod:
-    from darksynth.estimation.assemble import estimate, refines
+    from darksynth.estimation.assemble import estimate
+    from darksynth.estimation.noise_estimate import refines
 
     model = load_den_weights(name, weights, device)
     refined = refines(model.noise_model, refine)

@@ -1,0 +1,152 @@
+"""The noise of a profile, read off a reference: the network's values, the column components decided on the
+reference itself, and the noise's spectrum measured on it.
+
+The network's estimate of every crop is a full v; the profile holds their median (robust to crops where content,
+clipping or a light source misleads the network) and, as ``ranges``, the 10th to 90th percentile across crops, so
+that ``apply`` can reproduce the spread the reference shows. Two things are measured on the reference rather than
+taken from the network: whether it shows column patterns at all
+(:func:`darksynth.estimation.columns.column_presence`; without them the column components are set absent, since the
+network never predicts exactly zero), and, for the network of the sRGB vocabulary, the spectral model's level curve,
+octaves and compression (:func:`darksynth.estimation.spectrum.estimate_spectrum`), which replace the network's
+heteroscedastic values. Last, how much noise the profile adds on the reference (the "nearly noise-free" warning).
+"""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+from dataclasses import dataclass
+from typing import Any
+
+import torch
+
+from darksynth.estimation.columns import decide_columns
+from darksynth.estimation.network import run_network
+from darksynth.estimation.reference import Reference
+from darksynth.estimation.spectrum import estimate_spectrum
+from darksynth.models.den import DEN
+from darksynth.noise.components import NoiseModel, noise_component, noise_parameter
+from darksynth.noise.level import channel_noise_std, mean_noise_variance
+from darksynth.noise.spectral import LEVEL_KNOTS
+from darksynth.noise.values import NoiseValues
+from darksynth.profile import Range
+
+NOISE_FREE_STD = 0.5 / 255
+"""Below this noise std (half an 8-bit level) on the reference, a profile is nearly noise-free: a pixel on an
+8-bit level rounds back to it in 68% of the draws (|n| < 0.5 level, one std)."""
+
+REFINE_MIN_SIDE = 64
+"""Smallest side the spectrum is measured on: below it the flat blocks of each level are too few, and the
+network's values stay."""
+
+SPECTRUM_REPLACES = ("shot", "read", "channel_gain", "correlation_length", "channel_correlation", "chroma_length")
+"""The network's sRGB values the measured spectrum replaces: its level curve and octaves hold the level and the
+structure (and its ``compression`` the JPEG stage); the column components stay the network's."""
+
+
+@dataclass
+class NoiseEstimate:
+    """The noise values a profile takes, their ranges, and the network's values per crop (N,)."""
+
+    noise: NoiseValues
+    ranges: dict[str, tuple[Range, ...]]
+    per_crop: NoiseValues
+
+
+def refines(noise_model: NoiseModel, refine: bool = True) -> bool:
+    """Whether ``estimate`` (asked to ``refine``) measures the spectrum after a network of this noise model: the
+    sRGB vocabulary's only; the paper model stays the paper's."""
+    return refine and noise_model == "srgb"
+
+
+def estimate_noise(
+    reference: Reference,
+    network: DEN,
+    meta: dict[str, Any],
+    warnings: list[str],
+    *,
+    batch: int = 16,
+    device: torch.device | str = "cpu",
+    refine: bool = True,
+) -> NoiseEstimate:
+    """The network on the reference's crop grid, the columns decided, and with ``refine`` the spectrum measured;
+    what was read goes into ``meta``, what could not be into ``warnings``."""
+    frames = reference.frames
+    found = run_network(frames, network, batch=batch, device=device)
+    noise, ranges = found.noise, dict(found.ranges)
+    meta.update(
+        estimator=f"DEN {network.config.variant} width {network.config.width} depth {network.config.depth}",
+        noise_model=network.noise_model,
+        crops=found.per_crop.batch_shape[0],
+        frames=int(frames.shape[0]),
+        aggregate="median over crops; ranges are the 10th-90th percentiles",
+    )
+    noise = decide_columns(frames, reference.measured, noise, ranges, meta)
+    if refines(network.noise_model, refine) and not reference.all_uniform:
+        noise = _measure_spectrum(frames, noise, ranges, meta, warnings, reference.name)
+    noise_std = profile_noise_std(noise, frames, reference.measured)
+    meta["noise_std_8bit"] = round(noise_std * 255, 3)
+    if noise_std < NOISE_FREE_STD:
+        warnings.append(
+            f"{reference.name}: nearly noise-free; the profile adds noise of std {noise_std * 255:.2f} "
+            f"8-bit levels on it (below {NOISE_FREE_STD * 255:.1f})"
+        )
+    if frames.shape[0] == 1:
+        meta["note"] = (
+            "single image: temporal banding cannot be told from banding; their split is the network's prior "
+            "(what it learned from the training table's ranges), not a measurement"
+        )
+    return NoiseEstimate(noise=noise, ranges=ranges, per_crop=found.per_crop)
+
+
+def _measure_spectrum(
+    reference: torch.Tensor,
+    noise: NoiseValues,
+    ranges: dict[str, tuple[Range, ...]],
+    meta: dict[str, Any],
+    warnings: list[str],
+    source: str,
+) -> NoiseValues:
+    """The network's values with the heteroscedastic part and compression replaced by the measured spectrum; the
+    replaced parameters lose their ranges (``apply --jitter`` would otherwise add the network's noise back)."""
+    if min(reference.shape[-2:]) < REFINE_MIN_SIDE:
+        warnings.append(
+            f"{source}: {reference.shape[-1]}x{reference.shape[-2]} is too small to measure the noise's spectrum on "
+            f"(needs {REFINE_MIN_SIDE} px a side); the profile keeps the network's values, which are weaker and "
+            "greyer than real noise (docs/spectral-noise.md)"
+        )
+        meta["spectrum"] = {"method": "not measured: reference too small"}
+        return noise
+    found = estimate_spectrum(reference, name=source, prior_curve=network_level_curve(noise))
+    neutral = {name: noise_parameter(name).neutral for name in SPECTRUM_REPLACES}
+    measured = noise.replace(**neutral, **{name: value for name, value in found.values.items()})
+    replaced = (*SPECTRUM_REPLACES, "compression")
+    for name in replaced:
+        ranges.pop(name, None)
+    warnings.extend(found.warnings)
+    meta["spectrum"] = found.meta | {
+        "network_values": {name: [round(float(v), 5) for v in noise[name].tolist()] for name in replaced}
+    }
+    return measured
+
+
+def network_level_curve(noise: NoiseValues) -> torch.Tensor:
+    """(3, 8) noise std per channel at the spectral model's level knots that the network's heteroscedastic values
+    give (``g_c^2 (shot^2 x + read^2)``): the shape the measured level curve follows where the reference shows no
+    unclipped flat block. Only the heteroscedastic component's parameters are passed on, so the column components
+    the profile keeps beside the curve are not counted in it."""
+    parameters = {p.name: noise[p.name] for p in noise_component("heteroscedastic").parameters}
+    return channel_noise_std(parameters, torch.tensor(LEVEL_KNOTS, dtype=torch.float64)).T.contiguous()
+
+
+def profile_noise_std(noise: NoiseValues, reference: torch.Tensor, frames: Sequence[int] | None = None) -> float:
+    """The std of the noise a profile's values add on a reference (T, C, H, W) (on the given ``frames``, default
+    all), before clipping and rounding.
+
+    The variance depends on the reference only through its channel means, which are passed on as a 1 x 1
+    frame: the whole reference in float64 would be a copy of 800 MB for 16 frames of 1080p.
+    """
+    chosen = range(reference.shape[0]) if frames is None else frames
+    channel_means = torch.stack([reference[i].mean(dim=(1, 2)) for i in chosen]).mean(0)
+    channel_means = channel_means.to(torch.float64).reshape(1, -1, 1, 1)
+    batched = noise.map(lambda t: t[None].to(torch.float64))
+    return float(mean_noise_variance(batched, channel_means).clamp_min(0).sqrt())
