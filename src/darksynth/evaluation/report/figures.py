@@ -245,6 +245,25 @@ def _panel_grid(count: int, panel: tuple[float, float]) -> tuple[Figure, list[Ax
     return figure, axes[:count]
 
 
+def _method_panels(noise: Mapping[str, np.ndarray], methods: Sequence[str]) -> tuple[Figure, list[tuple[Axes, str]]]:
+    """Small multiples, one panel per method of ``methods`` that has a noise map (the real noise's panel alone when
+    none has one), and the figure that holds them."""
+    shown = [m for m in methods if m in noise] or ["real"]
+    figure, axes = _panel_grid(len(shown), (3.3, 2.35))
+    return figure, list(zip(axes, shown, strict=True))
+
+
+def _method_title(ax: Axes, name: str, colours: Mapping[str, str], labels: Mapping[str, str]) -> str | None:
+    """Title a panel with its method's label in the method's colour, and return that colour; None for the real
+    noise's panel, titled in the default colour."""
+    if name == "real":
+        ax.set_title("real", fontsize=10)
+        return None
+    colour = colours.get(name, "#555555")
+    ax.set_title(labels.get(name, name), fontsize=10, color=colour)
+    return colour
+
+
 def histogram_png(
     noise: Mapping[str, np.ndarray], methods: Sequence[str], colours: Mapping[str, str], labels: Mapping[str, str]
 ) -> bytes:
@@ -261,32 +280,30 @@ def histogram_png(
     Returns:
         PNG bytes.
     """
-    shown = [m for m in methods if m in noise] or ["real"]
-    figure, axes = _panel_grid(len(shown), (3.3, 2.35))
+    figure, panels = _method_panels(noise, methods)
     real = noise.get("real")
     real_hist = noise_histogram(real) if real is not None else None
     real_label = f"real σ={_std_levels(real):.2f}" if real is not None else ""
     floor = _hist_floor(real) if real is not None else 1.0
-    for ax, name in zip(axes, shown, strict=True):
+    for ax, name in panels:
         if real_hist is not None:
             edges, fractions = real_hist
             ax.stairs(fractions, edges, fill=True, color="#c4c4c4", label=real_label)
-        if name != "real":
+        colour = _method_title(ax, name, colours, labels)
+        if colour is not None:
             edges, fractions = noise_histogram(noise[name])
             floor = min(floor, _hist_floor(noise[name]))
-            colour = colours.get(name, "#555555")
             ax.stairs(fractions, edges, color=colour, linewidth=1.5, label=f"σ={_std_levels(noise[name]):.2f}")
-            ax.set_title(labels.get(name, name), fontsize=10, color=colour)
-        else:
-            ax.set_title("real", fontsize=10)
         ax.set_yscale("log")
         ax.legend(fontsize=7.5, loc="upper right", frameon=False, handlelength=1.2)
         ax.tick_params(labelsize=8)
         ax.grid(alpha=0.25, linewidth=0.6)
+    # The panels share their axes: setting the first's limits sets all.
+    first, _ = panels[0]
     half = (HISTOGRAM_LEVELS + 0.5) / 255.0
-    axes[0].set_xlim(-half, half)
-    axes[0].set_xticks([-0.1, -0.05, 0.0, 0.05, 0.1], ["−0.1", "−0.05", "0", "0.05", "0.1"])
-    axes[0].set_ylim(bottom=floor)
+    first.set_xlim(-half, half)
+    first.set_xticks([-0.1, -0.05, 0.0, 0.05, 0.1], ["−0.1", "−0.05", "0", "0.05", "0.1"])
+    first.set_ylim(bottom=floor)
     figure.supxlabel("noise, noisy − clean ([0, 1] scale; ±0.1 ≈ ±25 levels of 8 bits)", fontsize=9)
     figure.supylabel("fraction of values (log)", fontsize=9)
     return _png(figure)
@@ -302,29 +319,17 @@ def spectrum_png(
 ) -> bytes:
     """Small multiples of radially averaged noise power spectra (luminance), log-log: real (black) vs each method.
 
-    Args:
-        noise: ``"real"`` and method names -> noise maps on the [0, 1] scale.
-        methods: The methods to draw, in order (those without a map are skipped).
-        colours: method name -> colour.
-        labels: method name -> legend label.
-
-    Returns:
-        PNG bytes.
+    Takes the arguments of :func:`histogram_png` and returns PNG bytes.
     """
-    shown = [m for m in methods if m in noise] or ["real"]
-    figure, axes = _panel_grid(len(shown), (3.3, 2.35))
+    figure, panels = _method_panels(noise, methods)
     real = _spectrum_or_none(noise.get("real"))
-    for ax, name in zip(axes, shown, strict=True):
+    for ax, name in panels:
         if real is not None:
             ax.loglog(*real, color=REAL_COLOUR, linewidth=1.6, label="real")
-        if name != "real":
-            colour = colours.get(name, "#555555")
-            spectrum = _spectrum_or_none(noise[name])
-            if spectrum is not None:
-                ax.loglog(*spectrum, color=colour, linewidth=1.5, label=labels.get(name, name))
-            ax.set_title(labels.get(name, name), fontsize=10, color=colour)
-        else:
-            ax.set_title("real", fontsize=10)
+        colour = _method_title(ax, name, colours, labels)
+        spectrum = _spectrum_or_none(noise[name]) if colour is not None else None
+        if spectrum is not None:
+            ax.loglog(*spectrum, color=colour, linewidth=1.5, label=labels.get(name, name))
         if ax.lines:
             ax.legend(fontsize=7.5, loc="lower left", frameon=False, handlelength=1.2)
         ax.tick_params(labelsize=8)
