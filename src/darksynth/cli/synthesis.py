@@ -43,11 +43,11 @@ from darksynth.preview import PANEL_SIZE
 from darksynth.profile import load_profile
 
 
-def synthesis_options(arguments: Mapping[str, Any], **values: object) -> ApplyOptions:
-    """``apply``'s options from the arguments of a command that synthesises (``apply``, ``preview``) named like
-    their fields (:func:`~darksynth.cli.common.options_from`), with ``values`` for the fields read otherwise: the
-    profile read from ``--profile`` (its path kept for the manifest), a random seed (recorded) when ``--seed`` is
-    omitted, the darkening from ``--alpha``, ``--gamma`` and ``--no-darken``."""
+def _apply_options(arguments: Mapping[str, Any], **values: object) -> ApplyOptions:
+    """``apply``'s options from the arguments of ``apply`` or ``preview``: each field named like an argument takes
+    it (:func:`~darksynth.cli.common.options_from`); the profile is read from ``--profile`` (its path kept for the
+    manifest), the seed drawn (and recorded) when ``--seed`` is omitted, the darkening checked from ``--alpha``,
+    ``--gamma`` and ``--no-darken``; ``values`` give the fields the command reads otherwise."""
     profile, seed = arguments["profile"], arguments["seed"]
     return options_from(
         ApplyOptions,
@@ -107,7 +107,7 @@ def apply_command(
     quiet: QuietOption = False,
 ) -> None:
     try:
-        options = synthesis_options(
+        options = _apply_options(
             locals(), encoding=VideoEncoding(codec=codec, crf=crf, pix_fmt=pix_fmt), compile=compile_kernel
         )
         report = run_with_progress(input_path, output_path, options, quiet=quiet)
@@ -240,7 +240,7 @@ def preview_command(
     try:
         options = PreviewOptions(
             # --overwrite here replaces OUT, the preview's own file, not outputs of apply's.
-            synthesis=synthesis_options(locals(), overwrite=False),
+            synthesis=_apply_options(locals(), overwrite=False),
             panel_size=parse_panel_size(crop),
             overwrite=overwrite,
             profile_path=profile,
