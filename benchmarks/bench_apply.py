@@ -43,7 +43,7 @@ from darksynth.estimation.assemble import estimate
 from darksynth.estimation.reference import load_reference
 from darksynth.light.darkening import Darkening
 from darksynth.noise.components import noise_component
-from darksynth.noise.spectral import SpectralGrid, octave_covariances
+from darksynth.noise.spectral import SpectralGrid, octave_covariances, spectral_tables
 from darksynth.noise.structure_translation import spectral_tensors
 from darksynth.noise.values import NoiseValues
 from darksynth.profile import Profile
@@ -149,14 +149,9 @@ def main() -> None:
     shape = (3, HEIGHT, WIDTH)
     # The spectral path's own floor: the normals of its FFT grid, the inverse transform and the quantization
     # bytes, which it cannot draw with less work.
-    grid = SpectralGrid(
-        octave_covariances(default.noise["octave_power"], default.noise["octave_correlation"]),
-        default.noise["temporal_correlation"],
-        3,
-        HEIGHT,
-        WIDTH,
-        device=args.device,
-    )
+    covariances = octave_covariances(default.noise["octave_power"], default.noise["octave_correlation"])
+    tables = spectral_tables(covariances, default.noise["temporal_correlation"], 3, HEIGHT, WIDTH, device=args.device)
+    grid = SpectralGrid(tables, 3, HEIGHT, WIDTH)
     grid_white = torch.empty((3, grid.grid_height, grid.grid_width // 2 + 1, 2), device=args.device)
     quantization_bytes = torch.empty(shape, dtype=torch.uint8, device=args.device)
 

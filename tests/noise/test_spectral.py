@@ -122,8 +122,8 @@ def test_level_std_by_arithmetic_equals_the_curve_found_by_search(channels: int)
 def test_grids_of_one_spectrum_share_their_tables_and_the_cache_stays_small() -> None:
     covariances = octave_covariances(torch.ones(OCTAVES * 3), torch.zeros(OCTAVES * 3))
     temporal = torch.zeros(OCTAVES)
-    first = SpectralGrid(covariances, temporal, 3, 64, 80, device="cpu")
-    second = SpectralGrid(covariances.clone(), temporal.clone(), 3, 64, 80, device="cpu")
+    first = SpectralGrid(spectral_tables(covariances, temporal, 3, 64, 80, device="cpu"), 3, 64, 80)
+    second = SpectralGrid(spectral_tables(covariances.clone(), temporal.clone(), 3, 64, 80, device="cpu"), 3, 64, 80)
     assert first.tables is second.tables
     # Each grid has its own work arrays and state: two clips of one spectrum draw independently.
     generator = torch.Generator().manual_seed(0)

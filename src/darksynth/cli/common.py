@@ -1,12 +1,12 @@
 """What every command shares: the console and its one-line messages, the options' defaults read from the job's
-options, and the checks of choices and of the darkening flags."""
+options and their values given back to them, and the checks of choices and of the darkening flags."""
 
 from __future__ import annotations
 
 import dataclasses
 import logging
-from collections.abc import Sequence
-from typing import Annotated, Any, get_args
+from collections.abc import Mapping, Sequence
+from typing import TYPE_CHECKING, Annotated, Any, TypeVar, get_args
 
 import typer
 from rich.console import Console
@@ -15,6 +15,9 @@ from darksynth.errors import DarksynthError
 from darksynth.light.darkening import Darkening
 from darksynth.models.den import Variant
 from darksynth.recipe import DarkeningChoice
+
+if TYPE_CHECKING:
+    from _typeshed import DataclassInstance
 
 console = Console(stderr=True)
 
@@ -54,6 +57,17 @@ def default_of(options: type[Any], name: str) -> Any:
                 return option.default_factory()
             raise TypeError(f"{options.__name__}.{name} has no default")
     raise TypeError(f"{options.__name__} has no field {name!r}")
+
+
+OptionsT = TypeVar("OptionsT", bound="DataclassInstance")
+
+
+def options_from(options: type[OptionsT], arguments: Mapping[str, object], **values: object) -> OptionsT:
+    """A job's options dataclass from a command's arguments: each field takes the argument of its name (the
+    command's options are named after the fields whose defaults :func:`default_of` gives them), ``values`` the
+    fields that an option does not give as it is (a file to read, a choice to check)."""
+    named = {field.name: arguments[field.name] for field in dataclasses.fields(options) if field.name in arguments}
+    return options(**(named | values))
 
 
 def checked_choice(flag: str, value: str, choices: Sequence[str]) -> str:

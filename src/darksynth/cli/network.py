@@ -8,7 +8,7 @@ from typing import Annotated, cast
 
 import typer
 
-from darksynth.cli.common import QUIET_HELP, VARIANTS, checked_choice, console, default_of, fail, say
+from darksynth.cli.common import QUIET_HELP, VARIANTS, checked_choice, console, default_of, fail, options_from, say
 from darksynth.console_progress import progress_display
 from darksynth.errors import DarksynthError, error_reason
 from darksynth.estimation.assemble import EstimateOptions
@@ -80,7 +80,9 @@ def train_command(
 
     try:
         noise_model = cast(NoiseModel, checked_choice("--model", model, NETWORK_MODELS))
-        config = TrainConfig(
+        config = options_from(
+            TrainConfig,
+            locals(),
             den=DENConfig(
                 variant=cast(Variant, checked_choice("--variant", variant, VARIANTS)),
                 width=width,
@@ -88,18 +90,6 @@ def train_command(
                 noise_model=noise_model,
                 log_levels=LOG_LEVELS[noise_model],
             ),
-            steps=steps,
-            batch=batch,
-            frames=frames,
-            crop=crop,
-            learning_rate=learning_rate,
-            lambda_parameters=lambda_parameters,
-            lambda_reconstruction=lambda_reconstruction,
-            validate_every=validate_every,
-            bright_fraction=bright_fraction,
-            lambda_level=lambda_level,
-            seed=seed,
-            device=device,
         )
         ranks = ranks_from_environment(os.environ)  # torchrun's WORLD_SIZE, RANK, LOCAL_RANK; none: one process
         corpus = load_corpus(data, clips or [], minimum_side=crop)

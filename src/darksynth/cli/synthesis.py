@@ -4,8 +4,9 @@ whole annotated dataset), ``preview`` (one image, before converting) and ``demo`
 from __future__ import annotations
 
 import secrets
+from collections.abc import Mapping
 from pathlib import Path
-from typing import Annotated, cast
+from typing import Annotated, Any, cast
 
 import typer
 
@@ -17,6 +18,7 @@ from darksynth.cli.common import (
     darkening_choice,
     default_of,
     fail,
+    options_from,
     say,
 )
 from darksynth.cli.synthesis_options import (
@@ -39,6 +41,23 @@ from darksynth.errors import DarksynthError
 from darksynth.io.video_encoding import VideoEncoding
 from darksynth.preview import PANEL_SIZE
 from darksynth.profile import load_profile
+
+
+def _apply_options(arguments: Mapping[str, Any], **values: object) -> ApplyOptions:
+    """``apply``'s options from the arguments of ``apply`` or ``preview``: each field named like an argument takes
+    it (:func:`~darksynth.cli.common.options_from`); the profile is read from ``--profile`` (its path kept for the
+    manifest), the seed drawn (and recorded) when ``--seed`` is omitted, the darkening checked from ``--alpha``,
+    ``--gamma`` and ``--no-darken``; ``values`` give the fields the command reads otherwise."""
+    profile, seed = arguments["profile"], arguments["seed"]
+    return options_from(
+        ApplyOptions,
+        arguments,
+        profile=load_profile(profile),
+        seed=seed if seed is not None else secrets.randbits(31),
+        darkening=darkening_choice(arguments["alpha"], arguments["gamma"], arguments["no_darken"]),
+        profile_source=str(profile),
+        **values,
+    )
 
 
 def run_with_progress(
@@ -88,21 +107,8 @@ def apply_command(
     quiet: QuietOption = False,
 ) -> None:
     try:
-        options = ApplyOptions(
-            profile=load_profile(profile),
-            seed=seed if seed is not None else secrets.randbits(31),
-            darkening=darkening_choice(alpha, gamma, no_darken),
-            jitter=jitter,
-            overwrite=overwrite,
-            clip=clip,
-            workers=workers,
-            encoding=VideoEncoding(codec=codec, crf=crf, pix_fmt=pix_fmt),
-            device=device,
-            blur=blur,
-            flicker=flicker,
-            match_colour=match_colour,
-            compile=compile_kernel,
-            profile_source=str(profile),
+        options = _apply_options(
+            locals(), encoding=VideoEncoding(codec=codec, crf=crf, pix_fmt=pix_fmt), compile=compile_kernel
         )
         report = run_with_progress(input_path, output_path, options, quiet=quiet)
     except DarksynthError as error:
@@ -163,22 +169,13 @@ def convert_command(
     from darksynth.datasets import convert_dataset
 
     try:
-        options = ConvertOptions(
-            dataset=dataset,
-            output=output,
+        options = options_from(
+            ConvertOptions,
+            locals(),
             profile=load_profile(profile),
             format=cast(DatasetFormat, checked_choice("--format", dataset_format, FORMATS)),
-            seed=seed,
-            jitter=jitter,
-            workers=workers,
             shard=None if shard is None else Shard.parse(shard),
-            images_root=images_root,
-            overwrite=overwrite,
             encoding=VideoEncoding(codec=codec, crf=crf, pix_fmt=pix_fmt),
-            device=device,
-            blur=blur,
-            flicker=flicker,
-            match_colour=match_colour,
         )
         if use_ray:
             from darksynth.datasets.ray_convert import convert_dataset_with_ray
@@ -242,16 +239,8 @@ def preview_command(
 
     try:
         options = PreviewOptions(
-            synthesis=ApplyOptions(
-                profile=load_profile(profile),
-                seed=seed if seed is not None else secrets.randbits(31),
-                darkening=darkening_choice(alpha, gamma, no_darken),
-                device=device,
-                blur=blur,
-                flicker=flicker,
-                match_colour=match_colour,
-                profile_source=str(profile),
-            ),
+            # --overwrite here replaces OUT, the preview's own file, not outputs of apply's.
+            synthesis=_apply_options(locals(), overwrite=False),
             panel_size=parse_panel_size(crop),
             overwrite=overwrite,
             profile_path=profile,

@@ -71,26 +71,7 @@ def pixel_kernel_8bit(
     Returns:
         The low-light frame (C, H, W) uint8, rounded and clipped.
     """
-    normal, byte = normal_and_byte(frame.shape, key)
-    return pixel_pass_8bit(
-        frame, normal, byte, alpha, inverse_gamma, shot_squared, read_squared, quantization_step, column_pattern
-    )
-
-
-def pixel_pass_8bit(
-    frame: torch.Tensor,
-    unit: torch.Tensor,
-    byte: torch.Tensor,
-    alpha: torch.Tensor,
-    inverse_gamma: torch.Tensor,
-    shot_squared: torch.Tensor,
-    read_squared: torch.Tensor,
-    quantization_step: torch.Tensor,
-    column_pattern: torch.Tensor,
-) -> torch.Tensor:
-    """The per-pixel pass of :func:`pixel_kernel_8bit`: darkening, std * ``unit`` (the heteroscedastic draw, white
-    (C, H, W) float32), the quantization draw from ``byte`` (C, H, W) int32 in 0..255
-    (:func:`darksynth.noise.quantization.quantization_noise`'s law), the column pattern, rounding and clamping."""
+    unit, byte = normal_and_byte(frame.shape, key)
     # 8-bit input has 256 levels: the darkened level and its noise std are read from two 256-entry tables
     # computed here. exp(log(x) / gamma) is x ** (1 / gamma), with log(0) = -inf giving exactly 0 at black.
     levels = torch.arange(256, dtype=torch.float32, device=frame.device) * (1.0 / FULL_SCALE)

@@ -6,34 +6,26 @@ All values are on the [0, 1] intensity scale of the image.
 
 from __future__ import annotations
 
-from collections.abc import Mapping
+from collections.abc import Callable, Mapping
 
 import torch
 
 from darksynth.noise.banding import banding_noise, temporal_banding_noise
-from darksynth.noise.component_types import ALL_8BIT_PATHS, NoiseComponent, Parameter, VarianceFunction
+from darksynth.noise.component_types import ALL_8BIT_PATHS, DrawFunction, NoiseComponent, Parameter, VarianceFunction
 from darksynth.noise.periodic import periodic_noise
 from darksynth.noise.quantization import quantization_noise
 
 
-def _draw_quantization(
-    signal: torch.Tensor, values: Mapping[str, torch.Tensor], generator: torch.Generator | None
-) -> torch.Tensor:
-    return quantization_noise(signal.shape, values["quantization"][..., 0], generator=generator, device=signal.device)
+def _draw_one_value(noise: Callable[..., torch.Tensor], name: str) -> DrawFunction:
+    """The draw of a component whose one parameter ``name`` has one value: ``noise(shape, value, *, generator,
+    device)`` for the signal's shape and device."""
 
+    def draw(
+        signal: torch.Tensor, values: Mapping[str, torch.Tensor], generator: torch.Generator | None
+    ) -> torch.Tensor:
+        return noise(signal.shape, values[name][..., 0], generator=generator, device=signal.device)
 
-def _draw_banding(
-    signal: torch.Tensor, values: Mapping[str, torch.Tensor], generator: torch.Generator | None
-) -> torch.Tensor:
-    return banding_noise(signal.shape, values["banding"][..., 0], generator=generator, device=signal.device)
-
-
-def _draw_temporal_banding(
-    signal: torch.Tensor, values: Mapping[str, torch.Tensor], generator: torch.Generator | None
-) -> torch.Tensor:
-    return temporal_banding_noise(
-        signal.shape, values["temporal_banding"][..., 0], generator=generator, device=signal.device
-    )
+    return draw
 
 
 def _draw_periodic(
@@ -69,7 +61,7 @@ QUANTIZATION = NoiseComponent(
         ),
     ),
     structure="pixel",
-    draw=_draw_quantization,
+    draw=_draw_one_value(quantization_noise, "quantization"),
     variance=_quantization_variance,
     reference="Lin, Morris et al. 2025, eq. of f(v); Monakhova et al. 2022",
 )
@@ -89,7 +81,7 @@ BANDING = NoiseComponent(
         ),
     ),
     structure="column",
-    draw=_draw_banding,
+    draw=_draw_one_value(banding_noise, "banding"),
     variance=_column_variance("banding"),
     reference="Monakhova et al. 2022, Dancing under the stars (row/column noise)",
 )
@@ -109,7 +101,7 @@ TEMPORAL_BANDING = NoiseComponent(
         ),
     ),
     structure="column",
-    draw=_draw_temporal_banding,
+    draw=_draw_one_value(temporal_banding_noise, "temporal_banding"),
     variance=_column_variance("temporal_banding"),
     reference="Monakhova et al. 2022, Dancing under the stars (fixed-pattern noise)",
     per_clip=True,

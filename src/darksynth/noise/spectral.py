@@ -319,28 +319,18 @@ class SpectralGrid:
     """One clip's spectrum on one frame size's FFT grid, and the clip's state: the white field of the previous
     frame, for the temporal correlation.
 
-    Built once per clip and size (a stream reuses it for every frame); its tables come from
-    :func:`spectral_tables`, its frame-sized work arrays are its own and reused from frame to frame."""
+    Built once per clip and size (a stream reuses it for every frame) on the ``tables`` of
+    :func:`spectral_tables` for the same channels and frame size, on their device and in their dtype; its
+    frame-sized work arrays are its own and reused from frame to frame."""
 
-    def __init__(
-        self,
-        covariances: torch.Tensor,
-        temporal: torch.Tensor,
-        channels: int,
-        height: int,
-        width: int,
-        *,
-        device: torch.device | str,
-        dtype: torch.dtype = torch.float32,
-    ) -> None:
+    def __init__(self, tables: SpectralTables, channels: int, height: int, width: int) -> None:
         self.channels, self.height, self.width = channels, height, width
-        self.tables = spectral_tables(covariances, temporal, channels, height, width, device=device, dtype=dtype)
-        self.grid_height, self.grid_width = self.tables.grid_height, self.tables.grid_width
-        self.temporal = self.tables.rho is not None
-        rows, values = self.tables.factors.shape[-2:]
-        self.dtype = dtype
+        self.tables = tables
+        self.grid_height, self.grid_width = tables.grid_height, tables.grid_width
+        self.temporal = tables.rho is not None
+        rows, values = tables.factors.shape[-2:]
         # The real and imaginary parts of each rfft bin, side by side: (C, rows, 2 * rfft columns).
-        self._white = torch.empty((channels, rows, values), dtype=dtype, device=device)
+        self._white = tables.factors.new_empty((channels, rows, values))
         self._mixed = torch.empty_like(self._white)
         # With temporal correlation the white field is the state carried to the next frame.
         self._state: torch.Tensor | None = torch.empty_like(self._white) if self.temporal else None
@@ -435,7 +425,8 @@ def clip_grid(
     channels, height, width = frame_shape
     grid = None if state is None else state.get("spectral")
     if grid is None or (grid.channels, grid.height, grid.width) != (channels, height, width):
-        grid = SpectralGrid(covariances, temporal, channels, height, width, device=device, dtype=dtype)
+        tables = spectral_tables(covariances, temporal, channels, height, width, device=device, dtype=dtype)
+        grid = SpectralGrid(tables, channels, height, width)
         if state is not None:
             state["spectral"] = grid
     return grid

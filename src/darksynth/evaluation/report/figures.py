@@ -10,6 +10,7 @@ from __future__ import annotations
 import io
 import math
 from collections.abc import Collection, Mapping, Sequence
+from dataclasses import dataclass
 from typing import TypeGuard
 
 import numpy as np
@@ -24,6 +25,7 @@ from darksynth.tensors import LUMINANCE_WEIGHTS
 __all__ = [
     "HISTOGRAM_LEVELS",
     "REAL_COLOUR",
+    "MethodStyle",
     "band_power_png",
     "histogram_png",
     "method_colours",
@@ -51,6 +53,30 @@ def method_colours(methods: Sequence[str]) -> dict[str, str]:
 
     cmap = colormaps["tab10" if len(methods) <= 10 else "tab20"]
     return {name: to_hex(cmap(index % cmap.N)) for index, name in enumerate(methods)}
+
+
+@dataclass(frozen=True)
+class MethodStyle:
+    """How every figure draws a method.
+
+    Attributes:
+        colours: method name -> colour (grey for a method without one).
+        labels: method name -> legend label (its name for a method without one).
+        dashed: the methods drawn with dashed lines (the oracles).
+    """
+
+    colours: Mapping[str, str]
+    labels: Mapping[str, str]
+    dashed: Collection[str] = ()
+
+    def colour(self, name: str) -> str:
+        return self.colours.get(name, "#555555")
+
+    def label(self, name: str) -> str:
+        return self.labels.get(name, name)
+
+    def line(self, name: str) -> str:
+        return "--" if name in self.dashed else "-"
 
 
 def _png(figure: Figure) -> bytes:
@@ -100,9 +126,7 @@ def _finite(value: object) -> TypeGuard[float]:
 def radar_png(
     scores: Mapping[str, Sequence[float | None]],
     axis_labels: Sequence[str],
-    colours: Mapping[str, str],
-    labels: Mapping[str, str],
-    dashed: Collection[str] = (),
+    style: MethodStyle,
     title: str = "",
 ) -> bytes:
     """A radar chart like Figure 1 of the DEN paper: one closed polygon per method over the normalised metrics.
@@ -111,9 +135,7 @@ def radar_png(
         scores: method name -> one score in [0, 1] per axis (see :func:`radar_scores`); None is drawn at the centre
             and the legend says which metric is missing.
         axis_labels: One label per axis.
-        colours: method name -> colour.
-        labels: method name -> legend label.
-        dashed: Methods drawn with a dashed outline (the oracles).
+        style: each method's colour, legend label and outline (dashed for the oracles).
         title: Title above the chart.
 
     Returns:
@@ -134,10 +156,9 @@ def radar_png(
     for name, row in scores.items():
         radii = np.array([0.0 if s is None else s for s in row] + [0.0 if row[0] is None else row[0]])
         missing = [axis_labels[i] for i, s in enumerate(row) if s is None]
-        label = labels.get(name, name) + (f" (no {', '.join(missing)})" if missing else "")
-        style = "--" if name in dashed else "-"
-        colour = colours.get(name, "#555555")
-        ax.plot(closed, radii, style, color=colour, linewidth=1.8, label=label, marker="o", markersize=3.5)
+        label = style.label(name) + (f" (no {', '.join(missing)})" if missing else "")
+        colour = style.colour(name)
+        ax.plot(closed, radii, style.line(name), color=colour, linewidth=1.8, label=label, marker="o", markersize=3.5)
         ax.fill(closed, radii, color=colour, alpha=0.06)
     ax.legend(loc="upper left", bbox_to_anchor=(1.12, 1.02), fontsize=9, frameon=False)
     if title:
@@ -245,9 +266,26 @@ def _panel_grid(count: int, panel: tuple[float, float]) -> tuple[Figure, list[Ax
     return figure, axes[:count]
 
 
-def histogram_png(
-    noise: Mapping[str, np.ndarray], methods: Sequence[str], colours: Mapping[str, str], labels: Mapping[str, str]
-) -> bytes:
+def _method_panels(noise: Mapping[str, np.ndarray], methods: Sequence[str]) -> tuple[Figure, list[tuple[Axes, str]]]:
+    """Small multiples, one panel per method of ``methods`` that has a noise map (the real noise's panel alone when
+    none has one), and the figure that holds them."""
+    shown = [m for m in methods if m in noise] or ["real"]
+    figure, axes = _panel_grid(len(shown), (3.3, 2.35))
+    return figure, list(zip(axes, shown, strict=True))
+
+
+def _method_title(ax: Axes, name: str, style: MethodStyle) -> str | None:
+    """Title a panel with its method's label in the method's colour, and return that colour; None for the real
+    noise's panel, titled in the default colour."""
+    if name == "real":
+        ax.set_title("real", fontsize=10)
+        return None
+    colour = style.colour(name)
+    ax.set_title(style.label(name), fontsize=10, color=colour)
+    return colour
+
+
+def histogram_png(noise: Mapping[str, np.ndarray], methods: Sequence[str], style: MethodStyle) -> bytes:
     """Small multiples of noise histograms: per method, the real noise (grey, filled) under the method's (line).
 
     Log-scale counts over ±0.1 on the [0, 1] scale; the legend gives each map's standard deviation in 8-bit levels.
@@ -255,38 +293,35 @@ def histogram_png(
     Args:
         noise: ``"real"`` and method names -> noise maps on the [0, 1] scale.
         methods: The methods to draw, in order (those without a map are skipped).
-        colours: method name -> colour.
-        labels: method name -> legend label.
+        style: each method's colour and title.
 
     Returns:
         PNG bytes.
     """
-    shown = [m for m in methods if m in noise] or ["real"]
-    figure, axes = _panel_grid(len(shown), (3.3, 2.35))
+    figure, panels = _method_panels(noise, methods)
     real = noise.get("real")
     real_hist = noise_histogram(real) if real is not None else None
     real_label = f"real σ={_std_levels(real):.2f}" if real is not None else ""
     floor = _hist_floor(real) if real is not None else 1.0
-    for ax, name in zip(axes, shown, strict=True):
+    for ax, name in panels:
         if real_hist is not None:
             edges, fractions = real_hist
             ax.stairs(fractions, edges, fill=True, color="#c4c4c4", label=real_label)
-        if name != "real":
+        colour = _method_title(ax, name, style)
+        if colour is not None:
             edges, fractions = noise_histogram(noise[name])
             floor = min(floor, _hist_floor(noise[name]))
-            colour = colours.get(name, "#555555")
             ax.stairs(fractions, edges, color=colour, linewidth=1.5, label=f"σ={_std_levels(noise[name]):.2f}")
-            ax.set_title(labels.get(name, name), fontsize=10, color=colour)
-        else:
-            ax.set_title("real", fontsize=10)
         ax.set_yscale("log")
         ax.legend(fontsize=7.5, loc="upper right", frameon=False, handlelength=1.2)
         ax.tick_params(labelsize=8)
         ax.grid(alpha=0.25, linewidth=0.6)
+    # The panels share their axes: setting the first's limits sets all.
+    first, _ = panels[0]
     half = (HISTOGRAM_LEVELS + 0.5) / 255.0
-    axes[0].set_xlim(-half, half)
-    axes[0].set_xticks([-0.1, -0.05, 0.0, 0.05, 0.1], ["−0.1", "−0.05", "0", "0.05", "0.1"])
-    axes[0].set_ylim(bottom=floor)
+    first.set_xlim(-half, half)
+    first.set_xticks([-0.1, -0.05, 0.0, 0.05, 0.1], ["−0.1", "−0.05", "0", "0.05", "0.1"])
+    first.set_ylim(bottom=floor)
     figure.supxlabel("noise, noisy − clean ([0, 1] scale; ±0.1 ≈ ±25 levels of 8 bits)", fontsize=9)
     figure.supylabel("fraction of values (log)", fontsize=9)
     return _png(figure)
@@ -297,34 +332,20 @@ def _hist_floor(noise: np.ndarray) -> float:
     return 0.5 / max(int(np.asarray(noise).size), 1)
 
 
-def spectrum_png(
-    noise: Mapping[str, np.ndarray], methods: Sequence[str], colours: Mapping[str, str], labels: Mapping[str, str]
-) -> bytes:
+def spectrum_png(noise: Mapping[str, np.ndarray], methods: Sequence[str], style: MethodStyle) -> bytes:
     """Small multiples of radially averaged noise power spectra (luminance), log-log: real (black) vs each method.
 
-    Args:
-        noise: ``"real"`` and method names -> noise maps on the [0, 1] scale.
-        methods: The methods to draw, in order (those without a map are skipped).
-        colours: method name -> colour.
-        labels: method name -> legend label.
-
-    Returns:
-        PNG bytes.
+    Takes the arguments of :func:`histogram_png` and returns PNG bytes.
     """
-    shown = [m for m in methods if m in noise] or ["real"]
-    figure, axes = _panel_grid(len(shown), (3.3, 2.35))
+    figure, panels = _method_panels(noise, methods)
     real = _spectrum_or_none(noise.get("real"))
-    for ax, name in zip(axes, shown, strict=True):
+    for ax, name in panels:
         if real is not None:
             ax.loglog(*real, color=REAL_COLOUR, linewidth=1.6, label="real")
-        if name != "real":
-            colour = colours.get(name, "#555555")
-            spectrum = _spectrum_or_none(noise[name])
-            if spectrum is not None:
-                ax.loglog(*spectrum, color=colour, linewidth=1.5, label=labels.get(name, name))
-            ax.set_title(labels.get(name, name), fontsize=10, color=colour)
-        else:
-            ax.set_title("real", fontsize=10)
+        colour = _method_title(ax, name, style)
+        spectrum = _spectrum_or_none(noise[name]) if colour is not None else None
+        if spectrum is not None:
+            ax.loglog(*spectrum, color=colour, linewidth=1.5, label=style.label(name))
         if ax.lines:
             ax.legend(fontsize=7.5, loc="lower left", frameon=False, handlelength=1.2)
         ax.tick_params(labelsize=8)
@@ -347,9 +368,7 @@ def band_power_png(
     real: Mapping[str, Sequence[float | None]],
     methods: Mapping[str, Mapping[str, Sequence[float | None]]],
     band_labels: Sequence[str],
-    colours: Mapping[str, str],
-    labels: Mapping[str, str],
-    dashed: Collection[str] = (),
+    style: MethodStyle,
     title: str = "",
 ) -> bytes:
     """Two panels, brightness and colour: band power against band (fine to coarse), log y; real black, methods
@@ -359,9 +378,7 @@ def band_power_png(
         real: ``"brightness"`` and ``"colour"`` -> one band power per band (None: not computed), [0, 1] scale squared.
         methods: method name -> the same for its synthetic noise.
         band_labels: One label per band, in order.
-        colours: method name -> colour.
-        labels: method name -> legend label.
-        dashed: Methods drawn dashed (the oracles).
+        style: each method's colour, legend label and line (dashed for the oracles).
         title: Title above the panels.
 
     Returns:
@@ -372,11 +389,8 @@ def band_power_png(
     positions = np.arange(len(band_labels))
     for ax, component in zip(axes, ("brightness", "colour"), strict=True):
         curves = [("real", real, REAL_COLOUR, "-", 2.2)]
-        curves += [
-            (labels.get(name, name), row, colours.get(name, "#555555"), "--" if name in dashed else "-", 1.5)
-            for name, row in methods.items()
-        ]
-        for label, row, colour, style, width in curves:
+        curves += [(style.label(name), row, style.colour(name), style.line(name), 1.5) for name, row in methods.items()]
+        for label, row, colour, line, width in curves:
             values = np.array([np.nan if v is None else v for v in row.get(component, ())], dtype=np.float64)
             if values.size != len(band_labels) or not np.isfinite(values).any():
                 continue
@@ -384,7 +398,7 @@ def band_power_png(
             ax.plot(
                 positions,
                 values * 255.0**2,
-                style,
+                line,
                 color=colour,
                 linewidth=width,
                 marker="o",

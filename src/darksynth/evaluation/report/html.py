@@ -147,6 +147,8 @@ class _HtmlPage:
             order += [n for n in (*example.noisy, *example.noise) if n not in order and n != "real"]
         self.order = order
         self.layout = Layout(results, order, figures.method_colours(order))
+        labels = {name: self.label(name) for name in order}
+        self.style = figures.MethodStyle(self.layout.colours, labels, dashed=results.oracles)
         self.ids = _Ids()
         self.set_ids = {name: self.ids("set", name) for name in results.sets}
 
@@ -163,9 +165,7 @@ class _HtmlPage:
         png = self.figures.radar_png(
             scores,
             [SET_TITLES[m] for m in present],
-            self.layout.colours,
-            {n: self.label(n) for n in order},
-            dashed=self.results.oracles,
+            self.style,
             title=f"{set_name}: normalised metrics (outward is better)",
         )
         axes = ", ".join(SET_TITLES[m] for m in present)
@@ -183,10 +183,7 @@ class _HtmlPage:
         }
         if not real and not methods:
             return None
-        labels = {name: self.label(name) for name in methods}
-        png = self.figures.band_power_png(
-            real, methods, BAND_LABELS, self.layout.colours, labels, dashed=self.results.oracles, title=set_name
-        )
+        png = self.figures.band_power_png(real, methods, BAND_LABELS, self.style, title=set_name)
         alt = f"Noise power per spatial frequency band in {set_name}: real versus each method, brightness and colour."
         return _Image(_data_uri(png), alt)
 
@@ -213,11 +210,9 @@ class _HtmlPage:
         histogram = spectrum = None
         if example.noise:
             methods = [m for m in self.order if m in example.noise]
-            labels = {n: self.label(n) for n in methods}
-            colours = self.layout.colours
-            png = self.figures.histogram_png(example.noise, methods, colours, labels)
+            png = self.figures.histogram_png(example.noise, methods, self.style)
             histogram = _Image(_data_uri(png), f"Noise histograms of {where}: real versus each method, log scale.")
-            png = self.figures.spectrum_png(example.noise, methods, colours, labels)
+            png = self.figures.spectrum_png(example.noise, methods, self.style)
             spectrum = _Image(_data_uri(png), f"Noise power spectra of {where}: real versus each method, log-log.")
         article_id = self.ids("example", f"{example.set_name}-{example.pair_name}")
         return _Example(article_id, example.set_name, example.pair_name, where, size, crops, histogram, spectrum)

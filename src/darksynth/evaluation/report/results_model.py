@@ -14,7 +14,7 @@ import json
 import math
 from collections.abc import Mapping
 from dataclasses import dataclass, field
-from typing import Any
+from typing import Any, ClassVar
 
 __all__ = [
     "BAND_COMPONENTS",
@@ -126,9 +126,23 @@ def _numbers(value: object, keys: tuple[str, ...]) -> dict[str, float | None]:
     return {key: _number(entry.get(key)) for key in keys}
 
 
+class _ScoresByMetric:
+    """A scores record whose fields are named after its class's ``metrics``."""
+
+    metrics: ClassVar[tuple[str, ...]]
+
+    def value(self, metric: str) -> float | None:
+        """One of the class's ``metrics``."""
+        if metric not in self.metrics:
+            raise KeyError(metric)
+        return getattr(self, metric)  # type: ignore[no-any-return]
+
+
 @dataclass(frozen=True)
-class CameraScores:
+class CameraScores(_ScoresByMetric):
     """One method's per-pair divergences over the pairs of one camera (see :data:`CAMERA_METRICS`)."""
+
+    metrics: ClassVar[tuple[str, ...]] = CAMERA_METRICS
 
     pairs: int | None
     kld: float | None
@@ -139,12 +153,6 @@ class CameraScores:
     kld_naflow_ci95: Interval | None = None
     akld: float | None = None
     akld_ci95: Interval | None = None
-
-    def value(self, metric: str) -> float | None:
-        """One of :data:`CAMERA_METRICS`."""
-        if metric not in CAMERA_METRICS:
-            raise KeyError(metric)
-        return getattr(self, metric)  # type: ignore[no-any-return]
 
     def interval(self, metric: str) -> Interval | None:
         if metric not in CAMERA_METRICS:
@@ -226,8 +234,8 @@ class BandStatistics:
 
 
 @dataclass(frozen=True)
-class MethodScores:
-    """One method's metrics on one set (lower is better for all of them); None: not computed.
+class MethodScores(_ScoresByMetric):
+    """One method's metrics (:data:`SET_METRICS`) on one set (lower is better for all of them); None: not computed.
 
     Attributes:
         kld, kld_srgb, kld_naflow: Mean histogram KL divergence over the pairs (Noise Flow, sRGB and NAFlow recipes).
@@ -260,12 +268,7 @@ class MethodScores:
     per_camera: Mapping[str, CameraScores] = field(default_factory=dict)
     channels: ChannelStatistics | None = None
     bands: BandStatistics | None = None
-
-    def value(self, metric: str) -> float | None:
-        """One of :data:`SET_METRICS`."""
-        if metric not in SET_METRICS:
-            raise KeyError(metric)
-        return getattr(self, metric)  # type: ignore[no-any-return]
+    metrics: ClassVar[tuple[str, ...]] = SET_METRICS
 
     def interval(self, metric: str) -> Interval | None:
         """The interval of one of :data:`INTERVAL_METRICS`; None for the others (FID, KID)."""
