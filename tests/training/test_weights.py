@@ -12,7 +12,7 @@ from safetensors.torch import load_file, save_file
 
 from darksynth.errors import DarksynthError
 from darksynth.models.den import DEN, MODEL_NAME, MODEL_VERSION, DENConfig
-from darksynth.noise.components import model_statistics
+from darksynth.models.statistics import model_statistics
 from darksynth.training.weights import load_weights, read_metadata, save_weights
 
 

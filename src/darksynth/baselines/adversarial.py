@@ -5,7 +5,7 @@ small patch discriminator with spectral normalisation judges the noise residual 
 the dark frame it belongs to, the residual minus its mean over the clip (what is held over frames) and its column
 means (column patterns span the whole frame height, beyond a small patch's reach); least-squares GAN losses. Added
 to the generator's loss, with weight ``lambda_statistics``, a statistics-matching term on the DEN's fixed noise
-statistics (:mod:`darksynth.noise.statistics`: log variances of pixel noise binned by level, of column patterns
+statistics (:mod:`darksynth.models.statistics`: log variances of pixel noise binned by level, of column patterns
 split into per-frame and held parts, and of period-4 projections). The adversarial term alone is slow to find the
 column components within a CPU budget of minutes; the statistics make every component's strength observable from
 the first step.
@@ -29,7 +29,7 @@ from torch import nn
 from torch.nn.utils.parametrizations import spectral_norm
 
 from darksynth.io.atomic import write_text_atomic
-from darksynth.noise.statistics import LEVEL_BINS, noise_statistics
+from darksynth.models.statistics import LEVEL_BINS, noise_statistics
 from darksynth.seeding import seeded_generator
 from darksynth.training.corpus import CleanCorpus
 from darksynth.training.scaffold import (

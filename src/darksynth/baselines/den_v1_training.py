@@ -11,7 +11,7 @@ loss of v3's decoder, is minimised by the target's mean, the dark crop itself, a
 v1 is trained as the Starlight baseline is, by the shared adversarial training
 (:mod:`darksynth.baselines.adversarial`): a patch discriminator with least-squares losses judges the residual
 beside its dark frame, and a statistics term matches the DEN's fixed noise statistics
-(:mod:`darksynth.noise.statistics`) of every generated clip to those of its own target clip. That term, per clip
+(:mod:`darksynth.models.statistics`) of every generated clip to those of its own target clip. That term, per clip
 and not per batch as in Starlight, is what makes the output depend on the reference.
 
 The budget is that of the v2 and v3 runs in time (docs/results.md): they took 18000 steps in about 20 minutes

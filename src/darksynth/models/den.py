@@ -3,7 +3,7 @@
 The encoder reads each frame of a clip beside the frame minus the clip's mean frame (what changes over the
 clip), so that patterns held over the clip (temporal banding) can be told from per-frame ones. Its
 bottleneck is pooled over frames and positions (mean and standard deviation of every channel) and goes,
-with fixed noise statistics of the clip (:mod:`darksynth.noise.statistics`), into an MLP that
+with fixed noise statistics of the clip (:mod:`darksynth.models.statistics`), into an MLP that
 predicts v in a normalised space: a sigmoid over each parameter's training range, so every prediction is a
 valid value. The decoder (variant v3) reconstructs the dark clean clip from the encoder's features, which is
 the paper's auxiliary task. Nothing depends on the frame size: frames are padded to a multiple of
@@ -26,7 +26,8 @@ import torch
 import torch.nn.functional as F
 from torch import nn
 
-from darksynth.noise.components import NoiseModel, model_parameters, model_statistics, profile_version, vector_size
+from darksynth.models.statistics import model_statistics
+from darksynth.noise.components import NoiseModel, model_parameters, profile_version, vector_size
 from darksynth.noise.values import NoiseValues
 
 Variant = Literal["v2", "v3"]

@@ -15,8 +15,6 @@ from typing import Any, Literal
 
 import torch
 
-from darksynth.noise.statistics import PAPER_STATISTICS, EstimatorStatistics
-
 Structure = Literal["pixel", "column", "output", "scene", "exposure"]
 """How a component varies in the frame.
 
@@ -34,6 +32,9 @@ LIGHT_STRUCTURES: frozenset[str] = frozenset({"scene", "exposure"})
 """The structures of light: in the profile's ``light`` section, outside the estimation network's v."""
 
 NoiseModel = Literal["paper", "srgb", "spectral"]
+
+StatisticsName = Literal["paper", "srgb"]
+"""The statistics vectors the estimation network reads (:data:`darksynth.models.statistics.STATISTICS`)."""
 """``paper``: the paper's five components (profile version 1, DEN model version 1). ``srgb``: those plus the
 structure of real sRGB noise (per-channel gains, spatial and cross-channel correlation, JPEG; profile versions 2
 and 3): the vocabulary of the estimation network's vector, drawn as the spectral model
@@ -108,8 +109,9 @@ class Parameter:
             over [log_floor, training high] and the estimator predicts its logarithm (values below the floor
             read as the floor), so a level of 0.005 is estimated as precisely, relatively, as one of 0.05.
             This is also the scale of the estimator's output head for the parameter.
-        statistics: the fixed statistics that reveal the parameter to the estimator; the head of a noise model
-            reads those of all its parameters (:func:`model_statistics`).
+        statistics: the name of the fixed statistics that reveal the parameter to the estimator; the network of a
+            noise model reads those of all its parameters (:func:`darksynth.models.statistics.model_statistics`,
+            beside the network, which is their only reader).
         fast_paths: the fast paths that draw this parameter at any value; every other fast path is taken only
             while the parameter is neutral (:meth:`darksynth.noise.values.NoiseValues.covered_by`).
     """
@@ -126,7 +128,7 @@ class Parameter:
     role: Role = "amplitude"
     training_off_probability: float | None = None
     log_floor: float | None = None
-    statistics: EstimatorStatistics = PAPER_STATISTICS
+    statistics: StatisticsName = "paper"
     fast_paths: frozenset[FastPath] = frozenset()
 
 

@@ -34,7 +34,6 @@ from darksynth.noise.heteroscedastic_components import HETEROSCEDASTIC
 from darksynth.noise.light_components import FLICKER, SCENE
 from darksynth.noise.paper_components import BANDING, PERIODIC, QUANTIZATION, TEMPORAL_BANDING
 from darksynth.noise.spectral_components import SPECTRAL
-from darksynth.noise.statistics import EstimatorStatistics
 
 __all__ = [
     "LIGHT_STRUCTURES",
@@ -51,7 +50,6 @@ __all__ = [
     "VarianceFunction",
     "light_parameters",
     "model_parameters",
-    "model_statistics",
     "noise_components",
     "noise_parameter",
     "noise_parameter_names",
@@ -116,15 +114,6 @@ def model_parameters(noise_model: NoiseModel = "srgb", version: int | None = Non
 def vector_size(noise_model: NoiseModel = "srgb", version: int | None = None) -> int:
     """Length of the flat v of one noise model (8 for ``paper``), at a table version (None: now)."""
     return sum(p.size for p in model_parameters(noise_model, version))
-
-
-def model_statistics(noise_model: NoiseModel = "srgb", version: int | None = None) -> tuple[EstimatorStatistics, ...]:
-    """The statistics the estimator of a noise model reads: those its parameters name, in table order."""
-    found: list[EstimatorStatistics] = []
-    for parameter in model_parameters(noise_model, version):
-        if parameter.statistics not in found:
-            found.append(parameter.statistics)
-    return tuple(found)
 
 
 def noise_component(name: str) -> NoiseComponent:

@@ -15,7 +15,6 @@ import torch
 from PIL import Image
 
 from darksynth.noise.component_types import COMPRESSION_PATHS, NoiseComponent, Parameter
-from darksynth.noise.statistics import SRGB_STATISTICS
 
 
 def jpeg_compress(image: torch.Tensor, quality: int) -> torch.Tensor:
@@ -84,7 +83,7 @@ COMPRESSION = NoiseComponent(
             noise_model="srgb",
             fast_paths=COMPRESSION_PATHS,
             since_version=2,
-            statistics=SRGB_STATISTICS,
+            statistics="srgb",
             training_off_probability=0.4,
         ),
     ),

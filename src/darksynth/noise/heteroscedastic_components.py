@@ -15,7 +15,6 @@ import torch
 from darksynth.noise.component_types import FUSED_PATHS, NoiseComponent, Parameter, shapes_neutral
 from darksynth.noise.heteroscedastic import heteroscedastic_noise
 from darksynth.noise.spectral_components import spectral_clips
-from darksynth.noise.statistics import SRGB_STATISTICS
 from darksynth.noise.structure_translation import spectral_tensors
 
 _HETEROSCEDASTIC_PARAMETERS: tuple[Parameter, ...] = (
@@ -49,7 +48,7 @@ _HETEROSCEDASTIC_PARAMETERS: tuple[Parameter, ...] = (
         neutral=1.0,
         noise_model="srgb",
         since_version=2,
-        statistics=SRGB_STATISTICS,
+        statistics="srgb",
         role="shape",
         training_off_probability=0.2,
     ),
@@ -61,7 +60,7 @@ _HETEROSCEDASTIC_PARAMETERS: tuple[Parameter, ...] = (
         (0.0, 2.0),
         noise_model="srgb",
         since_version=2,
-        statistics=SRGB_STATISTICS,
+        statistics="srgb",
         role="shape",
         training_off_probability=0.2,
     ),
@@ -74,7 +73,7 @@ _HETEROSCEDASTIC_PARAMETERS: tuple[Parameter, ...] = (
         minimum=-0.45,
         noise_model="srgb",
         since_version=2,
-        statistics=SRGB_STATISTICS,
+        statistics="srgb",
         role="shape",
         training_off_probability=0.2,
     ),
@@ -88,7 +87,7 @@ _HETEROSCEDASTIC_PARAMETERS: tuple[Parameter, ...] = (
         (0.0, 3.0),
         noise_model="srgb",
         since_version=3,
-        statistics=SRGB_STATISTICS,
+        statistics="srgb",
         role="shape",
         training_off_probability=0.3,
     ),

@@ -13,7 +13,6 @@ import torch
 
 from darksynth.noise.component_types import SPECTRAL_PATHS, NoiseComponent, Parameter
 from darksynth.noise.spectral import LEVEL_KNOTS, OCTAVES, level_std, octave_covariances, spectral_clip_noise
-from darksynth.noise.statistics import SRGB_STATISTICS
 
 # The measured-spectrum model (docs/spectral-noise.md): real sRGB noise has a fine brightness grain over coarse
 # colour mottle (colour 8-75x white noise's power at 16-64 px on the real pairs) and, in video, persists from
@@ -30,7 +29,7 @@ _SPECTRAL_PARAMETERS: tuple[Parameter, ...] = (
         noise_model="spectral",
         fast_paths=SPECTRAL_PATHS,
         since_version=4,
-        statistics=SRGB_STATISTICS,
+        statistics="srgb",
     ),
     Parameter(
         "octave_power",
@@ -43,7 +42,7 @@ _SPECTRAL_PARAMETERS: tuple[Parameter, ...] = (
         noise_model="spectral",
         fast_paths=SPECTRAL_PATHS,
         since_version=4,
-        statistics=SRGB_STATISTICS,
+        statistics="srgb",
         role="shape",
     ),
     Parameter(
@@ -56,7 +55,7 @@ _SPECTRAL_PARAMETERS: tuple[Parameter, ...] = (
         noise_model="spectral",
         fast_paths=SPECTRAL_PATHS,
         since_version=4,
-        statistics=SRGB_STATISTICS,
+        statistics="srgb",
         role="shape",
     ),
     Parameter(
@@ -68,7 +67,7 @@ _SPECTRAL_PARAMETERS: tuple[Parameter, ...] = (
         noise_model="spectral",
         fast_paths=SPECTRAL_PATHS,
         since_version=4,
-        statistics=SRGB_STATISTICS,
+        statistics="srgb",
         role="shape",
         training_off_probability=0.5,
     ),

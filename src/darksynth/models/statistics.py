@@ -23,6 +23,9 @@ from dataclasses import dataclass
 import torch
 import torch.nn.functional as F
 
+from darksynth.noise.component_types import NoiseModel, StatisticsName
+from darksynth.noise.components import model_parameters
+
 LEVEL_BINS = 12
 """Intensity bins of the pixel-noise statistics over [0, LEVEL_MAX]."""
 
@@ -225,3 +228,16 @@ PAPER_STATISTICS = EstimatorStatistics("paper", STATISTICS_SIZE, noise_statistic
 
 SRGB_STATISTICS = EstimatorStatistics("srgb", SRGB_STATISTICS_SIZE, srgb_noise_statistics)
 """What reveals the sRGB structure: multi-scale, per-channel and cross-channel noise, JPEG grid, chroma."""
+
+
+STATISTICS: dict[StatisticsName, EstimatorStatistics] = {"paper": PAPER_STATISTICS, "srgb": SRGB_STATISTICS}
+"""The statistics each parameter of the table names (:attr:`darksynth.noise.component_types.Parameter.statistics`)."""
+
+
+def model_statistics(noise_model: NoiseModel = "srgb", version: int | None = None) -> tuple[EstimatorStatistics, ...]:
+    """The statistics the network of a noise model reads: those its parameters name, in table order."""
+    names: list[StatisticsName] = []
+    for parameter in model_parameters(noise_model, version):
+        if parameter.statistics not in names:
+            names.append(parameter.statistics)
+    return tuple(STATISTICS[name] for name in names)

@@ -7,10 +7,7 @@ import math
 import pytest
 import torch
 
-from darksynth.noise.banding import banding_noise, temporal_banding_noise
-from darksynth.noise.heteroscedastic import heteroscedastic_noise
-from darksynth.noise.periodic import periodic_noise
-from darksynth.noise.statistics import (
+from darksynth.models.statistics import (
     LEVEL_BINS,
     LEVEL_MAX,
     STATISTICS_SIZE,
@@ -18,6 +15,9 @@ from darksynth.noise.statistics import (
     noise_statistics,
     pixel_noise_statistics,
 )
+from darksynth.noise.banding import banding_noise, temporal_banding_noise
+from darksynth.noise.heteroscedastic import heteroscedastic_noise
+from darksynth.noise.periodic import periodic_noise
 
 # Layout of pixel_noise_statistics: three blocks of LEVEL_BINS.
 MEAN_SQUARE, SHARE = 0, 2 * LEVEL_BINS
