@@ -175,6 +175,36 @@ def _fit_line(
     return intercept, slope, (share_a, share_b)
 
 
+def _usable_quantiles(prior: np.ndarray, quantiles: np.ndarray, floor: float, source: str) -> np.ndarray:
+    """The tone quantiles a darkening can be fitted on (above ``floor``, below saturation), checked to be enough of
+    them, spread enough in level and facing tones of the prior spread enough to read a slope.
+
+    Raises:
+        DarksynthError: too few quantiles, or too little spread in them or in the tones they face.
+    """
+    usable = (quantiles > floor) & (quantiles < MAX_LEVEL)
+    used = int(usable.sum())
+    if used < MIN_QUANTILES:
+        raise DarksynthError(
+            f"{source}: too dark or too flat to estimate its darkening: {used} of {prior.size} tone quantiles "
+            f"lie between the noise floor {floor:.4f} and saturation (at least {MIN_QUANTILES} are needed)"
+        )
+    x, y = prior[usable], np.log(quantiles[usable])
+    if np.ptp(y) < MIN_LOG_SPAN:
+        raise DarksynthError(
+            f"{source}: too flat to estimate its darkening: its usable tone quantiles span a factor of only "
+            f"{math.exp(float(np.ptp(y))):.3f} (at least {math.exp(MIN_LOG_SPAN):.3f} is needed)"
+        )
+    if np.ptp(x) < 0.2:
+        # Usable quantiles that the tones they are fitted against barely tell apart (with match_darkening: a
+        # nearly uniform input), so no slope can be read.
+        raise DarksynthError(
+            f"{source}: its usable tone quantiles ({used}) face tones that span a factor of only "
+            f"{math.exp(float(np.ptp(x))):.3f} (at least {math.exp(0.2):.3f} is needed) to fit a darkening to"
+        )
+    return usable
+
+
 def fit_darkening(
     quantiles: np.ndarray,
     noise_floor: float = 0.0,
@@ -204,26 +234,9 @@ def fit_darkening(
     if quantiles.shape != prior.shape:
         raise ValueError(f"expected {prior.size} quantiles, got shape {quantiles.shape}")
     floor = max(MIN_LEVEL, NOISE_FLOOR_FACTOR * noise_floor)
-    usable = (quantiles > floor) & (quantiles < MAX_LEVEL)
+    usable = _usable_quantiles(prior, quantiles, floor, source)
     used = int(usable.sum())
-    if used < MIN_QUANTILES:
-        raise DarksynthError(
-            f"{source}: too dark or too flat to estimate its darkening: {used} of {prior.size} tone quantiles "
-            f"lie between the noise floor {floor:.4f} and saturation (at least {MIN_QUANTILES} are needed)"
-        )
     x, y = prior[usable], np.log(quantiles[usable])
-    if np.ptp(y) < MIN_LOG_SPAN:
-        raise DarksynthError(
-            f"{source}: too flat to estimate its darkening: its usable tone quantiles span a factor of only "
-            f"{math.exp(float(np.ptp(y))):.3f} (at least {math.exp(MIN_LOG_SPAN):.3f} is needed)"
-        )
-    if np.ptp(x) < 0.2:
-        # Usable quantiles that the tones they are fitted against barely tell apart (with match_darkening: a
-        # nearly uniform input), so no slope can be read.
-        raise DarksynthError(
-            f"{source}: its usable tone quantiles ({used}) face tones that span a factor of only "
-            f"{math.exp(float(np.ptp(x))):.3f} (at least {math.exp(0.2):.3f} is needed) to fit a darkening to"
-        )
     log_alpha, exponent, shares = _fit_line(x, y, np.asarray(spread, dtype=np.float64)[usable], use_prior=use_prior)
     gamma = 1.0 / exponent if exponent > 0 else math.inf
     alpha = math.exp(log_alpha)

@@ -30,7 +30,7 @@ from torch import nn
 
 from darksynth.errors import DarksynthError
 from darksynth.evaluation.methods.catalogue import NoiseMethod, build_methods
-from darksynth.evaluation.pairs import LoadedPair, Pair, list_pair_sets, load_pair
+from darksynth.evaluation.pairs import LoadedPair, Pair, PairSet, list_pair_sets, load_pair
 from darksynth.seeding import derive_seed, seeded_generator
 from darksynth.training.scaffold import Report, StepPlan, run_steps
 
@@ -362,6 +362,49 @@ def _constant(parameters: Sequence[Any]) -> bool:
         return False
 
 
+def _fit_on_set(
+    pair_set: PairSet, built: dict[str, NoiseMethod], problems: list[str], say: Progress
+) -> dict[str, list[Any]]:
+    """Every method's parameters fitted on every readable pair of a set (zero-shot methods on the noisy image)."""
+    say(f"{pair_set.name}: fitting {len(built)} methods on {len(pair_set.pairs)} pairs")
+    fitted: dict[str, list[Any]] = {name: [] for name in built}
+    for index, loaded in enumerate(_loaded(pair_set.pairs, problems)):
+        if index % 25 == 24:
+            say(f"{pair_set.name}: fitted on {index + 1} pairs")
+        for name, method in built.items():
+            fitted[name].extend(fit_reference_parameters(method, [loaded], problems))
+    return fitted
+
+
+def _denoiser_for(
+    name: str,
+    method: NoiseMethod,
+    parameters: list[Any],
+    trained_constant: dict[str, tuple[Any, ResidualDenoiser]],
+    images: Sequence[np.ndarray],
+    settings: DownstreamSettings,
+    pair_set: PairSet,
+    say: Progress,
+) -> ResidualDenoiser:
+    """The denoiser trained on a method's noise with the parameters fitted on a set; a method whose parameters are
+    the same fixed ones on every pair (of this set and one before) reuses the one trained for them."""
+    cached = trained_constant.get(name)
+    if cached is not None and _constant(parameters) and _constant([cached[0], parameters[0]]):
+        say(f"{pair_set.name}: {name}: same fixed parameters as before, denoiser reused")
+        return cached[1]
+    say(f"{pair_set.name}: training on {name}'s noise")
+    model = train_denoiser(
+        method,
+        parameters[:1] if _constant(parameters) else parameters,
+        images,
+        settings,
+        progress=_prefixed(say, pair_set.name),
+    )
+    if _constant(parameters):
+        trained_constant[name] = (parameters[0], model)
+    return model
+
+
 def run_downstream(
     pair_roots: Sequence[Path],
     methods: Sequence[str],
@@ -402,13 +445,7 @@ def run_downstream(
     trained_constant: dict[str, tuple[Any, ResidualDenoiser]] = {}
     for pair_set in pair_sets:
         problems.extend(pair_set.problems)
-        say(f"{pair_set.name}: fitting {len(built)} methods on {len(pair_set.pairs)} pairs")
-        fitted: dict[str, list[Any]] = {name: [] for name in built}
-        for index, loaded in enumerate(_loaded(pair_set.pairs, problems)):
-            if index % 25 == 24:
-                say(f"{pair_set.name}: fitted on {index + 1} pairs")
-            for name, method in built.items():
-                fitted[name].extend(fit_reference_parameters(method, [loaded], problems))
+        fitted = _fit_on_set(pair_set, built, problems, say)
         set_results: dict[str, Any] = {}
         reference_done = False
         for name, method in built.items():
@@ -416,21 +453,7 @@ def run_downstream(
             if not parameters:
                 problems.append(f"{pair_set.name}: {name}: no pair could be fitted; not trained")
                 continue
-            cached = trained_constant.get(name)
-            if cached is not None and _constant(parameters) and _constant([cached[0], parameters[0]]):
-                say(f"{pair_set.name}: {name}: same fixed parameters as before, denoiser reused")
-                model = cached[1]
-            else:
-                say(f"{pair_set.name}: training on {name}'s noise")
-                model = train_denoiser(
-                    method,
-                    parameters[:1] if _constant(parameters) else parameters,
-                    corpus.images,
-                    settings,
-                    progress=_prefixed(say, pair_set.name),
-                )
-                if _constant(parameters):
-                    trained_constant[name] = (parameters[0], model)
+            model = _denoiser_for(name, method, parameters, trained_constant, corpus.images, settings, pair_set, say)
             say(f"{pair_set.name}: testing {name}'s denoiser on the real pairs")
             scores = test_denoiser(model, _loaded(pair_set.pairs, None), reference=not reference_done)
             if not reference_done:

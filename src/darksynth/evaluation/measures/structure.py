@@ -306,6 +306,12 @@ def temporal_lag_correlation(frames: np.ndarray, lag: int = 1) -> float:
             x = residual[start, ..., channel][static]
             y = residual[start + lag, ..., channel][static]
             sums += (x.sum(), y.sum(), (x * x).sum(), (y * y).sum(), (x * y).sum(), x.size)
+    return _correlation_of_sums(sums)
+
+
+def _correlation_of_sums(sums: np.ndarray) -> float:
+    """Pearson's correlation from the running sums (x, y, x^2, y^2, xy, count); NaN without two pairs or with a
+    constant side."""
     sum_x, sum_y, sum_xx, sum_yy, sum_xy, count = sums
     if count < 2:
         return float("nan")
