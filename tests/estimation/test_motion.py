@@ -325,14 +325,14 @@ def test_a_periodic_texture_is_seen_as_ambiguous_and_a_natural_one_is_not() -> N
     assert motion_ambiguity(block_pair_product(natural, 4), motion)[0] < AMBIGUOUS_PEAK
 
 
-HARNESS = Path(__file__).resolve().parents[2] / "scripts" / "shutter_harness.py"
+HARNESS = Path(__file__).resolve().parents[2] / "scripts" / "light" / "shutter_harness.py"
 SHARED = Path(__file__).resolve().parents[3] / "shared" / "data"
 HARNESS_SEEDS = range(200, 212)
 """Harness cases of the develop part beyond those the confidence was developed on (seeds 0-159)."""
 
 
 def shutter_harness() -> Any:
-    """scripts/shutter_harness.py as a module."""
+    """scripts/light/shutter_harness.py as a module."""
     spec = importlib.util.spec_from_file_location("shutter_harness", HARNESS)
     assert spec is not None and spec.loader is not None
     harness = importlib.util.module_from_spec(spec)
@@ -377,8 +377,8 @@ def test_a_jpeg_reading_the_blocks_agree_on_less_than_unanimously_falls_back() -
 @pytest.mark.slow
 @pytest.mark.skipif(not (SHARED / "clean" / "images" / "kodak24").is_dir(), reason="../shared/data is absent")
 def test_the_shutter_harness_cases_read_within_bounds_or_fall_back() -> None:
-    """Twelve fixed cases of scripts/shutter_harness.py (real textures, dark, noisy, 2-20 px/frame): none is off by
-    more than 0.5 without falling back, and the median error of those read is within 0.15."""
+    """Twelve fixed cases of scripts/light/shutter_harness.py (real textures, dark, noisy, 2-20 px/frame): none is off
+    by more than 0.5 without falling back, and the median error of those read is within 0.15."""
     harness = shutter_harness()
     rows = harness_rows(harness, HARNESS_SEEDS)
     totals = harness.summary(rows)

@@ -41,7 +41,7 @@ for a 0.6 px kernel; within 2 % without JPEG)."""
 
 def _check_script() -> ModuleType:
     spec = importlib.util.spec_from_file_location(
-        "translated_profile_check", ROOT / "scripts" / "translated_profile_check.py"
+        "translated_profile_check", ROOT / "scripts" / "noise" / "translated_profile_check.py"
     )
     assert spec is not None and spec.loader is not None
     module = importlib.util.module_from_spec(spec)

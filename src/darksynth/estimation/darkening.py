@@ -162,7 +162,7 @@ LOW_DARKENING_CONFIDENCE = 0.1
 """Below this confidence (:attr:`~darksynth.light.tone_fit.DarkeningEstimate.confidence`) the darkening estimate
 comes with a note in the profile's ``meta``.
 
-On held-out Kodak images (``scripts/estimate_warnings.py --confidence``) the median tone-curve error is 0.43
+On held-out Kodak images (``scripts/den/estimate_warnings.py --confidence``) the median tone-curve error is 0.43
 below 0.1 (90th percentile 1.12) against 0.21-0.33 above it; a threshold of 0.2 would flag half of those images
 and of the real references, while the estimates between 0.1 and 0.2 (error 0.33) are about as good as those
 between 0.2 and 0.3 (0.31)."""

@@ -4,8 +4,8 @@ The spectral fit reads the correlation of a denoiser's residual from frame to fr
 residual keeps some of the still scene (fine texture the denoiser took for noise, the same in every frame), which a
 correlation reads as noise that persists, and its simulation, built on the denoised frames, forgets more between
 frames than the reference does (each denoised frame carries its own leftover noise): the coefficient came out too
-high on every drawn clip of ``scripts/temporal_harness.py`` and every real clip of
-``scripts/spectral_temporal_check.py``.
+high on every drawn clip of ``scripts/noise/temporal_harness.py`` and every real clip of
+``scripts/noise/spectral_temporal_check.py``.
 
 Here the statistics hold no scene: on the still flat blocks a frame minus an earlier one (each block's plane of change
 taken out: a change of exposure or light) is the difference of their noise. Per band the power of those

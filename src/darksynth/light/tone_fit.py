@@ -12,7 +12,7 @@ of small blocks). Because darkening acts on each value through the same increasi
 quantiles exactly. Quantiles still too close to the noise or to 8-bit rounding, and those near saturation, are left
 out; the line is fitted by a Huber-weighted least-squares regression.
 
-See docs/darkening-estimate.md for the measured accuracy and scripts/evaluate_darkening.py for the commands.
+See docs/darkening-estimate.md for the measured accuracy and scripts/light/evaluate_darkening.py for the commands.
 """
 
 from __future__ import annotations
@@ -28,7 +28,7 @@ from darksynth.light.tones import PROBABILITIES
 
 # The mean over clean training images (cbsd68, mcmaster, mirflickr; kodak24 held out) of log q_clean(p) at
 # PROBABILITIES, with q the quantile of the 4x4 block medians of all channels, floored at 0.5 / 255. Made by
-#   .venv/bin/python scripts/evaluate_darkening.py prior
+#   .venv/bin/python scripts/light/evaluate_darkening.py prior
 # fmt: off
 TONE_PRIOR_LOG_QUANTILES: tuple[float, ...] = (
     -3.3185, -2.9568, -2.6828, -2.5049, -2.3703, -2.2531, -2.1380, -2.0347,

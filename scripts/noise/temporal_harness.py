@@ -1,7 +1,15 @@
 """Development harness for the frame-to-frame correlation of the noise: drawn clips with known AR(1) coefficients.
 
-Run: ``PYTHONPATH=src .venv/bin/python scripts/temporal_harness.py [--data ../shared/data] [--cases 24]
-[--first-seed 0] [--out cases.jsonl]``.
+Makes: docs/spectral-noise.md, "Measured" (the bullet "Frame to frame, drawn clips": the table of |AR error| and
+check gap per version of the code, where the persistence fit was developed); src/darksynth/estimation/
+persistence_fit.py quotes it. A development harness: kept to check any change to the persistence fit.
+
+Run from the repo root::
+
+    .venv/bin/python scripts/noise/temporal_harness.py --cases 20 --first-seed 0
+
+Options: ``[--data ../shared/data] [--cases 24] [--first-seed 0] [--out cases.jsonl]``. It imports the camera-like
+spectrum and the darkening draw of ``benchmarks/estimate_roundtrip.py`` (it puts ``benchmarks/`` on the path).
 
 Each case (its own seed): a clean crop of a shared image (kodak24, cbsd68, mcmaster; 384 px a side), darkened as
 the round trip darkens, made into a 4-frame clip of a still scene; in half the cases a rectangle of it (a third of
@@ -14,7 +22,8 @@ runs for the spectrum) and compared:
 * the estimated coefficient per octave against the truth (the three finest octaves, 2-16 px, carry most of what a
   viewer and ``evaluation.structure.temporal_lag_correlation`` see);
 * the check's figure on the clip's own scene: ``temporal_lag_correlation`` of the noisy clip, and of the same dark
-  clip made noisy with the estimated values (another seed), a fair version of ``spectral_temporal_check.py``.
+  clip made noisy with the estimated values (another seed), a fair version of
+  ``scripts/noise/spectral_temporal_check.py``.
 """
 
 from __future__ import annotations
@@ -29,7 +38,7 @@ from typing import Any
 import numpy as np
 import torch
 
-sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "benchmarks"))
+sys.path.insert(0, str(Path(__file__).resolve().parents[2] / "benchmarks"))
 from darksynth.estimation.spectral_fit import quantised
 from darksynth.estimation.spectrum import estimate_spectrum
 from darksynth.evaluation.measures.structure import temporal_lag_correlation

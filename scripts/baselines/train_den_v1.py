@@ -1,11 +1,16 @@
 """Train the paper's ablation v1 (a U-Net that makes the noisy image, no f) and write its weights and summary.
 
-The shipped weights (src/darksynth/data/den_v1.safetensors) come from::
+Makes: the shipped weights src/darksynth/data/den_v1.safetensors and the held-out figures of docs/results.md,
+"The paper's ablation: den (v3) against den-v2 and v1" / "v1: a U-Net that makes the noisy image, without f" (the
+summary is docs/den_v1_training.json).
 
-    .venv/bin/python scripts/train_den_v1.py --seed 0 --max-minutes 20 --out src/darksynth/data/den_v1.safetensors
+Run from the repo root (the shipped weights, then their held-out figures again)::
 
-with the default data paths below, those of v2 and v3 (see docs/results.md, "The paper's ablation"). Its
-held-out figures again: ``scripts/train_den_v1.py --out src/darksynth/data/den_v1.safetensors --evaluate-only``.
+    .venv/bin/python scripts/baselines/train_den_v1.py --seed 0 --max-minutes 20 \
+        --out src/darksynth/data/den_v1.safetensors
+    .venv/bin/python scripts/baselines/train_den_v1.py --out src/darksynth/data/den_v1.safetensors --evaluate-only
+
+with the default data paths below, those of v2 and v3; ``--help`` lists the training settings.
 """
 
 from __future__ import annotations
@@ -25,7 +30,7 @@ from darksynth.baselines.den_v1_training import V1TrainConfig, evaluate_v1, trai
 from darksynth.errors import DarksynthError
 from darksynth.training.corpus import load_corpus
 
-SHARED = Path(__file__).resolve().parents[2] / "shared" / "data" / "clean"
+SHARED = Path(__file__).resolve().parents[3] / "shared" / "data" / "clean"
 
 
 def main(argv: list[str] | None = None) -> int:

@@ -1,6 +1,13 @@
 """How much of each pixel-noise parameter a reference reveals at all: bounds for the DEN's round trip.
 
-Run: ``.venv/bin/python scripts/identifiability.py [--trials N] [--data ../shared/data]``.
+Makes: docs/den.md, "Measured acceptance" (the list "How far a blind estimator could go": the clean-image oracle's
+R^2 for shot and read, and the share of quantization noise).
+
+Run from the repo root::
+
+    .venv/bin/python scripts/den/identifiability.py
+
+Options: ``[--trials 48] [--pixels 60000] [--seed 0] [--data ../shared/data]``.
 
 1. Clean-image oracle for shot and read noise: on held-out Kodak images darkened with alpha, gamma from the
    paper's ranges and given shot and read noise from the training ranges (8-bit, clipped), fit (shot, read)
@@ -57,7 +64,7 @@ def main() -> int:
     parser = argparse.ArgumentParser(description=__doc__)
     parser.add_argument("--trials", type=int, default=48)
     parser.add_argument("--pixels", type=int, default=60000, help="pixels sampled per image for the fit")
-    parser.add_argument("--data", type=Path, default=Path(__file__).resolve().parents[2] / "shared" / "data")
+    parser.add_argument("--data", type=Path, default=Path(__file__).resolve().parents[3] / "shared" / "data")
     parser.add_argument("--seed", type=int, default=0)
     args = parser.parse_args()
     paths = sorted((args.data / "clean" / "images" / "kodak24").glob("*.png"))

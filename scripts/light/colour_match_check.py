@@ -1,6 +1,14 @@
 """Colour cast of `apply`'s output against the reference's, with and without ``--match-colour``.
 
-Run: ``PYTHONPATH=src .venv/bin/python scripts/colour_match_check.py [--data ../shared/data] [--images 6]``.
+Makes: docs/darkening-estimate.md, "Colour cast matched per input (`--match-colour`, off by default)" (the table of
+the colour gap and the luminance gap, median and worst, as before and matched).
+
+Run from the repo root::
+
+    PYTHONPATH=src .venv/bin/python scripts/light/colour_match_check.py
+
+Options: ``[--data ../shared/data] [--images 6]``. It imports ``exposure_match_check`` from its own folder (on the
+path when the file is run as a script).
 
 For every shared real low-light reference (LOL and LIME images, the first frame of each phone clip and of the
 starlight video), its tone target (:func:`darksynth.light.tones.tone_quantiles`, ``median_noise``, ``colour_cast``),
@@ -8,7 +16,7 @@ then the first ``--images`` Kodak images darkened to it as ``apply`` does (``mat
 shipped profile's noise, (a) as today and (b) with the colour matched (``matched_colour``). Printed per reference
 and over all pairs: the colour gap, the mean absolute difference between the output's channel shares
 (:func:`darksynth.light.tones.colour_cast`) and the reference's, and the luminance gap of
-``scripts/exposure_match_check.py``, which the colour match must not worsen.
+``scripts/light/exposure_match_check.py``, which the colour match must not worsen.
 """
 
 from __future__ import annotations
@@ -29,7 +37,7 @@ from darksynth.recipe import ClipParameters
 from darksynth.synthesize import ClipSynthesizer
 
 # The same references and luminance measure as the exposure check (this script's folder is on the path).
-from exposure_match_check import luminance_quantiles, references  # isort: skip
+from exposure_match_check import KINDS, luminance_quantiles, references  # isort: skip
 
 
 def main() -> None:
@@ -43,7 +51,7 @@ def main() -> None:
         for p in sorted((args.data / "clean" / "images" / "kodak24").glob("*.png"))[: args.images]
     ]
     totals: dict[str, list[float]] = {"colour as today": [], "colour matched": [], "luma today": [], "luma matched": []}
-    for name, path, clip in references(args.data):
+    for name, path, clip in references(args.data, KINDS):
         reference = load_reference(path, clip=clip, max_frames=1)[:1]
         cast = colour_cast(reference)
         if cast is None or luminance_quantiles(reference[0])[-1] < 2.0 / 255.0:

@@ -1,17 +1,27 @@
 """The blind spectral estimate on the shared real low-light references: level check and real-vs-synthetic crops.
 
-Run: ``.venv/bin/python scripts/spectral_reference_check.py [--data ../shared/data] [--picture OUT.png]
-[--kinds lol,starlight,lime,clips]``.
+Makes: docs/spectral-noise.md, "Measured" (the bullet "Level on the shared real references": real over synthetic
+flat-block std per reference, and the picture docs/images/spectral-real-vs-synthetic.png), and the same figures
+in "Dark, clipped and textured references" and "What the measurement now says it could not read".
+
+Run from the repo root::
+
+    .venv/bin/python scripts/noise/spectral_reference_check.py --data ../shared/data
+    .venv/bin/python scripts/noise/spectral_reference_check.py --data ../shared/data --kinds lol,starlight \
+        --picture docs/images/spectral-real-vs-synthetic.png
+
+Options: ``[--data ../shared/data] [--picture OUT.png] [--kinds lol,starlight,lime,clips] [--only NAMES]``.
 
 For every reference (LOL and LIME images, the phone clips' first 4 frames, the starlight video's first 16): the
 profile ``estimate`` writes (spectral, the default), then that profile applied with ``--no-darken`` to the
 reference's own non-local-means denoised version (the denoiser and strength of the estimate). Printed per
 reference: the noise std of the 10% flattest 32-px blocks with at most 1% clipped pixels (crushed black holds no
-noise to compare), real over synthetic (1.00: the same; above 1.25 the
-profile misses noise, below 0.8 it reads texture as noise), and the same for the network's values alone
-(``--no-refine``). The picture puts a 128-px crop of the real reference beside the same crop of both synthetic
-versions, all three brightened by one gain (the real crop's 99th percentile to 0.9); use ``--kinds`` to limit it
-to permissively licensed references (LOL: MIT; the starlight video: BSD-3) for a picture that may be committed.
+noise to compare), real over synthetic (1.00: the same; above 1.25 the profile misses noise, below 0.8 it reads
+texture as noise), and the same for the network's values alone (``estimate(..., refine=False)``; when the committed
+picture was made, before the version-3 model was retired, that column was the version-3 profile). The picture puts
+a 128-px crop of the real reference beside the same crop of both synthetic versions, all three brightened by one
+gain (the real crop's 99th percentile to 0.9); ``--kinds lol,starlight`` limits it to permissively licensed
+references (LOL: MIT; the starlight video: BSD-3), the picture that may be committed.
 """
 
 from __future__ import annotations

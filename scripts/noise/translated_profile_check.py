@@ -1,6 +1,15 @@
 """How version-2 and version-3 profiles draw: per-channel std and octave-band power of their noise.
 
-Run: ``.venv/bin/python scripts/translated_profile_check.py [--record tests/noise/retired_srgb_drawing.json]``.
+Makes: docs/spectral-noise.md, "Version-2 and version-3 profiles" (the table of std R / G / B and brightness and
+colour bands per profile, translated over recorded), and the record tests/noise/retired_srgb_drawing.json that
+tests/noise/test_translation.py loads this file for.
+
+Run from the repo root::
+
+    .venv/bin/python scripts/noise/translated_profile_check.py
+
+Options: ``[--record OUT.json] [--seed 0]``. Do not point ``--record`` at the committed record: it was made with the
+retired version-3 drawing, which no code draws any more.
 
 Twelve profiles of the version-3 sRGB model (:data:`PROFILES`), spread over its parameter ranges (channel gains far
 from 1, correlation lengths up to 2 px, colour lengths up to 3 px, negative channel correlations, JPEG at three
@@ -33,7 +42,7 @@ from darksynth.noise.values import NoiseValues
 from darksynth.profile import Profile
 from darksynth.synthesize import synthesize
 
-ROOT = Path(__file__).resolve().parents[1]
+ROOT = Path(__file__).resolve().parents[2]
 RECORD = ROOT / "tests" / "noise" / "retired_srgb_drawing.json"
 
 SIDE = 512

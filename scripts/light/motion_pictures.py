@@ -1,8 +1,15 @@
-"""A real moving region of a low-light clip beside darksynth's blur of a clean video with the clip's profile,
-brightened by one common gain (docs/images/motion-real-vs-synthetic.png).
+"""A real moving region of a low-light clip beside darksynth's blur of a clean video with the clip's profile, with and
+without blur, brightened by one common gain.
 
-Run: ``PYTHONPATH=src .venv/bin/python scripts/motion_pictures.py --profile P.json --clip DIR --video V.mp4``
-where P.json is ``darksynth estimate DIR --clip``'s profile of the clip.
+Makes: docs/images/motion-real-vs-synthetic.png, in docs/motion-blur.md, "Real scenes with a known blur".
+
+Run from the repo root (P.json: ``darksynth estimate ../shared/data/real-lowlight/clips/clip1021 --clip``'s
+profile)::
+
+    PYTHONPATH=src .venv/bin/python scripts/light/motion_pictures.py --profile P.json \
+        --clip ../shared/data/real-lowlight/clips/clip1021 --video ../shared/data/clean/videos/bikes.mp4
+
+Options: ``--profile P.json --clip DIR --video V.mp4 [--out docs/images/motion-real-vs-synthetic.png]``.
 """
 
 from __future__ import annotations

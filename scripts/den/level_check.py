@@ -1,6 +1,14 @@
 """How well a DEN gets the overall noise level of bright, structured synthetic references.
 
-Run: ``.venv/bin/python scripts/level_check.py [WEIGHTS] [--data ../shared/data] [--images 6]``.
+Makes: docs/den.md, "The sRGB model" (the table of estimated / true noise std per setting, sRGB model and paper
+model).
+
+Run from the repo root::
+
+    .venv/bin/python scripts/den/level_check.py                                         # the shipped sRGB model
+    .venv/bin/python scripts/den/level_check.py src/darksynth/data/den_v3.safetensors   # the paper model
+
+Options: ``[WEIGHTS] [--data ../shared/data] [--images 6]``.
 
 For each of three settings like the real pairs' noise (low correlated JPEG noise, low correlated PNG noise,
 strong sidd-like noise), the first ``--images`` held-out Kodak images (not darkened, as bright as the real
@@ -43,7 +51,7 @@ def _values(setting: dict[str, float | tuple[float, ...]]) -> NoiseValues:
 def main() -> int:
     parser = argparse.ArgumentParser(description=__doc__)
     parser.add_argument("weights", type=Path, nargs="?", default=default_weights_path())
-    parser.add_argument("--data", type=Path, default=Path(__file__).resolve().parents[2] / "shared" / "data")
+    parser.add_argument("--data", type=Path, default=Path(__file__).resolve().parents[3] / "shared" / "data")
     parser.add_argument("--images", type=int, default=6)
     args = parser.parse_args()
     model = load_weights(args.weights)

@@ -1,6 +1,13 @@
 """The shutter estimate on real scenes: real motion and texture, blurred with a known exposure fraction by `apply`.
 
-Run: ``PYTHONPATH=src .venv/bin/python scripts/motion_roundtrip_real.py [--data ../shared/data] [--profile P]``.
+Makes: docs/motion-blur.md, "Real scenes with a known blur" (the table of the exposure fraction read per video,
+clean and for s = 0, 0.25, 0.5, 1).
+
+Run from the repo root::
+
+    PYTHONPATH=src .venv/bin/python scripts/light/motion_roundtrip_real.py
+
+Options: ``[--data ../shared/data] [--profile P] [--only NAME ...] [--out FILE.json]``.
 
 No real low-light clip comes with its shutter, so the estimator (``estimation.motion``) is checked here on the
 shared clean videos, which are real footage: their motion is a real camera's and real objects' (parallax, several
@@ -13,9 +20,9 @@ camcorder in sun exposes for a small share of the frame interval). For each vide
 - ``s = 0.25, 0.5, 1.0``: the same with the profile's ``light`` section set to that exposure fraction (no flicker),
   so ``apply`` blurs along the clean video's own optical flow before darkening and noise.
 
-The profile is estimated once from a real low-light clip (``--profile`` to give one). What it shows: whether the
-estimator finds a known blur through a real scene's motion and a real camera's noise and compression (the
-synthetic round trip of tests/estimation/test_motion.py uses a translated pattern). What it cannot show: the
+The profile is estimated once from a real low-light clip (clip1021; ``--profile`` to give one). What it shows:
+whether the estimator finds a known blur through a real scene's motion and a real camera's noise and compression
+(the synthetic round trip of tests/estimation/test_motion.py uses a translated pattern). What it cannot show: the
 exposure fraction of a real night clip, which stays unvalidated (docs/motion-blur.md). Prints one row a video and
 ``s``; ``--out`` writes them as JSON.
 """
@@ -64,7 +71,7 @@ def estimate(path: Path, clip: bool) -> dict[str, Any]:
 
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    parser.add_argument("--data", type=Path, default=Path(__file__).resolve().parents[2] / "shared" / "data")
+    parser.add_argument("--data", type=Path, default=Path(__file__).resolve().parents[3] / "shared" / "data")
     parser.add_argument("--profile", type=Path, help="the profile to apply (default: estimated from clip1021)")
     parser.add_argument("--only", nargs="*", help="only these videos (names under clean/videos)")
     parser.add_argument("--out", type=Path, help="write the rows as JSON here")

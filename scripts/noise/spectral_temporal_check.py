@@ -1,7 +1,14 @@
 """Frame-to-frame persistence of the noise: each shared real clip and video against a static clean clip made with
 the profile estimated from it.
 
-Run: ``.venv/bin/python scripts/spectral_temporal_check.py [--data ../shared/data] [--frames 8]``.
+Makes: docs/spectral-noise.md, "Measured" (the bullet "Frame to frame": the table of real, synthetic (gap), AR
+coefficients and floor per reference); src/darksynth/estimation/persistence_fit.py quotes it.
+
+Run from the repo root::
+
+    .venv/bin/python scripts/noise/spectral_temporal_check.py --data ../shared/data
+
+Options: ``[--data ../shared/data] [--frames 8]``.
 
 For every phone clip (``real-lowlight/clips/clipN``, 4 frames) and the starlight video (first 16 frames): the lag-1
 correlation of the reference's fine residual (``evaluation.structure.temporal_lag_correlation``), then the profile

@@ -1,6 +1,14 @@
 """The shutter and flicker estimate on the shared real low-light videos and clips.
 
-Run: ``PYTHONPATH=src .venv/bin/python scripts/motion_reference_check.py [--data ../shared/data] [--out FILE.json]``.
+Makes: docs/motion-blur.md, "The shared real clips and video" (the table of s, measured, displacement, moving
+share, flicker and correlation per reference) and "The shared real clips, before and after"; docs/performance.md
+("`estimate` of 16 frames of 1080p") quotes its timings.
+
+Run from the repo root::
+
+    PYTHONPATH=src .venv/bin/python scripts/light/motion_reference_check.py
+
+Options: ``[--data ../shared/data] [--out FILE.json]``.
 
 For every video under ``real-lowlight/videos`` (its first 16 frames) and every frame folder under
 ``real-lowlight/clips`` (read as a clip): :func:`darksynth.estimation.motion.estimate_motion`, printed as one row
@@ -41,7 +49,7 @@ def check(path: Path, clip: bool) -> dict[str, Any]:
 
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    parser.add_argument("--data", type=Path, default=Path(__file__).resolve().parents[2] / "shared" / "data")
+    parser.add_argument("--data", type=Path, default=Path(__file__).resolve().parents[3] / "shared" / "data")
     parser.add_argument("--out", type=Path, help="write the rows as JSON here")
     args = parser.parse_args()
     rows = [check(path, clip) for path, clip in references(args.data)]

@@ -1,5 +1,13 @@
 """Rebuild the demo sample shipped in src/darksynth/data/sample from ../shared/data (run once, by hand).
 
+Makes: no doc figure. It writes the files ``darksynth demo`` runs on (src/darksynth/data/sample: a 320-px Kodak
+crop, a 12-frame Set8 clip, a LOL low-light reference), whose provenance src/darksynth/data/sample/LICENSES.md
+gives. Kept: the only record of how the sample was made.
+
+Run from the repo root::
+
+    .venv/bin/python scripts/sample/make_sample.py
+
 Only permissively licensed sources are used (see ../shared/data/README.md and the sample's LICENSES.md).
 """
 
@@ -13,8 +21,8 @@ import av
 import numpy as np
 from PIL import Image
 
-DATA = Path(__file__).resolve().parents[1].parent / "shared" / "data"
-SAMPLE = Path(__file__).resolve().parents[1] / "src" / "darksynth" / "data" / "sample"
+DATA = Path(__file__).resolve().parents[3] / "shared" / "data"
+SAMPLE = Path(__file__).resolve().parents[2] / "src" / "darksynth" / "data" / "sample"
 
 
 def main() -> int:

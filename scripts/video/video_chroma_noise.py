@@ -1,6 +1,13 @@
 """How the writer's pixel format changes the synthetic noise a video keeps: 4:2:0 (the default) against 4:4:4.
 
-Run: ``.venv/bin/python scripts/video_chroma_noise.py [--video CLEAN] [--frames N] [--scale S] [--seed K]``.
+Makes: docs/video-output.md, "What 4:2:0 does to the noise" (the table of noise std per RGB channel, Y, Cb, Cr, the
+lag-1 of Cb and Cr and the file size, unencoded, yuv420p and yuv444p).
+
+Run from the repo root::
+
+    .venv/bin/python scripts/video/video_chroma_noise.py --frames 60 --scale 2
+
+Options: ``[--video CLEAN] [--frames 60] [--scale 1] [--seed 0]``.
 
 A clean clip is darkened and given noise with the shipped default profile, as ``apply`` does; the noisy frames are
 encoded with the default codec and CRF in yuv420p and in yuv444p and decoded again. Against the darkened clean
@@ -28,7 +35,7 @@ from darksynth.profile import default_profile_path, load_profile
 from darksynth.recipe import draw_clip_parameters
 from darksynth.synthesize import ClipSynthesizer
 
-DEFAULT_VIDEO = Path(__file__).resolve().parents[2] / "shared" / "data" / "clean" / "videos" / "bikes.mp4"
+DEFAULT_VIDEO = Path(__file__).resolve().parents[3] / "shared" / "data" / "clean" / "videos" / "bikes.mp4"
 
 # BT.709, the matrix the writer tags H.264 with: RGB differences -> Y, Cb, Cr in the same units.
 _TO_YCBCR = np.array(

@@ -1,10 +1,19 @@
 """Quick check of blind methods against the real pairs (validation only, nothing is fitted to them).
 
-Run: ``.venv/bin/python scripts/blind_real_check.py den,den-network,spectral-oracle [POLYU_STEP]``: every
-POLYU_STEP-th polyu pair (default 10), every nam-cc15 and sidd pair. Prints, per set and method, the mean Noise
-Flow kld and kld_srgb, the synthetic / real noise std per channel (pooled), the mean channel correlation of the
-synthetic noise beside the real one's, and the fit + synthesis time per pair. A subsample of what ``darksynth
-evaluate`` measures, in about a minute, to compare estimator changes.
+Makes: nothing a current doc shows. Its figures are quoted in docs/refine.md ("Version 2 of the steps" table and
+"Version 3: the default", the subsample ``den 10``), run at the time with the retired ``den-refined`` and
+``srgb-oracle`` methods. Kept as a development harness: a one-minute subsample of ``darksynth evaluate`` to compare
+estimator changes before the full run.
+
+Run from the repo root::
+
+    .venv/bin/python scripts/noise/blind_real_check.py den,den-network,spectral-oracle 10
+
+Arguments (positional, no options): ``[METHODS [POLYU_STEP]]``: comma-separated evaluation methods (default
+``den,den-network,spectral-oracle``), every POLYU_STEP-th polyu pair (default 10), every nam-cc15 and sidd pair.
+Prints, per set and method, the mean Noise Flow kld and kld_srgb, the synthetic / real noise std per channel
+(pooled), the mean channel correlation of the synthetic noise beside the real one's, and the fit + synthesis time
+per pair.
 """
 
 from __future__ import annotations
@@ -20,7 +29,7 @@ from darksynth.evaluation.methods.catalogue import build_method
 from darksynth.evaluation.pairs import list_pair_set, load_pair
 from darksynth.seeding import seeded_generator
 
-ROOT = Path(__file__).resolve().parents[2] / "shared" / "data" / "real-pairs"
+ROOT = Path(__file__).resolve().parents[3] / "shared" / "data" / "real-pairs"
 
 
 def main() -> int:

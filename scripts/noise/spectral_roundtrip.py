@@ -1,6 +1,13 @@
 """Blind round trip of the spectral estimate on Kodak: random spectra from the table's prior, estimated back.
 
-Run: ``.venv/bin/python scripts/spectral_roundtrip.py [--data ../shared/data] [--images 8] [--brightness 0.3]``.
+Makes: docs/spectral-noise.md, "Measured" (the bullet "Blind round trip on Kodak": the median band ratios for
+brightness and colour and the share of images within 0.8-1.25 per band).
+
+Run from the repo root::
+
+    .venv/bin/python scripts/noise/spectral_roundtrip.py --images 8
+
+Options: ``[--data ../shared/data] [--images 8] [--brightness 0.3]``.
 
 For each of the first ``--images`` Kodak images (scaled by ``--brightness``, as a dark scene, on 8-bit levels):
 the spectral parameters (``level_curve``, ``octave_power``, ``octave_correlation``) drawn uniformly within their

@@ -1,11 +1,15 @@
 """Train the Starlight baseline generator on the DEN's synthetic data and write its weights and summary.
 
-The shipped weights (src/darksynth/data/starlight.safetensors) come from::
+Makes: the shipped weights src/darksynth/data/starlight.safetensors and their summary
+src/darksynth/data/starlight_training.json, whose held-out figures docs/starlight.md, "Training" / "The shipped
+weights" shows.
 
-    .venv/bin/python scripts/train_starlight.py --seed 0 --steps 1500 --threads 1 --max-minutes 14.5 \
+Run from the repo root::
+
+    .venv/bin/python scripts/baselines/train_starlight.py --seed 0 --steps 1500 --threads 1 --max-minutes 14.5 \
         --out src/darksynth/data/starlight.safetensors
 
-with the default data paths below (see docs/starlight.md).
+with the default data paths below; ``--help`` lists the training settings.
 """
 
 from __future__ import annotations
@@ -24,7 +28,7 @@ from darksynth.baselines.starlight import StarlightConfig, StarlightTrainConfig,
 from darksynth.errors import DarksynthError
 from darksynth.training.corpus import load_corpus
 
-SHARED = Path(__file__).resolve().parents[2] / "shared" / "data" / "clean"
+SHARED = Path(__file__).resolve().parents[3] / "shared" / "data" / "clean"
 
 
 def main(argv: list[str] | None = None) -> int:

@@ -1,15 +1,20 @@
 """Round-trip acceptance of the DEN on held-out clean images: apply known parameters, estimate, compare.
 
-Run: ``.venv/bin/python scripts/evaluate_den.py [--model srgb|paper] [--weights W] [--trials N]
-[--data ../shared/data]``.
+Makes: docs/den.md, "Measured acceptance" (the table of R^2 per parameter, single image and 8-frame clip, against
+the target 0.9).
+
+Run from the repo root::
+
+    .venv/bin/python scripts/den/evaluate_den.py --trials 48
+
+Options: ``[--model srgb|paper] [--weights W] [--trials 48] [--frames 8] [--seed 0] [--data ../shared/data]``.
 
 Held-out material: the 24 Kodak images (never used in training). Each trial picks an image, draws alpha and
 gamma from the paper's ranges and every noise parameter of the model from its training range (all components
-on; the sRGB model's shape parameters too), makes
-the low-light reference exactly as ``darksynth apply`` does (the 8-bit path, through a PNG file), and runs
-``estimate`` on it. Three settings: single images (T = 1), static clips of 8 frames (noise redrawn every
-frame, temporal banding held), and for shot and read the same single images. Prints R^2 per parameter and a
-JSON line with everything.
+on; the sRGB model's shape parameters too), makes the low-light reference exactly as ``darksynth apply`` does (the
+8-bit path, through a PNG file), and runs ``estimate`` on it. Three settings: single images (T = 1), static clips of
+8 frames (noise redrawn every frame, temporal banding held), and for shot and read the same single images. Prints
+R^2 per parameter and a JSON line with everything.
 """
 
 from __future__ import annotations
@@ -54,7 +59,7 @@ def main() -> int:
     parser.add_argument("--model", choices=("srgb", "paper"), default="srgb")
     parser.add_argument("--trials", type=int, default=48)
     parser.add_argument("--frames", type=int, default=8)
-    parser.add_argument("--data", type=Path, default=Path(__file__).resolve().parents[2] / "shared" / "data")
+    parser.add_argument("--data", type=Path, default=Path(__file__).resolve().parents[3] / "shared" / "data")
     parser.add_argument("--seed", type=int, default=0)
     args = parser.parse_args()
     images = sorted((args.data / "clean" / "images" / "kodak24").glob("*.png"))

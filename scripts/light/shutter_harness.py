@@ -1,7 +1,15 @@
 """Randomized round trip of the shutter estimate on real textures: dark, noisy, moving, with a known exposure fraction.
 
-Run: ``OMP_NUM_THREADS=1 PYTHONPATH=src .venv/bin/python scripts/shutter_harness.py [--part develop|check]
-[--cases 160] [--data ../shared/data] [--out FILE.json]``.
+Makes: docs/motion-blur.md, "The shutter harness" (the table of median error, share off by more than 0.5 without
+fallback and fallback rate per part, and the counts of fallbacks by reason). tests/estimation/test_motion.py loads
+this file and runs 12 of its develop cases (seeds 200-211) and two JPEG cases against the same bars.
+
+Run from the repo root::
+
+    OMP_NUM_THREADS=1 PYTHONPATH=src .venv/bin/python scripts/light/shutter_harness.py --part develop --cases 160
+    OMP_NUM_THREADS=1 PYTHONPATH=src .venv/bin/python scripts/light/shutter_harness.py --part check --cases 160
+
+Options: ``[--part develop|check] [--cases 160] [--first 0] [--data ../shared/data] [--out FILE.json]``.
 
 Each case (its own seed, fixed: ``develop`` draws seeds 0.., ``check`` seeds 100000..) takes a crop of a shared
 clean image as the scene and moves it: a translation of 2-20 px/frame in any direction, and in a quarter of the
@@ -221,7 +229,7 @@ def summary(rows: list[dict[str, object]]) -> dict[str, float]:
 
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    parser.add_argument("--data", type=Path, default=Path(__file__).resolve().parents[2] / "shared" / "data")
+    parser.add_argument("--data", type=Path, default=Path(__file__).resolve().parents[3] / "shared" / "data")
     parser.add_argument("--part", choices=sorted(PARTS), default="develop")
     parser.add_argument("--cases", type=int, default=160)
     parser.add_argument("--first", type=int, default=0, help="skip this many of the part's cases")

@@ -1,7 +1,16 @@
-"""Measure the darkening estimate (darksynth.light.tones) and make its tone prior.
+"""Measure the darkening estimate (darksynth.light.tone_fit, on darksynth.light.tones) and make its tone prior.
 
-    .venv/bin/python scripts/evaluate_darkening.py prior      # the TONE_PRIOR_LOG_QUANTILES table
-    .venv/bin/python scripts/evaluate_darkening.py evaluate   # the figures in docs/darkening-estimate.md
+Makes: docs/darkening-estimate.md, "Accuracy" (the table of alpha, gamma, mean level and tone-curve errors on
+held-out Kodak against the paper's fixed darkening, with and without noise) and "Real references (same command)";
+``prior`` makes the table TONE_PRIOR_LOG_QUANTILES in src/darksynth/light/tone_fit.py.
+
+Run from the repo root::
+
+    .venv/bin/python scripts/light/evaluate_darkening.py prior                                 # the prior table
+    .venv/bin/python scripts/light/evaluate_darkening.py evaluate                              # noise as drawn
+    .venv/bin/python scripts/light/evaluate_darkening.py evaluate --noise-scale 0 --no-real    # without noise
+
+Options: ``{prior,evaluate} [--block 4] [--draws 4] [--seed 0] [--noise-scale 1] [--no-paper-prior] [--no-real]``.
 
 ``prior``: the mean log tone quantiles of the clean training images (cbsd68, mcmaster, mirflickr).
 ``evaluate``: held-out Kodak images darkened with alpha ~ U(0.05, 0.3), gamma ~ U(0.1, 1) (the paper's ranges),
@@ -29,7 +38,7 @@ from darksynth.noise.components import model_parameters
 from darksynth.noise.sampling import random_noise_values
 from darksynth.noise.simulate import add_noise
 
-DATA = Path(__file__).resolve().parents[2] / "shared" / "data"
+DATA = Path(__file__).resolve().parents[3] / "shared" / "data"
 TRAINING_SETS = ("cbsd68", "mcmaster", "mirflickr")
 HELD_OUT = "kodak24"
 REAL_SETS = ("lol", "lime")

@@ -1,8 +1,18 @@
 """Exposure of `apply`'s output against the reference's: the block-median match, the match fitted on the output's
 luminance quantiles, and the best global darkening found in hindsight.
 
-Run: ``PYTHONPATH=src .venv/bin/python scripts/exposure_match_check.py [--data ../shared/data] [--images 6]
-[--skip-images 0] [--kinds lol lime clip video]``.
+Makes: docs/darkening-estimate.md, "Exposure fitted on the output's luminance quantiles" / "Figures" (the table of
+the median gap per set: block medians, output quantiles, hindsight floor), and the earlier table of "Exposure
+matched per input (issue 25, first step)".
+
+Run from the repo root::
+
+    PYTHONPATH=src .venv/bin/python scripts/light/exposure_match_check.py --data ../shared/data --images 6
+    PYTHONPATH=src .venv/bin/python scripts/light/exposure_match_check.py --data ../shared/data --images 6 \
+        --skip-images 6 --kinds lime clip video
+
+Options: ``[--data ../shared/data] [--images 6] [--skip-images 0] [--kinds lol lime clip video]``.
+``scripts/light/colour_match_check.py`` imports its references and luminance measure.
 
 For every shared real low-light reference (LOL and LIME images, the first frame of each phone clip, the starlight
 video's first frame): the profile ``estimate`` writes, then Kodak images (8-bit, as ``apply`` reads them; the
@@ -11,9 +21,9 @@ first ``--images`` after ``--skip-images``) through ``darksynth.synthesize`` wit
 are read), (b) by the match fitted on the output's luminance quantiles (the profile as ``estimate`` writes it now)
 and (c) by the best global alpha and gamma for the pair, found in hindsight by a direct search on the synthesized
 output: a grid over alpha in [0.005, 1] and gamma in [0.1, 2], then a compass search from the best of the grid,
-(a) and (b). The gap (issue 25's measure): the mean absolute difference of the 8-bit output's luminance quantiles
-at 5, 10, ..., 95% and the reference's, on the [0, 1] scale. Printed: per reference the median gap over the images
-for each, then the median and worst over all (reference, image) pairs and the ratios of the medians to (c)'s.
+(a) and (b). The gap: the mean absolute difference of the 8-bit output's luminance quantiles at 5, 10, ..., 95%
+and the reference's, on the [0, 1] scale. Printed: per reference the median gap over the images for each, then
+the median and worst over all (reference, image) pairs and the ratios of the medians to (c)'s.
 """
 
 from __future__ import annotations

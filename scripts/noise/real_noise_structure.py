@@ -1,14 +1,25 @@
 """How far real noise is from white: the figures behind the analysis in docs/results.md.
 
-Run: ``.venv/bin/python scripts/real_noise_structure.py [--data ../shared/data]``. For up to 16 pairs of each
-set in ``real-pairs``, on the real noise map noisy - clean:
+Makes: docs/results.md, "The paper's headline" / "Why" (the table of real noise std, std over fine-scale std,
+channel correlation, mean level and den std over real std per set); with ``--weights`` the synthetic / real std of
+docs/den.md, "The sRGB model"; docs/noise-model.md ("The sRGB model: structure of the heteroscedastic noise")
+cites it.
+
+Run from the repo root::
+
+    .venv/bin/python scripts/noise/real_noise_structure.py
+
+Options: ``[--data ../shared/data] [--method den] [--weights W]``.
+
+For up to 16 pairs of each set in ``real-pairs``, on the real noise map noisy - clean:
+
 - spatial correlation: the noise std divided by the std that fine-scale statistics see (vertical differences,
   sqrt(var(n[y+1] - n[y]) / 2)); 1.00 for white noise, larger when neighbouring pixels are correlated;
 - chromatic correlation: the mean correlation coefficient between the noise of two colour channels, and per
-  pair (red-green, green-blue, red-blue: the sRGB model's ``channel_correlation``);
-- per-channel level: the std of red and of blue noise relative to green (the sRGB model's ``channel_gain``);
+  pair (red-green, green-blue, red-blue);
+- per-channel level: the std of red and of blue noise relative to green;
 - brightness: the mean level of the noisy image (the shipped DEN was trained on darkened images, mean <= 0.3);
-- the std of the `den` method's synthetic noise divided by the real noise std (1.00 when the level is right).
+- the std of the ``--method``'s synthetic noise divided by the real noise std (1.00 when the level is right).
 """
 
 from __future__ import annotations
@@ -25,7 +36,7 @@ from darksynth.evaluation.pairs import list_pair_set, load_pair
 
 def main() -> int:
     parser = argparse.ArgumentParser(description=__doc__)
-    parser.add_argument("--data", type=Path, default=Path(__file__).resolve().parents[2] / "shared" / "data")
+    parser.add_argument("--data", type=Path, default=Path(__file__).resolve().parents[3] / "shared" / "data")
     parser.add_argument("--method", default="den", help="whose synthetic noise std to compare (default: den)")
     parser.add_argument("--weights", type=Path, help="weights file for a DEN method (default: the shipped one)")
     args = parser.parse_args()

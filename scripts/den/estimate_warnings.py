@@ -1,6 +1,16 @@
 """What ``darksynth estimate`` says on every shared real reference: its warnings, the column decision, the noise.
 
-Run: ``.venv/bin/python scripts/estimate_warnings.py [--data ../shared/data] [--weights W]``.
+Makes: docs/den.md, "What estimate says, on the shared references" (the before/after table of warnings and column
+decisions over the 41 references, and the column ratios); with ``--confidence`` the table of tone-curve error per
+confidence bin in docs/darkening-estimate.md, "In the profile (`estimate()`)", which
+src/darksynth/estimation/darkening.py quotes. docs/refine.md ("Version 3: the default") quotes a run of it too.
+
+Run from the repo root::
+
+    .venv/bin/python scripts/den/estimate_warnings.py                # every shared real reference
+    .venv/bin/python scripts/den/estimate_warnings.py --confidence   # the darkening confidence table
+
+Options: ``[--data ../shared/data] [--weights W] [--confidence]``.
 
 The references are every file under ``real-lowlight``: the LIME and LOL images (one frame each), each folder of
 ``clips`` (as ``--clip``, up to 16 frames) and the Starlight video (its first 16 frames). For each one line:
@@ -11,7 +21,7 @@ rate of each warning and of each column decision.
 
 ``--confidence``: how the darkening's confidence relates to its error, which sets the threshold of the
 "darkening estimate is uncertain" warning: held-out Kodak images darkened with alpha ~ U(0.05, 0.3), gamma ~
-U(0.1, 1) and noise from the DEN's training ranges (as ``scripts/evaluate_darkening.py evaluate``, seed 0, 4
+U(0.1, 1) and noise from the DEN's training ranges (as ``scripts/light/evaluate_darkening.py evaluate``, seed 0, 4
 draws each), the tone-curve error (mean absolute difference of the 5%-95% quantiles over the true mean level)
 per confidence bin, and how often each threshold would fire.
 """
@@ -98,7 +108,7 @@ def confidence_table(data: Path, draws: int = 4, seed: int = 0) -> None:
 
 def main() -> int:
     parser = argparse.ArgumentParser(description=__doc__)
-    parser.add_argument("--data", type=Path, default=Path(__file__).resolve().parents[2] / "shared" / "data")
+    parser.add_argument("--data", type=Path, default=Path(__file__).resolve().parents[3] / "shared" / "data")
     parser.add_argument("--weights", type=Path, default=default_weights_path())
     parser.add_argument("--confidence", action="store_true", help="the darkening confidence table instead")
     args = parser.parse_args()
