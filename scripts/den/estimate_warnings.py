@@ -36,7 +36,8 @@ import numpy as np
 import torch
 
 from darksynth.errors import DarksynthError
-from darksynth.estimation.assemble import NOISE_FREE_STD, EstimateOptions, estimate_file
+from darksynth.estimation.assemble import EstimateOptions, estimate_file
+from darksynth.estimation.noise_estimate import NOISE_FREE_STD
 from darksynth.estimation.darkening import estimate_darkening
 from darksynth.estimation.reference import load_reference
 from darksynth.light.darkening import ALPHA_RANGE, GAMMA_RANGE, Darkening, darken
