@@ -441,7 +441,7 @@ def apply(
     report = ApplyReport(skipped=skipped)
     resume = None
     if folder:
-        # A folder run resumes an earlier one with the same options (docs in darksynth.apply_resume).
+        # A folder run resumes an earlier one with the same options (darksynth.apply_outputs.read_state).
         resume = read_state(output_path, options, {t.key: t.outputs for t in tasks}, has_videos=bool(videos))
         report.records.extend(resume.done.values())
         report.already_done = len(resume.done)
