@@ -22,7 +22,6 @@ from darksynth.noise.spectral import (
     OCTAVE_FREQUENCIES,
     OCTAVES,
     covariance_parameters,
-    octave_covariances,
 )
 from darksynth.noise.values import NoiseValues
 
@@ -242,11 +241,6 @@ def continue_octaves(parameters: SpectralParameters, first_unmeasured: int) -> S
     temporal = parameters.temporal.clone()
     temporal[first_unmeasured:] = temporal[last]
     return SpectralParameters(covariances=covariances, curve=parameters.curve, temporal=temporal)
-
-
-def spectral_covariances_of(values: dict[str, torch.Tensor]) -> torch.Tensor:
-    """(OCTAVES, 3, 3) covariances of the table's ``octave_power`` and ``octave_correlation``."""
-    return octave_covariances(values["octave_power"], values["octave_correlation"])
 
 
 _CENSORED_T = torch.linspace(-4.0, 8.0, 2401, dtype=torch.float64)
