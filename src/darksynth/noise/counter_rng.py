@@ -4,10 +4,10 @@ The 8-bit kernels need Gaussians and random bytes per pixel. Drawing them from `
 frame-sized tensors to memory from one serial stream; computing them inside the fused per-pixel loop from a
 hash of the pixel's index costs a few vector instructions and no memory traffic, and it runs on every core.
 
-The hash works on 32-bit words only. A 64-bit generator (SplitMix64, which this module used before) needs
-64-bit multiplies, which x86 has as a vector instruction only with AVX-512DQ: on AVX2-only processors
-(most laptops, AMD before Zen 4) the compiler splits each into several 32-bit ones, and the fused kernel ran
-3x slower there (docs/performance.md). 32-bit multiplies have a vector form on every x86 processor with AVX2
+The hash works on 32-bit words only. A 64-bit generator (SplitMix64, for example) needs 64-bit multiplies,
+which x86 has as a vector instruction only with AVX-512DQ: on AVX2-only processors (most laptops, AMD before
+Zen 4) the compiler splits each into several 32-bit ones, and a fused kernel on SplitMix64 ran 3x slower there
+(docs/performance.md). 32-bit multiplies have a vector form on every x86 processor with AVX2
 (and SSE4.1), on ARM NEON and on GPUs.
 
 The mixing function is Chris Wellons' ``lowbias32`` (xor-shift, multiply, xor-shift, multiply, xor-shift),
