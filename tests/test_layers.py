@@ -142,13 +142,14 @@ def _imported_units(path: Path) -> set[str]:
     return units
 
 
-def _imported_stages(path: Path) -> set[str]:
-    """The modules of the ``estimation`` package a source file imports."""
-    stages = set()
+def _imported_parts(path: Path, package: str) -> set[str]:
+    """The modules (or subpackages) of a darksynth package a source file imports, in any of the three forms:
+    ``from darksynth.<package> import x``, ``from darksynth.<package>.x import ...``,
+    ``import darksynth.<package>.x``."""
+    parts_seen = set()
     for node in ast.walk(ast.parse(path.read_text(encoding="utf-8"))):
-        if isinstance(node, ast.ImportFrom) and node.module == "darksynth.estimation" and node.level == 0:
-            # `from darksynth.estimation import x`: x is the stage.
-            stages.update(alias.name for alias in node.names)
+        if isinstance(node, ast.ImportFrom) and node.module == f"darksynth.{package}" and node.level == 0:
+            parts_seen.update(alias.name for alias in node.names)
             continue
         if isinstance(node, ast.ImportFrom) and node.module and node.level == 0:
             names = [node.module]
@@ -158,9 +159,14 @@ def _imported_stages(path: Path) -> set[str]:
             continue
         for name in names:
             parts = name.split(".")
-            if parts[:2] == ["darksynth", "estimation"] and len(parts) > 2:
-                stages.add(parts[2])
-    return stages
+            if parts[:2] == ["darksynth", package] and len(parts) > 2:
+                parts_seen.add(parts[2])
+    return parts_seen
+
+
+def _imported_stages(path: Path) -> set[str]:
+    """The modules of the ``estimation`` package a source file imports."""
+    return _imported_parts(path, "estimation")
 
 
 SOURCES = sorted(p for p in SOURCE.rglob("*.py"))
@@ -225,23 +231,8 @@ def _evaluation_part(path: Path) -> str:
 
 
 def _imported_evaluation_parts(path: Path) -> set[str]:
-    """The parts of the ``evaluation`` package a source file imports, in any of the three import forms."""
-    parts_seen = set()
-    for node in ast.walk(ast.parse(path.read_text(encoding="utf-8"))):
-        if isinstance(node, ast.ImportFrom) and node.module == "darksynth.evaluation" and node.level == 0:
-            parts_seen.update(alias.name for alias in node.names)
-            continue
-        if isinstance(node, ast.ImportFrom) and node.module and node.level == 0:
-            names = [node.module]
-        elif isinstance(node, ast.Import):
-            names = [alias.name for alias in node.names]
-        else:
-            continue
-        for name in names:
-            parts = name.split(".")
-            if parts[:2] == ["darksynth", "evaluation"] and len(parts) > 2:
-                parts_seen.add(parts[2])
-    return parts_seen
+    """The parts of the ``evaluation`` package a source file imports."""
+    return _imported_parts(path, "evaluation")
 
 
 def test_every_evaluation_part_has_a_layer() -> None:
