@@ -29,10 +29,12 @@ percentile of |std ratio - 1|, cases off by more than 2x and whether they warned
 from __future__ import annotations
 
 import argparse
+import contextlib
 import json
 import math
 import sys
 import time
+from collections.abc import Callable, Iterable
 from pathlib import Path
 from typing import Any
 
@@ -257,6 +259,26 @@ def summarise(cases: list[dict[str, Any]]) -> None:
     print(f"estimate seconds: median {np.median([c['seconds'] for c in cases]):.2f}")
 
 
+def run_cases(
+    seeds: Iterable[int],
+    run: Callable[[int], dict[str, Any]],
+    line: Callable[[int, dict[str, Any]], str],
+    out: Path | None,
+) -> list[dict[str, Any]]:
+    """Every seed's case run, printed as its ``line`` as it finishes and, with ``out``, written there as a JSON
+    line at once (a long run that is stopped keeps what it did)."""
+    cases = []
+    with out.open("w") if out else contextlib.nullcontext() as stream:
+        for seed in seeds:
+            case = run(seed)
+            cases.append(case)
+            print(line(seed, case), flush=True)
+            if stream is not None:
+                stream.write(json.dumps(case) + "\n")
+                stream.flush()
+    return cases
+
+
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--data", type=Path, default=Path("../shared/data"))
@@ -268,21 +290,16 @@ def main() -> None:
     torch.set_num_threads(arguments.threads)
     print(cpu_summary())
     network = load_weights(default_weights_path())
-    cases = []
-    out = arguments.out.open("w") if arguments.out else None
-    for seed in range(arguments.first_seed, arguments.first_seed + arguments.cases):
-        case = run_case(arguments.data, network, seed)
-        cases.append(case)
-        print(
+
+    def line(seed: int, case: dict[str, Any]) -> str:
+        return (
             f"{seed} {case['kind']:10s} {'clip' if case['clip'] else 'image'} jpeg {case['jpeg']:.1f} level "
             f"{case['mean_level']:.3f} true std {case['true_std_8bit']:5.2f} ratio {case['std_ratio']:.3f} "
-            f"clipped {case['clipped_share']:.2f} warnings {len(case['warnings'])} {case['image']}",
-            flush=True,
+            f"clipped {case['clipped_share']:.2f} warnings {len(case['warnings'])} {case['image']}"
         )
-        if out:
-            out.write(json.dumps(case) + "\n")
-            out.flush()
-    summarise(cases)
+
+    seeds = range(arguments.first_seed, arguments.first_seed + arguments.cases)
+    summarise(run_cases(seeds, lambda seed: run_case(arguments.data, network, seed), line, arguments.out))
 
 
 if __name__ == "__main__":

@@ -29,7 +29,6 @@ runs for the spectrum) and compared:
 from __future__ import annotations
 
 import argparse
-import json
 import sys
 import time
 from pathlib import Path
@@ -48,7 +47,7 @@ from darksynth.light.darkening import darken
 from darksynth.noise.simulate import add_noise
 from darksynth.noise.spectral import LEVEL_KNOTS, OCTAVES
 from darksynth.noise.values import NoiseValues
-from estimate_roundtrip import _camera_spectrum, _log_uniform, _uniform, draw_darkening
+from estimate_roundtrip import _camera_spectrum, _log_uniform, _uniform, draw_darkening, run_cases
 
 IMAGE_SETS = ("clean/images/kodak24", "clean/images/cbsd68", "clean/images/mcmaster")
 SIDE = 384
@@ -163,22 +162,17 @@ def main() -> None:
     parser.add_argument("--out", type=Path, default=None, help="write each case as a JSON line")
     arguments = parser.parse_args()
     torch.set_num_threads(1)
-    cases = []
-    out = arguments.out.open("w") if arguments.out else None
-    for seed in range(arguments.first_seed, arguments.first_seed + arguments.cases):
-        case = run_case(arguments.data, seed)
-        cases.append(case)
-        print(
+
+    def line(seed: int, case: dict[str, Any]) -> str:
+        return (
             f"{seed:3d} level {case['level_8bit']:5.2f} jpeg {case['jpeg']:.1f} move {case['moving_step']} "
             f"truth {case['truth'][:FINE_OCTAVES]} est {case['estimated'][:FINE_OCTAVES]} "
             f"check real {case['check_real']:.3f} synth {case['check_synthetic']:.3f} "
-            f"still {case['still_blocks']} {case['seconds']}s {case['warnings']}",
-            flush=True,
+            f"still {case['still_blocks']} {case['seconds']}s {case['warnings']}"
         )
-        if out:
-            out.write(json.dumps(case) + "\n")
-            out.flush()
-    summarise(cases)
+
+    seeds = range(arguments.first_seed, arguments.first_seed + arguments.cases)
+    summarise(run_cases(seeds, lambda seed: run_case(arguments.data, seed), line, arguments.out))
 
 
 if __name__ == "__main__":
