@@ -228,8 +228,8 @@ class _MethodRecord:
     on beside its own (channel statistics), and its octave-band powers with their ratios to the real ones."""
 
     rows: list[tuple[str, dict[str, float]]] = field(default_factory=list)
-    real_channels: _ChannelStatistics = field(default_factory=lambda: _ChannelStatistics())
-    channels: _ChannelStatistics = field(default_factory=lambda: _ChannelStatistics())
+    real_channels: _ChannelStatistics = field(default_factory=_ChannelStatistics)
+    channels: _ChannelStatistics = field(default_factory=_ChannelStatistics)
     bands: list[dict[str, Any]] = field(default_factory=list)
     band_ratios: list[dict[str, Any]] = field(default_factory=list)
 
@@ -264,7 +264,7 @@ class _SetRecord:
     """Everything one pair set's evaluation gathers, pair by pair, before it is summarised."""
 
     methods: dict[str, _MethodRecord]
-    real_channels: _ChannelStatistics = field(default_factory=lambda: _ChannelStatistics())
+    real_channels: _ChannelStatistics = field(default_factory=_ChannelStatistics)
     real_bands: list[dict[str, Any]] = field(default_factory=list)
     examples: list[ReportExample] = field(default_factory=list)
     evaluated: int = 0
