@@ -5,6 +5,8 @@ from __future__ import annotations
 import numpy as np
 import torch
 
+from darksynth.tensors import full_scale
+
 
 def numpy_to_tensor(array: np.ndarray) -> torch.Tensor:
     """A tensor sharing the array's memory where it can; uint16 goes through int32, as torch has few uint16 kernels."""
@@ -39,7 +41,8 @@ def unit_float_frames(frames: list[torch.Tensor]) -> torch.Tensor:
     """Integer frames (C, H, W), uint8 or uint16, stacked as float32 (T, C, H, W) on the [0, 1] scale."""
     # Stack the integer frames first and convert once: one pass over the clip instead of one per frame.
     stacked = torch.stack(frames)
-    scale = 65535.0 if stacked.dtype == torch.uint16 else 255.0
+    scale = full_scale(stacked.dtype)
+    assert scale is not None, f"integer frames expected, got {stacked.dtype}"
     if stacked.dtype == torch.uint16:
         stacked = stacked.to(torch.int32)
     return stacked.to(torch.float32).div_(scale)
