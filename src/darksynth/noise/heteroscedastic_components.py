@@ -99,7 +99,7 @@ def _draw_heteroscedastic(
 ) -> torch.Tensor:
     if shapes_neutral(_HETEROSCEDASTIC_PARAMETERS, values):
         return heteroscedastic_noise(signal, values["shot"][..., 0], values["read"][..., 0], generator=generator)
-    # Clip parameters come translated (darksynth.synthesize, the training batches); values given to the composer
+    # Clip parameters come translated (darksynth.recipe, the training batches); values given to the composer
     # directly are translated here, so that no route draws the structure any other way.
     spectral = spectral_tensors(values)
     noise = spectral_clips(signal, spectral, generator, None)
