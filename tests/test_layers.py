@@ -10,7 +10,7 @@ sibling of its own layer):
    ``console_progress`` (how a command shows its progress), ``worker_pool`` (worker processes that end with their
    parent);
 2. ``noise``: the components, their table, the carrier of values, the composer;
-3. ``profile``, ``light.exposure`` (an input's darkening matched to the reference's tones: it simulates the
+3. ``profile``, ``cameras`` (the bank of real cameras, the prior over them and its presets), ``light.exposure`` (an input's darkening matched to the reference's tones: it simulates the
    profile's noise on the input, so it sits above ``noise`` while the rest of ``light`` sits below);
 4. ``recipe`` (a clip's parameters chosen in one place: the draws, the matched darkening and colour cast),
    ``models``, ``apply_outputs`` (what ``apply`` may write where: claiming outputs, resuming);
@@ -57,6 +57,7 @@ LAYERS: dict[str, int] = {
     "worker_pool": 1,
     "noise": 2,
     "profile": 3,
+    "cameras": 3,
     "light.exposure": 3,
     "recipe": 4,
     "models": 4,
@@ -88,6 +89,7 @@ ESTIMATION_STAGES: dict[str, int] = {
     "spectral_statistics": 0,
     "spectral_fit": 1,
     "coarse_anchor": 2,
+    "camera_conditional": 2,
     "still_blocks": 2,
     "persistence_fit": 2,
     "spectrum_checks": 3,

@@ -101,6 +101,7 @@ def test_every_den_method_uses_a_shipped_den_of_its_noise_model_and_variant() ->
 
     assert DEN_METHODS == {
         "den": ("srgb", "v3"),
+        "den-no-prior": ("srgb", "v3"),
         "den-network": ("srgb", "v3"),
         "den-paper": ("paper", "v3"),
         "den-v2": ("paper", "v2"),
@@ -134,3 +135,22 @@ def test_methods_synthesise_through_the_composer(clean: torch.Tensor) -> None:
     synthetic = synthesize_image(clean, values, torch.Generator().manual_seed(3))
     composed = to_8bit_levels(add_noise(clean[None], values, generator=torch.Generator().manual_seed(3))[0])
     assert torch.equal(synthetic, composed)
+
+
+def test_methods_of_the_camera_prior_leave_the_judged_set_and_its_cameras_out() -> None:
+    den, prior, plain = build_method("den"), build_method("prior"), build_method("den-no-prior")
+    assert plain.on_set("nam-cc15") is plain
+    for method in (den, prior):
+        for judged, left_out in (("nam-cc15", {"nam-cc15", "nam-cc60"}), ("polyu", {"polyu"}), ("sidd", {"sidd"})):
+            sets = set(method.on_set(judged).details["prior_sets"])
+            assert sets and not sets & left_out, (method.name, judged, sets)
+
+
+def test_prior_draws_differ_between_seeds_and_ignore_the_noisy_image(clean: torch.Tensor) -> None:
+    method = build_method("prior").on_set("polyu")
+    noisy = noisy_version(clean, 0.03, seed=3)
+    first = method.synthesize(clean, method.fit(noisy, clean), torch.Generator().manual_seed(1))
+    again = method.synthesize(clean, method.fit(torch.zeros_like(noisy), clean), torch.Generator().manual_seed(1))
+    other = method.synthesize(clean, method.fit(noisy, clean), torch.Generator().manual_seed(2))
+    assert torch.equal(first, again)
+    assert not torch.equal(first, other)

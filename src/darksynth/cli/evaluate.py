@@ -50,7 +50,9 @@ def evaluate_command(
         str,
         typer.Option(
             help=f"Comma-separated methods. Default: {', '.join(default_of(EvaluationOptions, 'methods'))}. "
-            "Also by name: den-network (the network's values alone) and spectral-oracle."
+            "Also by name: den-network (the network's values alone), den-no-prior (den without the camera prior), "
+            "spectral-oracle (the clean-aided fit) and prior (whole cameras drawn from the camera prior, no "
+            "reference). den and prior use a prior fitted without the set judged."
         ),
     ] = "",
     weights: Annotated[

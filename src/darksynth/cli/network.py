@@ -140,6 +140,15 @@ def estimate_command(
             "keeps the network's values.",
         ),
     ] = default_of(EstimateOptions, "refine"),
+    camera_prior: Annotated[
+        bool,
+        typer.Option(
+            "--camera-prior/--no-camera-prior",
+            help="Take what one reference cannot show (the coarse octaves, the noise's dependence on texture) from "
+            "the shipped prior over real cameras (default, docs/camera-prior.md); --no-camera-prior continues the "
+            "finer octaves the reference shows.",
+        ),
+    ] = default_of(EstimateOptions, "camera_prior"),
     quiet: Annotated[bool, typer.Option("--quiet", "-q", help=QUIET_HELP)] = False,
 ) -> None:
     import json
@@ -154,7 +163,7 @@ def estimate_command(
             noise_model=checked_choice("--model", model, NETWORK_MODELS),
             variant=checked_choice("--variant", variant, VARIANTS),
         )
-        options = EstimateOptions(clip=clip, device=device, refine=refine)
+        options = EstimateOptions(clip=clip, device=device, refine=refine, camera_prior=camera_prior)
         network = load_weights(choice.path(), device=options.device)
         result = estimate_file(reference, network, options)
     except DarksynthError as error:

@@ -12,10 +12,11 @@ from __future__ import annotations
 
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Any
+from typing import Any, Literal
 
 import torch
 
+from darksynth.cameras.prior import CameraPrior, shipped_prior
 from darksynth.estimation.darkening import estimate_profile_darkening
 from darksynth.estimation.light import estimate_light
 from darksynth.estimation.noise_estimate import estimate_noise
@@ -44,6 +45,9 @@ class EstimateOptions:
     refine: bool = True
     """After the sRGB network, measure the noise's spectrum on the reference itself (docs/spectral-noise.md);
     ``--no-refine`` keeps the network's values (the ablation)."""
+    camera_prior: bool = True
+    """Take what the reference cannot show (coarse octaves, texture dependence) from the shipped prior over real
+    cameras (docs/camera-prior.md); ``--no-camera-prior`` continues the finer octaves instead."""
 
 
 def estimate_file(path: Path, network: DEN, options: EstimateOptions) -> Estimate:
@@ -56,6 +60,7 @@ def estimate_file(path: Path, network: DEN, options: EstimateOptions) -> Estimat
         batch=options.batch,
         device=options.device,
         refine=options.refine,
+        camera_prior="shipped" if options.camera_prior else None,
     )
 
 
@@ -78,6 +83,7 @@ def estimate(
     batch: int = 16,
     device: torch.device | str = "cpu",
     refine: bool = True,
+    camera_prior: CameraPrior | Literal["shipped"] | None = "shipped",
 ) -> Estimate:
     """Estimate a noise profile from reference frames (T, 3, H, W) in [0, 1].
 
@@ -87,13 +93,19 @@ def estimate(
             compression are replaced by the spectrum's, its column components kept; skipped, with a warning, on a
             reference smaller than :data:`~darksynth.estimation.noise_estimate.REFINE_MIN_SIDE`. The paper's model
             keeps the network's values.
+        camera_prior: the prior over real cameras that supplies what the reference cannot show
+            (:func:`darksynth.estimation.spectrum.estimate_spectrum`): ``"shipped"`` the one fitted on the shipped
+            bank of real cameras, None continues the measured octaves.
     """
     record = describe_reference(reference, source)
     meta: dict[str, Any] = {"source": source}
     warnings = reference_warnings(record, spectrum_frames=TEMPORAL_FRAMES)
     if record.cuts:
         meta["scene_cuts"] = record.cuts
-    found = estimate_noise(record, network, meta, warnings, batch=batch, device=device, refine=refine)
+    prior = shipped_prior() if camera_prior == "shipped" else camera_prior
+    found = estimate_noise(
+        record, network, meta, warnings, batch=batch, device=device, refine=refine, camera_prior=prior
+    )
     darkening, tone = estimate_profile_darkening(record, found.ranges, meta, warnings)
     noise = estimate_light(record, found.noise, meta, warnings)
     profile = Profile(noise=noise, darkening=darkening, ranges=found.ranges, meta=meta, tone=tone)

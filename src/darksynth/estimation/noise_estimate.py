@@ -19,6 +19,7 @@ from typing import Any
 
 import torch
 
+from darksynth.cameras.prior import CameraPrior
 from darksynth.estimation.columns import decide_columns
 from darksynth.estimation.network import run_network
 from darksynth.estimation.reference import Reference
@@ -67,6 +68,7 @@ def estimate_noise(
     batch: int = 16,
     device: torch.device | str = "cpu",
     refine: bool = True,
+    camera_prior: CameraPrior | None = None,
 ) -> NoiseEstimate:
     """The network on the reference's crop grid, the columns decided, and with ``refine`` the spectrum measured;
     what was read goes into ``meta``, what could not be into ``warnings``."""
@@ -82,7 +84,7 @@ def estimate_noise(
     )
     noise = decide_columns(frames, reference.measured, noise, ranges, meta)
     if refines(network.noise_model, refine) and not reference.all_uniform:
-        noise = _measure_spectrum(frames, noise, ranges, meta, warnings, reference.name)
+        noise = _measure_spectrum(frames, noise, ranges, meta, warnings, reference.name, camera_prior)
     noise_std = profile_noise_std(noise, frames, reference.measured)
     meta["noise_std_8bit"] = round(noise_std * 255, 3)
     if noise_std < NOISE_FREE_STD:
@@ -105,6 +107,7 @@ def _measure_spectrum(
     meta: dict[str, Any],
     warnings: list[str],
     source: str,
+    camera_prior: CameraPrior | None,
 ) -> NoiseValues:
     """The network's values with the heteroscedastic part and compression replaced by the measured spectrum; the
     replaced parameters lose their ranges (``apply --jitter`` would otherwise add the network's noise back)."""
@@ -116,7 +119,7 @@ def _measure_spectrum(
         )
         meta["spectrum"] = {"method": "not measured: reference too small"}
         return noise
-    found = estimate_spectrum(reference, name=source, prior_curve=network_level_curve(noise))
+    found = estimate_spectrum(reference, name=source, prior_curve=network_level_curve(noise), camera_prior=camera_prior)
     neutral = {name: noise_parameter(name).neutral for name in SPECTRUM_REPLACES}
     measured = noise.replace(**neutral, **{name: value for name, value in found.values.items()})
     replaced = (*SPECTRUM_REPLACES, "compression")

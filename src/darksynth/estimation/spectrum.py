@@ -32,6 +32,8 @@ from typing import Any
 
 import torch
 
+from darksynth.cameras.prior import CameraPrior
+from darksynth.estimation.camera_conditional import TEXTURE_NAMES, prior_first_octave, prior_octaves, prior_texture
 from darksynth.estimation.coarse_anchor import ANCHOR_WARM_STEPS, COMPONENT_NAMES, CoarseAnchor
 from darksynth.estimation.flat_blocks import (
     CLIPPED_SHARE,
@@ -156,7 +158,12 @@ def knot_responses(
 
 
 def estimate_spectrum(
-    reference: torch.Tensor, *, seed: int = 0, name: str = "reference", prior_curve: torch.Tensor | None = None
+    reference: torch.Tensor,
+    *,
+    seed: int = 0,
+    name: str = "reference",
+    prior_curve: torch.Tensor | None = None,
+    camera_prior: CameraPrior | None = None,
 ) -> SpectrumEstimate:
     """The spectral model's parameters measured on reference frames (T, 3, H, W) in [0, 1] (see the module).
 
@@ -164,6 +171,8 @@ def estimate_spectrum(
         prior_curve: (3, 8) noise std per channel at the level knots from another source (the network): the knots
             the reference cannot show (no unclipped flat block at that intensity) follow its shape through the
             measured ones, and it stands alone when no block is unclipped.
+        camera_prior: supplies what one reference cannot show (:mod:`darksynth.estimation.camera_conditional`);
+            without it the coarse octaves continue the finer ones.
 
     Returns:
         The parameters (``level_curve``, ``octave_power``, ``octave_correlation``, ``temporal_correlation``,
@@ -194,10 +203,8 @@ def estimate_spectrum(
             f"{name}: no flat region (its flattest blocks still have a gradient of {flat_gradient * 255:.1f} 8-bit "
             "levels per pixel): fine texture may be read as noise, the level may be too high"
         )
-    temporal_mask = None
-    if clip:
-        temporal_mask = still_flat_mask(frames, denoised, mask, strength, seed, meta, warnings, name)
-    else:
+    temporal_mask = still_flat_mask(frames, denoised, mask, strength, seed, meta, warnings, name) if clip else None
+    if not clip:
         meta["temporal_prior"] = "single image: frame-to-frame correlation of the noise not measurable; prior 0"
     # Moving pixels carry the scene's change, not the noise's persistence: a clip is read on its still blocks.
     measured_mask = temporal_mask if temporal_mask is not None else mask
@@ -206,7 +213,7 @@ def estimate_spectrum(
     target = measure(analysed - analysed_denoised, analysed_denoised, measured_mask)
     measured_knots = ~torch.isnan(target.knot_variance).expand(3, -1)
     resynthesis = _Resynthesis(analysed, analysed_denoised, measured_mask, strength, seed)
-    fitted = _fit(resynthesis, target, meta, measured_knots, prior_curve)
+    fitted = _fit(resynthesis, target, meta, measured_knots, prior_curve, camera_prior)
     warnings += readability_warnings(meta, fitted.curve, measured_knots, name)
     fitted.curve = level_checks(
         fitted.curve, measured_knots, prior_curve, int(unclipped.sum()) >= MIN_LEVEL_BLOCKS, meta, warnings, name
@@ -216,8 +223,16 @@ def estimate_spectrum(
         fitted.temporal = torch.zeros(OCTAVES, dtype=torch.float64)
     elif analysed.shape[0] >= 3:
         fitted.temporal = _persistence(resynthesis, fitted, meta, warnings, name)
+    return SpectrumEstimate(values=_values(fitted, meta, camera_prior), meta=meta, warnings=warnings)
+
+
+def _values(fitted: SpectralParameters, meta: dict[str, Any], camera_prior: CameraPrior | None) -> dict[str, Any]:
+    """The table's values of a fit: its spectrum, the JPEG strength it chose and the texture dependence the camera
+    prior expects."""
     values = fitted.as_values() | {"compression": torch.tensor([meta["compression_chosen"]], dtype=torch.float64)}
-    return SpectrumEstimate(values=values, meta=meta, warnings=warnings)
+    if camera_prior is not None:
+        values |= prior_texture(fitted, meta["camera_prior"]["first_octave"] - 1, camera_prior)
+    return values
 
 
 def _persistence(
@@ -366,12 +381,28 @@ def _compression_search(
     return fits, scores
 
 
+def _prior_note(camera_prior: CameraPrior, first_prior: int) -> dict[str, Any]:
+    """What ``meta`` says the camera prior supplied: the octaves (1-based, as the notes count them), the texture
+    dependence when the prior holds it, and the sets of real pairs it was fitted on."""
+    supplied = [f"octaves {first_prior + 1}-{OCTAVES} (wavelengths from {2 ** (first_prior + 1.5):.0f} px)"]
+    if all(name in camera_prior.names for name in TEXTURE_NAMES):
+        supplied.append("texture dependence")
+    return {
+        "first_octave": first_prior + 1,
+        "supplied": supplied,
+        "sets": list(camera_prior.sets),
+        "note": "what one reference cannot show, from the prior over real cameras given the level curve and the "
+        "finer octaves (docs/camera-prior.md)",
+    }
+
+
 def _fit(
     resynthesis: _Resynthesis,
     target: SpectralStatistics,
     meta: dict[str, Any],
     measured_knots: torch.Tensor,
     prior_curve: torch.Tensor | None,
+    camera_prior: CameraPrior | None,
 ) -> SpectralParameters:
     """The fit by re-synthesis on the denoised frames: the octaves the reference shows probed, each JPEG strength
     fitted on the first frame, the knots probed at the best, which is fitted further on all analysed frames with the
@@ -394,8 +425,15 @@ def _fit(
     anchor = CoarseAnchor.read(analysed[0], denoised[0], resynthesis.mask)
     anchored = first_unmeasured < OCTAVES and anchor.readable
 
+    if camera_prior is not None:
+        first_prior = prior_first_octave(first_unmeasured)
+        meta["camera_prior"] = _prior_note(camera_prior, first_prior)
+
     def constrain(parameters: SpectralParameters) -> SpectralParameters:
-        parameters = continue_octaves(parameters, first_unmeasured)
+        if camera_prior is None:
+            parameters = continue_octaves(parameters, first_unmeasured)
+        else:
+            parameters = prior_octaves(parameters, first_prior, camera_prior)
         anchor.update()
         if first_unmeasured < OCTAVES:
             parameters.covariances = anchor.apply(parameters.covariances, first_unmeasured)

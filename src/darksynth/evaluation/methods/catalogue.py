@@ -8,6 +8,7 @@ to 8-bit levels, as the real noisy image was.
 
 from __future__ import annotations
 
+import dataclasses
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -15,6 +16,7 @@ from typing import Any
 
 import torch
 
+from darksynth.cameras.prior import CameraPrior, held_out_sets, shipped_prior
 from darksynth.errors import DarksynthError
 from darksynth.evaluation.methods.classical import (
     PoissonGaussian,
@@ -56,6 +58,13 @@ class NoiseMethod:
     synthesize: Synthesize
     oracle: bool = False
     details: dict[str, Any] = field(default_factory=dict)
+    for_set: Callable[[str], NoiseMethod] | None = None
+    """The method as it runs on the set of pairs named so, for a method that draws on the prior over real cameras:
+    its prior fitted without that set (and the sets of the same cameras), so no set judges a prior that saw it."""
+
+    def on_set(self, set_name: str) -> NoiseMethod:
+        """The method to run on the set ``set_name``."""
+        return self.for_set(set_name) if self.for_set is not None else self
 
 
 class MethodUnavailableError(DarksynthError):
@@ -98,26 +107,64 @@ def synthesize_image(clean: torch.Tensor, values: NoiseValues, generator: torch.
     return to_8bit_levels(add_noise(clean[None], values, generator=generator)[0])
 
 
-def _den_method(name: str, weights: Path, device: str, *, refine: bool = True) -> NoiseMethod:
+def _den_method(name: str, weights: Path, device: str, *, refine: bool = True, prior: bool = False) -> NoiseMethod:
     from darksynth.estimation.assemble import estimate
     from darksynth.estimation.noise_estimate import refines
 
     model = load_den_weights(name, weights, device)
     refined = refines(model.noise_model, refine)
+    with_prior = prior and refined
 
-    def fit(noisy: torch.Tensor, clean: torch.Tensor) -> NoiseValues:
-        reference = noisy.to(torch.float32)[None]
-        return estimate(reference, model, device=device, refine=refine).profile.noise
+    def fitted_with(camera_prior: CameraPrior | None) -> Fit:
+        def fit(noisy: torch.Tensor, clean: torch.Tensor) -> NoiseValues:
+            reference = noisy.to(torch.float32)[None]
+            return estimate(reference, model, device=device, refine=refine, camera_prior=camera_prior).profile.noise
 
-    return NoiseMethod(
+        return fit
+
+    def on_set(set_name: str) -> NoiseMethod:
+        camera_prior = shipped_prior(held_out_sets(set_name))
+        details = method.details | {"prior_sets": camera_prior.sets}
+        return dataclasses.replace(method, fit=fitted_with(camera_prior), for_set=None, details=details)
+
+    method = NoiseMethod(
         name=name,
         summary=f"DEN {model.config.variant}, {model.noise_model} noise model ({weights.name}): v from the noisy "
         + ("image, its spectrum measured on it" if refined else "image")
+        + (", what it cannot show from the camera prior fitted without the set" if with_prior else "")
         + ", f(v) added to the clean",
-        fit=fit,
+        fit=fitted_with(shipped_prior() if with_prior else None),
         synthesize=synthesize_image,
         details={"weights": str(weights)},
+        for_set=on_set if with_prior else None,
     )
+    return method
+
+
+def _prior_method() -> NoiseMethod:
+    """Whole cameras drawn from the prior, one per pair, no reference read: on a named set the prior fitted without
+    it (and the sets of the same cameras), elsewhere the shipped one."""
+
+    def drawn_from(camera_prior: CameraPrior) -> Synthesize:
+        def synthesize(clean: torch.Tensor, _: None, generator: torch.Generator) -> torch.Tensor:
+            return synthesize_image(clean, camera_prior.draw(generator).clip(0), generator)
+
+        return synthesize
+
+    def on_set(set_name: str) -> NoiseMethod:
+        camera_prior = shipped_prior(held_out_sets(set_name))
+        details = {"prior_sets": camera_prior.sets}
+        return dataclasses.replace(method, synthesize=drawn_from(camera_prior), for_set=None, details=details)
+
+    method = NoiseMethod(
+        name="prior",
+        summary="a whole camera drawn from the prior over real cameras fitted without the set (and sets of the same "
+        "cameras), one per pair; the noisy image is not read",
+        fit=lambda noisy, clean: None,
+        synthesize=drawn_from(shipped_prior()),
+        for_set=on_set,
+    )
+    return method
 
 
 def _den_v1_method(weights: Path | None, device: str) -> NoiseMethod:
@@ -189,13 +236,17 @@ def _spectral_oracle_method() -> NoiseMethod:
 
 DEN_METHODS: dict[str, tuple[str, str]] = {
     "den": ("srgb", "v3"),
+    "den-no-prior": ("srgb", "v3"),
     "den-network": ("srgb", "v3"),
     "den-paper": ("paper", "v3"),
     "den-v2": ("paper", "v2"),
 }
 """The DEN methods and the (noise model, variant) of the shipped DEN each uses unless given weights. ``den`` is
-what ``darksynth estimate`` gives (the sRGB DEN, the spectrum measured on the reference); ``den-network`` the same
-network's values alone (its ablation)."""
+what ``darksynth estimate`` gives (the sRGB DEN, the spectrum measured on the reference, what it cannot show from
+the camera prior fitted without the set judged); ``den-no-prior`` the same without the prior (the finer octaves
+continued); ``den-network`` the same network's values alone (its ablation)."""
+
+PRIOR_DEN_METHODS = frozenset({"den"})
 
 UNREFINED_DEN_METHODS = frozenset({"den-network"})
 
@@ -220,6 +271,9 @@ METHOD_NAMES: tuple[str, ...] = (
     "den-network",
     # The spectral model's clean-aided fit.
     "spectral-oracle",
+    # The blind estimate without the camera prior, and whole cameras drawn from the prior with no reference.
+    "den-no-prior",
+    "prior",
 )
 
 
@@ -237,7 +291,9 @@ def build_method(name: str, *, weights: dict[str, Path] | None = None, device: s
     if name in DEN_METHODS:
         noise_model, variant = DEN_METHODS[name]
         path = DENChoice(weights.get(name), noise_model=noise_model, variant=variant).path()
-        return _den_method(name, path, device, refine=name not in UNREFINED_DEN_METHODS)
+        return _den_method(
+            name, path, device, refine=name not in UNREFINED_DEN_METHODS, prior=name in PRIOR_DEN_METHODS
+        )
     if name == "den-v1":
         return _den_v1_method(weights.get(name), device)
     if name == "awgn":
@@ -269,6 +325,8 @@ def build_method(name: str, *, weights: dict[str, Path] | None = None, device: s
         return _starlight_method(device)
     if name == "spectral-oracle":
         return _spectral_oracle_method()
+    if name == "prior":
+        return _prior_method()
     raise MethodUnavailableError(f"{name}: unknown method (known: {', '.join(METHOD_NAMES)})")
 
 

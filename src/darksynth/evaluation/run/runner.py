@@ -337,6 +337,7 @@ def _evaluate_set(
     features: _Features | None,
     progress: Progress,
 ) -> tuple[dict[str, Any], list[ReportExample]]:
+    methods = {name: method.on_set(pair_set.name) for name, method in methods.items()}
     record = _SetRecord(methods={name: _MethodRecord() for name in methods})
     # Inception features cost ~0.1 s a tile on this CPU: a fixed budget per set keeps the run short.
     crops_per_pair = max(1, -(-options.fid_crops // max(len(pair_set.pairs), 1)))
@@ -348,7 +349,11 @@ def _evaluate_set(
             problems.append(str(error))
             continue
         _evaluate_pair(pair_set, loaded, methods, options, record, problems, features, crops_per_pair)
-    return record.summary(methods, features), record.examples
+    summary = record.summary(methods, features)
+    prior_sets = {name: list(m.details["prior_sets"]) for name, m in methods.items() if "prior_sets" in m.details}
+    if prior_sets:
+        summary["camera_prior_sets"] = prior_sets
+    return summary, record.examples
 
 
 def evaluate_pairs(

@@ -1,0 +1,62 @@
+"""What one reference cannot show, taken from the prior over real cameras (:mod:`darksynth.cameras.prior`): the
+coarse octaves and the noise's dependence on texture, given what the blind measurement read (the level curve and
+the finer octaves' powers and correlations).
+
+One reference cannot tell a coarse colour blotch of the noise from the scene, nor a noise that in-camera denoising
+flattened on flat regions from one that is flat everywhere: the blind estimate reads flat blocks, octave by octave,
+and the coarse octaves' statistics hold mostly the scene. The prior's conditional mean replaces them.
+"""
+
+from __future__ import annotations
+
+import torch
+
+from darksynth.cameras.prior import BLIND_OCTAVES, CameraPrior, measured_entries
+from darksynth.estimation.spectral_fit import SpectralParameters
+from darksynth.noise.spectral import OCTAVES, covariance_parameters, octave_covariances
+
+TEXTURE_NAMES = ("texture_gain", "texture_scale")
+
+
+def prior_first_octave(first_unmeasured: int) -> int:
+    """The finest octave the prior supplies: the first after :data:`~darksynth.cameras.prior.BLIND_OCTAVES`, or a
+    finer one when the reference's probe found it unmeasurable."""
+    return min(BLIND_OCTAVES, first_unmeasured)
+
+
+def _known(parameters: SpectralParameters, first_prior: int) -> tuple[dict[str, torch.Tensor], dict[str, torch.Tensor]]:
+    # The JPEG strength is not given: the fit tries each strength with the same constraint.
+    power, correlation = covariance_parameters(parameters.covariances)
+    values = {"level_curve": parameters.curve.reshape(-1), "octave_power": power, "octave_correlation": correlation}
+    return measured_entries(values, first_prior)
+
+
+def prior_octaves(parameters: SpectralParameters, first_prior: int, prior: CameraPrior) -> SpectralParameters:
+    """``parameters`` with the octaves from ``first_prior`` on (coarser) set to the prior's conditional mean given
+    the level curve and the finer octaves. The finer octaves keep their covariances; the coarse ones take the
+    predicted power relative to the finer octaves' and the predicted correlations."""
+    if first_prior >= OCTAVES:
+        return parameters
+    known, mask = _known(parameters, first_prior)
+    expected = prior.values(prior.conditional_mean(known, mask))
+    power, correlation = known["octave_power"].clone(), known["octave_correlation"].clone()
+    # The prior's powers are relative to the finer octaves' mean log brightness power (its space): put the
+    # predicted coarse powers on the measured ones' scale.
+    finer = power.reshape(OCTAVES, 3)[:first_prior, 0].clamp_min(1e-30).log().mean()
+    predicted_finer = expected["octave_power"].reshape(OCTAVES, 3)[:first_prior, 0].log().mean()
+    scale = (finer - predicted_finer).exp()
+    coarse = slice(first_prior * 3, OCTAVES * 3)
+    power[coarse] = expected["octave_power"][coarse] * scale
+    correlation[coarse] = expected["octave_correlation"][coarse]
+    covariances = octave_covariances(power, correlation).to(parameters.covariances)
+    return SpectralParameters(covariances=covariances, curve=parameters.curve, temporal=parameters.temporal)
+
+
+def prior_texture(parameters: SpectralParameters, first_prior: int, prior: CameraPrior) -> dict[str, torch.Tensor]:
+    """The texture dependence the prior expects given the level curve and the finer octaves (empty when the prior
+    holds none)."""
+    if not all(name in prior.names for name in TEXTURE_NAMES):
+        return {}
+    known, mask = _known(parameters, first_prior)
+    expected = prior.values(prior.conditional_mean(known, mask))
+    return {name: expected[name].reshape(1) for name in TEXTURE_NAMES}
