@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import json
+import math
 from pathlib import Path
 
 import pytest
@@ -10,6 +11,7 @@ import torch
 
 from darksynth.cameras.bank import BANK_FORMAT, BANK_VERSION, CameraRecord, read_bank, shipped_bank
 from darksynth.cameras.prior import (
+    LEVEL_RANGE_8BIT,
     SHRINKAGE,
     fit_prior,
     from_features,
@@ -59,9 +61,10 @@ def test_each_set_weighs_the_same_whatever_its_size() -> None:
     records = [_record("big", 0.01, 1.0)] * 30 + [_record("small", 0.04, 1.0)]
     prior = fit_prior(records)
     level = prior.slices()["level_curve"]
-    # The mean log level is halfway between the two sets', not pulled to the big set's.
-    expected = 0.5 * (torch.log(torch.tensor(0.01)) + torch.log(torch.tensor(0.04)))
-    assert torch.allclose(prior.mean[level], expected.double().expand(24), atol=1e-9)
+    # The mean log level is halfway between the two sets', not pulled to the big set's; the curves are flat.
+    expected = 0.5 * (math.log(0.01) + math.log(0.04))
+    assert float(prior.mean[level][0]) == pytest.approx(float(expected), abs=1e-9)
+    assert torch.allclose(prior.mean[level][1:], torch.zeros(24, dtype=torch.float64), atol=1e-9)
 
 
 def test_the_conditional_mean_follows_the_regression_of_the_shrunk_covariance() -> None:
@@ -81,28 +84,41 @@ def test_the_conditional_mean_follows_the_regression_of_the_shrunk_covariance() 
         known = {"level_curve": torch.full((24,), level)}
         mask = {"level_curve": torch.ones(24, dtype=torch.bool)}
         mean = prior.conditional_mean(known, mask)
-        assert torch.allclose(mean[parts["level_curve"]], torch.log(torch.tensor(level)).double().expand(24))
+        assert float(mean[parts["level_curve"]][0]) == pytest.approx(float(torch.log(torch.tensor(level))))
         coarse = mean[parts["octave_power"]].reshape(OCTAVES, 3)[3:]
         # Twice the log level's gap from the mean (the slope the records were made with), times what the shrinkage
-        # leaves of it: the 24 equal knots are one predictor seen 24 times, so by Sherman-Morrison the shrunk
-        # regression keeps 24 (1 - s) / (s + 24 (1 - s)) of the slope.
+        # leaves of it: the level's one feature that varies predicts with the cross-covariance's off-diagonal share
+        # 1 - s over its own full variance.
         gap = float(torch.log(torch.tensor(level))) - float(prior.mean[parts["level_curve"]][0])
         relative = coarse - float(prior.mean[parts["octave_power"]].reshape(OCTAVES, 3)[3:].mean())
-        kept = 24 * (1 - SHRINKAGE) / (SHRINKAGE + 24 * (1 - SHRINKAGE))
-        assert float(relative.mean()) == pytest.approx(2.0 * gap * kept, rel=0.05)
+        assert float(relative.mean()) == pytest.approx(2.0 * gap * (1 - SHRINKAGE), rel=0.05)
         assert (relative * gap > 0).all()
 
 
-def test_draws_have_the_prior_moments() -> None:
+def test_draws_without_a_reference_span_the_exposure_range_and_follow_the_prior_given_it() -> None:
     records = [_record(f"s{i % 3}", 0.005 * (1 + i % 5), 1 + (i % 7)) for i in range(21)]
     prior = fit_prior(records)
-    drawn = prior.draw(torch.Generator().manual_seed(3), count=4000)
-    assert drawn.batch_shape == (4000,)
-    features = torch.stack([prior.features(drawn.clip(i)) for i in range(4000)])
-    assert torch.allclose(features.mean(0), prior.mean, atol=0.05 + 0.05 * prior.covariance.diagonal().sqrt().max())
-    variance = features.var(0)
-    spread = prior.covariance.diagonal() > 1e-4
-    assert torch.allclose(variance[spread], prior.covariance.diagonal()[spread], rtol=0.1)
+    drawn = prior.draw(torch.Generator().manual_seed(3), count=3000)
+    assert drawn.batch_shape == (3000,)
+    features = torch.stack([prior.features(drawn.clip(i)) for i in range(3000)])
+    # Loudness log-uniform over the range: its quartiles at a quarter, half and three quarters of the log span.
+    low, high = (math.log(level / 255.0) for level in LEVEL_RANGE_8BIT)
+    scale = features[:, prior.slices()["level_curve"].start]
+    quartiles = torch.quantile(scale, torch.tensor([0.25, 0.5, 0.75], dtype=torch.float64))
+    expected = torch.tensor([low + q * (high - low) for q in (0.25, 0.5, 0.75)], dtype=torch.float64)
+    assert torch.allclose(quartiles, expected, atol=0.04 * (high - low))
+    # Everything else: the prior's regression on the loudness, with the uniform's variance passed through it
+    # (the law of total variance): mean mu + k (E s - mu_s), variance S_xx - k S_sx + k^2 Var s.
+    index = prior.slices()["level_curve"].start
+    others = torch.arange(prior.mean.numel()) != index
+    gain = prior.covariance[others, index] / prior.covariance[index, index]
+    mean = prior.mean[others] + gain * ((low + high) / 2 - prior.mean[index])
+    variance = (
+        prior.covariance.diagonal()[others] - gain * prior.covariance[others, index] + gain**2 * (high - low) ** 2 / 12
+    )
+    assert torch.allclose(features[:, others].mean(0), mean, atol=0.1 * float(variance.max().sqrt()) + 1e-6)
+    spread = variance > 1e-4
+    assert torch.allclose(features[:, others].var(0)[spread], variance[spread], rtol=0.1)
 
 
 def test_a_conditional_draw_keeps_what_is_given_and_spreads_the_rest() -> None:

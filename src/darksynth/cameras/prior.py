@@ -20,6 +20,7 @@ What it gives:
 from __future__ import annotations
 
 import functools
+import math
 from collections.abc import Iterable, Mapping, Sequence
 from dataclasses import dataclass
 
@@ -64,9 +65,20 @@ docs/spectral-noise.md). Octave powers are taken relative to these octaves' mean
 normalises its unit noise, so only the spectrum's shape counts."""
 
 
+LEVEL_RANGE_8BIT = (1.0, 32.0)
+"""The noise std (8-bit levels, mean over the level curve) of a camera drawn with no reference, log-uniform: from a
+night shot at a low gain to a phone at its highest (SIDD's low-light scenes reach 30). The bank's own levels are
+those its sets were shot at, not what a camera can show; how loud a camera is at night is its exposure's choice."""
+
+
 def to_features(name: str, values: torch.Tensor) -> torch.Tensor:
-    """A value's entries in the prior's space (float64)."""
+    """A value's entries in the prior's space (float64). The level curve's are its mean log std first, then each
+    knot's log std about that mean, so that a camera's loudness and its curve's shape are separate features."""
     values = values.to(torch.float64)
+    if name == "level_curve":
+        logs = values.clamp_min(1e-6).log()
+        scale = logs.mean(-1, keepdim=True)
+        return torch.cat([scale, logs - scale], dim=-1)
     if name == "octave_power":
         logs = values.clamp_min(1e-6).log()
         return logs - logs.reshape(-1, 3)[:BLIND_OCTAVES, 0].mean()
@@ -79,6 +91,8 @@ def to_features(name: str, values: torch.Tensor) -> torch.Tensor:
 
 def from_features(name: str, features: torch.Tensor) -> torch.Tensor:
     """The inverse of :func:`to_features`, snapped to what the model draws (JPEG steps, a gain of at least 0)."""
+    if name == "level_curve":
+        return (features[..., 1:] + features[..., :1]).exp()
     if name in LOG_NAMES:
         return features.exp()
     if name in CORRELATION_NAMES:
@@ -89,6 +103,16 @@ def from_features(name: str, features: torch.Tensor) -> torch.Tensor:
     if name == "texture_gain":
         return features.clamp_min(0.0)
     return features
+
+
+def _feature_mask(name: str, mask: torch.Tensor) -> torch.Tensor:
+    """A mask over a value's entries as one over its features: the level curve is known whole or not at all."""
+    mask = mask.reshape(-1).to(torch.bool)
+    if name != "level_curve":
+        return mask
+    if bool(mask.any()) != bool(mask.all()):
+        raise ValueError("the camera prior conditions on the whole level curve or none of it")
+    return mask[:1].expand(mask.numel() + 1)
 
 
 @dataclass(frozen=True)
@@ -121,12 +145,33 @@ class CameraPrior:
         return {name: from_features(name, features[..., part]) for name, part in self.slices().items()}
 
     def draw(self, generator: torch.Generator, count: int = 1) -> NoiseValues:
-        """``count`` whole cameras drawn from the prior, as noise values batched (count,)."""
+        """``count`` whole cameras drawn with no reference, as noise values batched (count,): each one's loudness
+        log-uniform in :data:`LEVEL_RANGE_8BIT`, everything else drawn from the prior given it."""
+        low, high = (math.log(level / 255.0) for level in LEVEL_RANGE_8BIT)
+        uniform = torch.rand(count, generator=generator, device=generator.device, dtype=torch.float64).cpu()
+        scale_index = self.slices()["level_curve"].start
+        observed = torch.zeros(self.mean.numel(), dtype=torch.bool)
+        observed[scale_index] = True
+        drawn = []
+        for position in uniform.tolist():
+            given = self.mean.clone()
+            given[scale_index] = low + position * (high - low)
+            drawn.append(self._draw_features(*self._conditional_features(observed, given), generator))
+        return NoiseValues.from_values(self.values(torch.stack(drawn)), batch_shape=(count,))
+
+    def _draw_features(self, mean: torch.Tensor, covariance: torch.Tensor, generator: torch.Generator) -> torch.Tensor:
+        """Features drawn from the Gaussian (``mean``, ``covariance``); entries without variance stay at the mean."""
+        unknown = covariance.diagonal() > 0
         standard = torch.randn(
-            count, self.mean.numel(), generator=generator, device=generator.device, dtype=torch.float64
+            int(unknown.sum()), generator=generator, device=generator.device, dtype=torch.float64
         ).cpu()
-        root = torch.linalg.cholesky(self.covariance)
-        return NoiseValues.from_values(self.values(self.mean + standard @ root.T), batch_shape=(count,))
+        features = mean.clone()
+        if bool(unknown.any()):
+            block = covariance[unknown][:, unknown]
+            identity = torch.eye(block.shape[0], dtype=block.dtype)
+            root = torch.linalg.cholesky(0.5 * (block + block.T) + RIDGE * identity)
+            features[unknown] = mean[unknown] + root @ standard
+        return features
 
     def mean_values(self) -> NoiseValues:
         """The prior's central camera (the mean in its space)."""
@@ -138,7 +183,7 @@ class CameraPrior:
         """(D,) bool the entries given, (D,) the given features there (the mean elsewhere)."""
         observed = torch.cat(
             [
-                mask[name].reshape(-1).to(torch.bool) if name in known else torch.zeros(size, dtype=torch.bool)
+                _feature_mask(name, mask[name]) if name in known else torch.zeros(size, dtype=torch.bool)
                 for name, size in zip(self.names, self.sizes, strict=True)
             ]
         )
@@ -156,7 +201,9 @@ class CameraPrior:
         """The Gaussian of the features given the ``known`` values' entries where ``mask`` (same shapes, bool) is
         True: its mean (D,), the given entries at their value, and its covariance (D, D), zero in their rows and
         columns. Values missing from ``known`` are unknown."""
-        observed, given = self._observed(known, mask)
+        return self._conditional_features(*self._observed(known, mask))
+
+    def _conditional_features(self, observed: torch.Tensor, given: torch.Tensor) -> tuple[torch.Tensor, torch.Tensor]:
         mean, covariance = self.mean.clone(), self.covariance.clone()
         mean[observed] = given[observed]
         covariance[observed] = 0.0
@@ -179,16 +226,7 @@ class CameraPrior:
     ) -> NoiseValues:
         """One camera drawn from the conditional (:meth:`conditional`): the given entries as they are, the rest
         drawn jointly."""
-        mean, covariance = self.conditional(known, mask)
-        unknown = covariance.diagonal() > 0
-        standard = torch.randn(
-            int(unknown.sum()), generator=generator, device=generator.device, dtype=torch.float64
-        ).cpu()
-        features = mean.clone()
-        if bool(unknown.any()):
-            block = covariance[unknown][:, unknown]
-            root = torch.linalg.cholesky(0.5 * (block + block.T) + RIDGE * torch.eye(block.shape[0], dtype=block.dtype))
-            features[unknown] = mean[unknown] + root @ standard
+        features = self._draw_features(*self.conditional(known, mask), generator)
         return NoiseValues.from_values(self.values(features))
 
 
@@ -201,9 +239,12 @@ def fit_prior(records: Sequence[CameraRecord], names: Iterable[str] = FEATURES) 
     if not records:
         raise ValueError("a camera prior needs at least one record")
     held = tuple(name for name in names if all(name in record.values for record in records))
-    sizes = tuple(len(records[0].values[name]) for name in held)
+    sizes = tuple(to_features(name, torch.tensor(records[0].values[name])).numel() for name in held)
     rows = torch.stack(
-        [torch.cat([to_features(name, torch.tensor(record.values[name])) for name in held]) for record in records]
+        [
+            torch.cat([to_features(name, torch.tensor(record.values[name], dtype=torch.float64)) for name in held])
+            for record in records
+        ]
     )
     sets = sorted({record.set for record in records})
     per_set = {name: sum(record.set == name for record in records) for name in sets}
