@@ -11,40 +11,18 @@ import torch
 from darksynth.cameras.presets import CAMERA_CHOICES, camera_source
 from darksynth.cameras.prior import BLIND_OCTAVES
 from darksynth.errors import DarksynthError
-from darksynth.light.darkening import Darkening
 from darksynth.noise.components import noise_parameter
-from darksynth.noise.spectral import LEVEL_KNOTS, OCTAVES
+from darksynth.noise.spectral import OCTAVES
 from darksynth.noise.spectral_components import SPECTRUM_REPLACES
-from darksynth.profile import Profile, default_profile_path, load_profile
+from darksynth.profile import default_profile_path, load_profile
 from darksynth.recipe import ClipRecipe, draw_clip_parameters
-from tests.conftest import build_profile
+from tests.conftest import measured_profile
 
 SPECTRAL_NAMES = ("level_curve", "octave_power", "octave_correlation", "compression")
 
 
 def _seeded(seed: int) -> torch.Generator:
     return torch.Generator().manual_seed(seed)
-
-
-def _measured_profile() -> Profile:
-    """A profile as ``estimate`` writes one: a spectral level curve and octaves, JPEG, columns and a temporal
-    correlation, with ranges on the darkening."""
-    knots = torch.tensor(LEVEL_KNOTS, dtype=torch.float64)
-    curve = torch.stack([0.01 + 0.03 * knots, 0.012 + 0.02 * knots, 0.015 + 0.035 * knots]).reshape(-1)
-    power = torch.linspace(0.5, 6.0, OCTAVES * 3, dtype=torch.float64)
-    correlation = torch.linspace(-0.2, 0.25, OCTAVES * 3, dtype=torch.float64)
-    return build_profile(
-        darkening=Darkening(0.2, 0.7),
-        ranges={"alpha": [(0.1, 0.3)], "gamma": [(0.5, 0.9)]},
-        level_curve=curve.tolist(),
-        octave_power=power.tolist(),
-        octave_correlation=correlation.tolist(),
-        temporal_correlation=[0.3] * OCTAVES,
-        compression=0.3,
-        banding=0.004,
-        periodic=[0.001, 0.002, 0.003],
-        quantization=0.004,
-    )
 
 
 def test_without_a_camera_the_draws_are_those_of_the_profile_alone() -> None:
@@ -90,7 +68,7 @@ def test_a_whole_camera_replaces_the_heteroscedastic_values_and_keeps_the_rest()
 
 
 def test_a_measured_profile_keeps_its_level_jpeg_and_finer_octaves_and_draws_the_coarse() -> None:
-    profile = _measured_profile()
+    profile = measured_profile()
     recipe = ClipRecipe(profile, camera="dslr-jpeg", jitter=False)
     draws = [recipe.choose(_seeded(seed)) for seed in range(12)]
     finer = slice(0, BLIND_OCTAVES * 3)
