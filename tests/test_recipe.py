@@ -102,3 +102,11 @@ def test_whole_cameras_spread_as_the_prior_does() -> None:
 def test_an_unknown_camera_is_refused_with_the_choices() -> None:
     with pytest.raises(DarksynthError, match=r"unknown camera 'nikon'; choose one of prior, phone, dslr, dslr-jpeg"):
         ClipRecipe(load_profile(default_profile_path()), camera="nikon")
+
+
+def test_without_a_generator_each_clip_gets_its_own_camera_and_the_global_generator_is_left_alone() -> None:
+    recipe = ClipRecipe(load_profile(default_profile_path()), camera="prior")
+    state = torch.random.get_rng_state()
+    curves = {tuple(recipe.choose(None).noise["level_curve"].tolist()) for _ in range(3)}
+    assert len(curves) == 3
+    assert torch.equal(torch.random.get_rng_state(), state)
