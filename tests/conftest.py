@@ -13,6 +13,7 @@ from PIL import Image
 
 from darksynth.light.darkening import Darkening
 from darksynth.models.den import DEN, DENConfig
+from darksynth.noise.spectral import LEVEL_KNOTS, OCTAVES
 from darksynth.noise.values import NoiseValues
 from darksynth.profile import Profile, default_profile_path, validate_profile
 
@@ -66,6 +67,27 @@ def build_profile(
         ranges={name: tuple(pairs) for name, pairs in (ranges or {}).items()},
     )
     return validate_profile(profile)
+
+
+def measured_profile() -> Profile:
+    """A profile as ``estimate`` writes one: a spectral level curve and octaves, JPEG, columns and a temporal
+    correlation, with ranges on the darkening."""
+    knots = torch.tensor(LEVEL_KNOTS, dtype=torch.float64)
+    curve = torch.stack([0.01 + 0.03 * knots, 0.012 + 0.02 * knots, 0.015 + 0.035 * knots]).reshape(-1)
+    power = torch.linspace(0.5, 6.0, OCTAVES * 3, dtype=torch.float64)
+    correlation = torch.linspace(-0.2, 0.25, OCTAVES * 3, dtype=torch.float64)
+    return build_profile(
+        darkening=Darkening(0.2, 0.7),
+        ranges={"alpha": [(0.1, 0.3)], "gamma": [(0.5, 0.9)]},
+        level_curve=curve.tolist(),
+        octave_power=power.tolist(),
+        octave_correlation=correlation.tolist(),
+        temporal_correlation=[0.3] * OCTAVES,
+        compression=0.3,
+        banding=0.004,
+        periodic=[0.001, 0.002, 0.003],
+        quantization=0.004,
+    )
 
 
 @pytest.fixture

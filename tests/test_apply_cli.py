@@ -14,7 +14,9 @@ from PIL import Image
 from darksynth.io.images import Image as ImageData
 from darksynth.io.images import read_image, write_image
 from darksynth.io.video import VideoWriter, iter_video_frames, probe_video
+from darksynth.profile import save_profile
 from tests.command_line import run_cli
+from tests.conftest import measured_profile
 
 
 def _pixels(path: Path) -> np.ndarray:
@@ -37,6 +39,38 @@ def test_image_output_and_manifest(rgb_image: Path, profile_file: Path, tmp_path
     assert record["parameters"]["darkening"] == {"alpha": 0.2, "gamma": 0.7}
     assert record["parameters"]["noise"]["periodic"] == [0.002, 0.002, 0.002]
     assert isinstance(record["seed"], int)
+
+
+def test_a_drawn_camera_is_in_the_manifest_with_its_values(rgb_image: Path, tmp_path: Path) -> None:
+    outputs = {}
+    for name, seed in (("a.png", "5"), ("b.png", "5"), ("c.png", "6")):
+        code, _, err = run_cli("apply", rgb_image, tmp_path / name, "--camera", "prior", "--seed", seed)
+        assert code == 0, err
+        outputs[name] = (tmp_path / name).read_bytes()
+    assert outputs["a.png"] == outputs["b.png"] != outputs["c.png"]
+    manifest = json.loads((tmp_path / "a.png.manifest.json").read_text())
+    assert manifest["camera"] == "prior"
+    (record,) = manifest["files"]
+    assert record["parameters"]["camera"] == {"source": "prior", "given_profile": False}
+    noise = record["parameters"]["noise"]
+    assert noise["shot"] == 0.0 and noise["read"] == 0.0 and min(noise["level_curve"]) > 0.0
+    # The default profile's darkening and column noise stay.
+    assert record["parameters"]["darkening"] == {"alpha": 0.2, "gamma": 0.7}
+    assert noise["periodic"] == [0.002, 0.002, 0.002]
+    other = json.loads((tmp_path / "c.png.manifest.json").read_text())["files"][0]["parameters"]["noise"]
+    assert other["level_curve"] != noise["level_curve"]
+
+
+def test_a_measured_profile_conditions_the_drawn_camera(rgb_image: Path, tmp_path: Path) -> None:
+    profile = measured_profile()
+    save_profile(tmp_path / "measured.json", profile)
+    code, _, err = run_cli(
+        "apply", rgb_image, tmp_path / "out.png", "-p", tmp_path / "measured.json", "--camera", "phone", "--seed", "1"
+    )
+    assert code == 0, err
+    (record,) = json.loads((tmp_path / "out.png.manifest.json").read_text())["files"]
+    assert record["parameters"]["camera"] == {"source": "phone", "given_profile": True}
+    assert record["parameters"]["noise"]["level_curve"] == profile.noise["level_curve"].tolist()
 
 
 def test_same_seed_same_bytes_other_seed_differs(rgb_image: Path, profile_file: Path, tmp_path: Path) -> None:

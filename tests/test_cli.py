@@ -28,10 +28,10 @@ from darksynth.evaluation.run.job import EvaluationRun
 from darksynth.evaluation.run.options import EvaluationOptions
 from darksynth.io.video_encoding import VideoEncoding
 from darksynth.models.den import DENConfig
-from darksynth.profile import load_profile
+from darksynth.profile import default_profile_path, load_profile
 from darksynth.training.loop import TrainConfig
 from darksynth.training.weights import DENChoice, default_weights_path
-from tests.command_line import run_cli
+from tests.command_line import assert_one_line_error, run_cli
 
 
 def _flag_defaults(command: str) -> dict[str, Any]:
@@ -123,6 +123,40 @@ def test_apply_without_flags_builds_the_default_options(
     )
 
 
+def test_apply_with_a_camera_alone_takes_the_default_profile(
+    monkeypatch: pytest.MonkeyPatch, rgb_image: Path, tmp_path: Path
+) -> None:
+    built: list[ApplyOptions] = []
+
+    def run(input_path: Path, output_path: Path, options: ApplyOptions, *, quiet: bool) -> ApplyReport:
+        built.append(options)
+        return ApplyReport()
+
+    monkeypatch.setattr(synthesis, "run_with_progress", run)
+    code, _, err = run_cli("apply", rgb_image, tmp_path / "out.png", "--camera", "dslr", "--seed", "2")
+    assert code == 0, err
+    default = default_profile_path()
+    assert built == [ApplyOptions(profile=load_profile(default), seed=2, profile_source=str(default), camera="dslr")]
+
+
+@pytest.mark.parametrize("command", ["apply", "preview"])
+def test_neither_a_profile_nor_a_camera_is_one_line(command: str, rgb_image: Path, tmp_path: Path) -> None:
+    arguments = (rgb_image, tmp_path / "out.png") if command == "apply" else (rgb_image,)
+    code, _, err = run_cli(command, *arguments)
+    assert_one_line_error(code, err, "give --profile", "or --camera NAME")
+
+
+@pytest.mark.parametrize("command", ["apply", "convert", "preview"])
+def test_an_unknown_camera_is_one_line_naming_the_choices(command: str, rgb_image: Path, tmp_path: Path) -> None:
+    arguments = {
+        "apply": (rgb_image, tmp_path / "out.png"),
+        "convert": (tmp_path / "ds", tmp_path / "out", "-f", "folder"),
+        "preview": (rgb_image,),
+    }[command]
+    code, _, err = run_cli(command, *arguments, "--camera", "nikon")
+    assert_one_line_error(code, err, "--camera must be one of prior, phone, dslr, dslr-jpeg, got 'nikon'")
+
+
 def test_convert_without_flags_builds_the_default_options(
     monkeypatch: pytest.MonkeyPatch, profile_file: Path, tmp_path: Path
 ) -> None:
@@ -150,7 +184,7 @@ def test_convert_flags_reach_the_options(monkeypatch: pytest.MonkeyPatch, profil
     code, _, err = run_cli(
         "convert", tmp_path / "ds", tmp_path / "out", "-p", profile_file, "-f", "coco", "--seed", "4", "--jitter",
         "--workers", "2", "--shard", "2/3", "--images-root", "pictures", "--overwrite", "--codec", "ffv1",
-        "--crf", "0", "--device", "meta",
+        "--crf", "0", "--device", "meta", "--camera", "phone",
     )  # fmt: skip
     assert code == 0, err
     expected = ConvertOptions(
@@ -166,6 +200,7 @@ def test_convert_flags_reach_the_options(monkeypatch: pytest.MonkeyPatch, profil
         overwrite=True,
         encoding=VideoEncoding(codec="ffv1", crf=0),
         device="meta",
+        camera="phone",
     )
     assert built == [expected]
 

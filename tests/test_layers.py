@@ -10,8 +10,9 @@ sibling of its own layer):
    ``console_progress`` (how a command shows its progress), ``worker_pool`` (worker processes that end with their
    parent);
 2. ``noise``: the components, their table, the carrier of values, the composer;
-3. ``profile``, ``cameras`` (the bank of real cameras, the prior over them and its presets), ``light.exposure`` (an input's darkening matched to the reference's tones: it simulates the
-   profile's noise on the input, so it sits above ``noise`` while the rest of ``light`` sits below);
+3. ``profile``, ``cameras`` (the bank of real cameras, the prior over them and its presets), ``light.exposure``
+   (an input's darkening matched to the reference's tones: it simulates the profile's noise on the input, so it sits
+   above ``noise`` while the rest of ``light`` sits below);
 4. ``recipe`` (a clip's parameters chosen in one place: the draws, the matched darkening and colour cast),
    ``models``, ``apply_outputs`` (what ``apply`` may write where: claiming outputs, resuming);
 5. ``synthesize`` (the composer run on images, clips and streams);

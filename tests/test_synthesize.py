@@ -11,10 +11,12 @@ import pytest
 import torch
 
 import darksynth
+from darksynth.errors import DarksynthError
 from darksynth.light.darkening import ALPHA_RANGE, GAMMA_RANGE, Darkening, darken
+from darksynth.noise.spectral import level_std
 from darksynth.noise.values import NoiseValues
 from darksynth.profile import default_profile_path, load_profile
-from darksynth.recipe import ClipParameters, draw_clip_parameters
+from darksynth.recipe import ClipParameters, ClipRecipe, draw_clip_parameters
 from darksynth.synthesize import ClipSynthesizer
 from tests.conftest import ProfileFactory
 from tests.noise.test_simulate import ALL_ON, ALPHA, GAMMA, _ramp_clip
@@ -270,3 +272,39 @@ def test_synthesize_with_noise_is_reproducible_and_seed_dependent(make_profile: 
         c = darksynth.synthesize(image, profile, generator=torch.Generator().manual_seed(12)).image
         assert torch.equal(a, b)
         assert not torch.equal(a, c)
+
+
+def test_a_drawn_cameras_level_is_the_noise_the_output_shows(make_profile: ProfileFactory) -> None:
+    # A flat grey image with no other component: each channel's noise std is the drawn level curve at 0.5 (128 x 128
+    # pixels of noise with coarse octaves: the measured std stays within 5 % of it, 10 % allowed).
+    flat = torch.full((3, 128, 128), 0.5)
+    curves = set()
+    for seed in range(4):
+        result = darksynth.synthesize(
+            flat, make_profile(), generator=torch.Generator().manual_seed(seed), darkening=None, camera="dslr"
+        )
+        assert isinstance(result.parameters, dict) and isinstance(result.image, torch.Tensor)
+        assert result.parameters["camera"] == {"source": "dslr", "given_profile": False}
+        noise = result.parameters["noise"]
+        assert noise["compression"] == 0.0
+        curve = torch.tensor(noise["level_curve"], dtype=torch.float64)
+        expected = level_std(torch.full((3, 1, 1), 0.5, dtype=torch.float64), curve).reshape(3)
+        measured = (result.image.double() - 0.5).std(dim=(1, 2))
+        assert torch.allclose(measured, expected, rtol=0.1), (measured, expected)
+        curves.add(tuple(noise["level_curve"]))
+    assert len(curves) == 4
+
+
+def test_synthesize_with_a_camera_follows_the_recipe(make_profile: ProfileFactory) -> None:
+    profile = make_profile(darkening=Darkening(ALPHA, GAMMA), **ALL_ON)
+    clean = torch.randint(0, 256, (3, 32, 48), dtype=torch.uint8, generator=torch.Generator().manual_seed(3))
+    result = darksynth.synthesize(clean, profile, generator=torch.Generator().manual_seed(4), camera="phone")
+    generator = torch.Generator().manual_seed(4)
+    chosen = ClipRecipe(profile, camera="phone").choose(generator, clean)
+    replayed = darksynth.synthesize(clean, profile, generator=generator, parameters=chosen)
+    assert torch.equal(result.image, replayed.image) and result.parameters == chosen.to_json()
+    plain = darksynth.synthesize(clean, profile, generator=torch.Generator().manual_seed(4))
+    assert isinstance(plain.parameters, dict) and "camera" not in plain.parameters
+    assert not torch.equal(plain.image, result.image)
+    with pytest.raises(DarksynthError, match="unknown camera 'phones'"):
+        darksynth.synthesize(clean, profile, camera="phones")

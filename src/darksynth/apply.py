@@ -41,7 +41,7 @@ from darksynth.io.video import (
     to_stream_size,
 )
 from darksynth.profile import Profile, profile_to_dict
-from darksynth.recipe import ClipParameters, ClipRecipe, DarkeningChoice
+from darksynth.recipe import ClipParameters, ClipRecipe, DarkeningChoice, check_camera
 from darksynth.seeding import derive_seed
 from darksynth.synthesize import ClipSynthesizer
 from darksynth.worker_pool import init_worker
@@ -89,6 +89,8 @@ class ApplyOptions:
             (``--no-blur``, ``--no-flicker``).
         match_colour: also give each input the reference's colour cast (``--match-colour``; needs the profile's
             ``tone.colour`` and a darkening).
+        camera: draw each file's (or clip's) camera from the prior over real cameras or a preset (``--camera``;
+            see :class:`darksynth.recipe.ClipRecipe`); None keeps the profile's noise.
     """
 
     profile: Profile
@@ -105,6 +107,10 @@ class ApplyOptions:
     blur: bool = True
     flicker: bool = True
     match_colour: bool = False
+    camera: str | None = None
+
+    def __post_init__(self) -> None:
+        check_camera(self.camera)
 
     def recipe(self) -> ClipRecipe:
         """How each file's (or clip's) parameters are chosen (:class:`darksynth.recipe.ClipRecipe`)."""
@@ -115,6 +121,7 @@ class ApplyOptions:
             blur=self.blur,
             flicker=self.flicker,
             match_colour=self.match_colour,
+            camera=self.camera,
         )
 
 
@@ -394,6 +401,7 @@ def write_manifest(path: Path, input_path: Path, output_path: Path, options: App
         "device": options.device,
         "darkening": options.darkening if isinstance(options.darkening, str | type(None)) else vars(options.darkening),
         "jitter": options.jitter,
+        "camera": options.camera,
         "clip": options.clip,
         **options.encoding.to_json(),
         "files": sorted(report.records, key=lambda r: r["input"]),

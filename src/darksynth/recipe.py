@@ -3,9 +3,10 @@ training transforms all follow.
 
 A :class:`ClipRecipe` is what the user asked for: the profile, how the darkening is chosen, whether the profile's
 ranges are drawn per clip (``--jitter``), whether its blur and flicker stay on, whether the reference's colour cast
-is matched. :meth:`ClipRecipe.choose` turns it, a generator and the clip's first frame into the clip's
-:class:`ClipParameters`, in one fixed order of draws, so that a seed gives the same parameters from the library,
-the command line and a transform.
+is matched, and whether each clip gets a whole camera drawn from the prior over real cameras (``--camera``).
+:meth:`ClipRecipe.choose` turns it, a generator and the clip's first frame into the clip's :class:`ClipParameters`,
+in one fixed order of draws, so that a seed gives the same parameters from the library, the command line and a
+transform.
 """
 
 from __future__ import annotations
@@ -16,10 +17,15 @@ from typing import Any, Literal
 
 import torch
 
+from darksynth.cameras.presets import CAMERA_CHOICES, camera_source
+from darksynth.cameras.prior import BLIND_OCTAVES, CameraPrior, measured_entries
+from darksynth.errors import DarksynthError
 from darksynth.light.darkening import ALPHA_RANGE, GAMMA_RANGE, Darkening
 from darksynth.light.exposure import ColourScale, matched_colour, matched_darkening
-from darksynth.noise.components import noise_parameters
+from darksynth.noise.components import noise_parameter, noise_parameters
 from darksynth.noise.sampling import random_uniform
+from darksynth.noise.spectral import OCTAVES
+from darksynth.noise.spectral_components import SPECTRUM_REPLACES
 from darksynth.noise.structure_translation import spectral_tensors
 from darksynth.noise.values import NoiseValues
 from darksynth.profile import Profile, without_light
@@ -30,20 +36,108 @@ ranges. A :class:`Darkening`: exactly that. None: no darkening (the input alread
 
 
 @dataclass(frozen=True)
+class CameraDraw:
+    """Where a clip's camera came from.
+
+    Attributes:
+        source: what it was drawn from, one of :data:`~darksynth.cameras.presets.CAMERA_CHOICES`.
+        given_profile: drawn given the profile's measured values (its level curve, JPEG strength and finer
+            octaves, kept), rather than whole.
+    """
+
+    source: str
+    given_profile: bool
+
+    def to_json(self) -> dict[str, Any]:
+        """JSON-ready record for manifests."""
+        return {"source": self.source, "given_profile": self.given_profile}
+
+
+@dataclass(frozen=True)
 class ClipParameters:
-    """The parameters chosen for one clip (or one image): noise values, the darkening, if any, and the channel
-    factors that give it the reference's colour cast (:func:`darksynth.light.exposure.matched_colour`)."""
+    """The parameters chosen for one clip (or one image): noise values, the darkening, if any, the channel
+    factors that give it the reference's colour cast (:func:`darksynth.light.exposure.matched_colour`) and, when
+    its camera was drawn, where from (its values are in ``noise``)."""
 
     noise: NoiseValues
     darkening: Darkening | None
     colour_scale: ColourScale | None = None
+    camera: CameraDraw | None = None
 
     def to_json(self) -> dict[str, Any]:
         """JSON-ready record for manifests: the noise and light values as a profile writes them, the darkening and
-        (when matched) the colour scale."""
+        (when matched) the colour scale, (when drawn) where the camera came from."""
         darkening = None if self.darkening is None else {"alpha": self.darkening.alpha, "gamma": self.darkening.gamma}
-        record = {"noise": self.noise.to_json("noise"), "light": self.noise.to_json("light"), "darkening": darkening}
-        return record if self.colour_scale is None else record | {"colour_scale": list(self.colour_scale)}
+        record: dict[str, Any] = {
+            "noise": self.noise.to_json("noise"),
+            "light": self.noise.to_json("light"),
+            "darkening": darkening,
+        }
+        if self.colour_scale is not None:
+            record["colour_scale"] = list(self.colour_scale)
+        if self.camera is not None:
+            record["camera"] = self.camera.to_json()
+        return record
+
+
+def check_camera(name: str | None) -> str | None:
+    """``name`` if it is None or one of :data:`~darksynth.cameras.presets.CAMERA_CHOICES`.
+
+    Raises:
+        DarksynthError: any other name.
+    """
+    if name is not None and name not in CAMERA_CHOICES:
+        raise DarksynthError(f"unknown camera {name!r}; choose one of {', '.join(CAMERA_CHOICES)}")
+    return name
+
+
+def has_measured_spectrum(noise: NoiseValues) -> bool:
+    """Whether noise values hold a spectral level curve (a profile from ``estimate``), not the paper model's or
+    the sRGB structure's description of the noise."""
+    return bool((noise["level_curve"] != 0.0).any())
+
+
+def random_camera(
+    noise: NoiseValues, prior: CameraPrior, *, given_measured: bool, generator: torch.Generator
+) -> NoiseValues:
+    """Unbatched ``noise`` with a camera drawn from ``prior``: its spectral values (those the prior holds) drawn,
+    the heteroscedastic parameters they take over (:data:`SPECTRUM_REPLACES`) neutral, the rest kept.
+
+    With ``given_measured`` the draw is conditional on what a blind estimate measures of ``noise``
+    (:func:`~darksynth.cameras.prior.measured_entries`), and those entries are kept exactly; otherwise the whole
+    camera is drawn. Drawn values are clamped to their parameters' valid ranges.
+    """
+    if given_measured:
+        known, mask = measured_entries(noise)
+        drawn = prior.draw_given(known, mask, generator)
+        values = {name: drawn[name] for name in prior.names} | _kept_measured(drawn, known, mask)
+    else:
+        drawn = prior.draw(generator).clip(0)
+        values = {name: drawn[name] for name in prior.names}
+    # A Gaussian's tail can leave a parameter's valid range, which the values' readers assume.
+    valid = {
+        name: value.clamp(noise_parameter(name).minimum, noise_parameter(name).maximum)
+        for name, value in values.items()
+    }
+    neutral = {name: noise_parameter(name).neutral for name in SPECTRUM_REPLACES}
+    return noise.replace(**neutral, **valid)
+
+
+def _kept_measured(
+    drawn: NoiseValues, known: dict[str, torch.Tensor], mask: dict[str, torch.Tensor]
+) -> dict[str, torch.Tensor]:
+    """The drawn values of the measured names with the measured entries put back exactly: the prior's space is a
+    log and snaps JPEG strengths to steps, which would move them by rounding or by a step."""
+    kept = {}
+    for name, value in known.items():
+        fill = drawn[name]
+        if name == "octave_power":
+            # The prior's powers are relative to the finer octaves' mean log brightness power (only the shape
+            # counts): put the drawn coarse powers on the measured ones' scale.
+            finer = value.reshape(OCTAVES, 3)[:BLIND_OCTAVES, 0].clamp_min(1e-6).log().mean()
+            fill = fill * finer.exp()
+        kept[name] = torch.where(mask[name], value.to(fill), fill)
+    return kept
 
 
 def draw_clip_parameters(
@@ -106,6 +200,10 @@ class ClipRecipe:
         blur, flicker: False switches off the profile's motion blur and camera shake, or its flicker.
         match_colour: also give each input the reference's colour cast (needs the profile's ``tone.colour`` and a
             darkening).
+        camera: draw each clip's camera from this source (one of
+            :data:`~darksynth.cameras.presets.CAMERA_CHOICES`): given the profile's measured level curve, JPEG
+            strength and finer octaves when it has them (a profile from ``estimate``), whole otherwise. None keeps
+            the profile's noise.
     """
 
     profile: Profile
@@ -114,6 +212,10 @@ class ClipRecipe:
     blur: bool = True
     flicker: bool = True
     match_colour: bool = False
+    camera: str | None = None
+
+    def __post_init__(self) -> None:
+        check_camera(self.camera)
 
     def drawn_from(self) -> tuple[Profile, DarkeningChoice]:
         """The profile and darkening choice the draws start from, before an input is seen."""
@@ -129,14 +231,32 @@ class ClipRecipe:
         """One clip's parameters: the draws from :meth:`drawn_from`, with the darkening matched to the reference's
         tones on ``first_frame`` (C, H, W; uint8, uint16 or float) when the profile carries them
         (:func:`darksynth.light.exposure.matched_darkening`), and with ``match_colour`` the colour cast too.
-        ``source`` names the input in the log when no match can be made."""
+        ``source`` names the input in the log when no match can be made. With ``camera``, the clip's camera is
+        drawn last, after the draws every recipe makes, so that a seed gives the same darkening and ranges with or
+        without it (:func:`random_camera`)."""
         profile, darkening = self.drawn_from()
         if first_frame is not None and self.darkening == "profile":
             tone, noise = self.profile.tone, self.profile.noise
             darkening = matched_darkening(first_frame, tone, noise=noise, source=source) or darkening
         parameters = draw_clip_parameters(profile, darkening=darkening, generator=generator)
+        if self.camera is not None:
+            given = has_measured_spectrum(self.profile.noise)
+            noise = random_camera(
+                parameters.noise,
+                camera_source(self.camera),
+                given_measured=given,
+                generator=generator if generator is not None else _unseeded_generator(),
+            )
+            parameters = dataclasses.replace(parameters, noise=noise, camera=CameraDraw(self.camera, given))
         if self.match_colour and first_frame is not None and parameters.darkening is not None:
             colour = matched_colour(first_frame, self.profile.tone, parameters.darkening)
             if colour is not None:
                 parameters = dataclasses.replace(parameters, colour_scale=colour[0], darkening=colour[1])
         return parameters
+
+
+def _unseeded_generator() -> torch.Generator:
+    """A generator of its own for a caller that gave none, seeded from the system's entropy: never the global one."""
+    generator = torch.Generator()
+    generator.seed()
+    return generator

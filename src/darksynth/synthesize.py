@@ -308,6 +308,7 @@ def synthesize(
     darkening: DarkeningChoice = "profile",
     device: torch.device | str | None = None,
     parameters: ClipParameters | None = None,
+    camera: str | None = None,
 ) -> LowLightResult:
     """Make a low-light version of a clean image or clip with a noise profile.
 
@@ -321,10 +322,16 @@ def synthesize(
         darkening: see :data:`darksynth.recipe.DarkeningChoice`.
         device: where to compute; the input's device by default.
         parameters: the parameters every clip takes, chosen before (a transform's replay); None chooses each clip's
-            by the recipe of ``profile`` and ``darkening`` (:meth:`darksynth.recipe.ClipRecipe.choose`).
+            by the recipe of ``profile``, ``darkening`` and ``camera`` (:meth:`darksynth.recipe.ClipRecipe.choose`).
+        camera: draw each clip's camera from real ones, one of :data:`darksynth.cameras.presets.CAMERA_CHOICES`
+            (``"prior"`` or a preset): given the profile's measured level, JPEG and finer octaves when it has them,
+            whole otherwise; None keeps the profile's noise. Each record then says where it came from.
 
     Returns:
         The low-light result in the input's layout and dtype, with the parameters used.
+
+    Raises:
+        DarksynthError: ``camera`` names no camera.
     """
     as_numpy = isinstance(clean, np.ndarray)
     if isinstance(clean, np.ndarray):
@@ -339,7 +346,7 @@ def synthesize(
     flat = clips.reshape(-1, *clips.shape[-CLIP_DIMS:])
     outputs = []
     records = []
-    recipe = ClipRecipe(profile, darkening=darkening)
+    recipe = ClipRecipe(profile, darkening=darkening, camera=camera)
     for clip in flat:
         chosen = parameters if parameters is not None else recipe.choose(generator, clip[0])
         records.append(chosen.to_json())

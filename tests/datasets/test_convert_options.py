@@ -25,8 +25,8 @@ def test_fingerprint_is_the_state_earlier_runs_recorded(options: ConvertOptions)
     """Outputs written before the options became one object must still resume: the same keys, the same values.
 
     The keys added since are pix_fmt (the default pixel format of H.264 went from 4:4:4 to 4:2:0 with it, so a
-    conversion begun before must not resume: its videos and the new ones would differ), and blur, flicker and
-    match_colour, which an earlier state without them reads at their defaults, as before them."""
+    conversion begun before must not resume: its videos and the new ones would differ), and blur, flicker,
+    match_colour and camera, which an earlier state without them reads at their defaults, as before them."""
     assert options.fingerprint() == {
         "dataset": str(options.dataset),
         "format": "coco",
@@ -41,6 +41,7 @@ def test_fingerprint_is_the_state_earlier_runs_recorded(options: ConvertOptions)
         "blur": True,
         "flicker": True,
         "match_colour": False,
+        "camera": None,
     }
 
 
@@ -57,6 +58,7 @@ def test_only_scheduling_options_leave_the_fingerprint_unchanged(options: Conver
         {"encoding": VideoEncoding(crf=3)},
         {"encoding": VideoEncoding(pix_fmt="yuv444p")},
         {"images_root": Path("x")},
+        {"camera": "prior"},
     ):
         assert dataclasses.replace(options, **change).fingerprint() != options.fingerprint(), change
 
@@ -76,6 +78,7 @@ def test_checked_options_have_absolute_paths(
     [
         ({"format": "voc"}, "unknown dataset format 'voc'; use one of coco, yolo, folder, video-folder"),
         ({"workers": 0}, "--workers must be at least 1, got 0"),
+        ({"camera": "nikon"}, "unknown camera 'nikon'; choose one of prior, phone, dslr, dslr-jpeg"),
     ],
 )
 def test_bad_options_are_refused_by_check(options: ConvertOptions, change: dict[str, object], message: str) -> None:
@@ -93,6 +96,7 @@ def test_apply_options_fix_the_parameters_unless_jitter(options: ConvertOptions)
     assert (fixed.seed, fixed.workers, fixed.encoding, fixed.device) == (3, 1, VideoEncoding(), "cpu")
     encoded = dataclasses.replace(options, encoding=VideoEncoding(codec="ffv1", crf=None)).apply_options()
     assert encoded.encoding == VideoEncoding(codec="ffv1")
+    assert dataclasses.replace(options, camera="phone").apply_options().recipe().camera == "phone"
 
 
 @pytest.mark.parametrize(

@@ -209,7 +209,7 @@ def test_a_clean_reference_stays_nearly_noise_free_after_the_measured_spectrum(
 def test_the_measured_spectrum_drops_the_ranges_of_what_it_replaces(tiny_model: Callable[..., DEN]) -> None:
     # apply --jitter draws ranged parameters: a range left on the network's shot or compression would add the
     # network's noise back on top of the measured spectrum.
-    from darksynth.estimation.noise_estimate import SPECTRUM_REPLACES
+    from darksynth.noise.spectral_components import SPECTRUM_REPLACES
 
     network = _rigged(tiny_model(), torch.full((vector_size(),), 0.3))
     profile = estimate(_reference(1, 128, 128), network).profile

@@ -129,6 +129,33 @@ def test_a_replay_shows_the_drawn_parameters_and_applies_exactly_those() -> None
     assert brighter.mean() > 2 * recorded["image"].mean()
 
 
+def test_a_replay_shows_the_drawn_camera_and_applies_it() -> None:
+    image = _image(np.uint8, (32, 40, 3))
+    replay = A.ReplayCompose([_albumentations_transform(profile=RANGED, camera="phone")])
+    replay.set_random_seed(5)
+    recorded, second = replay(image=image), replay(image=image)
+    shown = recorded["replay"]["transforms"][0]["params"]
+    assert shown["camera"] == {"source": "phone", "given_profile": False}
+    assert shown["noise"]["shot"] == 0.0 and min(shown["noise"]["level_curve"]) > 0.0
+    assert second["replay"]["transforms"][0]["params"]["noise"]["level_curve"] != shown["noise"]["level_curve"]
+    assert np.array_equal(A.ReplayCompose.replay(recorded["replay"], image=image)["image"], recorded["image"])
+    # The replay applies the camera it shows: without its level curve no noise is left (the camera replaced the
+    # profile's shot and read noise), with twice the curve about twice the noise (less where black clips it: the
+    # darkened image has many pixels within a few levels of 0).
+    replayed = {}
+    for factor in (0, 2):
+        edited = copy.deepcopy(recorded["replay"])
+        edited["transforms"][0]["params"]["noise"]["level_curve"] = [factor * v for v in shown["noise"]["level_curve"]]
+        replayed[factor] = A.ReplayCompose.replay(edited, image=image)["image"].astype(float)
+    noise = (recorded["image"] - replayed[0]).std()
+    assert noise > 1.0
+    assert 1.5 < (replayed[2] - replayed[0]).std() / noise < 2.1
+    rebuilt = A.from_dict(A.to_dict(replay))
+    assert rebuilt.transforms[0].camera == "phone"
+    with pytest.raises(ValueError, match="camera must be None or one of"):
+        _albumentations_transform(camera="canon")
+
+
 def test_the_drawn_parameters_are_uniform_within_the_profiles_ranges() -> None:
     transform = _albumentations_transform(profile=RANGED)
     image = _image(np.uint8, (16, 16, 3))

@@ -281,6 +281,25 @@ def test_bad_arguments_are_refused() -> None:
         LowLight(_everything_profile())(_flat(0.5, (3, 4, 4)), seed=True)
 
 
+def test_a_camera_is_drawn_per_sample_and_shown_with_its_values() -> None:
+    transform = LowLight(_everything_profile(), seed=3, camera="dslr-jpeg")
+    clean = _flat(0.5, (3, 16, 16))
+    first, again = transform.sample(clean, seed=1), transform.sample(clean, seed=1)
+    assert isinstance(first.image, torch.Tensor) and isinstance(again.image, torch.Tensor)
+    assert torch.equal(first.image, again.image)
+    assert isinstance(first.parameters, dict) and isinstance(again.parameters, dict)
+    assert first.parameters == again.parameters
+    assert first.parameters["camera"] == {"source": "dslr-jpeg", "given_profile": False}
+    # The camera replaces the profile's shot and read noise; its darkening and columns stay.
+    assert first.parameters["noise"]["shot"] == 0.0 and min(first.parameters["noise"]["level_curve"]) > 0.0
+    assert first.parameters["noise"]["banding"] == 0.004
+    assert first.parameters["darkening"] == {"alpha": 0.3, "gamma": 0.7}
+    other = transform.sample(clean, seed=2).parameters
+    assert isinstance(other, dict) and other["noise"]["level_curve"] != first.parameters["noise"]["level_curve"]
+    with pytest.raises(ValueError, match="camera must be None or one of prior, phone, dslr, dslr-jpeg, got 'sony'"):
+        LowLight(_everything_profile(), camera="sony")
+
+
 def test_slight_resampling_overshoot_is_accepted_and_clipped() -> None:
     clean = torch.tensor([-0.05, 0.5, 1.05]).view(1, 1, 3)
     noisy = LowLight(build_profile(), seed=0, darkening=None)(clean)

@@ -16,9 +16,11 @@ from darksynth.errors import DarksynthError
 
 @dataclass(frozen=True)
 class Preset:
-    """A kind of camera: the sets of real pairs it is measured on and what they are."""
+    """A kind of camera: what it is in a few words (for the command line's help), the sets of real pairs it is
+    measured on and what they are."""
 
     name: str
+    kind: str
     sets: tuple[str, ...]
     source: str
 
@@ -28,17 +30,20 @@ PRESETS: dict[str, Preset] = {
     for preset in (
         Preset(
             "phone",
+            "smartphones (SIDD)",
             ("sidd",),
             "smartphones in low light: 6 SIDD pairs (Abdelhamed et al. 2018), PNG, noise std 8-31 of 255",
         ),
         Preset(
             "dslr",
+            "DSLRs at ISO 1600-6400 (Nam et al.)",
             ("nam-cc15", "nam-cc60"),
             "Canon 5D Mark III, Nikon D600 and D800 at ISO 1600-6400: 67 crops of Nam et al. 2016 (CC15, CC60), "
             "each clean image the mean of hundreds of shots of a still scene",
         ),
         Preset(
             "dslr-jpeg",
+            "DSLRs' own JPEG at ISO 800-12800 (PolyU)",
             ("polyu",),
             "Canon 5D Mark II, 80D, 600D, Nikon D800 and Sony A7 II at ISO 800-12800, JPEG: 100 PolyU pairs "
             "(Xu et al. 2018)",
@@ -48,6 +53,9 @@ PRESETS: dict[str, Preset] = {
 
 CAMERA_CHOICES: tuple[str, ...] = ("prior", *PRESETS)
 """What a clip's camera can be drawn from: ``prior`` (every camera of the bank) or a preset."""
+
+CAMERA_KINDS: dict[str, str] = {"prior": "every real camera of the bank", **{p.name: p.kind for p in PRESETS.values()}}
+"""Each of :data:`CAMERA_CHOICES` in a few words."""
 
 
 @functools.cache

@@ -11,6 +11,7 @@ from typing import Annotated, Any, cast
 import typer
 
 from darksynth.apply import ApplyOptions, ApplyReport, Task, apply
+from darksynth.cameras.presets import CAMERA_CHOICES
 from darksynth.cli.common import (
     QuietOption,
     checked_choice,
@@ -24,6 +25,7 @@ from darksynth.cli.common import (
 from darksynth.cli.synthesis_options import (
     AlphaOption,
     BlurOption,
+    CameraOption,
     CodecOption,
     CrfOption,
     DeviceOption,
@@ -40,15 +42,32 @@ from darksynth.datasets import FORMATS, ConversionReport, ConvertOptions, Datase
 from darksynth.errors import DarksynthError
 from darksynth.io.video_encoding import VideoEncoding
 from darksynth.preview import PANEL_SIZE
-from darksynth.profile import load_profile
+from darksynth.profile import default_profile_path, load_profile
+
+
+def _profile_path(profile: Path | None, camera: str | None) -> Path:
+    """The profile to read: ``--profile``, or without it, when ``--camera`` draws the noise, the default profile
+    (its darkening and column noise stay).
+
+    Raises:
+        DarksynthError: neither is given, or ``--camera`` names no camera.
+    """
+    if camera is not None:
+        checked_choice("--camera", camera, CAMERA_CHOICES)
+    if profile is not None:
+        return profile
+    if camera is None:
+        raise DarksynthError("give --profile (a noise profile, e.g. from darksynth estimate) or --camera NAME")
+    return default_profile_path()
 
 
 def _apply_options(arguments: Mapping[str, Any], **values: object) -> ApplyOptions:
     """``apply``'s options from the arguments of ``apply`` or ``preview``: each field named like an argument takes
     it (:func:`~darksynth.cli.common.options_from`); the profile is read from ``--profile`` (its path kept for the
-    manifest), the seed drawn (and recorded) when ``--seed`` is omitted, the darkening checked from ``--alpha``,
-    ``--gamma`` and ``--no-darken``; ``values`` give the fields the command reads otherwise."""
-    profile, seed = arguments["profile"], arguments["seed"]
+    manifest; the default profile's with ``--camera`` alone), the seed drawn (and recorded) when ``--seed`` is
+    omitted, the darkening checked from ``--alpha``, ``--gamma`` and ``--no-darken``; ``values`` give the fields the
+    command reads otherwise."""
+    profile, seed = _profile_path(arguments["profile"], arguments["camera"]), arguments["seed"]
     return options_from(
         ApplyOptions,
         arguments,
@@ -81,7 +100,7 @@ def run_with_progress(
 def apply_command(
     input_path: Annotated[Path, typer.Argument(metavar="INPUT", help="Clean image, video, or folder of them.")],
     output_path: Annotated[Path, typer.Argument(metavar="OUTPUT", help="Output file or folder (never inside INPUT).")],
-    profile: ProfileOption,
+    profile: ProfileOption = None,
     seed: Annotated[int | None, typer.Option(help="Run seed; random (and recorded) when omitted.")] = None,
     alpha: AlphaOption = None,
     gamma: GammaOption = None,
@@ -101,6 +120,7 @@ def apply_command(
     blur: BlurOption = default_of(ApplyOptions, "blur"),
     flicker: FlickerOption = default_of(ApplyOptions, "flicker"),
     match_colour: MatchColourOption = default_of(ApplyOptions, "match_colour"),
+    camera: CameraOption = default_of(ApplyOptions, "camera"),
     compile_kernel: Annotated[
         bool | None, typer.Option("--compile/--no-compile", help="Fuse the 8-bit kernel (default: for long clips).")
     ] = default_of(ApplyOptions, "compile"),
@@ -129,10 +149,10 @@ def apply_command(
 def convert_command(
     dataset: Annotated[Path, typer.Argument(metavar="DATASET", help="Root folder of the annotated dataset.")],
     output: Annotated[Path, typer.Argument(metavar="OUTPUT", help="Output folder (never inside DATASET).")],
-    profile: ProfileOption,
     dataset_format: Annotated[
         str, typer.Option("--format", "-f", help="coco, yolo, folder (class per folder) or video-folder.")
     ],
+    profile: ProfileOption = None,
     seed: Annotated[int, typer.Option(help="Run seed (the same seed gives the same bytes).")] = default_of(
         ConvertOptions, "seed"
     ),
@@ -156,6 +176,7 @@ def convert_command(
     blur: BlurOption = default_of(ConvertOptions, "blur"),
     flicker: FlickerOption = default_of(ConvertOptions, "flicker"),
     match_colour: MatchColourOption = default_of(ConvertOptions, "match_colour"),
+    camera: CameraOption = default_of(ConvertOptions, "camera"),
     use_ray: Annotated[
         bool,
         typer.Option(
@@ -172,7 +193,7 @@ def convert_command(
         options = options_from(
             ConvertOptions,
             locals(),
-            profile=load_profile(profile),
+            profile=load_profile(_profile_path(profile, camera)),
             format=cast(DatasetFormat, checked_choice("--format", dataset_format, FORMATS)),
             shard=None if shard is None else Shard.parse(shard),
             encoding=VideoEncoding(codec=codec, crf=crf, pix_fmt=pix_fmt),
@@ -220,7 +241,7 @@ def _convert_counts(report: ConversionReport) -> None:
 
 def preview_command(
     image: Annotated[Path, typer.Argument(metavar="IMAGE", help="One clean image.")],
-    profile: ProfileOption,
+    profile: ProfileOption = None,
     out: Annotated[Path, typer.Option("--out", help="Preview image to write.")] = Path("preview.png"),
     seed: Annotated[int | None, typer.Option(help="Run seed, as apply's; random (and printed) when omitted.")] = None,
     alpha: AlphaOption = None,
@@ -234,6 +255,7 @@ def preview_command(
     blur: BlurOption = default_of(ApplyOptions, "blur"),
     flicker: FlickerOption = default_of(ApplyOptions, "flicker"),
     match_colour: MatchColourOption = default_of(ApplyOptions, "match_colour"),
+    camera: CameraOption = default_of(ApplyOptions, "camera"),
 ) -> None:
     from darksynth.preview import PreviewOptions, parse_panel_size, run_preview
 

@@ -9,7 +9,17 @@ from typing import Annotated
 
 import typer
 
-ProfileOption = Annotated[Path, typer.Option("--profile", "-p", help="Noise profile JSON.")]
+from darksynth.cameras.presets import CAMERA_KINDS
+
+ProfileOption = Annotated[
+    Path | None,
+    typer.Option(
+        "--profile",
+        "-p",
+        help="Noise profile JSON. May be left out with --camera: the default profile then gives the darkening and "
+        "the column noise, the camera the rest.",
+    ),
+]
 AlphaOption = Annotated[float | None, typer.Option(help="Darkening scale, with --gamma.")]
 GammaOption = Annotated[float | None, typer.Option(help="Darkening exponent: x_d = alpha * x ** (1/gamma).")]
 NoDarkenOption = Annotated[bool, typer.Option("--no-darken", help="Add noise only, keep the brightness.")]
@@ -41,5 +51,15 @@ MatchColourOption = Annotated[
     typer.Option(
         "--match-colour",
         help="Also give each input the reference's colour cast (per-channel gains), e.g. sodium-orange streets.",
+    ),
+]
+CameraOption = Annotated[
+    str | None,
+    typer.Option(
+        "--camera",
+        metavar="NAME",
+        help="Draw each file's or clip's camera from real ones (seeded, recorded in the manifest): "
+        + "; ".join(f"{name}: {kind}" for name, kind in CAMERA_KINDS.items())
+        + ". With a profile from estimate, its level, JPEG and finer octaves stay and the rest is drawn.",
     ),
 ]

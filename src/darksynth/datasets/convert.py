@@ -328,6 +328,7 @@ def write_manifest_if_complete(options: ConvertOptions, plan: DatasetPlan) -> tu
         "dataset_format": plan.format,
         "seed": options.seed,
         "jitter": options.jitter,
+        "camera": options.camera,
         "device": options.device,
         **options.encoding.to_json(),
         "images_root": None if options.images_root is None else str(options.images_root),

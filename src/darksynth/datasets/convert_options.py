@@ -19,6 +19,7 @@ from darksynth.errors import DarksynthError
 from darksynth.io.discover import check_output_location
 from darksynth.io.video_encoding import DEFAULT_ENCODING, VideoEncoding
 from darksynth.profile import Profile
+from darksynth.recipe import check_camera
 
 
 def shard_of(key: str, count: int) -> int:
@@ -75,7 +76,7 @@ class ConvertOptions:
         shard: the part of the dataset this run handles, or None for all of it.
         images_root: COCO: the folder ``file_name`` entries are relative to (tried first).
         overwrite: start over in an output written with other options.
-        encoding, device, blur, flicker, match_colour: as for ``apply``.
+        encoding, device, blur, flicker, match_colour, camera: as for ``apply``.
     """
 
     dataset: Path
@@ -93,13 +94,16 @@ class ConvertOptions:
     blur: bool = True
     flicker: bool = True
     match_colour: bool = False
+    camera: str | None = None
 
     def checked(self) -> ConvertOptions:
         """These options with absolute paths, once checked.
 
         Raises:
-            DarksynthError: an unknown format, fewer than one worker, an output that is the dataset or inside it.
+            DarksynthError: an unknown format or camera, fewer than one worker, an output that is the dataset or
+                inside it.
         """
+        check_camera(self.camera)
         if self.format not in FORMATS:
             raise DarksynthError(f"unknown dataset format {self.format!r}; use one of {', '.join(FORMATS)}")
         if self.workers < 1:
@@ -119,6 +123,7 @@ class ConvertOptions:
             blur=self.blur,
             flicker=self.flicker,
             match_colour=self.match_colour,
+            camera=self.camera,
         )
 
     def fingerprint(self, *, has_videos: bool = True) -> dict[str, Any]:

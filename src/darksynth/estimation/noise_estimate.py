@@ -28,6 +28,7 @@ from darksynth.models.den import DEN
 from darksynth.noise.components import NoiseModel, noise_component, noise_parameter
 from darksynth.noise.level import channel_noise_std, mean_noise_variance
 from darksynth.noise.spectral import LEVEL_KNOTS
+from darksynth.noise.spectral_components import SPECTRUM_REPLACES
 from darksynth.noise.values import NoiseValues
 from darksynth.profile import Range
 
@@ -38,10 +39,6 @@ NOISE_FREE_STD = 0.5 / 255
 REFINE_MIN_SIDE = 64
 """Smallest side the spectrum is measured on: below it the flat blocks of each level are too few, and the
 network's values stay."""
-
-SPECTRUM_REPLACES = ("shot", "read", "channel_gain", "correlation_length", "channel_correlation", "chroma_length")
-"""The network's sRGB values the measured spectrum replaces: its level curve and octaves hold the level and the
-structure (and its ``compression`` the JPEG stage); the column components stay the network's."""
 
 
 @dataclass

@@ -14,6 +14,11 @@ import torch
 from darksynth.noise.component_types import SPECTRAL_PATHS, NoiseComponent, Parameter
 from darksynth.noise.spectral import LEVEL_KNOTS, OCTAVES, level_std, octave_covariances, spectral_clip_noise
 
+SPECTRUM_REPLACES = ("shot", "read", "channel_gain", "correlation_length", "channel_correlation", "chroma_length")
+"""The heteroscedastic parameters the spectral model takes over: its level curve holds the level (shot, read, the
+channel gains) and its octaves the structure (the correlation and colour lengths, the channel correlation), so a
+clip given spectral values has these neutral. The column components are not among them."""
+
 # The measured-spectrum model (docs/spectral-noise.md): real sRGB noise has a fine brightness grain over coarse
 # colour mottle (colour 8-75x white noise's power at 16-64 px on the real pairs) and, in video, persists from
 # frame to frame. Its structure is a covariance of brightness and colour per octave, its level a curve per channel.

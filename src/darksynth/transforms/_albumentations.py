@@ -4,12 +4,13 @@ Imported only when ``darksynth.transforms.AlbumentationsLowLight`` is first aske
 
 Randomness follows albumentations: ``get_params`` draws one integer, the call's seed, from the transform's
 ``random_generator`` (which ``A.Compose(..., seed=N)`` seeds); ``get_params_dependent_on_data`` draws the clip's
-parameters from it (alpha and gamma matched to the input's tones, or drawn, and the noise values within the
-profile's ranges), and ``apply`` draws the noise itself from it, given those parameters. A seeded Compose is
-therefore reproducible, and a ``ReplayCompose`` record shows what was drawn (``seed``, ``alpha``, ``gamma``,
-``noise``, ``light``) and replays the same pixels. albumentations 2.0.8 itself copies one random state into every
-DataLoader worker; inside a worker the drawn integer is therefore mixed with the worker's seed, so workers add
-different noise (the ``p`` decisions and other transforms' draws remain albumentations' own).
+parameters from it (alpha and gamma matched to the input's tones, or drawn, the noise values within the profile's
+ranges and, with ``camera``, a camera), and ``apply`` draws the noise itself from it, given those parameters. A
+seeded Compose is therefore reproducible, and a ``ReplayCompose`` record shows what was drawn (``seed``,
+``alpha``, ``gamma``, ``noise``, ``light``, ``camera``: where a drawn camera came from) and replays the same
+pixels. albumentations 2.0.8 itself copies one random state into every DataLoader worker; inside a worker the
+drawn integer is therefore mixed with the worker's seed, so workers add different noise (the ``p`` decisions and
+other transforms' draws remain albumentations' own).
 """
 
 from __future__ import annotations
@@ -29,6 +30,7 @@ from darksynth.profile import Profile, profile_to_dict
 from darksynth.recipe import ClipParameters, ClipRecipe, DarkeningChoice
 from darksynth.transforms.low_light import (
     as_profile,
+    check_camera_name,
     check_darkening,
     check_image,
     dataloader_worker_seed,
@@ -95,6 +97,10 @@ class AlbumentationsLowLight(ImageOnlyTransform):  # type: ignore[misc]  # album
         darkening: ``"profile"``, None (noise only), a :class:`Darkening` or {"alpha": a, "gamma": g}.
         round_to_8bit: round float output to 8-bit levels, as a camera file stores it.
         p: probability of applying the transform (albumentations' convention, 0.5 by default).
+        camera: draw each call's camera from real ones: ``"prior"`` or a preset
+            (:data:`darksynth.cameras.presets.CAMERA_CHOICES`), given the profile's measured level, JPEG and finer
+            octaves when it has them; None keeps the profile's noise. A replay shows the drawn values and where the
+            camera came from (``camera``).
     """
 
     def __init__(
@@ -103,6 +109,7 @@ class AlbumentationsLowLight(ImageOnlyTransform):  # type: ignore[misc]  # album
         darkening: DarkeningChoice | Mapping[str, float] = "profile",
         round_to_8bit: bool = True,
         p: float = 0.5,
+        camera: str | None = None,
     ) -> None:
         if isinstance(p, bool) or not isinstance(p, int | float) or not 0.0 <= p <= 1.0:
             raise ValueError(f"p must be a probability in [0, 1], got {p!r}")
@@ -110,11 +117,12 @@ class AlbumentationsLowLight(ImageOnlyTransform):  # type: ignore[misc]  # album
         self.profile = profile_to_dict(as_profile(profile))
         self.darkening = _serializable_darkening(darkening)
         self.round_to_8bit = bool(round_to_8bit)
+        self.camera = check_camera_name(camera)
         self._profile = as_profile(self.profile)
         self._darkening_choice = _darkening_choice(self.darkening)
 
     def get_transform_init_args_names(self) -> tuple[str, ...]:
-        return ("profile", "darkening", "round_to_8bit")
+        return ("profile", "darkening", "round_to_8bit", "camera")
 
     def get_params(self) -> dict[str, Any]:
         """The seed of this call, from albumentations' generator (and the DataLoader worker's seed)."""
@@ -126,12 +134,14 @@ class AlbumentationsLowLight(ImageOnlyTransform):  # type: ignore[misc]  # album
 
     def get_params_dependent_on_data(self, params: dict[str, Any], data: dict[str, Any]) -> dict[str, Any]:
         """The parameters of this call's image or clip, drawn from its seed: ``alpha`` and ``gamma`` (None without
-        darkening), the ``noise`` and ``light`` values as a profile writes them. A replay shows and applies these."""
+        darkening), the ``noise`` and ``light`` values as a profile writes them (a drawn camera's among them, and
+        ``camera`` where it came from, None without one). A replay shows and applies these."""
         seed = int(params["seed"])
         clean = check_image(_target_tensor(data))
         generator = torch.Generator().manual_seed(mix_seed("parameters", seed))
         first = clean if clean.dim() == 3 else clean[0]
-        drawn = ClipRecipe(self._profile, darkening=self._darkening_choice).choose(generator, first)
+        recipe = ClipRecipe(self._profile, darkening=self._darkening_choice, camera=self.camera)
+        drawn = recipe.choose(generator, first)
         darkening = drawn.darkening
         return {
             "seed": seed,
@@ -139,6 +149,7 @@ class AlbumentationsLowLight(ImageOnlyTransform):  # type: ignore[misc]  # album
             "gamma": None if darkening is None else darkening.gamma,
             "noise": drawn.noise.to_json("noise"),
             "light": drawn.noise.to_json("light"),
+            "camera": None if drawn.camera is None else drawn.camera.to_json(),
         }
 
     def _low_light(self, clean: torch.Tensor, drawn: Mapping[str, Any]) -> torch.Tensor:

@@ -32,6 +32,7 @@ import numpy as np
 import torch
 import torch.utils.data
 
+from darksynth.cameras.presets import CAMERA_CHOICES
 from darksynth.light.darkening import Darkening
 from darksynth.profile import Profile, load_profile, parse_profile, validate_profile
 from darksynth.recipe import ClipParameters, DarkeningChoice
@@ -74,6 +75,13 @@ def check_darkening(darkening: object) -> DarkeningChoice:
     if darkening is None or darkening == "profile" or isinstance(darkening, Darkening):
         return darkening
     raise ValueError(f'darkening must be "profile", None or a Darkening, got {darkening!r}')
+
+
+def check_camera_name(camera: object) -> str | None:
+    """The camera choice, checked: None or one of :data:`~darksynth.cameras.presets.CAMERA_CHOICES`."""
+    if camera is None or (isinstance(camera, str) and camera in CAMERA_CHOICES):
+        return camera
+    raise ValueError(f"camera must be None or one of {', '.join(CAMERA_CHOICES)}, got {camera!r}")
 
 
 def check_value_range(low: float, high: float) -> None:
@@ -123,11 +131,14 @@ def low_light(
     round_to_8bit: bool = True,
     device: torch.device | str | None = None,
     parameters: ClipParameters | None = None,
+    camera: str | None = None,
 ) -> LowLightResult:
     """The low-light version of a checked image (C, H, W) or clip (T, C, H, W) and the parameters drawn for it
     (or ``parameters``, chosen before): :func:`darksynth.synthesize.synthesize`, then float output rounded to 8-bit
     levels if asked."""
-    result = synthesize(image, profile, generator=generator, darkening=darkening, device=device, parameters=parameters)
+    result = synthesize(
+        image, profile, generator=generator, darkening=darkening, device=device, parameters=parameters, camera=camera
+    )
     assert isinstance(result.image, torch.Tensor)  # a tensor input gives a tensor result
     output = round_float_to_8bit(result.image) if round_to_8bit else result.image
     return LowLightResult(image=output, parameters=result.parameters)
@@ -147,6 +158,9 @@ class LowLight:
             None to add noise only (see :data:`darksynth.recipe.DarkeningChoice`).
         round_to_8bit: round float output to 8-bit levels (k / 255), as a camera file stores it.
         device: where to compute and return the result; the device of the first input when None.
+        camera: draw each call's camera from real ones: ``"prior"`` or a preset
+            (:data:`darksynth.cameras.presets.CAMERA_CHOICES`), given the profile's measured level, JPEG and finer
+            octaves when it has them; None keeps the profile's noise. :meth:`sample` shows the drawn values.
 
     Example::
 
@@ -163,6 +177,7 @@ class LowLight:
         darkening: DarkeningChoice = "profile",
         round_to_8bit: bool = True,
         device: torch.device | str | None = None,
+        camera: str | None = None,
     ) -> None:
         if seed is not None and (isinstance(seed, bool) or not isinstance(seed, int | np.integer)):
             raise ValueError(f"seed must be an integer or None, got {seed!r}")
@@ -171,6 +186,7 @@ class LowLight:
         self.darkening = check_darkening(darkening)
         self.round_to_8bit = bool(round_to_8bit)
         self.device = None if device is None else torch.device(device)
+        self.camera = check_camera_name(camera)
         self._generator: torch.Generator | None = None
         self._owner: tuple[int, int | None] | None = None
 
@@ -194,6 +210,7 @@ class LowLight:
             darkening=self.darkening,
             round_to_8bit=self.round_to_8bit,
             device=device,
+            camera=self.camera,
         )
 
     def _sample_generator(self, seed: int, device: torch.device) -> torch.Generator:
@@ -228,5 +245,5 @@ class LowLight:
     def __repr__(self) -> str:
         return (
             f"LowLight(seed={self.seed}, darkening={self.darkening!r}, round_to_8bit={self.round_to_8bit}, "
-            f"device={self.device})"
+            f"device={self.device}, camera={self.camera!r})"
         )
