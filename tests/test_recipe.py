@@ -4,12 +4,13 @@ measured values when it has them, after every draw a recipe without it makes."""
 from __future__ import annotations
 
 import dataclasses
+import math
 
 import pytest
 import torch
 
 from darksynth.cameras.presets import CAMERA_CHOICES, camera_source
-from darksynth.cameras.prior import BLIND_OCTAVES
+from darksynth.cameras.prior import BLIND_OCTAVES, LEVEL_RANGE_8BIT
 from darksynth.errors import DarksynthError
 from darksynth.noise.components import noise_parameter
 from darksynth.noise.spectral import OCTAVES
@@ -86,17 +87,27 @@ def test_a_measured_profile_keeps_its_level_jpeg_and_finer_octaves_and_draws_the
 
 
 def test_whole_cameras_spread_as_the_prior_does() -> None:
-    # 1000 draws: the sample variance of a Gaussian's log level is within 4.5 standard errors (sqrt(2 / 1000) of
-    # the variance, 4.5 %) of the prior's at 20 %, its mean within 4 standard errors of the prior's.
+    # 1000 draws: each camera's loudness (mean log std over the curve) is log-uniform over LEVEL_RANGE_8BIT, so its
+    # quartiles sit at a quarter, half and three quarters of the log span (standard error of a quartile about 1.4 %
+    # of the span); the curve's shape about it spreads as the prior's shape features do given the loudness.
     count = 1000
     prior = camera_source("prior")
     recipe = ClipRecipe(load_profile(default_profile_path()), camera="prior")
     curves = torch.stack([recipe.choose(_seeded(seed)).noise["level_curve"] for seed in range(count)])
     logs = curves.log()
+    loudness = logs.mean(1)
+    low, high = (math.log(level / 255.0) for level in LEVEL_RANGE_8BIT)
+    quartiles = torch.quantile(loudness, torch.tensor([0.25, 0.5, 0.75], dtype=logs.dtype))
+    expected = torch.tensor([low + q * (high - low) for q in (0.25, 0.5, 0.75)], dtype=logs.dtype)
+    assert torch.allclose(quartiles, expected, atol=0.05 * (high - low))
+    shape = logs - loudness[:, None]
     level = prior.slices()["level_curve"]
-    variance = prior.covariance.diagonal()[level]
-    assert torch.allclose(logs.var(0), variance, rtol=0.2)
-    assert bool(((logs.mean(0) - prior.mean[level]).abs() < 4 * (variance / count).sqrt()).all())
+    scale_index = level.start
+    others = torch.arange(level.start + 1, level.stop)
+    gain = prior.covariance[others, scale_index] / prior.covariance[scale_index, scale_index]
+    conditional = prior.covariance.diagonal()[others] - gain * prior.covariance[others, scale_index]
+    total = conditional + gain**2 * (high - low) ** 2 / 12
+    assert torch.allclose(shape.var(0), total, rtol=0.2)
 
 
 def test_an_unknown_camera_is_refused_with_the_choices() -> None:

@@ -36,7 +36,7 @@ def test_the_coarse_octaves_take_the_prior_and_the_finer_keep_their_measurement(
     covariances = octave_covariances(measured_power.reshape(-1), torch.zeros(OCTAVES * 3, dtype=torch.float64))
     curve = torch.full((3, len(LEVEL_KNOTS)), 0.02, dtype=torch.float64)
     measured = SpectralParameters(covariances=covariances, curve=curve, temporal=torch.zeros(OCTAVES))
-    first = prior_first_octave(OCTAVES)
+    first = prior_first_octave(3)
     assert first == 3
     completed = prior_octaves(measured, first, prior)
     power, _ = covariance_parameters(completed.covariances)
@@ -50,5 +50,6 @@ def test_the_coarse_octaves_take_the_prior_and_the_finer_keep_their_measurement(
     assert torch.equal(completed.curve, curve)
 
 
-def test_an_unmeasurable_finer_octave_is_taken_from_the_prior_too() -> None:
+def test_the_prior_supplies_only_the_octaves_the_reference_cannot_show() -> None:
     assert prior_first_octave(2) == 2
+    assert prior_first_octave(OCTAVES) == OCTAVES

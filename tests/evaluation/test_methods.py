@@ -102,6 +102,7 @@ def test_every_den_method_uses_a_shipped_den_of_its_noise_model_and_variant() ->
     assert DEN_METHODS == {
         "den": ("srgb", "v3"),
         "den-no-prior": ("srgb", "v3"),
+        "den-prior-octaves": ("srgb", "v3"),
         "den-network": ("srgb", "v3"),
         "den-paper": ("paper", "v3"),
         "den-v2": ("paper", "v2"),

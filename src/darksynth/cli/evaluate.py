@@ -51,6 +51,7 @@ def evaluate_command(
         typer.Option(
             help=f"Comma-separated methods. Default: {', '.join(default_of(EvaluationOptions, 'methods'))}. "
             "Also by name: den-network (the network's values alone), den-no-prior (den without the camera prior), "
+            "den-prior-octaves (den with the coarse octaves from the camera prior), "
             "spectral-oracle (the clean-aided fit) and prior (whole cameras drawn from the camera prior, no "
             "reference). den and prior use a prior fitted without the set judged."
         ),

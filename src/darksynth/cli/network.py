@@ -144,11 +144,18 @@ def estimate_command(
         bool,
         typer.Option(
             "--camera-prior/--no-camera-prior",
-            help="Take what one reference cannot show (the coarse octaves, the noise's dependence on texture) from "
-            "the shipped prior over real cameras (default, docs/camera-prior.md); --no-camera-prior continues the "
-            "finer octaves the reference shows.",
+            help="Take what one reference cannot show (the noise's dependence on texture) from the shipped prior "
+            "over real cameras (default, docs/camera-prior.md); --no-camera-prior leaves it out.",
         ),
     ] = default_of(EstimateOptions, "camera_prior"),
+    prior_octaves: Annotated[
+        bool,
+        typer.Option(
+            "--prior-octaves",
+            help="Also take the coarse octaves the reference cannot show from the camera prior instead of "
+            "continuing the finer ones (off by default: it did worse on the real pairs, docs/camera-prior.md).",
+        ),
+    ] = default_of(EstimateOptions, "prior_octaves"),
     quiet: Annotated[bool, typer.Option("--quiet", "-q", help=QUIET_HELP)] = False,
 ) -> None:
     import json
@@ -163,7 +170,9 @@ def estimate_command(
             noise_model=checked_choice("--model", model, NETWORK_MODELS),
             variant=checked_choice("--variant", variant, VARIANTS),
         )
-        options = EstimateOptions(clip=clip, device=device, refine=refine, camera_prior=camera_prior)
+        options = EstimateOptions(
+            clip=clip, device=device, refine=refine, camera_prior=camera_prior, prior_octaves=prior_octaves
+        )
         network = load_weights(choice.path(), device=options.device)
         result = estimate_file(reference, network, options)
     except DarksynthError as error:

@@ -16,7 +16,8 @@ from typing import Any, Literal
 
 import torch
 
-from darksynth.cameras.prior import CameraPrior, shipped_prior
+from darksynth.cameras.prior import shipped_prior
+from darksynth.estimation.camera_conditional import CameraPriorUse
 from darksynth.estimation.darkening import estimate_profile_darkening
 from darksynth.estimation.light import estimate_light
 from darksynth.estimation.noise_estimate import estimate_noise
@@ -46,8 +47,11 @@ class EstimateOptions:
     """After the sRGB network, measure the noise's spectrum on the reference itself (docs/spectral-noise.md);
     ``--no-refine`` keeps the network's values (the ablation)."""
     camera_prior: bool = True
-    """Take what the reference cannot show (coarse octaves, texture dependence) from the shipped prior over real
-    cameras (docs/camera-prior.md); ``--no-camera-prior`` continues the finer octaves instead."""
+    """Take what the reference cannot show (the noise's dependence on texture) from the shipped prior over real
+    cameras (docs/camera-prior.md); ``--no-camera-prior`` leaves it out."""
+    prior_octaves: bool = False
+    """Also take the coarse octaves the reference cannot show from the prior (``--prior-octaves``), not continue
+    the finer ones (:class:`~darksynth.estimation.camera_conditional.CameraPriorUse`)."""
 
 
 def estimate_file(path: Path, network: DEN, options: EstimateOptions) -> Estimate:
@@ -60,7 +64,7 @@ def estimate_file(path: Path, network: DEN, options: EstimateOptions) -> Estimat
         batch=options.batch,
         device=options.device,
         refine=options.refine,
-        camera_prior="shipped" if options.camera_prior else None,
+        camera_prior=CameraPriorUse(shipped_prior(), octaves=options.prior_octaves) if options.camera_prior else None,
     )
 
 
@@ -83,7 +87,7 @@ def estimate(
     batch: int = 16,
     device: torch.device | str = "cpu",
     refine: bool = True,
-    camera_prior: CameraPrior | Literal["shipped"] | None = "shipped",
+    camera_prior: CameraPriorUse | Literal["shipped"] | None = "shipped",
 ) -> Estimate:
     """Estimate a noise profile from reference frames (T, 3, H, W) in [0, 1].
 
@@ -95,14 +99,14 @@ def estimate(
             keeps the network's values.
         camera_prior: the prior over real cameras that supplies what the reference cannot show
             (:func:`darksynth.estimation.spectrum.estimate_spectrum`): ``"shipped"`` the one fitted on the shipped
-            bank of real cameras, None continues the measured octaves.
+            bank of real cameras (for the texture dependence), None leaves it out.
     """
     record = describe_reference(reference, source)
     meta: dict[str, Any] = {"source": source}
     warnings = reference_warnings(record, spectrum_frames=TEMPORAL_FRAMES)
     if record.cuts:
         meta["scene_cuts"] = record.cuts
-    prior = shipped_prior() if camera_prior == "shipped" else camera_prior
+    prior = CameraPriorUse(shipped_prior()) if camera_prior == "shipped" else camera_prior
     found = estimate_noise(
         record, network, meta, warnings, batch=batch, device=device, refine=refine, camera_prior=prior
     )

@@ -9,19 +9,40 @@ and the coarse octaves' statistics hold mostly the scene. The prior's conditiona
 
 from __future__ import annotations
 
+from dataclasses import dataclass
+
 import torch
 
-from darksynth.cameras.prior import BLIND_OCTAVES, CameraPrior, measured_entries
+from darksynth.cameras.prior import CameraPrior, measured_entries
 from darksynth.estimation.spectral_fit import SpectralParameters
 from darksynth.noise.spectral import OCTAVES, covariance_parameters, octave_covariances
 
 TEXTURE_NAMES = ("texture_gain", "texture_scale")
 
 
+@dataclass(frozen=True)
+class CameraPriorUse:
+    """What the blind estimate takes from a camera prior.
+
+    Attributes:
+        prior: the prior over real cameras.
+        octaves: also the coarse octaves the reference cannot show (its conditional mean given the level curve and
+            the finer octaves), in place of the finer octaves' continuation; off by default: judged leave-one-set-out
+            on the real pairs it moved the coarse bands further from the real than the continuation
+            (docs/camera-prior.md). The texture dependence, which no reference shows, is always taken.
+    """
+
+    prior: CameraPrior
+    octaves: bool = False
+
+
 def prior_first_octave(first_unmeasured: int) -> int:
-    """The finest octave the prior supplies: the first after :data:`~darksynth.cameras.prior.BLIND_OCTAVES`, or a
-    finer one when the reference's probe found it unmeasurable."""
-    return min(BLIND_OCTAVES, first_unmeasured)
+    """The finest octave the prior supplies: the first the reference's probe found it cannot show
+    (:func:`~darksynth.estimation.spectrum.octave_responses`); :data:`~darksynth.noise.spectral.OCTAVES` when it
+    shows them all. What a reference shows is read, not replaced: a smooth reference shows its coarse noise (white
+    noise there read 22 % too loud when the prior's mottle replaced it), a textured scene does not (on the LOL
+    references the probe finds octaves 4-6 unmeasurable)."""
+    return min(first_unmeasured, OCTAVES)
 
 
 def _known(parameters: SpectralParameters, first_prior: int) -> tuple[dict[str, torch.Tensor], dict[str, torch.Tensor]]:

@@ -19,7 +19,7 @@ from typing import Any
 
 import torch
 
-from darksynth.cameras.prior import CameraPrior
+from darksynth.estimation.camera_conditional import CameraPriorUse
 from darksynth.estimation.columns import decide_columns
 from darksynth.estimation.network import run_network
 from darksynth.estimation.reference import Reference
@@ -65,7 +65,7 @@ def estimate_noise(
     batch: int = 16,
     device: torch.device | str = "cpu",
     refine: bool = True,
-    camera_prior: CameraPrior | None = None,
+    camera_prior: CameraPriorUse | None = None,
 ) -> NoiseEstimate:
     """The network on the reference's crop grid, the columns decided, and with ``refine`` the spectrum measured;
     what was read goes into ``meta``, what could not be into ``warnings``."""
@@ -104,7 +104,7 @@ def _measure_spectrum(
     meta: dict[str, Any],
     warnings: list[str],
     source: str,
-    camera_prior: CameraPrior | None,
+    camera_prior: CameraPriorUse | None,
 ) -> NoiseValues:
     """The network's values with the heteroscedastic part and compression replaced by the measured spectrum; the
     replaced parameters lose their ranges (``apply --jitter`` would otherwise add the network's noise back)."""

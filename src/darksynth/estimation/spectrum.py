@@ -32,8 +32,13 @@ from typing import Any
 
 import torch
 
-from darksynth.cameras.prior import CameraPrior
-from darksynth.estimation.camera_conditional import TEXTURE_NAMES, prior_first_octave, prior_octaves, prior_texture
+from darksynth.estimation.camera_conditional import (
+    TEXTURE_NAMES,
+    CameraPriorUse,
+    prior_first_octave,
+    prior_octaves,
+    prior_texture,
+)
 from darksynth.estimation.coarse_anchor import ANCHOR_WARM_STEPS, COMPONENT_NAMES, CoarseAnchor
 from darksynth.estimation.flat_blocks import (
     CLIPPED_SHARE,
@@ -163,7 +168,7 @@ def estimate_spectrum(
     seed: int = 0,
     name: str = "reference",
     prior_curve: torch.Tensor | None = None,
-    camera_prior: CameraPrior | None = None,
+    camera_prior: CameraPriorUse | None = None,
 ) -> SpectrumEstimate:
     """The spectral model's parameters measured on reference frames (T, 3, H, W) in [0, 1] (see the module).
 
@@ -226,12 +231,12 @@ def estimate_spectrum(
     return SpectrumEstimate(values=_values(fitted, meta, camera_prior), meta=meta, warnings=warnings)
 
 
-def _values(fitted: SpectralParameters, meta: dict[str, Any], camera_prior: CameraPrior | None) -> dict[str, Any]:
+def _values(fitted: SpectralParameters, meta: dict[str, Any], camera_prior: CameraPriorUse | None) -> dict[str, Any]:
     """The table's values of a fit: its spectrum, the JPEG strength it chose and the texture dependence the camera
     prior expects."""
     values = fitted.as_values() | {"compression": torch.tensor([meta["compression_chosen"]], dtype=torch.float64)}
     if camera_prior is not None:
-        values |= prior_texture(fitted, meta["camera_prior"]["first_octave"] - 1, camera_prior)
+        values |= prior_texture(fitted, meta["camera_prior"]["first_octave"] - 1, camera_prior.prior)
     return values
 
 
@@ -381,16 +386,18 @@ def _compression_search(
     return fits, scores
 
 
-def _prior_note(camera_prior: CameraPrior, first_prior: int) -> dict[str, Any]:
+def _prior_note(camera_prior: CameraPriorUse, first_prior: int) -> dict[str, Any]:
     """What ``meta`` says the camera prior supplied: the octaves (1-based, as the notes count them), the texture
     dependence when the prior holds it, and the sets of real pairs it was fitted on."""
-    supplied = [f"octaves {first_prior + 1}-{OCTAVES} (wavelengths from {2 ** (first_prior + 1.5):.0f} px)"]
-    if all(name in camera_prior.names for name in TEXTURE_NAMES):
+    supplied = []
+    if camera_prior.octaves and first_prior < OCTAVES:
+        supplied.append(f"octaves {first_prior + 1}-{OCTAVES} (wavelengths from {2 ** (first_prior + 1.5):.0f} px)")
+    if all(name in camera_prior.prior.names for name in TEXTURE_NAMES):
         supplied.append("texture dependence")
     return {
         "first_octave": first_prior + 1,
         "supplied": supplied,
-        "sets": list(camera_prior.sets),
+        "sets": list(camera_prior.prior.sets),
         "note": "what one reference cannot show, from the prior over real cameras given the level curve and the "
         "finer octaves (docs/camera-prior.md)",
     }
@@ -402,7 +409,7 @@ def _fit(
     meta: dict[str, Any],
     measured_knots: torch.Tensor,
     prior_curve: torch.Tensor | None,
-    camera_prior: CameraPrior | None,
+    camera_prior: CameraPriorUse | None,
 ) -> SpectralParameters:
     """The fit by re-synthesis on the denoised frames: the octaves the reference shows probed, each JPEG strength
     fitted on the first frame, the knots probed at the best, which is fitted further on all analysed frames with the
@@ -430,10 +437,10 @@ def _fit(
         meta["camera_prior"] = _prior_note(camera_prior, first_prior)
 
     def constrain(parameters: SpectralParameters) -> SpectralParameters:
-        if camera_prior is None:
-            parameters = continue_octaves(parameters, first_unmeasured)
+        if camera_prior is not None and camera_prior.octaves:
+            parameters = prior_octaves(parameters, first_prior, camera_prior.prior)
         else:
-            parameters = prior_octaves(parameters, first_prior, camera_prior)
+            parameters = continue_octaves(parameters, first_unmeasured)
         anchor.update()
         if first_unmeasured < OCTAVES:
             parameters.covariances = anchor.apply(parameters.covariances, first_unmeasured)

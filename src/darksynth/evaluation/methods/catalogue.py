@@ -107,8 +107,11 @@ def synthesize_image(clean: torch.Tensor, values: NoiseValues, generator: torch.
     return to_8bit_levels(add_noise(clean[None], values, generator=generator)[0])
 
 
-def _den_method(name: str, weights: Path, device: str, *, refine: bool = True, prior: bool = False) -> NoiseMethod:
+def _den_method(
+    name: str, weights: Path, device: str, *, refine: bool = True, prior: bool = False, octaves: bool = False
+) -> NoiseMethod:
     from darksynth.estimation.assemble import estimate
+    from darksynth.estimation.camera_conditional import CameraPriorUse
     from darksynth.estimation.noise_estimate import refines
 
     model = load_den_weights(name, weights, device)
@@ -118,7 +121,8 @@ def _den_method(name: str, weights: Path, device: str, *, refine: bool = True, p
     def fitted_with(camera_prior: CameraPrior | None) -> Fit:
         def fit(noisy: torch.Tensor, clean: torch.Tensor) -> NoiseValues:
             reference = noisy.to(torch.float32)[None]
-            return estimate(reference, model, device=device, refine=refine, camera_prior=camera_prior).profile.noise
+            use = None if camera_prior is None else CameraPriorUse(camera_prior, octaves=octaves)
+            return estimate(reference, model, device=device, refine=refine, camera_prior=use).profile.noise
 
         return fit
 
@@ -132,6 +136,7 @@ def _den_method(name: str, weights: Path, device: str, *, refine: bool = True, p
         summary=f"DEN {model.config.variant}, {model.noise_model} noise model ({weights.name}): v from the noisy "
         + ("image, its spectrum measured on it" if refined else "image")
         + (", what it cannot show from the camera prior fitted without the set" if with_prior else "")
+        + (" (its coarse octaves too)" if with_prior and octaves else "")
         + ", f(v) added to the clean",
         fit=fitted_with(shipped_prior() if with_prior else None),
         synthesize=synthesize_image,
@@ -237,16 +242,18 @@ def _spectral_oracle_method() -> NoiseMethod:
 DEN_METHODS: dict[str, tuple[str, str]] = {
     "den": ("srgb", "v3"),
     "den-no-prior": ("srgb", "v3"),
+    "den-prior-octaves": ("srgb", "v3"),
     "den-network": ("srgb", "v3"),
     "den-paper": ("paper", "v3"),
     "den-v2": ("paper", "v2"),
 }
 """The DEN methods and the (noise model, variant) of the shipped DEN each uses unless given weights. ``den`` is
 what ``darksynth estimate`` gives (the sRGB DEN, the spectrum measured on the reference, what it cannot show from
-the camera prior fitted without the set judged); ``den-no-prior`` the same without the prior (the finer octaves
-continued); ``den-network`` the same network's values alone (its ablation)."""
+the camera prior fitted without the set judged: the texture dependence); ``den-no-prior`` the same without the
+prior; ``den-prior-octaves`` with the coarse octaves from the prior too; ``den-network`` the same network's values
+alone (its ablation)."""
 
-PRIOR_DEN_METHODS = frozenset({"den"})
+PRIOR_DEN_METHODS = frozenset({"den", "den-prior-octaves"})
 
 UNREFINED_DEN_METHODS = frozenset({"den-network"})
 
@@ -273,6 +280,7 @@ METHOD_NAMES: tuple[str, ...] = (
     "spectral-oracle",
     # The blind estimate without the camera prior, and whole cameras drawn from the prior with no reference.
     "den-no-prior",
+    "den-prior-octaves",
     "prior",
 )
 
@@ -292,7 +300,12 @@ def build_method(name: str, *, weights: dict[str, Path] | None = None, device: s
         noise_model, variant = DEN_METHODS[name]
         path = DENChoice(weights.get(name), noise_model=noise_model, variant=variant).path()
         return _den_method(
-            name, path, device, refine=name not in UNREFINED_DEN_METHODS, prior=name in PRIOR_DEN_METHODS
+            name,
+            path,
+            device,
+            refine=name not in UNREFINED_DEN_METHODS,
+            prior=name in PRIOR_DEN_METHODS,
+            octaves=name == "den-prior-octaves",
         )
     if name == "den-v1":
         return _den_v1_method(weights.get(name), device)
