@@ -307,7 +307,7 @@ def test_bad_paths(tmp_path: Path, profile_file: Path, rgb_image: Path) -> None:
     [
         ({"noise": {"read": None}}, "noise.read"),
         ({"noise": {"shot": -0.1}}, "noise.shot"),
-        ({"version": 6}, "version"),
+        ({"version": 7}, "version"),
         ({"noise": {"periodic": [0.1, 0.1]}}, "noise.periodic"),
     ],
 )

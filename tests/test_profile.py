@@ -120,7 +120,7 @@ BAD_DOCUMENTS: list[tuple[str, dict[str, Any], tuple[str, ...]]] = [
     ("periodic too long", _edit(("noise", "periodic"), [0.1, 0.2, 0.3, 0.4]), ("noise.periodic", "0.4")),
     ("periodic scalar", _edit(("noise", "periodic"), 0.1), ("noise.periodic", "0.1")),
     ("periodic item negative", _edit(("noise", "periodic"), [0.1, -0.2, 0.3]), ("noise.periodic[1]", "-0.2")),
-    ("version 6", _edit(("version",), 6), ("version", "6")),
+    ("version 7", _edit(("version",), 7), ("version", "7")),
     ("srgb field in version 1", _edit(("noise", "compression"), 0.3), ("noise.compression", "version 2")),
     (
         "gain below minimum",
@@ -274,7 +274,7 @@ def test_version_1_profile_reads_as_white_uncompressed_noise(tmp_path: Path) -> 
     # Saved again, it becomes a document of the newest version with the same noise.
     save_profile(tmp_path / "v2.json", profile)
     document = json.loads((tmp_path / "v2.json").read_text(encoding="utf-8"))
-    assert document["version"] == profile_version() == 5
+    assert document["version"] == profile_version() == 6
     assert document["noise"]["channel_gain"] == [1.0, 1.0]
     assert load_profile(tmp_path / "v2.json") == profile
 

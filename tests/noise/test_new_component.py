@@ -51,7 +51,7 @@ def _dither_variance(values: Mapping[str, torch.Tensor], channel_means: torch.Te
 DUMMY = NoiseComponent(
     name="dither",
     parameters=(
-        Parameter("dither", 1, "half-width d of a uniform U(-d, d) per pixel", 0.5, (0.0, 0.1), since_version=6),
+        Parameter("dither", 1, "half-width d of a uniform U(-d, d) per pixel", 0.5, (0.0, 0.1), since_version=7),
     ),
     structure="pixel",
     draw=_draw_dither,
@@ -95,24 +95,24 @@ def test_sampling_draws_the_new_parameter_within_its_training_range() -> None:
 def test_profile_schema_and_versions_follow_the_declaration(tmp_path: Path) -> None:
     schema = profile_schema().model_json_schema()
     assert "dither" in json.dumps(schema)
-    profile = load_profile(_write(tmp_path / "v6.json", _document(6, dither=DITHER)))
+    profile = load_profile(_write(tmp_path / "v7.json", _document(7, dither=DITHER)))
     assert profile.noise.scalar("dither") == DITHER
     save_profile(tmp_path / "copy.json", profile)
     written = json.loads((tmp_path / "copy.json").read_text(encoding="utf-8"))
-    assert written["version"] == 6 and written["noise"]["dither"] == DITHER
+    assert written["version"] == 7 and written["noise"]["dither"] == DITHER
     assert load_profile(tmp_path / "copy.json") == profile
     # Older documents: read with the new parameter neutral, refused when they carry it.
     older = load_profile(_write(tmp_path / "v4.json", _document(4)))
     assert older.noise.scalar("dither") == 0.0
-    with pytest.raises(ProfileError, match=r"noise\.dither needs profile version 6, this document is version 5"):
-        load_profile(_write(tmp_path / "bad.json", _document(5, dither=DITHER)))
+    with pytest.raises(ProfileError, match=r"noise\.dither needs profile version 7, this document is version 6"):
+        load_profile(_write(tmp_path / "bad.json", _document(6, dither=DITHER)))
     with pytest.raises(ProfileError, match=r"noise\.dither must lie in \[0, 0\.5\].*got 0\.7"):
-        load_profile(_write(tmp_path / "big.json", _document(6, dither=0.7)))
+        load_profile(_write(tmp_path / "big.json", _document(7, dither=0.7)))
 
 
 @pytest.mark.usefixtures("with_dither")
 def test_synthesize_draws_it_with_its_law_on_float_and_8bit_input(tmp_path: Path) -> None:
-    profile = load_profile(_write(tmp_path / "p.json", _document(6, dither=DITHER)))
+    profile = load_profile(_write(tmp_path / "p.json", _document(7, dither=DITHER)))
     clean = torch.full((3, 128, 128), 0.8)
     result = darksynth.synthesize(clean, profile, generator=torch.Generator().manual_seed(1))
     noise = result.image.double() - 0.4  # darkened: 0.5 * 0.8
@@ -139,7 +139,7 @@ def test_the_level_counts_its_declared_variance() -> None:
 def test_apply_on_an_image_writes_it_and_records_it_in_the_manifest(tmp_path: Path) -> None:
     source = tmp_path / "clean.png"
     Image.fromarray(np.full((64, 80, 3), 200, dtype=np.uint8)).save(source)
-    profile = load_profile(_write(tmp_path / "p.json", _document(6, dither=DITHER)))
+    profile = load_profile(_write(tmp_path / "p.json", _document(7, dither=DITHER)))
     out = tmp_path / "out.png"
     report = apply(source, out, ApplyOptions(profile=profile, seed=3))
     pixels = np.asarray(Image.open(out), dtype=np.float64) - round(0.5 * 200)
@@ -147,7 +147,7 @@ def test_apply_on_an_image_writes_it_and_records_it_in_the_manifest(tmp_path: Pa
     assert abs(pixels.std() / (DITHER * 255 / math.sqrt(3)) - 1.0) < 0.1
     assert report.manifest is not None
     manifest = json.loads(report.manifest.read_text(encoding="utf-8"))
-    assert manifest["profile"]["version"] == 6
+    assert manifest["profile"]["version"] == 7
     assert manifest["profile"]["noise"]["dither"] == DITHER
     assert manifest["files"][0]["parameters"]["noise"]["dither"] == DITHER
 
@@ -156,6 +156,6 @@ def test_without_the_declaration_the_parameter_is_unknown(tmp_path: Path) -> Non
     """The control: the same document is refused by the table as shipped, so the tests above are not vacuous."""
     with pytest.raises(ProfileError, match=r"noise\.dither is not a noise parameter"):
         load_profile(_write(tmp_path / "v2.json", _document(4, dither=DITHER)))
-    with pytest.raises(ProfileError, match=r"unsupported version 6"):
-        load_profile(_write(tmp_path / "v6.json", _document(6)))
+    with pytest.raises(ProfileError, match=r"unsupported version 7"):
+        load_profile(_write(tmp_path / "v7.json", _document(7)))
     assert "dither" not in NoiseValues.neutral()

@@ -11,8 +11,13 @@ from typing import Any
 
 import torch
 
-from darksynth.noise.component_types import SPECTRAL_PATHS, NoiseComponent, Parameter
+from darksynth.noise.component_types import ALL_8BIT_PATHS, SPECTRAL_PATHS, NoiseComponent, Parameter
 from darksynth.noise.spectral import LEVEL_KNOTS, OCTAVES, level_std, octave_covariances, spectral_clip_noise
+from darksynth.noise.texture import texture_modulation
+
+TEXTURE_SCALE_NEUTRAL = 0.01
+"""``texture_scale`` where a profile has none: a detail level of 2.5 8-bit levels (it changes nothing while
+``texture_gain`` is 0)."""
 
 SPECTRUM_REPLACES = ("shot", "read", "channel_gain", "correlation_length", "channel_correlation", "chroma_length")
 """The heteroscedastic parameters the spectral model takes over: its level curve holds the level (shot, read, the
@@ -76,6 +81,37 @@ _SPECTRAL_PARAMETERS: tuple[Parameter, ...] = (
         role="shape",
         training_off_probability=0.5,
     ),
+    # Noise that follows texture (noise/texture.py): in-camera denoising and JPEG flatten noise in flat regions and
+    # keep it on texture. The level curve describes flat regions; the std is multiplied by (1 + d / scale) ** gain.
+    # They are the spectral model's (noise_model "spectral"), so the shipped sRGB network neither reads nor predicts
+    # them; the clean-aided fit sets both. Only the gain leaves the fast paths: a scale alone changes nothing.
+    Parameter(
+        "texture_gain",
+        1,
+        "exponent t of the factor (1 + d / texture_scale) ** t on the noise std at local detail d (0: no effect)",
+        4.0,
+        (0.0, 1.5),
+        noise_model="spectral",
+        since_version=6,
+        statistics="srgb",
+        role="shape",
+        training_off_probability=0.5,
+    ),
+    Parameter(
+        "texture_scale",
+        1,
+        "local detail d0 on the [0, 1] scale at which the texture factor is 2 ** texture_gain (RMS of the luminance "
+        "minus its 1.5-px blur, over a 3-px window)",
+        1.0,
+        (0.002, 0.05),
+        minimum=1.0e-4,
+        neutral=TEXTURE_SCALE_NEUTRAL,
+        noise_model="spectral",
+        since_version=6,
+        statistics="srgb",
+        role="shape",
+        fast_paths=ALL_8BIT_PATHS,
+    ),
 )
 
 
@@ -97,20 +133,24 @@ def spectral_clips(
     flat_values = [
         values[name].expand(*batch, values[name].shape[-1]).reshape(-1, values[name].shape[-1]) for name in names
     ]
+    gains, scales = (values[name].expand(*batch, 1).reshape(-1) for name in ("texture_gain", "texture_scale"))
     noise = []
     for index, clip in enumerate(flat):
         curve, power, correlation, temporal = (v[index] for v in flat_values)
-        noise.append(
-            spectral_clip_noise(
-                clip,
-                curve,
-                octave_covariances(power, correlation),
-                temporal,
-                generator=generator,
-                # A stream is one clip; a batch of clips never shares one clip's state.
-                state=held if flat.shape[0] == 1 else None,
-            )
+        drawn = spectral_clip_noise(
+            clip,
+            curve,
+            octave_covariances(power, correlation),
+            temporal,
+            generator=generator,
+            # A stream is one clip; a batch of clips never shares one clip's state.
+            state=held if flat.shape[0] == 1 else None,
         )
+        gain = float(gains[index])
+        # At gain 0 the factor is 1: not computed, so a profile without texture draws the same bits as before.
+        if gain != 0.0:
+            drawn = drawn * texture_modulation(clip, gain, float(scales[index]))
+        noise.append(drawn)
     return torch.stack(noise).reshape(signal.shape)
 
 
