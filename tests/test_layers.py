@@ -88,6 +88,7 @@ ESTIMATION_STAGES: dict[str, int] = {
     "nonlocal_means": 0,
     "flat_blocks": 0,
     "spectral_statistics": 0,
+    "texture_fit": 0,
     "spectral_fit": 1,
     "coarse_anchor": 2,
     "camera_conditional": 2,

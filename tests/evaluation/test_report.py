@@ -50,6 +50,7 @@ def _entry(
         "band_rms_log_error": 3 * kld,
         "band_ratio": {"brightness": [level, level, 1.0, 1.0, 0.5], "colour": [level, 1.0, 0.5, 0.25, None]},
         "band_power": {"brightness": [4e-4 * level] * 5, "colour": [1e-4, 2e-4, 4e-4, 8e-4, None]},
+        "texture_ratio": 2.0 * level,
         "fid": fid,
         "kid": kid,
         "kid_std": None if kid is None else 0.001,
@@ -94,6 +95,7 @@ def make_results() -> dict[str, Any]:
                         "colour": [1e-4, 3e-4, 1e-3, 3e-3, 6e-3],
                     },
                     "band_white_ratio": {"brightness": [0.9, 1.0, 1.25, 1.5, 2.0], "colour": [0.5, 1.5, 8, 30, 75]},
+                    "texture_ratio": 1.94,
                 },
                 "methods": {
                     "den": _entry(0.05, 0.09, 12.5, 0.004, polyu_cameras, level=0.5),
@@ -299,10 +301,10 @@ def test_markdown_tables_bold_best_blind_label_oracles_and_format_intervals(tmp_
     bands = table_rows(text, "### polyu: noise power per spatial frequency band")
     assert bands["method"] == [
         f"{c} {b}" for c in "BC" for b in ("1.4-4 px", "4-8 px", "8-16 px", "16-32 px", "32-64 px")
-    ]
+    ] + ["textured / flat std"]
     assert list(bands)[2:] == ["real (× white)", "den", "awgn", "pg-oracle (oracle)"]
-    assert bands["real (× white)"] == ["0.9", "1", "1.25", "1.5", "2", "0.5", "1.5", "8", "30", "75"]
-    assert bands["den"] == ["0.5", "0.5", "1", "1", "0.5", "0.5", "1", "0.5", "0.25", "—"]
+    assert bands["real (× white)"] == ["0.9", "1", "1.25", "1.5", "2", "0.5", "1.5", "8", "30", "75", "1.94"]
+    assert bands["den"] == ["0.5", "0.5", "1", "1", "0.5", "0.5", "1", "0.5", "0.25", "—", "1"]
     assert "**" not in " ".join(" ".join(row) for row in bands.values())  # nearest 1 is best: nothing is bold
 
     cameras = table_rows(text, "### polyu per camera: KLD (paper) [95% CI]")

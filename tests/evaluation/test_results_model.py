@@ -52,6 +52,7 @@ def test_parse_keeps_the_runners_values() -> None:
             power={"brightness": (4e-4 * 0.5,) * 5, "colour": (1e-4, 2e-4, 4e-4, 8e-4, None)},
             white_ratio={},
             ratio={"brightness": (0.5, 0.5, 1.0, 1.0, 0.5), "colour": (0.5, 1.0, 0.5, 0.25, None)},
+            texture_ratio=1.0,
         ),
     )
     real = results.sets["polyu"].real
@@ -60,6 +61,7 @@ def test_parse_keeps_the_runners_values() -> None:
     )
     assert results.sets["polyu"].real_bands is not None
     assert results.sets["polyu"].real_bands.white_ratio["colour"] == (0.5, 1.5, 8.0, 30.0, 75.0)
+    assert results.sets["polyu"].real_bands.texture_ratio == 1.94
     assert results.sets["sidd"].real is None and results.sets["sidd"].real_bands is None
     assert results.sets["sidd"].methods["starlight"].fid is None
 

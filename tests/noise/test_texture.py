@@ -12,6 +12,7 @@ import pytest
 import torch
 from scipy.ndimage import gaussian_filter
 
+from darksynth.evaluation.measures.texture import textured_flat_ratio
 from darksynth.light.darkening import Darkening
 from darksynth.models.statistics import model_statistics
 from darksynth.noise.components import model_parameters, noise_parameter, profile_version
@@ -21,7 +22,6 @@ from darksynth.noise.texture import (
     DETAIL_WINDOW_SIGMA,
     block_detail,
     local_detail,
-    textured_flat_ratio,
 )
 from darksynth.noise.values import NoiseValues
 from darksynth.recipe import ClipParameters

@@ -17,12 +17,23 @@ from dataclasses import dataclass
 import torch
 
 from darksynth.estimation.spectral_statistics import SpectralStatistics, measure
-from darksynth.noise.simulate import add_noise
+from darksynth.estimation.texture_fit import (
+    TEXTURE_GAINS,
+    TextureFit,
+    block_power,
+    fit_texture,
+    interpolated_gain,
+    normalised_ratio,
+    texture_blocks,
+)
+from darksynth.noise.simulate import add_noise, apply_output_stages, noise_sum
 from darksynth.noise.spectral import (
     OCTAVE_FREQUENCIES,
     OCTAVES,
     covariance_parameters,
+    level_std,
 )
+from darksynth.noise.texture import local_detail
 from darksynth.noise.values import NoiseValues
 
 COMPRESSION_CANDIDATES: tuple[float, ...] = (0.0, 0.2, 0.4)
@@ -300,7 +311,8 @@ def oracle_spectral_fit(
             last simulations match best (:func:`mismatch`) is kept and returned as ``compression``.
 
     Returns:
-        The table's spectral parameters by name (for :meth:`NoiseValues.from_values`).
+        The table's spectral parameters by name (for :meth:`NoiseValues.from_values`), with ``texture_gain`` and
+        ``texture_scale`` fitted last (:func:`oracle_texture_fit`) and the level curve brought to flat regions.
     """
     if clean.dim() == 3:
         noisy, clean = noisy[None], clean[None]
@@ -321,4 +333,63 @@ def oracle_spectral_fit(
         if best is None or left < best[0]:
             best = (left, fitted.as_values() | {"compression": torch.tensor([compression], dtype=torch.float64)})
     assert best is not None
-    return best[1]
+    values, _ = oracle_texture_fit(noisy, clean, best[1], seed=seed)
+    return values
+
+
+def oracle_texture_fit(
+    noisy: torch.Tensor, clean: torch.Tensor, values: dict[str, torch.Tensor], *, seed: int = 0
+) -> tuple[dict[str, torch.Tensor], TextureFit]:
+    """``values`` (a texture-free fit on the clips ``noisy``, ``clean`` (T, C, H, W)) with ``texture_gain`` and
+    ``texture_scale`` fitted (:func:`darksynth.estimation.texture_fit.fit_texture`) and the level curve divided, knot
+    by knot, by the std the texture adds to it, so that it describes flat regions and the whole map keeps its level.
+
+    The simulations are one draw of the texture-free noise times each candidate's factor, clipped and rounded
+    (what the composer draws with the same generator); JPEG, slow beside them, is run at gain 0 and at the fit, and
+    the ratio it adds divides the real one for the search."""
+    clean = clean.to(torch.float32)
+    plain = NoiseValues.from_values(values, dtype=torch.float32)
+    base = noise_sum(clean[None], plain, generator=torch.Generator(device=clean.device).manual_seed(seed * 1009 + 7))[0]
+    blocks = texture_blocks(clean, level_std(clean, plain["level_curve"]))
+    detail = local_detail(clean)
+
+    def synthetic(gain: float, scale: float, *, compressed: bool = False) -> torch.Tensor:
+        noise = base if gain == 0.0 else base * (1.0 + detail / scale).pow(gain)
+        image = (clean + noise).clamp(0.0, 1.0)
+        if compressed:
+            image = apply_output_stages(image[None], plain)[0]
+        return quantised(image) - clean
+
+    def power(gain: float, scale: float) -> torch.Tensor:
+        return block_power(synthetic(gain, scale))
+
+    compressed = float(values["compression"].reshape(-1)[0]) > 0.0
+    jpeg_factor = 1.0
+    if compressed:
+        jpeg_factor = normalised_ratio(block_power(synthetic(0.0, 1.0, compressed=True)), blocks) / normalised_ratio(
+            power(0.0, 1.0), blocks
+        )
+    real = block_power(noisy.to(torch.float32) - clean)
+    fit = fit_texture(real, blocks, power, correction=jpeg_factor)
+    if compressed and fit.gain > 0.0:
+        # JPEG's share of the ratio at the fitted gain, where it differs from its share without texture.
+        jpeg_factor *= normalised_ratio(block_power(synthetic(fit.gain, fit.scale, compressed=True)), blocks) / (
+            fit.simulated_ratio
+        )
+        ratios = [normalised_ratio(power(gain, fit.scale), blocks) for gain in TEXTURE_GAINS]
+        gain = interpolated_gain(fit.real_ratio / jpeg_factor, ratios)
+        fit = TextureFit(
+            gain, fit.scale, fit.real_ratio, normalised_ratio(power(gain, fit.scale), blocks) * jpeg_factor
+        )
+    curve = values["level_curve"].to(torch.float64)
+    if fit.gain > 0.0:
+        plain_variance = measure(synthetic(0.0, 1.0), clean).knot_variance
+        textured_variance = measure(synthetic(fit.gain, fit.scale), clean).knot_variance
+        added = (textured_variance / plain_variance.clamp_min(1e-30)).sqrt().expand(3, -1).reshape(-1)
+        curve = curve / torch.where(torch.isfinite(added), added, torch.ones_like(added)).clamp_min(1.0)
+    texture = {
+        "level_curve": curve,
+        "texture_gain": torch.tensor([fit.gain], dtype=torch.float64),
+        "texture_scale": torch.tensor([fit.scale], dtype=torch.float64),
+    }
+    return values | texture, fit

@@ -107,21 +107,3 @@ def textured_and_flat(detail: torch.Tensor, share: float = TEXTURE_SHARE) -> tup
     textured[order[-count:]] = True
     flat[order[:count]] = True
     return textured.view(detail.shape), flat.view(detail.shape)
-
-
-def textured_flat_ratio(noise: torch.Tensor, clean: torch.Tensor, share: float = TEXTURE_SHARE) -> float:
-    """The noise's std over the ``share`` most textured :data:`TEXTURE_BLOCK`-px blocks of ``clean`` over its std
-    over the ``share`` least textured: RMS of ``noise`` (C, H, W) or (T, C, H, W), each block's mean removed per
-    channel, pooled over channels and frames; blocks by :func:`block_detail` of ``clean`` (shaped like ``noise``).
-    nan for a frame under one block."""
-    if noise.dim() == 3:
-        noise, clean = noise[None], clean[None]
-    detail = block_detail(clean.to(torch.float64))
-    if detail.numel() == 0:
-        return math.nan
-    noise = noise.to(torch.float64)
-    power = block_mean(noise.square()) - block_mean(noise).square()  # (T, C, rows, columns)
-    block_power = power.mean(dim=1)  # (T, rows, columns)
-    textured, flat = textured_and_flat(detail)
-    flat_power = float(block_power[flat].mean())
-    return math.sqrt(float(block_power[textured].mean()) / flat_power) if flat_power > 0 else math.nan

@@ -216,11 +216,14 @@ class BandStatistics:
         power: Median over pairs of the band power, [0, 1] scale squared.
         white_ratio: The real noise's band power over white noise of the same variance (empty for a method).
         ratio: A method's median over pairs of its band power over the real one's (empty for the real noise).
+        texture_ratio: Median over pairs of the noise's std on the most textured blocks over that on the flattest
+            (:mod:`darksynth.evaluation.measures.texture`); None: not computed.
     """
 
     power: Mapping[str, tuple[float | None, ...]]
     white_ratio: Mapping[str, tuple[float | None, ...]]
     ratio: Mapping[str, tuple[float | None, ...]]
+    texture_ratio: float | None = None
 
     @classmethod
     def parse(cls, document: Mapping[str, Any]) -> BandStatistics | None:
@@ -229,8 +232,10 @@ class BandStatistics:
             power=_bands(document.get("band_power")),
             white_ratio=_bands(document.get("band_white_ratio")),
             ratio=_bands(document.get("band_ratio")),
+            texture_ratio=_number(document.get("texture_ratio")),
         )
-        return parsed if parsed.power or parsed.white_ratio or parsed.ratio else None
+        found = parsed.power or parsed.white_ratio or parsed.ratio or parsed.texture_ratio is not None
+        return parsed if found else None
 
 
 @dataclass(frozen=True)

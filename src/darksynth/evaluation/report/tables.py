@@ -53,7 +53,7 @@ BAND_HEADERS = {
     f"{component}_{index}": f"{component[0].upper()} {label}"
     for component in BAND_COMPONENTS
     for index, label in enumerate(BAND_LABELS)
-}
+} | {"texture_ratio": "textured / flat std"}
 REAL = "real"
 """The reference row of the channel tables: the real noise."""
 
@@ -77,7 +77,9 @@ BAND_LEGEND = (
     "Noise power per band of spatial frequency, fine to coarse (period in pixels), for brightness (B) and colour (C). "
     "Method rows: the median over pairs of the method's band power over the real noise's (1 is right, 2 twice too "
     "much). The real row: the real noise's band power over that of white noise of the same variance (1 for "
-    "pixel-independent noise)."
+    "pixel-independent noise). Textured / flat std: the median over pairs of the noise's std on the 30% most "
+    "textured 32-px blocks of the clean image over its std on the 30% least textured, for the real noise and each "
+    "method (1: the noise ignores texture)."
 )
 
 
@@ -220,20 +222,22 @@ class Layout:
         real noise's power relative to white noise. None when nothing has band statistics."""
         entry = self.results.sets[set_name]
         sources = []
-        if entry.real_bands is not None and entry.real_bands.white_ratio:
-            sources.append((Method(f"{REAL} (× white)", False, True, "#888888"), entry.real_bands.white_ratio))
+        real = entry.real_bands
+        if real is not None and (real.white_ratio or real.texture_ratio is not None):
+            sources.append((Method(f"{REAL} (× white)", False, True, "#888888"), real.white_ratio, real.texture_ratio))
         for name in ordered(entry.methods, self.order):
             bands = entry.methods[name].bands
-            if bands is not None and bands.ratio:
-                sources.append((self.method(name), bands.ratio))
+            if bands is not None and (bands.ratio or bands.texture_ratio is not None):
+                sources.append((self.method(name), bands.ratio, bands.texture_ratio))
         if not sources:
             return None
         rows = []
-        for method, values in sources:
+        for method, values, texture in sources:
             cells = []
             for component in BAND_COMPONENTS:
                 row = values.get(component, (None,) * len(BAND_LABELS))
                 cells += [Cell(f"{component}_{i}", num(value, 3), "", False) for i, value in enumerate(row)]
+            cells.append(Cell("texture_ratio", num(texture, 3), "", False))
             rows.append(Row(method, cells))
         headers = [Header(key, title) for key, title in BAND_HEADERS.items()]
         caption = f"{set_name}: noise power per spatial frequency band. {BAND_LEGEND}"

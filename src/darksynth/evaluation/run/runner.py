@@ -41,6 +41,7 @@ from darksynth.evaluation.measures.structure import (
     band_summary,
     relative_to_white,
 )
+from darksynth.evaluation.measures.texture import textured_flat_ratio
 from darksynth.evaluation.methods.catalogue import NoiseMethod, build_methods
 from darksynth.evaluation.pairs import LoadedPair, PairSet, list_pair_sets, load_pair
 from darksynth.evaluation.report.html import ReportExample
@@ -76,6 +77,9 @@ METRIC_DESCRIPTIONS = {
     "method's band power over the real noise's: 1 is the right power at that scale",
     "band_rms_log_error": "sqrt(mean over the 10 bands of ln(band_ratio)^2): 0 when every band has the real power, "
     "0.69 when every band is off by a factor of 2",
+    "texture_ratio": "Median over pairs of the noise's std over the 30% most textured 32-px blocks of the clean image "
+    "(RMS of its luminance minus a 1.5-px blur) over its std over the 30% least textured (each block's mean removed "
+    "per channel): 1 when the noise ignores texture",
     "fid": "Frechet distance between InceptionV3 pool features of crops of the real and of the synthetic noise maps",
     "kid": "Kernel Inception distance (unbiased MMD^2, cubic polynomial kernel) on the same features",
 }
@@ -113,6 +117,12 @@ def _pair_metrics(real: torch.Tensor, synthetic: torch.Tensor) -> dict[str, floa
         "kld_naflow": kl_divergence_naflow(real_values, synthetic_values),
         "akld": average_kl_divergence(real, synthetic),
     }
+
+
+def _finite_median(values: list[float]) -> float | None:
+    """The median of the finite values; None (JSON null) without any."""
+    finite = [v for v in values if np.isfinite(v)]
+    return float(np.median(finite)) if finite else None
 
 
 def _optional(value: float) -> float | None:
@@ -232,9 +242,18 @@ class _MethodRecord:
     channels: _ChannelStatistics = field(default_factory=_ChannelStatistics)
     bands: list[dict[str, Any]] = field(default_factory=list)
     band_ratios: list[dict[str, Any]] = field(default_factory=list)
+    texture_ratios: list[float] = field(default_factory=list)
 
-    def add(self, camera: str, real: torch.Tensor, noise: torch.Tensor, real_bands: dict[str, Any] | None) -> None:
+    def add(
+        self,
+        camera: str,
+        real: torch.Tensor,
+        noise: torch.Tensor,
+        real_bands: dict[str, Any] | None,
+        clean: torch.Tensor,
+    ) -> None:
         self.rows.append((camera, _pair_metrics(real, noise)))
+        self.texture_ratios.append(textured_flat_ratio(noise, clean))
         self.real_channels.add(real)
         self.channels.add(noise)
         if real_bands is not None:
@@ -249,6 +268,7 @@ class _MethodRecord:
         if self.bands:
             entry["band_power"] = band_medians(self.bands)
             entry.update(band_summary(self.band_ratios))
+        entry["texture_ratio"] = _finite_median(self.texture_ratios)
         entry["oracle"] = oracle
         cameras: dict[str, list[dict[str, float]]] = {}
         for camera, row in self.rows:
@@ -266,6 +286,7 @@ class _SetRecord:
     methods: dict[str, _MethodRecord]
     real_channels: _ChannelStatistics = field(default_factory=_ChannelStatistics)
     real_bands: list[dict[str, Any]] = field(default_factory=list)
+    real_texture_ratios: list[float] = field(default_factory=list)
     examples: list[ReportExample] = field(default_factory=list)
     evaluated: int = 0
 
@@ -274,6 +295,8 @@ class _SetRecord:
         if self.real_bands:
             report["real"]["band_power"] = band_medians(self.real_bands)
             report["real"]["band_white_ratio"] = band_medians([relative_to_white(row) for row in self.real_bands])
+        if self.real_texture_ratios:
+            report["real"]["texture_ratio"] = _finite_median(self.real_texture_ratios)
         for name, record in self.methods.items():
             if record.rows:
                 distances: dict[str, float | None] = (
@@ -300,6 +323,7 @@ def _evaluate_pair(
     pair_bands = band_powers(_noise_array(real)) if real.shape[0] == len(CHANNELS) else None
     if pair_bands is not None:
         record.real_bands.append(pair_bands)
+    record.real_texture_ratios.append(textured_flat_ratio(real, loaded.clean))
     if features is not None:
         features.add("real", real, crops_per_pair)
     keep_example = len(record.examples) < options.examples_per_set
@@ -314,7 +338,7 @@ def _evaluate_pair(
             problems.append(f"{pair.noisy_path}: {name}: {error}")
             continue
         noise = synthetic - loaded.clean
-        record.methods[name].add(pair.camera, real, noise, pair_bands)
+        record.methods[name].add(pair.camera, real, noise, pair_bands, loaded.clean)
         if features is not None:
             features.add(name, noise, crops_per_pair)
         if keep_example:
