@@ -337,12 +337,36 @@ def oracle_spectral_fit(
     return values
 
 
+TEXTURE_PASSES = 3
+"""Passes of the texture fit: each normalises the blocks by the level curve the previous one brought to flat regions
+(the texture-free fit's curve holds texture's noise in the knots where textured pixels lie)."""
+
+
 def oracle_texture_fit(
     noisy: torch.Tensor, clean: torch.Tensor, values: dict[str, torch.Tensor], *, seed: int = 0
 ) -> tuple[dict[str, torch.Tensor], TextureFit]:
     """``values`` (a texture-free fit on the clips ``noisy``, ``clean`` (T, C, H, W)) with ``texture_gain`` and
     ``texture_scale`` fitted (:func:`darksynth.estimation.texture_fit.fit_texture`) and the level curve divided, knot
     by knot, by the std the texture adds to it, so that it describes flat regions and the whole map keeps its level.
+    :data:`TEXTURE_PASSES` passes, each on the previous one's curve."""
+    pooled = values["level_curve"].to(torch.float64)
+    curve = pooled
+    for _ in range(TEXTURE_PASSES):
+        fit, added = _texture_pass(noisy, clean, values | {"level_curve": curve}, seed)
+        curve = pooled / added
+    texture = {
+        "level_curve": curve,
+        "texture_gain": torch.tensor([fit.gain], dtype=torch.float64),
+        "texture_scale": torch.tensor([fit.scale], dtype=torch.float64),
+    }
+    return values | texture, fit
+
+
+def _texture_pass(
+    noisy: torch.Tensor, clean: torch.Tensor, values: dict[str, torch.Tensor], seed: int
+) -> tuple[TextureFit, torch.Tensor]:
+    """One texture fit with the level curve of ``values``: the fit and, per knot (24,), the factor the texture
+    puts on the std (1 without texture).
 
     The simulations are one draw of the texture-free noise times each candidate's factor, clipped and rounded
     (what the composer draws with the same generator); JPEG, slow beside them, is run at gain 0 and at the fit, and
@@ -369,8 +393,7 @@ def oracle_texture_fit(
         jpeg_factor = normalised_ratio(block_power(synthetic(0.0, 1.0, compressed=True)), blocks) / normalised_ratio(
             power(0.0, 1.0), blocks
         )
-    real = block_power(noisy.to(torch.float32) - clean)
-    fit = fit_texture(real, blocks, power, correction=jpeg_factor)
+    fit = fit_texture(block_power(noisy.to(torch.float32) - clean), blocks, power, correction=jpeg_factor)
     if compressed and fit.gain > 0.0:
         # JPEG's share of the ratio at the fitted gain, where it differs from its share without texture.
         jpeg_factor *= normalised_ratio(block_power(synthetic(fit.gain, fit.scale, compressed=True)), blocks) / (
@@ -381,15 +404,10 @@ def oracle_texture_fit(
         fit = TextureFit(
             gain, fit.scale, fit.real_ratio, normalised_ratio(power(gain, fit.scale), blocks) * jpeg_factor
         )
-    curve = values["level_curve"].to(torch.float64)
+    added = torch.ones(24, dtype=torch.float64)
     if fit.gain > 0.0:
         plain_variance = measure(synthetic(0.0, 1.0), clean).knot_variance
         textured_variance = measure(synthetic(fit.gain, fit.scale), clean).knot_variance
-        added = (textured_variance / plain_variance.clamp_min(1e-30)).sqrt().expand(3, -1).reshape(-1)
-        curve = curve / torch.where(torch.isfinite(added), added, torch.ones_like(added)).clamp_min(1.0)
-    texture = {
-        "level_curve": curve,
-        "texture_gain": torch.tensor([fit.gain], dtype=torch.float64),
-        "texture_scale": torch.tensor([fit.scale], dtype=torch.float64),
-    }
-    return values | texture, fit
+        ratio = (textured_variance / plain_variance.clamp_min(1e-30)).sqrt().expand(3, -1).reshape(-1)
+        added = torch.where(torch.isfinite(ratio), ratio, torch.ones_like(ratio)).clamp_min(1.0).to(torch.float64)
+    return fit, added
