@@ -95,8 +95,10 @@ class ClipSynthesizer:
             and self._values.covered_by(SPECTRAL_PATH)
         )
         self._spectral_pass: SpectralPixelPass | None = None
-        # Compiled, a spectral stream takes the fused kernels (the same law, counter-based draws).
-        self._spectral_compiled = compile and self._spectral
+        # Compiled, a spectral stream takes the fused kernels (the same law, counter-based draws); they do not draw
+        # the texture factor, which the eager pass does.
+        self._textured = not self._values.is_neutral(noise_parameter("texture_gain"))
+        self._spectral_compiled = compile and self._spectral and not self._textured
         self._spectral_stream: SpectralKernelStream | None = None
         if uncovered and not self._spectral:
             logger.debug("8-bit frames take the general composer: %s not covered by %s", uncovered, FAST_PATH)
@@ -266,6 +268,7 @@ class ClipSynthesizer:
                 values["level_curve"],
                 values.scalar("quantization"),
                 device=self.device,
+                texture=(values.scalar("texture_gain"), values.scalar("texture_scale")) if self._textured else None,
             )
         grid = clip_grid(
             octave_covariances(values["octave_power"], values["octave_correlation"]),

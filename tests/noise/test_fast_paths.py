@@ -134,8 +134,10 @@ def test_the_spectral_path_is_taken_for_spectral_profiles_only(values: dict[str,
         ({"compression": 0.3}, 3),
         ({"temporal_correlation": [0.8, 0.6, 0.5, 0.5, 0.4, 0.3]}, 3),
         ({"banding": 0.003}, 1),
+        ({"texture_gain": 0.6, "texture_scale": 0.004, "banding": 0.002}, 3),
+        ({"texture_gain": 0.6, "texture_scale": 0.004, "compression": 0.2}, 3),
     ],
-    ids=["plain", "columns", "jpeg", "temporal", "grey"],
+    ids=["plain", "columns", "jpeg", "temporal", "grey", "texture", "texture-jpeg"],
 )
 def test_the_spectral_path_draws_the_general_composers_bits(extra: dict[str, object], channels: int) -> None:
     """The 8-bit tables of the darkened level and of the curve's std, read per pixel, against the composer's

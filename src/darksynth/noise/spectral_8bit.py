@@ -22,6 +22,7 @@ from darksynth.light.darkening import Darkening, darken
 from darksynth.noise.components import FastPath
 from darksynth.noise.quantization import QUANTIZATION_LEVELS
 from darksynth.noise.spectral import level_std
+from darksynth.noise.texture import texture_modulation
 
 SPECTRAL_PATH: FastPath = "spectral_8bit"
 """The name under which the table declares what this path draws."""
@@ -82,8 +83,12 @@ class SpectralPixelPass:
         quantization: float,
         *,
         device: torch.device | str,
+        texture: tuple[float, float] | None = None,
     ) -> None:
         self.shape = (channels, height, width)
+        # (texture_gain, texture_scale) when the noise follows texture: the std times the composer's factor, read
+        # on the darkened signal before the column pattern is added, as the composer reads it.
+        self.texture = texture
         self.signal_table, self.std_table = level_tables(channels, darkening, curve, device=device)
         self.signal = torch.empty(self.shape, dtype=torch.float32, device=device)
         self.noise = torch.empty_like(self.signal)
@@ -117,6 +122,7 @@ class SpectralPixelPass:
         frame = frame.contiguous()
         read_levels(frame, self.signal_table, self.signal)
         read_levels(frame, self.std_table, self.noise)
+        factor = None if self.texture is None else texture_modulation(self.signal, *self.texture)[0]
         step = self.quantization_step
         if step is not None:
             # One draw over the whole frame, as the composer draws it (random_ fills in memory order).
@@ -127,6 +133,8 @@ class SpectralPixelPass:
             for channel in range(self.shape[0]):
                 signal, noise = self.signal[channel, rows], self.noise[channel, rows]
                 noise.mul_(unit[channel, rows])
+                if factor is not None:
+                    noise.mul_(factor[rows])
                 if step is not None:
                     levels = self.quantization_levels[channel, rows]
                     # (level + 0.5) * step / 256, the composer's uniform_levels_to_noise, added to the spectral

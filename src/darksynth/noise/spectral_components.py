@@ -84,7 +84,8 @@ _SPECTRAL_PARAMETERS: tuple[Parameter, ...] = (
     # Noise that follows texture (noise/texture.py): in-camera denoising and JPEG flatten noise in flat regions and
     # keep it on texture. The level curve describes flat regions; the std is multiplied by (1 + d / scale) ** gain.
     # They are the spectral model's (noise_model "spectral"), so the shipped sRGB network neither reads nor predicts
-    # them; the clean-aided fit sets both. Only the gain leaves the fast paths: a scale alone changes nothing.
+    # them; the clean-aided fit sets both. The gain leaves the fused paths (the 8-bit spectral pass draws it); a scale
+    # alone changes nothing.
     Parameter(
         "texture_gain",
         1,
@@ -92,6 +93,7 @@ _SPECTRAL_PARAMETERS: tuple[Parameter, ...] = (
         4.0,
         (0.0, 1.5),
         noise_model="spectral",
+        fast_paths=SPECTRAL_PATHS,
         since_version=6,
         statistics="srgb",
         role="shape",

@@ -49,6 +49,8 @@ def _gaussian_taps(sigma: float, device: torch.device, dtype: torch.dtype) -> to
 
 def _blur(planes: torch.Tensor, sigma: float) -> torch.Tensor:
     """Separable Gaussian blur of (N, 1, H, W) planes, edges replicated (any frame size, even one of a few px)."""
+    if planes.device.type == "cpu" and planes.dtype == torch.float32:
+        return _blur_opencv(planes, sigma)
     taps = _gaussian_taps(sigma, planes.device, planes.dtype)
     radius = taps.numel() // 2
     height, width = planes.shape[-2:]
@@ -58,6 +60,21 @@ def _blur(planes: torch.Tensor, sigma: float) -> torch.Tensor:
     padded = F.pad(torch.as_tensor(rows), (0, 0, radius, radius), mode="replicate")
     blurred = sum(weight * padded[..., offset : offset + height, :] for offset, weight in enumerate(taps.tolist()))
     return torch.as_tensor(blurred)
+
+
+def _blur_opencv(planes: torch.Tensor, sigma: float) -> torch.Tensor:
+    """:func:`_blur` on the CPU by OpenCV's vectorised separable filter, the same taps: a 1080p frame's detail took
+    140 ms as shifted sums, a textured frame 2.4x an untextured one's whole synthesis."""
+    import cv2  # only this path needs it; importing it costs start-up time
+
+    taps = _gaussian_taps(sigma, torch.device("cpu"), torch.float64).numpy()
+    result = torch.empty_like(planes)
+    for index in range(planes.shape[0]):
+        plane = planes[index, 0].contiguous().numpy()
+        result[index, 0] = torch.from_numpy(
+            cv2.sepFilter2D(plane, cv2.CV_32F, taps, taps, borderType=cv2.BORDER_REPLICATE)
+        )
+    return result
 
 
 def detail_highpass(signal: torch.Tensor) -> torch.Tensor:
