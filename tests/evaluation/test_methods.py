@@ -101,7 +101,7 @@ def test_every_den_method_uses_a_shipped_den_of_its_noise_model_and_variant() ->
 
     assert DEN_METHODS == {
         "den": ("srgb", "v3"),
-        "den-no-prior": ("srgb", "v3"),
+        "den-prior": ("srgb", "v3"),
         "den-prior-octaves": ("srgb", "v3"),
         "den-network": ("srgb", "v3"),
         "den-paper": ("paper", "v3"),
@@ -139,7 +139,7 @@ def test_methods_synthesise_through_the_composer(clean: torch.Tensor) -> None:
 
 
 def test_methods_of_the_camera_prior_leave_the_judged_set_and_its_cameras_out() -> None:
-    den, prior, plain = build_method("den"), build_method("prior"), build_method("den-no-prior")
+    den, prior, plain = build_method("den-prior"), build_method("prior"), build_method("den")
     assert plain.on_set("nam-cc15") is plain
     for method in (den, prior):
         for judged, left_out in (("nam-cc15", {"nam-cc15", "nam-cc60"}), ("polyu", {"polyu"}), ("sidd", {"sidd"})):

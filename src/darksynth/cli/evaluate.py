@@ -50,10 +50,10 @@ def evaluate_command(
         str,
         typer.Option(
             help=f"Comma-separated methods. Default: {', '.join(default_of(EvaluationOptions, 'methods'))}. "
-            "Also by name: den-network (the network's values alone), den-no-prior (den without the camera prior), "
-            "den-prior-octaves (den with the coarse octaves from the camera prior), "
+            "Also by name: den-network (the network's values alone), den-prior (den with the texture dependence "
+            "from the camera prior), den-prior-octaves (and the coarse octaves), "
             "spectral-oracle (the clean-aided fit) and prior (whole cameras drawn from the camera prior, no "
-            "reference). den and prior use a prior fitted without the set judged."
+            "reference). The camera prior's methods use a prior fitted without the set judged."
         ),
     ] = "",
     weights: Annotated[

@@ -145,15 +145,16 @@ def estimate_command(
         typer.Option(
             "--camera-prior/--no-camera-prior",
             help="Take what one reference cannot show (the noise's dependence on texture) from the shipped prior "
-            "over real cameras (default, docs/camera-prior.md); --no-camera-prior leaves it out.",
+            "over real cameras, given what the reference shows (docs/camera-prior.md). Off by default: judged on "
+            "real cameras it had not seen, the prior's expectation was further from the truth than none.",
         ),
     ] = default_of(EstimateOptions, "camera_prior"),
     prior_octaves: Annotated[
         bool,
         typer.Option(
             "--prior-octaves",
-            help="Also take the coarse octaves the reference cannot show from the camera prior instead of "
-            "continuing the finer ones (off by default: it did worse on the real pairs, docs/camera-prior.md).",
+            help="With --camera-prior, also take the coarse octaves the reference cannot show from the prior instead "
+            "of continuing the finer ones (docs/camera-prior.md).",
         ),
     ] = default_of(EstimateOptions, "prior_octaves"),
     quiet: Annotated[bool, typer.Option("--quiet", "-q", help=QUIET_HELP)] = False,
@@ -170,6 +171,8 @@ def estimate_command(
             noise_model=checked_choice("--model", model, NETWORK_MODELS),
             variant=checked_choice("--variant", variant, VARIANTS),
         )
+        if prior_octaves and not camera_prior:
+            raise fail("--prior-octaves needs --camera-prior")
         options = EstimateOptions(
             clip=clip, device=device, refine=refine, camera_prior=camera_prior, prior_octaves=prior_octaves
         )

@@ -46,12 +46,14 @@ class EstimateOptions:
     refine: bool = True
     """After the sRGB network, measure the noise's spectrum on the reference itself (docs/spectral-noise.md);
     ``--no-refine`` keeps the network's values (the ablation)."""
-    camera_prior: bool = True
+    camera_prior: bool = False
     """Take what the reference cannot show (the noise's dependence on texture) from the shipped prior over real
-    cameras (docs/camera-prior.md); ``--no-camera-prior`` leaves it out."""
+    cameras (``--camera-prior``; docs/camera-prior.md): off by default, since leave-one-set-out on the real pairs
+    the prior's expectation was further from the real than none."""
     prior_octaves: bool = False
-    """Also take the coarse octaves the reference cannot show from the prior (``--prior-octaves``), not continue
-    the finer ones (:class:`~darksynth.estimation.camera_conditional.CameraPriorUse`)."""
+    """With ``camera_prior``, also take the coarse octaves the reference cannot show from the prior
+    (``--prior-octaves``), not continue the finer ones
+    (:class:`~darksynth.estimation.camera_conditional.CameraPriorUse`)."""
 
 
 def estimate_file(path: Path, network: DEN, options: EstimateOptions) -> Estimate:
@@ -87,7 +89,7 @@ def estimate(
     batch: int = 16,
     device: torch.device | str = "cpu",
     refine: bool = True,
-    camera_prior: CameraPriorUse | Literal["shipped"] | None = "shipped",
+    camera_prior: CameraPriorUse | Literal["shipped"] | None = None,
 ) -> Estimate:
     """Estimate a noise profile from reference frames (T, 3, H, W) in [0, 1].
 
@@ -99,7 +101,7 @@ def estimate(
             keeps the network's values.
         camera_prior: the prior over real cameras that supplies what the reference cannot show
             (:func:`darksynth.estimation.spectrum.estimate_spectrum`): ``"shipped"`` the one fitted on the shipped
-            bank of real cameras (for the texture dependence), None leaves it out.
+            bank of real cameras (for the texture dependence), None (the default) leaves it out.
     """
     record = describe_reference(reference, source)
     meta: dict[str, Any] = {"source": source}

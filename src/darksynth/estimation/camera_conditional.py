@@ -9,6 +9,7 @@ and the coarse octaves' statistics hold mostly the scene. The prior's conditiona
 
 from __future__ import annotations
 
+from collections.abc import Mapping
 from dataclasses import dataclass
 
 import torch
@@ -27,9 +28,9 @@ class CameraPriorUse:
     Attributes:
         prior: the prior over real cameras.
         octaves: also the coarse octaves the reference cannot show (its conditional mean given the level curve and
-            the finer octaves), in place of the finer octaves' continuation; off by default: judged leave-one-set-out
-            on the real pairs it moved the coarse bands further from the real than the continuation
-            (docs/camera-prior.md). The texture dependence, which no reference shows, is always taken.
+            the finer octaves), in place of the finer octaves' continuation. The texture dependence, which no
+            reference shows, is always taken. Neither is on by default: leave-one-set-out on the real pairs the
+            conditional put both further from the real than the estimate without them (docs/camera-prior.md).
     """
 
     prior: CameraPrior
@@ -73,11 +74,12 @@ def prior_octaves(parameters: SpectralParameters, first_prior: int, prior: Camer
     return SpectralParameters(covariances=covariances, curve=parameters.curve, temporal=parameters.temporal)
 
 
-def prior_texture(parameters: SpectralParameters, first_prior: int, prior: CameraPrior) -> dict[str, torch.Tensor]:
-    """The texture dependence the prior expects given the level curve and the finer octaves (empty when the prior
-    holds none)."""
+def expected_texture(values: Mapping[str, torch.Tensor], prior: CameraPrior) -> dict[str, torch.Tensor]:
+    """The texture dependence (``texture_gain``, ``texture_scale``) the prior expects given what a blind estimate
+    measures of ``values`` (:func:`~darksynth.cameras.prior.measured_entries`: the level curve, the JPEG strength,
+    the finer octaves); empty when the prior holds none."""
     if not all(name in prior.names for name in TEXTURE_NAMES):
         return {}
-    known, mask = _known(parameters, first_prior)
+    known, mask = measured_entries(values)
     expected = prior.values(prior.conditional_mean(known, mask))
     return {name: expected[name].reshape(1) for name in TEXTURE_NAMES}

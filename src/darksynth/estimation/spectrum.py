@@ -35,9 +35,9 @@ import torch
 from darksynth.estimation.camera_conditional import (
     TEXTURE_NAMES,
     CameraPriorUse,
+    expected_texture,
     prior_first_octave,
     prior_octaves,
-    prior_texture,
 )
 from darksynth.estimation.coarse_anchor import ANCHOR_WARM_STEPS, COMPONENT_NAMES, CoarseAnchor
 from darksynth.estimation.flat_blocks import (
@@ -236,7 +236,7 @@ def _values(fitted: SpectralParameters, meta: dict[str, Any], camera_prior: Came
     prior expects."""
     values = fitted.as_values() | {"compression": torch.tensor([meta["compression_chosen"]], dtype=torch.float64)}
     if camera_prior is not None:
-        values |= prior_texture(fitted, meta["camera_prior"]["first_octave"] - 1, camera_prior.prior)
+        values |= expected_texture(values, camera_prior.prior)
     return values
 
 

@@ -107,22 +107,46 @@ def synthesize_image(clean: torch.Tensor, values: NoiseValues, generator: torch.
     return to_8bit_levels(add_noise(clean[None], values, generator=generator)[0])
 
 
+@dataclass
+class _LastEstimate:
+    """The last noisy image's estimate without the camera prior, shared by the DEN methods that start from it
+    (``den`` and ``den-prior``, which adds the texture dependence the prior expects): the runner fits every method
+    on one pair before it reads the next, so one estimate a pair serves both."""
+
+    noisy: torch.Tensor | None = None
+    values: NoiseValues | None = None
+
+    def get(self, noisy: torch.Tensor, compute: Callable[[], NoiseValues]) -> NoiseValues:
+        if self.noisy is not noisy or self.values is None:
+            self.noisy, self.values = noisy, compute()
+        return self.values
+
+
+_LAST_ESTIMATES: dict[tuple[str, str, bool], _LastEstimate] = {}
+
+
 def _den_method(
     name: str, weights: Path, device: str, *, refine: bool = True, prior: bool = False, octaves: bool = False
 ) -> NoiseMethod:
     from darksynth.estimation.assemble import estimate
-    from darksynth.estimation.camera_conditional import CameraPriorUse
+    from darksynth.estimation.camera_conditional import CameraPriorUse, expected_texture
     from darksynth.estimation.noise_estimate import refines
 
     model = load_den_weights(name, weights, device)
     refined = refines(model.noise_model, refine)
     with_prior = prior and refined
+    last = _LAST_ESTIMATES.setdefault((str(weights), device, refine), _LastEstimate())
 
     def fitted_with(camera_prior: CameraPrior | None) -> Fit:
         def fit(noisy: torch.Tensor, clean: torch.Tensor) -> NoiseValues:
             reference = noisy.to(torch.float32)[None]
-            use = None if camera_prior is None else CameraPriorUse(camera_prior, octaves=octaves)
-            return estimate(reference, model, device=device, refine=refine, camera_prior=use).profile.noise
+            if camera_prior is not None and octaves:
+                use = CameraPriorUse(camera_prior, octaves=True)
+                return estimate(reference, model, device=device, refine=refine, camera_prior=use).profile.noise
+            values = last.get(noisy, lambda: estimate(reference, model, device=device, refine=refine).profile.noise)
+            # The texture dependence does not enter the fit (it reads flat blocks): added to the shared estimate,
+            # it is what estimate --camera-prior gives.
+            return values if camera_prior is None else values.replace(**expected_texture(values, camera_prior))
 
         return fit
 
@@ -135,8 +159,8 @@ def _den_method(
         name=name,
         summary=f"DEN {model.config.variant}, {model.noise_model} noise model ({weights.name}): v from the noisy "
         + ("image, its spectrum measured on it" if refined else "image")
-        + (", what it cannot show from the camera prior fitted without the set" if with_prior else "")
-        + (" (its coarse octaves too)" if with_prior and octaves else "")
+        + (", the texture dependence from the camera prior fitted without the set" if with_prior else "")
+        + (" (and the coarse octaves)" if with_prior and octaves else "")
         + ", f(v) added to the clean",
         fit=fitted_with(shipped_prior() if with_prior else None),
         synthesize=synthesize_image,
@@ -241,19 +265,19 @@ def _spectral_oracle_method() -> NoiseMethod:
 
 DEN_METHODS: dict[str, tuple[str, str]] = {
     "den": ("srgb", "v3"),
-    "den-no-prior": ("srgb", "v3"),
+    "den-prior": ("srgb", "v3"),
     "den-prior-octaves": ("srgb", "v3"),
     "den-network": ("srgb", "v3"),
     "den-paper": ("paper", "v3"),
     "den-v2": ("paper", "v2"),
 }
 """The DEN methods and the (noise model, variant) of the shipped DEN each uses unless given weights. ``den`` is
-what ``darksynth estimate`` gives (the sRGB DEN, the spectrum measured on the reference, what it cannot show from
-the camera prior fitted without the set judged: the texture dependence); ``den-no-prior`` the same without the
-prior; ``den-prior-octaves`` with the coarse octaves from the prior too; ``den-network`` the same network's values
-alone (its ablation)."""
+what ``darksynth estimate`` gives (the sRGB DEN, the spectrum measured on the reference);
+``den-prior`` the same with the texture dependence from the camera prior fitted without the set judged
+(``estimate --camera-prior``); ``den-prior-octaves`` with the coarse octaves from it too (``--prior-octaves``);
+``den-network`` the network's values alone (its ablation)."""
 
-PRIOR_DEN_METHODS = frozenset({"den", "den-prior-octaves"})
+PRIOR_DEN_METHODS = frozenset({"den-prior", "den-prior-octaves"})
 
 UNREFINED_DEN_METHODS = frozenset({"den-network"})
 
@@ -278,8 +302,9 @@ METHOD_NAMES: tuple[str, ...] = (
     "den-network",
     # The spectral model's clean-aided fit.
     "spectral-oracle",
-    # The blind estimate without the camera prior, and whole cameras drawn from the prior with no reference.
-    "den-no-prior",
+    # The blind estimate with what it cannot show from the camera prior, and whole cameras drawn from the prior with
+    # no reference.
+    "den-prior",
     "den-prior-octaves",
     "prior",
 )
