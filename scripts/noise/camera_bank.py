@@ -57,6 +57,15 @@ def fit_set(root: Path, limit: int) -> list[dict[str, object]]:
     return records
 
 
+def bank_text(bank: dict[str, object]) -> str:
+    """The bank as JSON with one record a line: a diff of a refit shows which pairs moved."""
+    records = bank["records"]
+    assert isinstance(records, list)
+    head = json.dumps({key: value for key, value in bank.items() if key != "records"}, indent=1)[:-2]
+    lines = ",\n".join("  " + json.dumps(record) for record in records)
+    return f'{head},\n "records": [\n{lines}\n ]\n}}\n'
+
+
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--data", type=Path, default=Path("../shared/data"))
@@ -75,7 +84,7 @@ def main() -> None:
         "source": "../shared/data/real-pairs (sidd, nam-cc15, nam-cc60, polyu): fitted numbers only",
         "records": records,
     }
-    write_text_atomic(arguments.out, json.dumps(bank, indent=1) + "\n")
+    write_text_atomic(arguments.out, bank_text(bank))
     print(f"wrote {len(records)} records to {arguments.out}")
 
 
