@@ -277,16 +277,20 @@ def test_synthesize_with_noise_is_reproducible_and_seed_dependent(make_profile: 
 def test_a_drawn_cameras_level_is_the_noise_the_output_shows(make_profile: ProfileFactory) -> None:
     # A flat grey image with no other component: each channel's noise std is the drawn level curve at 0.5 (128 x 128
     # pixels of noise with coarse octaves: the measured std stays within 5 % of it, 10 % allowed).
+    # Cameras drawn with a JPEG stage are passed over: JPEG takes some of the noise the curve adds.
     flat = torch.full((3, 128, 128), 0.5)
     curves = set()
-    for seed in range(4):
+    for seed in range(40):
         result = darksynth.synthesize(
             flat, make_profile(), generator=torch.Generator().manual_seed(seed), darkening=None, camera="dslr"
         )
         assert isinstance(result.parameters, dict) and isinstance(result.image, torch.Tensor)
         assert result.parameters["camera"] == {"source": "dslr", "given_profile": False}
         noise = result.parameters["noise"]
-        assert noise["compression"] == 0.0
+        if noise["compression"] != 0.0:
+            continue
+        if len(curves) == 4:
+            break
         curve = torch.tensor(noise["level_curve"], dtype=torch.float64)
         expected = level_std(torch.full((3, 1, 1), 0.5, dtype=torch.float64), curve).reshape(3)
         measured = (result.image.double() - 0.5).std(dim=(1, 2))
