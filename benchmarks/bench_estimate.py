@@ -1,10 +1,10 @@
 """Time and peak memory of estimating a profile from a 16-frame 1080p clip with the shipped DEN.
 
 Run: ``.venv/bin/python benchmarks/bench_estimate.py [--weights W] [--repeats N] [--photo [--data D]]
-[--reference FILE] [--no-camera-prior]``. A synthetic clean 1080p clip is darkened and made noisy with known
+[--reference FILE] [--camera-prior]``. A synthetic clean 1080p clip is darkened and made noisy with known
 parameters, written as an H.264 video, and ``darksynth estimate`` runs on it in a child process (wall time and peak
 RSS of that child, from os.wait4); ``--reference`` times a file made before (the same one for two commits compared);
-``--no-camera-prior`` times the estimate without the camera prior (its cost: the two runs' ratio). The last line is
+``--camera-prior`` times the estimate with the camera prior (its cost: the two runs' ratio). The last line is
 ``estimate_s=<median> cpu_s=<median> peak_rss_mib=<max> frames=16 size=1920x1080`` (cpu_s: the child's user and
 system time, which waiting for a busy machine's processors does not inflate).
 
@@ -102,9 +102,7 @@ def main() -> None:
     parser.add_argument("--reference", type=Path, default=None, help="time this file instead of making one")
     parser.add_argument("--data", type=Path, default=Path(__file__).resolve().parents[2] / "shared" / "data")
     parser.add_argument("--no-refine", action="store_true", help="time the network alone (no spectrum)")
-    parser.add_argument(
-        "--no-camera-prior", action="store_true", help="continue the finer octaves instead of the camera prior"
-    )
+    parser.add_argument("--camera-prior", action="store_true", help="take the texture dependence from the camera prior")
     args = parser.parse_args()
     with tempfile.TemporaryDirectory() as folder:
         if args.reference is not None:
@@ -115,7 +113,7 @@ def main() -> None:
         else:
             reference = Path(folder) / "reference.mp4"
             make_reference(reference)
-        extra = (["--no-refine"] if args.no_refine else []) + (["--no-camera-prior"] if args.no_camera_prior else [])
+        extra = (["--no-refine"] if args.no_refine else []) + (["--camera-prior"] if args.camera_prior else [])
         runs = [run_once(reference, args.weights, extra) for _ in range(args.repeats)]
     times = [t for t, _, _ in runs]
     peak = max(m for _, m, _ in runs)

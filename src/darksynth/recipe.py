@@ -18,13 +18,12 @@ from typing import Any, Literal
 import torch
 
 from darksynth.cameras.presets import CAMERA_CHOICES, camera_source
-from darksynth.cameras.prior import BLIND_OCTAVES, CameraPrior, measured_entries
+from darksynth.cameras.prior import BLIND_OCTAVES, CameraPrior, measured_entries, on_measured_scale
 from darksynth.errors import DarksynthError
 from darksynth.light.darkening import ALPHA_RANGE, GAMMA_RANGE, Darkening
 from darksynth.light.exposure import ColourScale, matched_colour, matched_darkening
 from darksynth.noise.components import noise_parameter, noise_parameters
 from darksynth.noise.sampling import random_uniform
-from darksynth.noise.spectral import OCTAVES
 from darksynth.noise.spectral_components import SPECTRUM_REPLACES
 from darksynth.noise.structure_translation import spectral_tensors
 from darksynth.noise.values import NoiseValues
@@ -132,10 +131,9 @@ def _kept_measured(
     for name, value in known.items():
         fill = drawn[name]
         if name == "octave_power":
-            # The prior's powers are relative to the finer octaves' mean log brightness power (only the shape
-            # counts): put the drawn coarse powers on the measured ones' scale.
-            finer = value.reshape(OCTAVES, 3)[:BLIND_OCTAVES, 0].clamp_min(1e-6).log().mean()
-            fill = fill * finer.exp()
+            # Only the spectrum's shape counts in the prior's space: the drawn coarse powers go on the measured
+            # ones' scale.
+            fill = on_measured_scale(fill, value.to(fill), BLIND_OCTAVES)
         kept[name] = torch.where(mask[name], value.to(fill), fill)
     return kept
 

@@ -89,6 +89,15 @@ def to_features(name: str, values: torch.Tensor) -> torch.Tensor:
     return values
 
 
+def on_measured_scale(relative: torch.Tensor, measured: torch.Tensor, known_octaves: int) -> torch.Tensor:
+    """Octave powers (OCTAVES * 3,) from the prior's space (relative to :func:`to_features`' reference, which is
+    lost) put on the scale of ``measured`` powers: their mean log brightness power over the ``known_octaves``
+    finest octaves made the measured one's."""
+    measured_log = measured.reshape(-1, 3)[:known_octaves, 0].clamp_min(1e-30).log().mean()
+    relative_log = relative.reshape(-1, 3)[:known_octaves, 0].clamp_min(1e-30).log().mean()
+    return relative * (measured_log - relative_log).exp()
+
+
 def from_features(name: str, features: torch.Tensor) -> torch.Tensor:
     """The inverse of :func:`to_features`, snapped to what the model draws (JPEG steps, a gain of at least 0)."""
     if name == "level_curve":

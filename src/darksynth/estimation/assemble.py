@@ -12,7 +12,7 @@ from __future__ import annotations
 
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Any, Literal
+from typing import Any
 
 import torch
 
@@ -89,7 +89,7 @@ def estimate(
     batch: int = 16,
     device: torch.device | str = "cpu",
     refine: bool = True,
-    camera_prior: CameraPriorUse | Literal["shipped"] | None = None,
+    camera_prior: CameraPriorUse | None = None,
 ) -> Estimate:
     """Estimate a noise profile from reference frames (T, 3, H, W) in [0, 1].
 
@@ -99,18 +99,16 @@ def estimate(
             compression are replaced by the spectrum's, its column components kept; skipped, with a warning, on a
             reference smaller than :data:`~darksynth.estimation.noise_estimate.REFINE_MIN_SIDE`. The paper's model
             keeps the network's values.
-        camera_prior: the prior over real cameras that supplies what the reference cannot show
-            (:func:`darksynth.estimation.spectrum.estimate_spectrum`): ``"shipped"`` the one fitted on the shipped
-            bank of real cameras (for the texture dependence), None (the default) leaves it out.
+        camera_prior: what the reference cannot show, taken from a prior over real cameras
+            (:func:`darksynth.estimation.spectrum.estimate_spectrum`); None (the default) leaves it out.
     """
     record = describe_reference(reference, source)
     meta: dict[str, Any] = {"source": source}
     warnings = reference_warnings(record, spectrum_frames=TEMPORAL_FRAMES)
     if record.cuts:
         meta["scene_cuts"] = record.cuts
-    prior = CameraPriorUse(shipped_prior()) if camera_prior == "shipped" else camera_prior
     found = estimate_noise(
-        record, network, meta, warnings, batch=batch, device=device, refine=refine, camera_prior=prior
+        record, network, meta, warnings, batch=batch, device=device, refine=refine, camera_prior=camera_prior
     )
     darkening, tone = estimate_profile_darkening(record, found.ranges, meta, warnings)
     noise = estimate_light(record, found.noise, meta, warnings)

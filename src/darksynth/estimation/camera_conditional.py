@@ -14,7 +14,7 @@ from dataclasses import dataclass
 
 import torch
 
-from darksynth.cameras.prior import CameraPrior, measured_entries
+from darksynth.cameras.prior import CameraPrior, measured_entries, on_measured_scale
 from darksynth.estimation.spectral_fit import SpectralParameters
 from darksynth.noise.spectral import OCTAVES, covariance_parameters, octave_covariances
 
@@ -62,13 +62,8 @@ def prior_octaves(parameters: SpectralParameters, first_prior: int, prior: Camer
     known, mask = _known(parameters, first_prior)
     expected = prior.values(prior.conditional_mean(known, mask))
     power, correlation = known["octave_power"].clone(), known["octave_correlation"].clone()
-    # The prior's powers are relative to the finer octaves' mean log brightness power (its space): put the
-    # predicted coarse powers on the measured ones' scale.
-    finer = power.reshape(OCTAVES, 3)[:first_prior, 0].clamp_min(1e-30).log().mean()
-    predicted_finer = expected["octave_power"].reshape(OCTAVES, 3)[:first_prior, 0].log().mean()
-    scale = (finer - predicted_finer).exp()
     coarse = slice(first_prior * 3, OCTAVES * 3)
-    power[coarse] = expected["octave_power"][coarse] * scale
+    power[coarse] = on_measured_scale(expected["octave_power"], power, first_prior)[coarse]
     correlation[coarse] = expected["octave_correlation"][coarse]
     covariances = octave_covariances(power, correlation).to(parameters.covariances)
     return SpectralParameters(covariances=covariances, curve=parameters.curve, temporal=parameters.temporal)
