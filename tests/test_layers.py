@@ -32,9 +32,10 @@ for the edges, so the core runs on tensors alone.
 Inside ``estimation`` the stages have layers of their own: the reading of the reference, the column decision, the
 denoiser, the flat blocks and the spectral statistics import no other stage; the spectral fit reads the spectral
 statistics; the coarse anchor, the still blocks of a clip and the frame-to-frame fit read the flat blocks and the
-spectral fit; the spectrum's checks read the anchor, and the spectrum all of them; the network reads the crop grid
-and the darkening the reference's frames; ``assemble`` alone runs them all. Inside ``evaluation`` the parts (the
-pairs, methods, measures, report, run) have layers of their own in the same way (``EVALUATION_PARTS``).
+spectral fit; the spectrum's checks read the anchor, and the spectrum all of them; the self-check (the profile put
+back on its own denoised reference) reads the flat blocks and the noise estimate reads it; the network reads the
+crop grid and the darkening the reference's frames; ``assemble`` alone runs them all. Inside ``evaluation`` the parts
+(the pairs, methods, measures, report, run) have layers of their own in the same way (``EVALUATION_PARTS``).
 """
 
 from __future__ import annotations
@@ -90,6 +91,7 @@ ESTIMATION_STAGES: dict[str, int] = {
     "spectral_statistics": 0,
     "texture_fit": 0,
     "spectral_fit": 1,
+    "self_check": 1,
     "coarse_anchor": 2,
     "camera_conditional": 2,
     "still_blocks": 2,

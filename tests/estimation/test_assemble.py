@@ -230,6 +230,17 @@ def test_a_reference_too_small_to_measure_keeps_the_network_values_and_says_so(
     assert any(w.startswith("small.png: 48x48 is too small to measure") for w in refined.warnings)
 
 
+def test_a_reference_under_128_px_is_measured_with_a_warning_that_its_level_is_uncertain(
+    tiny_model: Callable[..., DEN],
+) -> None:
+    network = _rigged(tiny_model(), torch.full((vector_size(),), 0.3))
+    small = estimate(_reference(1, 96, 96), network, source="crop.png")
+    assert small.profile.meta["spectrum"]["method"].startswith("blind spectral")
+    assert any(w.startswith("crop.png: 96x96 holds few blocks") for w in small.warnings)
+    large = estimate(_reference(1, 128, 128), network, source="crop.png")
+    assert not any("holds few blocks" in w for w in large.warnings)
+
+
 def test_noise_free_warning_reads_the_noise_the_profile_adds_on_this_reference(
     tiny_model: Callable[..., DEN],
 ) -> None:

@@ -74,12 +74,18 @@ def test_the_noise_std_follows_one_plus_detail_over_scale_to_the_gain() -> None:
     assert float(expected[:, 7 * 64 + 12 : 7 * 64 + 52].mean()) > 4.0  # the ramp reaches far beyond 1
 
 
-def test_texture_gain_zero_draws_mains_bits() -> None:
-    recorded = json.loads(RECORDED.read_text(encoding="utf-8"))
-    if recorded["platform"] != platform():
-        pytest.skip(f"main's digests were drawn with {recorded['platform']}, FFT bits differ on {platform()}")
-    assert texture_free_digests() == recorded["digests"]
-    assert texture_free_digests({"texture_gain": 0.0, "texture_scale": 0.05}) == recorded["digests"]
+def test_texture_gain_zero_draws_the_bits_of_no_texture_in_the_same_run() -> None:
+    # Compared within one run: float bits differ between processors, not between two draws on one.
+    assert texture_free_digests({"texture_gain": 0.0, "texture_scale": 0.05}) == texture_free_digests()
+
+
+def test_texture_free_outputs_match_mains_record_for_this_processor() -> None:
+    records = json.loads(RECORDED.read_text(encoding="utf-8"))["records"]
+    here = platform()
+    recorded = next((record["digests"] for record in records if record["platform"] == here), None)
+    if recorded is None:
+        pytest.skip(f"main's digests were recorded on {[r['platform'] for r in records]}, not on {here}")
+    assert texture_free_digests() == recorded
 
 
 def test_a_texture_scale_alone_changes_nothing_and_a_gain_does() -> None:

@@ -3,9 +3,10 @@
 :func:`texture_free_digests` draws three fixed cases (the 8-bit spectral path of
 :func:`darksynth.synthesize.synthesize`, the general composer on a float clip with JPEG, a float stream through
 :class:`darksynth.synthesize.ClipSynthesizer`) and returns the SHA-256 of each output's 8-bit levels.
-``texture_free_outputs.json`` holds them as main drew them, with the torch version and CPU capability they were
-drawn with (FFT bits depend on both). Run this module to print the digests of the code as it is:
-``python tests/noise/texture_free_outputs.py``.
+``texture_free_outputs.json`` holds them as main drew them, per processor: FFT and reduction bits depend on the
+torch version, the CPU capability its kernels use and the processor itself (an Intel and an AMD AVX-512 machine with
+the same torch and reported capability drew different float-stream bits). Run this module to print the digests of
+the code as it is with the processor they were drawn on: ``python tests/noise/texture_free_outputs.py``.
 """
 
 from __future__ import annotations
@@ -13,6 +14,8 @@ from __future__ import annotations
 import hashlib
 import json
 import math
+import platform as pyplatform
+from pathlib import Path
 
 import torch
 
@@ -63,8 +66,23 @@ def texture_free_digests(extra: dict[str, object] | None = None) -> dict[str, st
 
 
 def platform() -> dict[str, str]:
-    """What the digests depend on beyond the code: the torch version and the CPU capability its kernels use."""
-    return {"torch": torch.__version__, "cpu_capability": torch.backends.cpu.get_cpu_capability()}
+    """What the digests depend on beyond the code: the torch version, the CPU capability its kernels use and the
+    processor (vendor and model, from /proc/cpuinfo where there is one)."""
+    return {
+        "torch": torch.__version__,
+        "cpu_capability": torch.backends.cpu.get_cpu_capability(),
+        "processor": _processor(),
+    }
+
+
+def _processor() -> str:
+    try:
+        lines = Path("/proc/cpuinfo").read_text(encoding="utf-8").splitlines()
+    except OSError:
+        return pyplatform.processor() or "unknown"
+    fields = dict(line.split(":", 1) for line in lines if ":" in line)
+    found = {key.strip(): value.strip() for key, value in fields.items()}
+    return f"{found.get('vendor_id', 'unknown')} {found.get('model name', 'unknown')}"
 
 
 if __name__ == "__main__":

@@ -40,6 +40,11 @@ REFINE_MIN_SIDE = 64
 """Smallest side the spectrum is measured on: below it the flat blocks of each level are too few, and the
 network's values stay."""
 
+CERTAIN_LEVEL_SIDE = 128
+"""Smallest side whose measured level is stated without doubt: under it a reference holds at most 16 blocks of 32 px
+and one or two of them decide each channel's level (a 96-px crop read green 1.33x its true level); the measurement
+stands, with a warning that it is uncertain."""
+
 
 @dataclass
 class NoiseEstimate:
@@ -116,6 +121,11 @@ def _measure_spectrum(
         )
         meta["spectrum"] = {"method": "not measured: reference too small"}
         return noise
+    if min(reference.shape[-2:]) < CERTAIN_LEVEL_SIDE:
+        warnings.append(
+            f"{source}: {reference.shape[-1]}x{reference.shape[-2]} holds few blocks to measure the noise on (under "
+            f"{CERTAIN_LEVEL_SIDE} px a side): the level it measures per channel is unreliable"
+        )
     found = estimate_spectrum(reference, name=source, prior_curve=network_level_curve(noise), camera_prior=camera_prior)
     neutral = {name: noise_parameter(name).neutral for name in SPECTRUM_REPLACES}
     measured = noise.replace(**neutral, **{name: value for name, value in found.values.items()})
