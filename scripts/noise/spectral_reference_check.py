@@ -10,11 +10,12 @@ Run from the repo root::
     .venv/bin/python scripts/noise/spectral_reference_check.py --data ../shared/data --kinds lol,starlight \
         --picture docs/images/spectral-real-vs-synthetic.png
 
-Options: ``[--data ../shared/data] [--picture OUT.png] [--kinds lol,starlight,lime,clips] [--only NAMES]``.
+Options: ``[--data ../shared/data] [--picture OUT.png] [--kinds lol,starlight,lime,clips,dicm] [--only NAMES]``.
 
-For every reference (LOL and LIME images, the phone clips' first 4 frames, the starlight video's first 16): the
-profile ``estimate`` writes (spectral, the default), then that profile applied with ``--no-darken`` to the
-reference's own non-local-means denoised version (the denoiser and strength of the estimate). Printed per
+For every reference (LOL and LIME images, with ``--kinds dicm`` the DICM night photos, the phone clips' first 4
+frames, the starlight video's first 16): the profile ``estimate`` writes (spectral, the default), then that profile
+applied with ``--no-darken`` to the reference's own non-local-means denoised version (the denoiser and strength of
+the estimate). Printed per
 reference: the noise std of the 10% flattest 32-px blocks with at most 1% clipped pixels (crushed black holds no
 noise to compare), real over synthetic (1.00: the same; above 1.25 the profile misses noise, below 0.8 it reads
 texture as noise), and the same for the network's values alone (``estimate(..., refine=False)``; when the committed
@@ -66,6 +67,8 @@ def references(data: Path, kinds: set[str]) -> list[tuple[str, Path, bool]]:
         found += [("lol", p, False) for p in sorted((low / "images" / "lol").glob("*"))[:4]]
     if "lime" in kinds:
         found += [("lime", p, False) for p in sorted((low / "images" / "lime").glob("*"))[:4]]
+    if "dicm" in kinds:
+        found += [("dicm", p, False) for p in sorted((low / "images" / "dicm").glob("*"))]
     if "clips" in kinds:
         found += [("clip", p, True) for p in sorted((low / "clips").glob("clip*"))]
     if "starlight" in kinds:

@@ -10,10 +10,14 @@ import torch
 
 from darksynth.estimation.self_check import (
     CHECK_MEAN_RANGE,
+    check_level,
     checked_blocks,
     checked_blocks_per_intensity,
     self_consistency,
 )
+from darksynth.estimation.spectral_fit import quantised
+from darksynth.noise.simulate import add_noise
+from darksynth.noise.values import NoiseValues
 
 
 def _scene(height: int = 256, width: int = 320) -> torch.Tensor:
@@ -60,3 +64,47 @@ def test_a_scene_the_denoiser_kept_rougher_than_the_reference_supports_no_factor
     scene = _scene()
     check = self_consistency(scene, _noisy(scene, 0.02, 0), _noisy(scene, 0.03, 1))
     assert math.isnan(check.supported)
+
+
+def _spectral_values(level: float) -> NoiseValues:
+    return NoiseValues.from_values({"level_curve": [level] * 24, "octave_power": [1.0] * 18}, dtype=torch.float32)
+
+
+def _reference(level: float, seed: int = 0) -> tuple[torch.Tensor, float]:
+    """(3, 256, 320) the grey steps with white noise of std ``level`` on 8-bit levels, and the denoiser strength
+    the estimate would use (the noise in 8-bit levels)."""
+    scene = _scene().float()
+    noisy = quantised(
+        add_noise(scene[None, None], _spectral_values(level), generator=torch.Generator().manual_seed(seed))
+    )
+    return noisy[0, 0], level * 255
+
+
+def test_a_level_the_reference_supports_is_kept_without_a_word() -> None:
+    reference, strength = _reference(0.02)
+    found = check_level(reference, _spectral_values(0.02), torch.full((3, 8), 0.02), strength, "ref.png")
+    assert found.warnings == [] and found.meta["kept"].startswith("measurement: its check passes")
+    assert torch.allclose(found.curve, torch.full((3, 8), 0.02, dtype=torch.float64))
+
+
+@pytest.mark.parametrize("misread", [0.25, 4.0])
+def test_a_level_the_reference_contradicts_is_scaled_to_what_it_supports(misread: float) -> None:
+    reference, strength = _reference(0.02)
+    found = check_level(reference, _spectral_values(0.02 * misread), torch.full((3, 8), 0.02), strength, "ref.png")
+    assert len(found.warnings) == 1 and found.warnings[0].startswith("ref.png: the measured noise put back")
+    checked = found.curve[:, 1:5]  # the knots of the intensities the steps show (0.05-0.6)
+    # The denoised base keeps part of the noise (here about 0.7 of it: flat steps, a denoiser set to the noise), which
+    # the synthetic side carries under the profile's: the check settles up to 1.35x under the true level.
+    assert float((checked / 0.02).log().abs().max().exp()) < 1.4, found.curve
+    assert all(0.8 <= row["ratio"] <= 1.25 for row in found.meta["corrected"].values()), found.meta
+
+
+def test_a_level_far_from_the_network_with_no_block_to_check_gives_way_to_the_network() -> None:
+    frame = torch.zeros(3, 256, 256)
+    frame[:, 100:140, 60:90] = 1.0  # a lamp on crushed black: no block between 8 and 247 levels
+    network = torch.full((3, 8), 0.005)
+    found = check_level(frame, _spectral_values(0.05), network, 3.0, "night.jpg")
+    assert torch.equal(found.curve, network.double())
+    assert len(found.warnings) == 1 and "no flat block of 8-247 levels can check it" in found.warnings[0]
+    near = check_level(frame, _spectral_values(0.01), network, 3.0, "night.jpg")
+    assert near.warnings == [] and near.meta["kept"] == "measurement, unchecked"

@@ -74,6 +74,25 @@ def test_a_mottled_spectrum_on_a_drawn_scene_comes_back_band_by_band() -> None:
     assert abs(math.log(ratio["colour"][3])) < math.log(2.0), ratio["colour"]
 
 
+# Colour that peaks at 11-22 px and falls at 45-90 px, as the phones' does (issue 39): the octaves the anchor reads
+# (22 px) strong, the coarser ones, which a plane-detrended 32-px block barely holds, weak.
+PEAKED = [1.0, 0.5, 0.5, 1.0, 1.0, 1.0, 1.0, 4.0, 4.0, 1.0, 4.0, 4.0, 1.0, 1.0, 1.0, 1.0, 0.25, 0.25]
+
+
+@pytest.mark.xfail(
+    strict=True,
+    reason="open (issue 39): the 45-90 px colour octaves are not read, they continue the finer octaves' rise; "
+    "the colour 32-64 px band comes back 4.4x (16-32 px: 1.28x)",
+)
+def test_colour_that_falls_off_coarser_than_the_anchor_sees_is_not_carried_there() -> None:
+    clean = quantised(_scene())
+    truth = _spectral(PEAKED)
+    found = estimate_spectrum(_noisy(clean[None], truth, 0), name="peaked.png")
+    ratio = _band_ratio(NoiseValues.from_values(found.values, dtype=torch.float32), truth, clean)
+    # The bar of issue 39 on the real pairs (at most 1.25) widened to 1.5 for one draw of one scene.
+    assert np.abs(np.log(ratio["colour"][3:])).max() < math.log(1.5), ratio["colour"]
+
+
 def test_octaves_the_reference_cannot_show_continue_the_measured_spectrum() -> None:
     # White noise on a flat-shaded scene: the statistics respond to the fine octaves in proportion; the coarsest,
     # whose band holds mostly the finer octaves' leakage, barely, and its fit would run away (on LOL references

@@ -23,6 +23,7 @@ from darksynth.estimation.camera_conditional import CameraPriorUse
 from darksynth.estimation.columns import decide_columns
 from darksynth.estimation.network import run_network
 from darksynth.estimation.reference import Reference
+from darksynth.estimation.self_check import check_level
 from darksynth.estimation.spectrum import estimate_spectrum
 from darksynth.models.den import DEN
 from darksynth.noise.components import NoiseModel, noise_component, noise_parameter
@@ -126,15 +127,20 @@ def _measure_spectrum(
             f"{source}: {reference.shape[-1]}x{reference.shape[-2]} holds few blocks to measure the noise on (under "
             f"{CERTAIN_LEVEL_SIDE} px a side): the level it measures per channel is unreliable"
         )
-    found = estimate_spectrum(reference, name=source, prior_curve=network_level_curve(noise), camera_prior=camera_prior)
+    network_curve = network_level_curve(noise)
+    found = estimate_spectrum(reference, name=source, prior_curve=network_curve, camera_prior=camera_prior)
     neutral = {name: noise_parameter(name).neutral for name in SPECTRUM_REPLACES}
     measured = noise.replace(**neutral, **{name: value for name, value in found.values.items()})
+    # The measurement checked on its own reference: a level the reference contradicts is not kept.
+    check = check_level(reference[0], measured, network_curve, found.meta["denoiser_strength_8bit"], source)
+    measured = measured.replace(level_curve=check.curve.flatten().to(measured["level_curve"]))
     replaced = (*SPECTRUM_REPLACES, "compression")
     for name in replaced:
         ranges.pop(name, None)
-    warnings.extend(found.warnings)
+    warnings.extend(found.warnings + check.warnings)
     meta["spectrum"] = found.meta | {
-        "network_values": {name: [round(float(v), 5) for v in noise[name].tolist()] for name in replaced}
+        "self_check": check.meta,
+        "network_values": {name: [round(float(v), 5) for v in noise[name].tolist()] for name in replaced},
     }
     return measured
 

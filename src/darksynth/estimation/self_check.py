@@ -6,6 +6,9 @@ of a change on real data (over the whole reference: ``benchmarks/real_data.py``)
 the blocks whose denoised version is flattest and whose mean lies inside the 8-bit range (a block of crushed black or
 of a lamp shows no noise). Real and synthetic hold the same denoised scene, so what the denoiser left of the scene
 counts on both sides alike; their ratio is 1 when the profile's noise is as strong as what the denoiser took off.
+What the denoiser left of the noise stays in the synthetic side's base under the profile's noise: a true level reads
+somewhat above 1 (white noise under a denoiser set to its level: about 1.1-1.2), inside the consistent range, and a
+level the check corrects settles under the truth by as much (up to 1.35x on flat white noise).
 
 Pure functions on (3, H, W) frames in [0, 1].
 """
@@ -14,11 +17,17 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass
+from typing import Any
 
 import torch
 import torch.nn.functional as F
 
-from darksynth.estimation.flat_blocks import FLAT_BLOCK, block_gradient, level_stratum
+from darksynth.estimation.flat_blocks import FLAT_BLOCK, analysis_window, block_gradient, level_stratum
+from darksynth.estimation.nonlocal_means import nlm_denoise
+from darksynth.estimation.spectral_fit import quantised
+from darksynth.noise.simulate import add_noise
+from darksynth.noise.spectral import LEVEL_KNOTS
+from darksynth.noise.values import NoiseValues
 
 CHECK_SHARE = 0.1
 """Share of the blocks (the flattest, by the denoised version's gradient) the check reads."""
@@ -126,3 +135,184 @@ def self_consistency(reference: torch.Tensor, denoised: torch.Tensor, synthetic:
     """The check over the whole reference (3, H, W): on the :data:`CHECK_SHARE` flattest blocks of its denoised
     version whose mean lies in :data:`CHECK_MEAN_RANGE`."""
     return block_check(reference, denoised, synthetic, checked_blocks(denoised))
+
+
+CHECK_WINDOW = 1024
+"""Side of the window of the reference the estimate checks itself on (its flattest unclipped one): a 4K frame's
+denoising would cost more than the rest of the estimate, and a 1024-px window holds about a thousand blocks."""
+
+FACTOR_BOUNDS = (1.0 / 16.0, 4.0)
+"""The level factors one step of a correction may take: a reference whose denoised scene alone is as rough as the
+reference supports no noise at all, which the lower bound stands for."""
+
+CORRECTION_STEPS = 3
+"""Steps of the correction at most (each one synthesis on the denoised window)."""
+
+FALLBACK_RANGE = (0.5, 2.0)
+"""A corrected level whose check still lies outside this range at some intensity is not kept: the network's level
+curve stands where it checks better."""
+
+NETWORK_DISAGREEMENT = 3.0
+"""A level this factor away from the network's (geometric mean over the knots) is kept only when its check passes."""
+
+
+@dataclass
+class SelfCheck:
+    """The level curve (3, 8) the estimate keeps after checking itself, and what the check found."""
+
+    curve: torch.Tensor
+    meta: dict[str, Any]
+    warnings: list[str]
+
+
+def _segment_label(segment: int) -> str:
+    low, high = LEVEL_KNOTS[segment], LEVEL_KNOTS[segment + 1]
+    return f"{low * 255:.0f}-{high * 255:.0f}"
+
+
+def _knot_factors(factors: dict[int, float]) -> torch.Tensor:
+    """(8,) a factor per level knot from the factors of the segments (knot k bounds segments k - 1 and k): the
+    geometric mean of its checked neighbours, else the nearest checked segment's."""
+    knots = torch.ones(len(LEVEL_KNOTS), dtype=torch.float64)
+    for knot in range(len(LEVEL_KNOTS)):
+        neighbours = [factors[s] for s in (knot - 1, knot) if s in factors]
+        if not neighbours:
+            nearest = min(factors, key=lambda s: min(abs(s - knot), abs(s + 1 - knot)))
+            neighbours = [factors[nearest]]
+        knots[knot] = math.exp(sum(math.log(f) for f in neighbours) / len(neighbours))
+    return knots
+
+
+def _supported_factor(check: BlockCheck) -> float:
+    """1 for a consistent segment, else the level factor its check supports within :data:`FACTOR_BOUNDS`."""
+    if check.consistent:
+        return 1.0
+    supported = check.supported if math.isfinite(check.supported) else 0.0
+    return min(max(supported, FACTOR_BOUNDS[0]), FACTOR_BOUNDS[1])
+
+
+def _worst(checks: dict[int, BlockCheck]) -> float:
+    """The largest departure from 1 over the checked segments, as a factor (1: all consistent)."""
+    return max((math.exp(abs(math.log(max(c.ratio, 1e-12)))) for c in checks.values()), default=1.0)
+
+
+def _within(checks: dict[int, BlockCheck], bounds: tuple[float, float]) -> bool:
+    return all(bounds[0] <= c.ratio <= bounds[1] for c in checks.values())
+
+
+def _describe(checks: dict[int, BlockCheck]) -> dict[str, Any]:
+    return {
+        _segment_label(s): {"blocks": c.blocks, "ratio": round(c.ratio, 3), "real_std_8bit": round(c.real_std * 255, 3)}
+        for s, c in checks.items()
+    }
+
+
+def check_level(
+    reference: torch.Tensor,
+    values: NoiseValues,
+    network_curve: torch.Tensor,
+    strength: float,
+    name: str,
+    seed: int = 0,
+) -> SelfCheck:
+    """The measured level checked on the reference frame (3, H, W) it was measured on: the profile's ``values``
+    drawn on the frame's denoised version (non-local means of ``strength`` 8-bit levels, the estimate's), compared
+    per intensity on the flattest in-range blocks (:func:`checked_blocks_per_intensity`). An intensity whose
+    synthetic noise lies outside :data:`CONSISTENT_RANGE` of the reference's has its knots scaled by the factor the
+    check supports; a correction that still leaves an intensity outside :data:`FALLBACK_RANGE`, or a level
+    :data:`NETWORK_DISAGREEMENT` from the network's that does not pass, gives way to ``network_curve`` (3, 8) where
+    that checks better. One warning says which and why."""
+    top, left, height, width = analysis_window(reference, CHECK_WINDOW)
+    frame = reference[:, top : top + height, left : left + width].to(torch.float32)
+    denoised = nlm_denoise(frame[None], strength)[0]
+    strata = checked_blocks_per_intensity(denoised)
+    curve = values["level_curve"].reshape(3, len(LEVEL_KNOTS)).to(torch.float64)
+    network_curve = network_curve.to(curve)
+    disagreement = float((curve / network_curve.clamp_min(1e-9)).log().mean().exp())
+    far = not 1.0 / NETWORK_DISAGREEMENT <= disagreement <= NETWORK_DISAGREEMENT
+    meta: dict[str, Any] = {"window": [top, left, height, width], "over_network": round(disagreement, 3)}
+
+    def checked(level: torch.Tensor) -> dict[int, BlockCheck]:
+        drawn = values.replace(level_curve=level.flatten()).to(dtype=torch.float32)
+        generator = torch.Generator().manual_seed(seed)
+        synthetic = quantised(add_noise(denoised[None, None], drawn, generator=generator)[0, 0])
+        return {s: block_check(frame, denoised, synthetic, blocks) for s, blocks in strata.items()}
+
+    if not strata:
+        meta["result"] = "no flat block with a mean of 8-247 levels to check on"
+        if far:
+            meta["kept"] = "network"
+            return SelfCheck(
+                network_curve.clone(),
+                meta,
+                [
+                    f"{name}: the measured level is {disagreement:.1f}x the network's and no flat block of 8-247 "
+                    "levels can check it: the profile holds the network's level curve"
+                ],
+            )
+        meta["kept"] = "measurement, unchecked"
+        return SelfCheck(curve, meta, [])
+    first = checked(curve)
+    meta["measured"] = _describe(first)
+    if _within(first, CONSISTENT_RANGE):
+        meta["kept"] = "measurement: its check passes"
+        return SelfCheck(curve, meta, [])
+    corrected, second = curve, first
+    for _ in range(CORRECTION_STEPS):
+        # A segment's std follows both of its knots, and a knot serves two segments: a few steps settle them.
+        step = {s: _supported_factor(c) for s, c in second.items()}
+        corrected = corrected * _knot_factors(step)[None, :]
+        second = checked(corrected)
+        if _within(second, CONSISTENT_RANGE):
+            break
+    factors = {
+        s: float(v) for s, v in enumerate((corrected / curve.clamp_min(1e-12)).mean(0)[:-1].tolist()) if s in first
+    }
+    meta["corrected"] = _describe(second)
+    worst_first = max(first.items(), key=lambda item: abs(math.log(max(item[1].ratio, 1e-12))))
+    shown = f"{worst_first[1].ratio:.2f}x the noise the reference shows at {_segment_label(worst_first[0])} levels"
+    if _within(second, FALLBACK_RANGE) and (
+        not far or _within(second, CONSISTENT_RANGE) or not _far(corrected, network_curve)
+    ):
+        meta["kept"] = "measurement scaled to what the check supports"
+        return SelfCheck(
+            corrected,
+            meta,
+            [
+                f"{name}: the measured noise put back on the denoised reference gives {shown}; its level is scaled by "
+                f"{_span(factors)} to what the reference supports (now {_worst(second):.2f}x at worst)"
+            ],
+        )
+    network = checked(network_curve)
+    meta["network"] = _describe(network)
+    if _worst(network) <= _worst(second):
+        meta["kept"] = "network: the measurement failed its check"
+        return SelfCheck(
+            network_curve.clone(),
+            meta,
+            [
+                f"{name}: the measured noise put back on the denoised reference gives {shown}, and scaled to what the "
+                f"reference supports still {_worst(second):.2f}x; the profile holds the network's level curve "
+                f"({_worst(network):.2f}x at worst)"
+            ],
+        )
+    meta["kept"] = "measurement scaled to what the check supports, though it still fails"
+    return SelfCheck(
+        corrected,
+        meta,
+        [
+            f"{name}: the measured noise put back on the denoised reference gives {shown}; scaled by {_span(factors)} "
+            f"it is still {_worst(second):.2f}x at worst (the network's level: {_worst(network):.2f}x): the level is "
+            "uncertain"
+        ],
+    )
+
+
+def _far(curve: torch.Tensor, network_curve: torch.Tensor) -> bool:
+    ratio = float((curve / network_curve.clamp_min(1e-9)).log().mean().exp())
+    return not 1.0 / NETWORK_DISAGREEMENT <= ratio <= NETWORK_DISAGREEMENT
+
+
+def _span(factors: dict[int, float]) -> str:
+    low, high = min(factors.values()), max(factors.values())
+    return f"{low:.2f}" if math.isclose(low, high, rel_tol=0.01) else f"{low:.2f}-{high:.2f} by intensity"

@@ -55,8 +55,8 @@ def level_checks(
             levels = [float(curve[measured].mean()) * 255, float(prior_curve[measured].mean()) * 255]
             warnings.append(
                 f"{name}: the measured noise level ({levels[0]:.2f} 8-bit levels) and the network's "
-                f"({levels[1]:.2f}) differ by {max(ratio, 1 / ratio):.1f}x at the intensities the reference shows; "
-                "the profile keeps the measurement"
+                f"({levels[1]:.2f}) differ by {max(ratio, 1 / ratio):.1f}x at the intensities the reference shows "
+                "(the self-check decides which the profile keeps)"
             )
     return curve
 
