@@ -1,5 +1,7 @@
 """The frame-to-frame correlation fitted on frame differences (estimation/persistence_fit.py): the statistic holds
-no still scene, the search takes the first crossing, and drawn clips of known AR(1) coefficient come back."""
+no still scene, the search takes the first crossing, drawn clips of known AR(1) coefficient come back, a codec's
+skipped blocks and frame types are read as the persistence they give, and what cannot be read gets the video
+prior, stated."""
 
 from __future__ import annotations
 
@@ -8,11 +10,14 @@ import math
 import pytest
 import torch
 
+from darksynth.estimation import persistence_fit
 from darksynth.estimation.persistence_fit import (
     MAX_COEFFICIENT,
     SEARCH_GRID,
+    VIDEO_PRIOR,
     difference_powers,
     persistence_statistic,
+    skipped_shares,
     solve_coefficients,
 )
 from darksynth.estimation.spectral_fit import quantised
@@ -101,3 +106,83 @@ def _noisy_still_clip(rho: float, compression: float) -> torch.Tensor:
         dtype=torch.float32,
     )
     return quantised(add_noise(_textured_still_clip()[None], values, generator=torch.Generator().manual_seed(3))[0])
+
+
+def _codec_like_clip(copied_share: float, gains: tuple[float, ...], side: int = 256, seed: int = 0) -> torch.Tensor:
+    """(4, 3, side, side) a codec's output of a still noisy scene: independent noise of 6 levels in every frame
+    before coding; from the second frame on, a share of the 16-px blocks (a macroblock) copied bit-identically from
+    the frame before (skipped), the rest coded afresh; then each frame's gain (exposure) and 8-bit rounding."""
+    fresh = _noisy_still_clip(0.0, 0.0)
+    generator = torch.Generator().manual_seed(seed)
+    coded = [fresh[0]]
+    for frame in fresh[1:]:
+        copied = torch.rand(side // 16, side // 16, generator=generator) < copied_share
+        pixels = copied.repeat_interleave(16, 0).repeat_interleave(16, 1)
+        coded.append(torch.where(pixels, coded[-1], frame))
+    clip = torch.stack(coded)
+    return quantised(clip * torch.tensor(gains)[:, None, None, None])
+
+
+def _pooled_lag_one(clip: torch.Tensor) -> float:
+    """The lag-1 correlation of the clip's noise (the clip minus its still scene), pooled over pairs and pixels."""
+    noise = (clip - _textured_still_clip()).double()
+    before, after = noise[:-1].flatten(), noise[1:].flatten()
+    return float(torch.corrcoef(torch.stack([before, after]))[0, 1])
+
+
+def test_skipped_shares_count_the_cells_a_codec_repeated() -> None:
+    clip = _codec_like_clip(0.5, (1.0, 1.0, 1.0, 1.0))
+    shares = skipped_shares(clip, torch.ones(256, 256))
+    # Each pair repeats about half the 16-px blocks (256 of them, drawn): never by chance under 6 levels of noise.
+    assert torch.all((shares > 0.38) & (shares < 0.62)), shares
+    assert float(skipped_shares(_noisy_still_clip(0.0, 0.0), torch.ones(256, 256)).max()) == 0.0
+
+
+def test_a_codec_that_skips_most_still_blocks_is_read_as_persistent_with_a_warning() -> None:
+    # A codec at a high quantiser: 90% of the blocks repeated each frame, and an exposure step between frames 1 and 2
+    # (3% gain: 1 to 2 levels on this scene) that moves every block. The ratio reads no AR(1) process here; the
+    # lag-one reading, the pooled lag-1 correlation, must give the clip's persistence, not independent frames.
+    clip = _codec_like_clip(0.9, (1.0, 1.0, 1.03, 1.03))
+    # The truth on the same blocks without the gain (the gain's shading is no noise).
+    truth = _pooled_lag_one(_codec_like_clip(0.9, (1.0, 1.0, 1.0, 1.0)))
+    found = estimate_spectrum(clip, name="codec.mp4")
+    temporal = found.values["temporal_correlation"]
+    frame_warnings = [w for w in found.warnings if "frame" in w]
+    assert any(w.startswith("codec.mp4: ") and "codec skipped" in w for w in frame_warnings), frame_warnings
+    assert found.meta["persistence_source"].startswith("read"), found.meta
+    assert abs(float(temporal[0]) - truth) < 0.2, (temporal, truth)
+    assert float(temporal[:3].min()) > 0.5, temporal
+
+
+def test_a_codec_that_skips_half_the_blocks_gives_the_pooled_correlation() -> None:
+    # Half the blocks repeated: the pooled lag-1 is about 0.5 (repeated blocks persist fully, coded ones not), what
+    # the profile's one coefficient per octave must give.
+    clip = _codec_like_clip(0.5, (1.0, 1.0, 1.0, 1.0))
+    truth = _pooled_lag_one(clip)
+    temporal = estimate_spectrum(clip, name="half").values["temporal_correlation"]
+    assert torch.allclose(temporal[:3], torch.full((3,), truth, dtype=torch.float64), atol=0.15), (temporal, truth)
+
+
+def test_a_clip_whose_persistence_cannot_be_read_gets_the_video_prior_stated_in_meta(
+    monkeypatch: pytest.MonkeyPatch,
+) -> None:
+    # The reference's still blocks change far more from one frame to the next than noise does (ten times the
+    # lag-1 difference power of its own noise): neither statistic can read it. Only the reference's measurement is
+    # changed; the simulations are the module's own.
+    original = persistence_fit.difference_powers
+    calls = []
+
+    def changing_more_than_noise(frames: torch.Tensor, mask: torch.Tensor) -> torch.Tensor:
+        powers = original(frames, mask)
+        calls.append(1)
+        if len(calls) == 1:
+            powers[0] = powers[0] * 10.0
+        return powers
+
+    monkeypatch.setattr(persistence_fit, "difference_powers", changing_more_than_noise)
+    found = estimate_spectrum(_noisy_still_clip(0.3, 0.0), name="unreadable")
+    assert torch.equal(found.values["temporal_correlation"], torch.tensor(VIDEO_PRIOR, dtype=torch.float64))
+    assert found.meta["persistence_source"] == "video prior"
+    assert "shared real night clips" in found.meta["persistence_prior"]
+    warning = [w for w in found.warnings if "cannot be read" in w]
+    assert len(warning) == 1 and "video prior" in warning[0] and warning[0].startswith("unreadable: "), warning

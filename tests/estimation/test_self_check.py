@@ -85,6 +85,10 @@ def test_a_level_the_reference_supports_is_kept_without_a_word() -> None:
     found = check_level(reference, _spectral_values(0.02), torch.full((3, 8), 0.02), strength, "ref.png")
     assert found.warnings == [] and found.meta["kept"].startswith("measurement: its check passes")
     assert torch.allclose(found.curve, torch.full((3, 8), 0.02, dtype=torch.float64))
+    # 4x the network's: kept, since it passes, with a line that says texture would pass too.
+    far = check_level(reference, _spectral_values(0.02), torch.full((3, 8), 0.005), strength, "ref.png")
+    assert torch.equal(far.curve, found.curve)
+    assert len(far.warnings) == 1 and "4.0x the network's, passes the self-check" in far.warnings[0]
 
 
 @pytest.mark.parametrize("misread", [0.25, 4.0])

@@ -9,6 +9,7 @@ import numpy as np
 import pytest
 import torch
 
+from darksynth.estimation.persistence_fit import VIDEO_PRIOR
 from darksynth.estimation.spectral_fit import quantised
 from darksynth.estimation.spectrum import estimate_spectrum
 from darksynth.estimation.spectrum_checks import compression_ambiguity
@@ -155,8 +156,9 @@ def test_a_clip_whose_camera_moves_in_every_frame_gets_the_prior_with_a_warning(
     scene = quantised(pattern.expand(3, 320, 320))
     moving = torch.stack([scene[:, 8 * t : 8 * t + 256, 8 * t : 8 * t + 256] for t in range(4)])
     found = estimate_spectrum(_noisy(moving, _spectral([1.0] * 18, temporal=0.6), 4), name="pan.mp4")
-    assert any(w.startswith("pan.mp4: only") and "prior 0" in w for w in found.warnings), found.warnings
-    assert torch.equal(found.values["temporal_correlation"], torch.zeros(OCTAVES, dtype=torch.float64))
+    assert any(w.startswith("pan.mp4: only") and "video prior" in w for w in found.warnings), found.warnings
+    assert torch.equal(found.values["temporal_correlation"], torch.tensor(VIDEO_PRIOR, dtype=torch.float64))
+    assert found.meta["persistence_prior"].startswith(str(list(VIDEO_PRIOR)))
 
 
 def test_a_clip_of_two_frames_is_read_on_its_one_pair_and_says_so() -> None:

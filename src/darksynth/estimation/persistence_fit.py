@@ -31,7 +31,27 @@ errs upward in its own way, and persistence is what both see.
 An octave that a statistic cannot read takes the finer octave's coefficient: its statistic barely moves with the
 coefficient (:data:`MIN_TEMPORAL_RESPONSE`), or the reference's lies far beyond what any coefficient gives
 (:data:`BEYOND_REACH`: the "still" blocks change in a way no noise does, as the coarse content of real clips' does).
-When the finest octave cannot be read, the prior 0 with a warning.
+
+Codec video (issue 39, part 4). A codec does not make AR(1) noise: it codes one frame whole and the next ones as
+changes from it (block-based motion compensation), copies the blocks it finds unchanged bit for bit (skipped
+blocks), and phones denoise over time before it. The differences of 4 frames then follow the frame types, not a
+coefficient: a fresh frame among copied ones gives the ratio 4/3 (or -4/3 when it comes last), beyond anything AR(1)
+noise gives, and the estimate used to call such a video unreadable and take independent frames, the one thing no
+compressed night video shows. So:
+
+* a finest octave the ratio cannot read while the lag-one reading can takes the lag-one reading alone, on every
+  octave (each still falling to the finer octave where it cannot read): it is the lag-1 correlation whatever the
+  process, which is what the codec leaves and what a viewer sees. Its own error, noise fitted too strong, is the
+  same as on a clip the ratio reads; a still clip that drifts makes it read low, not high (drift adds to ``D_1``);
+* skipped blocks stay in the statistics: their difference is 0, noise that persists fully for that pair of frames,
+  a real property of the video that the synthetic should show. The AR model has no skipped blocks, so the profile
+  says the pooled lag-1 correlation (skipped and coded blocks together, as the lag-one reading sees them), and
+  ``meta`` the share of still blocks the codec repeated per pair (``persistence_skipped_share``: 8-px cells, see
+  :data:`SKIP_CELL`), with a one-line warning when it is above :data:`SKIPPED_WARNING_SHARE`;
+* where neither statistic reads the finest octave, the coefficients are the video prior :data:`VIDEO_PRIOR`
+  (what this read gives on the shared real night clips), stated in ``meta.persistence_prior`` and the warning, not
+  independent frames. A single image keeps 0 (``estimation.spectrum``): a photo's noise is a still camera's, whose
+  exposures are independent; it says nothing about a codec.
 """
 
 from __future__ import annotations
@@ -66,6 +86,30 @@ one pixel changed by one 8-bit level leaves about 1e-6)."""
 
 SEARCH_GRID = (0.0, 0.2, 0.4, 0.55, 0.7, 0.8, 0.9, 0.95, MAX_COEFFICIENT)
 """The coefficients simulated (the same on every octave at once, the same noise draw each time)."""
+
+SKIP_CELL = 8
+"""Side of the cells whose bit-identical repetition from one frame to the next counts as a codec's skipped block:
+the smallest block a codec skips or copies (H.264 partitions its 16-px macroblocks into 8-px ones, HEVC's smallest
+coding unit is 8 px). 192 values (8 x 8, 3 channels) unchanged by chance need noise far under one 8-bit level
+(each value repeats with probability about 0.4 at half a level: 0.4 ** 192 is nothing), so a repeated cell is a copy,
+whatever the image size."""
+
+SKIPPED_WARNING_SHARE = 0.1
+"""A share of the still flat cells repeated bit-identically (mean over the pairs of frames) above this is named in a
+warning: the compression, not the camera, sets the persistence there. One cell in ten: compression of each frame
+alone repeats some cells whose noise is under its quantiser (JPEG quality 80 on 2.5 levels of noise: 6% in the drawn
+clip of ``scripts/noise/temporal_harness.py`` case 3), which the model's own compression also does."""
+
+VIDEO_PRIOR = (0.55, 0.55, 0.55, 0.5, 0.5, 0.4)
+"""The coefficient per octave (2-4 px first) of a video whose persistence cannot be read: the median per octave of
+what this read gives on the shared real night clips it reads, rounded to 0.05 (``scripts/noise/
+spectral_temporal_check.py``, its printed median; docs/spectral-noise.md, "Frame to frame on codec video"). As set
+here from the 8 clips read so far (101, 1021, 11, 126, 147, 661, 744, 761; finest octave 0-0.58, median 0.53):
+the leave-one-out figures (the script's ``prior (loo)`` lines) and the remaining clips were still running when this
+was written. Not 0: every compressed night video shows persistence (the held-out ones 0.69 and 0.92)."""
+
+VIDEO_PRIOR_SOURCE = "median of this read on the shared real night clips (docs/spectral-noise.md, 'Frame to frame')"
+"""Where :data:`VIDEO_PRIOR` comes from, as ``meta`` and the warning state it."""
 
 
 def _band_weights(height: int, width: int, device: torch.device) -> torch.Tensor:
@@ -180,13 +224,17 @@ class _Reading:
     response: torch.Tensor
 
 
-def _read(target: torch.Tensor, curve: torch.Tensor) -> _Reading:
+def _read(target: torch.Tensor, curve: torch.Tensor, *, above_reads_as_top: bool = False) -> _Reading:
     """The coefficients a ``target`` statistic (OCTAVES,) gives on its simulated ``curve`` (grid, OCTAVES), and
     which octaves it can set: those whose statistic moves with the coefficient (:data:`MIN_TEMPORAL_RESPONSE`) and
     whose target lies within :data:`BEYOND_REACH` of what some coefficient gives (else the "still" blocks change in
-    a way no noise does: slow motion, light, a codec)."""
+    a way no noise does: slow motion, light, a codec). With ``above_reads_as_top`` a target above every simulated
+    point is read, as the top coefficient: for the lag-one reading it means the still blocks change less than the
+    most persistent simulated noise does (a codec that copies them, where JPEG's rounding of each simulated frame
+    keeps the simulation's top lower), which is persistence, not a change no noise makes."""
     response = curve.max(dim=0).values - curve[0]
-    reachable = (target <= curve.max(dim=0).values + BEYOND_REACH) & (target >= curve.min(dim=0).values - BEYOND_REACH)
+    above = target > curve.max(dim=0).values + BEYOND_REACH
+    reachable = (~above | above_reads_as_top) & (target >= curve.min(dim=0).values - BEYOND_REACH)
     readable = (response >= MIN_TEMPORAL_RESPONSE) & reachable
     return _Reading(solve_coefficients(target, curve), readable, target, response)
 
@@ -204,6 +252,42 @@ def _record(ratio: _Reading, lag_one: _Reading) -> dict[str, object]:
     }
 
 
+def skipped_shares(frames: torch.Tensor, mask: torch.Tensor) -> torch.Tensor:
+    """(T - 1,) per pair of consecutive frames (T, 3, H, W) the share of the masked :data:`SKIP_CELL` cells whose
+    every value repeats exactly: a codec's skipped blocks. ``mask`` (H, W) in {0, 1}, whole 32-px blocks (so whole
+    cells). Frames of 8-bit values compare exactly as floats (the same level gives the same float)."""
+    height, width = frames.shape[-2] // SKIP_CELL * SKIP_CELL, frames.shape[-1] // SKIP_CELL * SKIP_CELL
+    changed = (frames[1:, :, :height, :width] != frames[:-1, :, :height, :width]).any(dim=1).to(torch.float32)
+    changed_cells = F.max_pool2d(changed[:, None], SKIP_CELL)[:, 0]
+    inside = F.avg_pool2d(mask[None, None, :height, :width].to(torch.float32), SKIP_CELL)[0, 0] > 0.5
+    cells = int(inside.sum())
+    if cells == 0:
+        return torch.zeros(frames.shape[0] - 1, dtype=torch.float64)
+    repeated = ((changed_cells == 0) & inside).sum(dim=(1, 2)).to(torch.float64)
+    return repeated / cells
+
+
+@dataclass(frozen=True)
+class PersistenceFit:
+    """What :func:`fit_persistence` gives: the coefficient per octave, the record for ``meta`` and the clauses of
+    warnings (each a full statement without the reference's name)."""
+
+    coefficient: torch.Tensor
+    record: dict[str, object]
+    notes: list[str]
+
+
+def _video_prior(record: dict[str, object], reason: str) -> PersistenceFit:
+    """The fit of a clip whose finest octave neither statistic reads: :data:`VIDEO_PRIOR`, stated."""
+    record["persistence_source"] = "video prior"
+    record["persistence_prior"] = f"{list(VIDEO_PRIOR)}: {VIDEO_PRIOR_SOURCE}"
+    note = (
+        f"the frame-to-frame correlation of the noise cannot be read ({reason}): the video prior "
+        f"{VIDEO_PRIOR[0]}-{max(VIDEO_PRIOR)} per octave ({VIDEO_PRIOR_SOURCE})"
+    )
+    return PersistenceFit(torch.tensor(VIDEO_PRIOR, dtype=torch.float64), record, [note])
+
+
 def fit_persistence(
     frames: torch.Tensor,
     denoised: torch.Tensor,
@@ -211,29 +295,47 @@ def fit_persistence(
     parameters: SpectralParameters,
     compression: float,
     seed: int,
-) -> tuple[torch.Tensor, dict[str, object], str | None]:
-    """The AR(1) coefficient per octave of the noise of still-block frames (T >= 3, 3, H, W) (see the module):
-    the coefficients, a record for ``meta`` and a warning's reason (None when the reading stands)."""
+) -> PersistenceFit:
+    """The AR(1) coefficient per octave of the noise of still-block frames (T >= 3, 3, H, W) (see the module)."""
     measured = difference_powers(frames, mask)
     simulate = still_simulator(denoised, mask, parameters, compression, seed)
     simulated = torch.stack([simulate(torch.full((OCTAVES,), r, dtype=torch.float64)) for r in SEARCH_GRID])
     ratio = _read(persistence_statistic(measured), torch.stack([persistence_statistic(p) for p in simulated]))
     independent = simulated[0, 0].clamp_min(1e-30)
-    lag_one = _read(1.0 - measured[0] / independent, 1.0 - simulated[:, 0] / independent)
+    lag_one = _read(1.0 - measured[0] / independent, 1.0 - simulated[:, 0] / independent, above_reads_as_top=True)
     record = _record(ratio, lag_one)
-    if bool(ratio.target[0] >= 1.0):
+    skipped = skipped_shares(frames, mask)
+    record["persistence_skipped_share"] = _rounded(skipped)
+    notes = []
+    if float(skipped.mean()) > SKIPPED_WARNING_SHARE:
+        notes.append(
+            f"{float(skipped.mean()):.0%} of the still flat blocks repeat bit-identically from frame to frame (a "
+            "codec skipped them, or compression removed their change): read as noise that persists, pooled with "
+            "the blocks that change"
+        )
+    if bool(ratio.target[0] >= 1.0) and bool(lag_one.target[0] >= 1.0 - BEYOND_REACH):
         # Repeated frames: no simulated noise changes so little, the frames' noise is the same.
+        record["persistence_source"] = "frames repeated"
         record["persistence_prior"] = "frames repeated: the noise persists fully"
-        return torch.full((OCTAVES,), MAX_COEFFICIENT, dtype=torch.float64), record, None
-    # Each reading errs upward in its own way (see the module): the persistence is what both see.
-    coefficient = torch.minimum(ratio.coefficient, lag_one.coefficient)
-    readable = ratio.readable & lag_one.readable
+        return PersistenceFit(torch.full((OCTAVES,), MAX_COEFFICIENT, dtype=torch.float64), record, notes)
+    if bool(ratio.readable[0]):
+        # Each reading errs upward in its own way (see the module): the persistence is what both see.
+        coefficient = torch.minimum(ratio.coefficient, lag_one.coefficient)
+        readable = ratio.readable & lag_one.readable
+        record["persistence_source"] = "read: the smaller of the ratio and the lag-one reading"
+    else:
+        # The ratio reads no AR(1) process (a codec's frame types, skipped blocks): the lag-one reading is the lag-1
+        # correlation whatever the process.
+        coefficient = lag_one.coefficient.clone()
+        readable = lag_one.readable
+        record["persistence_source"] = "read: the lag-one reading alone (the ratio reads no AR(1) process)"
     if not bool(readable[0]):
-        hidden = bool(ratio.response[0] < MIN_TEMPORAL_RESPONSE)
+        hidden = bool(ratio.response[0] < MIN_TEMPORAL_RESPONSE) and bool(lag_one.response[0] < MIN_TEMPORAL_RESPONSE)
         reason = "its noise hides it" if hidden else "its still blocks change more than noise does"
-        return torch.zeros(OCTAVES, dtype=torch.float64), record, reason
+        prior = _video_prior(record, reason)
+        return PersistenceFit(prior.coefficient, prior.record, notes + prior.notes)
     for octave in range(1, OCTAVES):
         # An octave that cannot be read persists like the finer one next to it.
         if not bool(readable[octave]):
             coefficient[octave] = coefficient[octave - 1]
-    return coefficient, record, None
+    return PersistenceFit(coefficient, record, notes)

@@ -49,7 +49,7 @@ from darksynth.estimation.flat_blocks import (
     flat_mask,
 )
 from darksynth.estimation.nonlocal_means import nlm_denoise
-from darksynth.estimation.persistence_fit import fit_persistence
+from darksynth.estimation.persistence_fit import VIDEO_PRIOR, VIDEO_PRIOR_SOURCE, fit_persistence
 from darksynth.estimation.spectral_fit import (
     COMPRESSION_CANDIDATES,
     SpectralParameters,
@@ -224,7 +224,12 @@ def estimate_spectrum(
         fitted.curve, measured_knots, prior_curve, int(unclipped.sum()) >= MIN_LEVEL_BLOCKS, meta, warnings, name
     )
     meta["strength_over_fitted_noise"] = round(strength / fitted_noise_8bit(fitted.curve, denoised[0], mask), 3)
-    if target.temporal is None:
+    if target.temporal is None and clip:
+        # A clip whose blocks all move shows nothing of its noise's persistence; a video's is not independent frames.
+        fitted.temporal = torch.tensor(VIDEO_PRIOR, dtype=torch.float64)
+        meta["persistence_prior"] = f"{list(VIDEO_PRIOR)}: {VIDEO_PRIOR_SOURCE}"
+        meta["persistence_source"] = "video prior: no flat block stays still"
+    elif target.temporal is None:
         fitted.temporal = torch.zeros(OCTAVES, dtype=torch.float64)
     elif analysed.shape[0] >= 3:
         fitted.temporal = _persistence(resynthesis, fitted, meta, warnings, name)
@@ -244,8 +249,9 @@ def _persistence(
     resynthesis: _Resynthesis, fitted: SpectralParameters, meta: dict[str, Any], warnings: list[str], name: str
 ) -> torch.Tensor:
     """The frame-to-frame correlation per octave read from frame differences of the still blocks
-    (:mod:`darksynth.estimation.persistence_fit`), in place of the residual's correlation the fit moved."""
-    temporal, record, reason = fit_persistence(
+    (:mod:`darksynth.estimation.persistence_fit`), in place of the residual's correlation the fit moved; where it
+    cannot be read, the video prior, stated in ``meta.persistence_prior`` and a warning."""
+    persistence = fit_persistence(
         resynthesis.analysed,
         resynthesis.denoised,
         resynthesis.mask,
@@ -253,13 +259,9 @@ def _persistence(
         meta["compression_chosen"],
         resynthesis.seed,
     )
-    meta.update(record)
-    if reason is not None:
-        warnings.append(
-            f"{name}: the frame-to-frame correlation of the noise cannot be read ({reason}): the prior 0 "
-            "(independent frames)"
-        )
-    return temporal
+    meta.update(persistence.record)
+    warnings.extend(f"{name}: {note}" for note in persistence.notes)
+    return persistence.coefficient
 
 
 @dataclass

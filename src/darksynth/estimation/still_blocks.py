@@ -77,7 +77,8 @@ def still_flat_mask(
     if int(both.sum()) < MIN_STILL_BLOCKS:
         warnings.append(
             f"{name}: only {int(both.sum())} flat blocks stay still over {frames.shape[0]} frames (the camera "
-            "or the scene moves): the frame-to-frame correlation of the noise is the prior 0 (independent frames)"
+            "or the scene moves): the frame-to-frame correlation of the noise is the video prior (what the shared real "
+            "night clips read; docs/spectral-noise.md)"
         )
         return None
     if frames.shape[0] == 2:
