@@ -7,8 +7,8 @@ the blocks whose denoised version is flattest and whose mean lies inside the 8-b
 of a lamp shows no noise). Real and synthetic hold the same denoised scene, so what the denoiser left of the scene
 counts on both sides alike; their ratio is 1 when the profile's noise is as strong as what the denoiser took off.
 What the denoiser left of the noise stays in the synthetic side's base under the profile's noise: a true level reads
-somewhat above 1 (white noise under a denoiser set to its level: about 1.1-1.2), inside the consistent range, and a
-level the check corrects settles under the truth by as much (up to 1.35x on flat white noise).
+somewhat above 1 (white noise under a denoiser set to its level: about 1.1-1.2), inside the consistent range; a
+correction therefore moves a level only to the near edge of that range (:data:`CORRECTION_TARGET`).
 
 Pure functions on (3, H, W) frames in [0, 1].
 """
@@ -45,14 +45,25 @@ MIN_CHECK_BLOCKS = 3
 
 @dataclass(frozen=True)
 class BlockCheck:
-    """The check on one set of blocks: the median over its blocks of the real and the synthetic std, and the level
-    factor that would make the synthetic match (``supported``: the noise's std times this reproduces the real std,
-    nan where the denoised scene alone is already as rough as the reference)."""
+    """The check on one set of blocks: the median over its blocks of the real and the synthetic std, and the median
+    variance of the denoised scene under the synthetic noise (what :meth:`supported_for` leaves out)."""
 
     blocks: int
     real_std: float
     synthetic_std: float
-    supported: float
+    scene_variance: float
+
+    def supported_for(self, target: float) -> float:
+        """The level factor that brings the ratio to ``target``: real = scene + noise and synthetic = scene +
+        factor^2 * noise (variances); nan where the denoised scene alone is already as rough as that."""
+        noise_variance = self.synthetic_std**2 - self.scene_variance
+        wanted = (target * self.real_std) ** 2 - self.scene_variance
+        return math.sqrt(wanted / noise_variance) if wanted > 0 and noise_variance > 0 else math.nan
+
+    @property
+    def supported(self) -> float:
+        """The level factor that makes the synthetic std the real one (:meth:`supported_for` 1)."""
+        return self.supported_for(1.0)
 
     @property
     def ratio(self) -> float:
@@ -123,12 +134,7 @@ def block_check(
     (all three (3, H, W), the same size)."""
     real, clean, made = (_block_std(frame)[: blocks.numel()][blocks] for frame in (reference, denoised, synthetic))
     real_std, synthetic_std = float(real.median()), float(made.median())
-    # The level factor the check supports: real = scene + noise and synthetic = scene + factor^2 * noise (variances).
-    scene_variance = float(clean.square().median())
-    noise_variance = synthetic_std**2 - scene_variance
-    wanted = real_std**2 - scene_variance
-    supported = math.sqrt(wanted / noise_variance) if wanted > 0 and noise_variance > 0 else math.nan
-    return BlockCheck(int(blocks.sum()), real_std, synthetic_std, supported)
+    return BlockCheck(int(blocks.sum()), real_std, synthetic_std, float(clean.square().median()))
 
 
 def self_consistency(reference: torch.Tensor, denoised: torch.Tensor, synthetic: torch.Tensor) -> BlockCheck:
@@ -144,6 +150,12 @@ denoising would cost more than the rest of the estimate, and a 1024-px window ho
 FACTOR_BOUNDS = (1.0 / 16.0, 4.0)
 """The level factors one step of a correction may take: a reference whose denoised scene alone is as rough as the
 reference supports no noise at all, which the lower bound stands for."""
+
+CORRECTION_TARGET = (0.85, 1.2)
+"""The ratios a correction aims at, from below and from above: just inside :data:`CONSISTENT_RANGE`, not 1. The
+check reads a true level somewhat above 1 (what the denoiser left of the noise stays in the synthetic side's base),
+so a correction from above that aimed at 1 settled under the truth (the round trip's case 32: 1.02 -> 0.85 of the
+true std); the least move that makes the reference consistent is the one it supports."""
 
 CORRECTION_STEPS = 3
 """Steps of the correction at most (each one synthesis on the denoised window)."""
@@ -184,10 +196,13 @@ def _knot_factors(factors: dict[int, float]) -> torch.Tensor:
 
 
 def _supported_factor(check: BlockCheck) -> float:
-    """1 for a consistent segment, else the level factor its check supports within :data:`FACTOR_BOUNDS`."""
+    """1 for a consistent segment, else the level factor that brings it to the near end of
+    :data:`CORRECTION_TARGET`, within :data:`FACTOR_BOUNDS`."""
     if check.consistent:
         return 1.0
-    supported = check.supported if math.isfinite(check.supported) else 0.0
+    target = CORRECTION_TARGET[1] if check.ratio > 1.0 else CORRECTION_TARGET[0]
+    supported = check.supported_for(target)
+    supported = supported if math.isfinite(supported) else 0.0
     return min(max(supported, FACTOR_BOUNDS[0]), FACTOR_BOUNDS[1])
 
 
