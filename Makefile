@@ -4,7 +4,7 @@ VENV := .venv
 BIN := $(VENV)/bin
 STAMP := $(VENV)/.installed
 
-.PHONY: demo test lint bench clean browser
+.PHONY: demo test lint bench real-data clean browser
 
 $(STAMP): pyproject.toml Makefile
 	$(PYTHON) -m venv $(VENV)
@@ -33,6 +33,11 @@ test: lint browser
 
 bench: $(STAMP)
 	$(BIN)/python benchmarks/bench_apply.py
+
+# Every shared real pair set, photo and clip measured as a user measures them, compared with the committed record
+# (benchmarks/records/real_data.json, rewritten); reads ../shared/data. Run it on every change to estimation.
+real-data: $(STAMP)
+	$(BIN)/python benchmarks/real_data.py
 
 clean:
 	rm -rf $(VENV) darksynth-demo .pytest_cache .mypy_cache .ruff_cache

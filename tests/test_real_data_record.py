@@ -1,0 +1,164 @@
+"""benchmarks/real_data.py: the comparison of two records names a figure that moved further from its target than the
+draws' spread, and neither one that moved within it nor one that improved. Handmade records; no shared data."""
+
+from __future__ import annotations
+
+import copy
+import importlib.util
+import sys
+from pathlib import Path
+from types import ModuleType
+from typing import Any
+
+import pytest
+
+BENCHMARKS = Path(__file__).resolve().parents[1] / "benchmarks"
+
+
+@pytest.fixture(scope="module")
+def real_data() -> ModuleType:
+    # The benchmark imports its neighbour machine.py as the scripts in benchmarks/ do when run.
+    sys.path.insert(0, str(BENCHMARKS))
+    try:
+        spec = importlib.util.spec_from_file_location("real_data", BENCHMARKS / "real_data.py")
+        assert spec is not None and spec.loader is not None
+        module = importlib.util.module_from_spec(spec)
+        # Its dataclasses look their module up while being made.
+        sys.modules[spec.name] = module
+        spec.loader.exec_module(module)
+    finally:
+        sys.path.remove(str(BENCHMARKS))
+    return module
+
+
+def _record() -> dict[str, Any]:
+    return {
+        "commit": "abc1234",
+        "seed": 0,
+        "pairs": {
+            "sidd": {
+                "pairs": 6,
+                "level_ratio": {"r": 1.02, "g": 0.97, "b": 1.05},
+                "channel_correlation": {
+                    "synthetic": {"rg": 0.30, "gb": 0.35, "rb": 0.20},
+                    "real": {"rg": 0.33, "gb": 0.36, "rb": 0.25},
+                },
+                "band_ratio": {"brightness": [0.95, 1.0, 1.1, 1.2, 1.3], "colour": [1.0, 0.9, 1.1, 2.5, 2.6]},
+                "band_rms_log_error": 0.4,
+                "kld_naflow": 0.05,
+                "akld": 0.12,
+            }
+        },
+        "photos": {
+            "dicm": {
+                "photos": 3,
+                "median_ratio": 1.0,
+                "share_consistent": 0.667,
+                "beyond": ["46.jpg"],
+                "per_photo": {
+                    "41.jpg": {"ratio": 1.0, "warnings": 0},
+                    "42.jpg": {"ratio": 1.1, "warnings": 1},
+                    "46.jpg": {"ratio": 9.2, "warnings": 2},
+                },
+            }
+        },
+        "clips": {"clip101": {"real": 0.69, "synthetic": 0.60, "gap": -0.09}},
+    }
+
+
+def _names(found: list[Any]) -> set[tuple[str, str]]:
+    return {(regression.where, regression.name) for regression in found}
+
+
+def test_a_record_against_itself_has_no_regression(real_data: ModuleType) -> None:
+    assert real_data.regressions(_record(), _record()) == []
+
+
+def test_worse_beyond_the_tolerance_is_listed_within_it_or_better_is_not(real_data: ModuleType) -> None:
+    tolerances = real_data.TOLERANCES
+    after = copy.deepcopy(_record())
+    sidd = after["pairs"]["sidd"]
+    # Worse beyond the tolerance: the colour band further above 1, the level further below 1, a larger KLD.
+    sidd["band_ratio"]["colour"][3] = 2.5 * 1.5
+    sidd["level_ratio"]["g"] = 0.97 / 1.5
+    sidd["kld_naflow"] = 0.05 * 2
+    # Worse, but within the tolerance (half of it, in the kind's own terms).
+    sidd["band_ratio"]["brightness"][2] = 1.1 * (1 + tolerances["band_ratio"] / 2)
+    sidd["band_ratio"]["brightness"][4] = 1.3 * (1 + tolerances["coarse_band_ratio"] / 2)
+    sidd["akld"] = 0.12 * (1 + tolerances["akld"] / 3)
+    # Better: the ratio crosses to the other side of 1 but lies closer to it; a smaller RMS log error.
+    sidd["band_ratio"]["colour"][4] = 0.9
+    sidd["level_ratio"]["b"] = 0.99
+    sidd["band_rms_log_error"] = 0.2
+    found = real_data.regressions(_record(), after)
+    assert _names(found) == {
+        ("pairs/sidd", "colour band 16-32 px"),
+        ("pairs/sidd", "level g"),
+        ("pairs/sidd", "kld_naflow"),
+    }
+    band = next(regression for regression in found if regression.name == "colour band 16-32 px")
+    assert (band.before, band.after) == (2.5, 3.75)
+    assert "pairs/sidd: colour band 16-32 px 2.5 -> 3.75" in band.line()
+
+
+def test_a_ratio_below_one_that_drops_further_is_worse(real_data: ModuleType) -> None:
+    after = copy.deepcopy(_record())
+    after["pairs"]["sidd"]["band_ratio"]["brightness"][0] = 0.5
+    assert _names(real_data.regressions(_record(), after)) == {("pairs/sidd", "brightness band 1.4-4 px")}
+
+
+def test_correlation_gap_and_lag1_gap_worse_from_zero(real_data: ModuleType) -> None:
+    after = copy.deepcopy(_record())
+    # rg: synthetic 0.30 against real 0.33, now 0.10 (gap 0.03 -> 0.23); gb: 0.35 -> 0.37 (gap 0.01 -> 0.01).
+    after["pairs"]["sidd"]["channel_correlation"]["synthetic"]["rg"] = 0.10
+    after["pairs"]["sidd"]["channel_correlation"]["synthetic"]["gb"] = 0.37
+    after["clips"]["clip101"]["gap"] = -0.5
+    assert _names(real_data.regressions(_record(), after)) == {
+        ("pairs/sidd", "correlation rg (synthetic - real)"),
+        ("clips/clip101", "lag-1 gap (synthetic - real)"),
+    }
+    better = copy.deepcopy(_record())
+    better["clips"]["clip101"]["gap"] = 0.01
+    assert real_data.regressions(_record(), better) == []
+
+
+def test_self_consistency_share_down_and_outliers_up_are_worse(real_data: ModuleType) -> None:
+    after = copy.deepcopy(_record())
+    dicm = after["photos"]["dicm"]
+    dicm["per_photo"]["41.jpg"]["ratio"] = 1.4
+    dicm["per_photo"]["42.jpg"]["ratio"] = 2.6
+    dicm["share_consistent"] = 0.0
+    dicm["beyond"] = ["42.jpg", "46.jpg"]
+    dicm["median_ratio"] = 2.6
+    assert _names(real_data.regressions(_record(), after)) == {
+        ("photos/dicm", "median ratio"),
+        ("photos/dicm", "photos within 0.8-1.25"),
+        ("photos/dicm", "photos beyond 0.5-2"),
+        ("photos/dicm/41.jpg", "ratio"),
+        ("photos/dicm/42.jpg", "ratio"),
+    }
+    # One photo more or less within 0.8-1.25 is the draws' spread (measured), two are not.
+    one_out = copy.deepcopy(_record())
+    one_out["photos"]["dicm"]["share_consistent"] = 0.333
+    assert real_data.regressions(_record(), one_out) == []
+    improved = copy.deepcopy(_record())
+    improved["photos"]["dicm"].update(share_consistent=1.0, beyond=[])
+    improved["photos"]["dicm"]["per_photo"]["46.jpg"]["ratio"] = 1.1
+    assert real_data.regressions(_record(), improved) == []
+
+
+def test_summaries_over_other_pairs_are_not_compared_but_each_reference_is(real_data: ModuleType) -> None:
+    quick = copy.deepcopy(_record())
+    quick["pairs"]["sidd"].update(pairs=1, kld_naflow=1.0)
+    quick["photos"]["dicm"].update(photos=1, share_consistent=0.0, beyond=["46.jpg", "41.jpg"])
+    quick["photos"]["dicm"]["per_photo"] = {"41.jpg": {"ratio": 3.0, "warnings": 0}}
+    assert _names(real_data.regressions(_record(), quick)) == {("photos/dicm/41.jpg", "ratio")}
+    assert {note.split(":")[0] for note in real_data.not_compared(_record(), quick)} == {"pairs/sidd", "photos/dicm"}
+
+
+def test_missing_and_unmeasured_figures_are_skipped(real_data: ModuleType) -> None:
+    after = copy.deepcopy(_record())
+    after["pairs"]["sidd"]["kld_naflow"] = None
+    after["clips"]["starlight_submillilux.mov"] = {"real": 0.5, "synthetic": 0.0, "gap": -0.5}
+    assert real_data.regressions(_record(), after) == []
+    assert real_data.regressions({}, after) == []
