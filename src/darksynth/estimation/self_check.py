@@ -222,6 +222,25 @@ def _describe(checks: dict[int, BlockCheck]) -> dict[str, Any]:
     }
 
 
+@dataclass(frozen=True)
+class _CheckedWindow:
+    """What every draw of a check shares: the window of the reference, its denoised version, the blocks per
+    segment, the profile's values and the seed."""
+
+    frame: torch.Tensor
+    denoised: torch.Tensor
+    strata: dict[int, torch.Tensor]
+    values: NoiseValues
+    seed: int
+
+    def checked(self, level: torch.Tensor) -> dict[int, BlockCheck]:
+        """The check per segment of the profile with the level curve ``level`` (3, 8)."""
+        drawn = self.values.replace(level_curve=level.flatten()).to(dtype=torch.float32)
+        generator = torch.Generator().manual_seed(self.seed)
+        synthetic = quantised(add_noise(self.denoised[None, None], drawn, generator=generator)[0, 0])
+        return {s: block_check(self.frame, self.denoised, synthetic, b) for s, b in self.strata.items()}
+
+
 def check_level(
     reference: torch.Tensor,
     values: NoiseValues,
@@ -240,34 +259,14 @@ def check_level(
     top, left, height, width = analysis_window(reference, CHECK_WINDOW)
     frame = reference[:, top : top + height, left : left + width].to(torch.float32)
     denoised = nlm_denoise(frame[None], strength)[0]
-    strata = checked_blocks_per_intensity(denoised)
+    window = _CheckedWindow(frame, denoised, checked_blocks_per_intensity(denoised), values, seed)
     curve = values["level_curve"].reshape(3, len(LEVEL_KNOTS)).to(torch.float64)
     network_curve = network_curve.to(curve)
     disagreement = float((curve / network_curve.clamp_min(1e-9)).log().mean().exp())
-    far = not 1.0 / NETWORK_DISAGREEMENT <= disagreement <= NETWORK_DISAGREEMENT
     meta: dict[str, Any] = {"window": [top, left, height, width], "over_network": round(disagreement, 3)}
-
-    def checked(level: torch.Tensor) -> dict[int, BlockCheck]:
-        drawn = values.replace(level_curve=level.flatten()).to(dtype=torch.float32)
-        generator = torch.Generator().manual_seed(seed)
-        synthetic = quantised(add_noise(denoised[None, None], drawn, generator=generator)[0, 0])
-        return {s: block_check(frame, denoised, synthetic, blocks) for s, blocks in strata.items()}
-
-    if not strata:
-        meta["result"] = "no flat block with a mean of 8-247 levels to check on"
-        if far:
-            meta["kept"] = "network"
-            return SelfCheck(
-                network_curve.clone(),
-                meta,
-                [
-                    f"{name}: the measured level is {disagreement:.1f}x the network's and no flat block of 8-247 "
-                    "levels can check it: the profile holds the network's level curve"
-                ],
-            )
-        meta["kept"] = "measurement, unchecked"
-        return SelfCheck(curve, meta, [])
-    first = checked(curve)
+    if not window.strata:
+        return _unchecked(curve, network_curve, disagreement, meta, name)
+    first = window.checked(curve)
     meta["measured"] = _describe(first)
     if _within(first, CONSISTENT_RANGE):
         meta["kept"] = "measurement: its check passes"
@@ -276,13 +275,42 @@ def check_level(
             f"{name}: the measured level, {disagreement:.1f}x the network's, passes the self-check on the flattest "
             "blocks; where those are texture (foliage, stone), texture passes it too: look at a preview"
         )
-        return SelfCheck(curve, meta, [note] if far else [])
+        return SelfCheck(curve, meta, [note] if _far(curve, network_curve) else [])
+    return _corrected(window, curve, first, network_curve, meta, name)
+
+
+def _unchecked(
+    curve: torch.Tensor, network_curve: torch.Tensor, disagreement: float, meta: dict[str, Any], name: str
+) -> SelfCheck:
+    """No block to check on: a level :data:`NETWORK_DISAGREEMENT` from the network's gives way to it."""
+    meta["result"] = "no flat block with a mean of 8-247 levels to check on"
+    if not _far(curve, network_curve):
+        meta["kept"] = "measurement, unchecked"
+        return SelfCheck(curve, meta, [])
+    meta["kept"] = "network"
+    warning = (
+        f"{name}: the measured level is {disagreement:.1f}x the network's and no flat block of 8-247 levels can "
+        "check it: the profile holds the network's level curve"
+    )
+    return SelfCheck(network_curve.clone(), meta, [warning])
+
+
+def _corrected(
+    window: _CheckedWindow,
+    curve: torch.Tensor,
+    first: dict[int, BlockCheck],
+    network_curve: torch.Tensor,
+    meta: dict[str, Any],
+    name: str,
+) -> SelfCheck:
+    """A level its check contradicts, scaled to what the check supports, or the network's where that checks
+    better (see :func:`check_level`)."""
     corrected, second = curve, first
     for _ in range(CORRECTION_STEPS):
         # A segment's std follows both of its knots, and a knot serves two segments: a few steps settle them.
         step = {s: _supported_factor(c) for s, c in second.items()}
         corrected = corrected * _knot_factors(step)[None, :]
-        second = checked(corrected)
+        second = window.checked(corrected)
         if _within(second, CONSISTENT_RANGE):
             break
     factors = {
@@ -290,42 +318,32 @@ def check_level(
     }
     meta["corrected"] = _describe(second)
     worst_first = max(first.items(), key=lambda item: abs(math.log(max(item[1].ratio, 1e-12))))
-    shown = f"{worst_first[1].ratio:.2f}x the noise the reference shows at {_segment_label(worst_first[0])} levels"
+    said = (
+        f"{name}: the measured noise put back on the denoised reference gives {worst_first[1].ratio:.2f}x the noise "
+        f"the reference shows at {_segment_label(worst_first[0])} levels"
+    )
+    far = _far(curve, network_curve)
     if _within(second, FALLBACK_RANGE) and (
         not far or _within(second, CONSISTENT_RANGE) or not _far(corrected, network_curve)
     ):
         meta["kept"] = "measurement scaled to what the check supports"
-        return SelfCheck(
-            corrected,
-            meta,
-            [
-                f"{name}: the measured noise put back on the denoised reference gives {shown}; its level is scaled by "
-                f"{_span(factors)} to what the reference supports (now {_worst(second):.2f}x at worst)"
-            ],
-        )
-    network = checked(network_curve)
+        scaled = f"; its level is scaled by {_span(factors)} to what the reference supports (now {_worst(second):.2f}x"
+        return SelfCheck(corrected, meta, [f"{said}{scaled} at worst)"])
+    network = window.checked(network_curve)
     meta["network"] = _describe(network)
     if _worst(network) <= _worst(second):
         meta["kept"] = "network: the measurement failed its check"
-        return SelfCheck(
-            network_curve.clone(),
-            meta,
-            [
-                f"{name}: the measured noise put back on the denoised reference gives {shown}, and scaled to what the "
-                f"reference supports still {_worst(second):.2f}x; the profile holds the network's level curve "
-                f"({_worst(network):.2f}x at worst)"
-            ],
+        fallback = (
+            f", and scaled to what the reference supports still {_worst(second):.2f}x; the profile holds the "
+            f"network's level curve ({_worst(network):.2f}x at worst)"
         )
+        return SelfCheck(network_curve.clone(), meta, [said + fallback])
     meta["kept"] = "measurement scaled to what the check supports, though it still fails"
-    return SelfCheck(
-        corrected,
-        meta,
-        [
-            f"{name}: the measured noise put back on the denoised reference gives {shown}; scaled by {_span(factors)} "
-            f"it is still {_worst(second):.2f}x at worst (the network's level: {_worst(network):.2f}x): the level is "
-            "uncertain"
-        ],
+    uncertain = (
+        f"; scaled by {_span(factors)} it is still {_worst(second):.2f}x at worst (the network's level: "
+        f"{_worst(network):.2f}x): the level is uncertain"
     )
+    return SelfCheck(corrected, meta, [said + uncertain])
 
 
 def _far(curve: torch.Tensor, network_curve: torch.Tensor) -> bool:

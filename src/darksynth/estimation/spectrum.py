@@ -224,15 +224,7 @@ def estimate_spectrum(
         fitted.curve, measured_knots, prior_curve, int(unclipped.sum()) >= MIN_LEVEL_BLOCKS, meta, warnings, name
     )
     meta["strength_over_fitted_noise"] = round(strength / fitted_noise_8bit(fitted.curve, denoised[0], mask), 3)
-    if target.temporal is None and clip:
-        # A clip whose blocks all move shows nothing of its noise's persistence; a video's is not independent frames.
-        fitted.temporal = torch.tensor(VIDEO_PRIOR, dtype=torch.float64)
-        meta["persistence_prior"] = f"{list(VIDEO_PRIOR)}: {VIDEO_PRIOR_SOURCE}"
-        meta["persistence_source"] = "video prior: no flat block stays still"
-    elif target.temporal is None:
-        fitted.temporal = torch.zeros(OCTAVES, dtype=torch.float64)
-    elif analysed.shape[0] >= 3:
-        fitted.temporal = _persistence(resynthesis, fitted, meta, warnings, name)
+    fitted.temporal = _temporal(resynthesis, fitted, target.temporal is not None, clip, meta, warnings, name)
     return SpectrumEstimate(values=_values(fitted, meta, camera_prior), meta=meta, warnings=warnings)
 
 
@@ -243,6 +235,29 @@ def _values(fitted: SpectralParameters, meta: dict[str, Any], camera_prior: Came
     if camera_prior is not None:
         values |= expected_texture(values, camera_prior.prior)
     return values
+
+
+def _temporal(
+    resynthesis: _Resynthesis,
+    fitted: SpectralParameters,
+    still: bool,
+    clip: bool,
+    meta: dict[str, Any],
+    warnings: list[str],
+    name: str,
+) -> torch.Tensor:
+    """The frame-to-frame correlation per octave: read on a clip's ``still`` blocks over 3 or more frames, the
+    fit's on 2, the video prior for a clip with no still block, 0 for a single image."""
+    if still and resynthesis.analysed.shape[0] >= 3:
+        return _persistence(resynthesis, fitted, meta, warnings, name)
+    if still:
+        return fitted.temporal
+    if clip:
+        # A clip whose blocks all move shows nothing of its noise's persistence; a video's is not independent frames.
+        meta["persistence_prior"] = f"{list(VIDEO_PRIOR)}: {VIDEO_PRIOR_SOURCE}"
+        meta["persistence_source"] = "video prior: no flat block stays still"
+        return torch.tensor(VIDEO_PRIOR, dtype=torch.float64)
+    return torch.zeros(OCTAVES, dtype=torch.float64)
 
 
 def _persistence(
