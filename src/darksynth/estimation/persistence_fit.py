@@ -277,10 +277,14 @@ class PersistenceFit:
     notes: list[str]
 
 
+def video_prior_record(source: str) -> dict[str, object]:
+    """What ``meta`` says of a clip that takes :data:`VIDEO_PRIOR`: why (``source``), the values and their origin."""
+    return {"persistence_source": source, "persistence_prior": f"{list(VIDEO_PRIOR)}: {VIDEO_PRIOR_SOURCE}"}
+
+
 def _video_prior(record: dict[str, object], reason: str) -> PersistenceFit:
     """The fit of a clip whose finest octave neither statistic reads: :data:`VIDEO_PRIOR`, stated."""
-    record["persistence_source"] = "video prior"
-    record["persistence_prior"] = f"{list(VIDEO_PRIOR)}: {VIDEO_PRIOR_SOURCE}"
+    record.update(video_prior_record("video prior"))
     note = (
         f"the frame-to-frame correlation of the noise cannot be read ({reason}): the video prior "
         f"{VIDEO_PRIOR[0]}-{max(VIDEO_PRIOR)} per octave ({VIDEO_PRIOR_SOURCE})"

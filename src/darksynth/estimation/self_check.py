@@ -87,43 +87,41 @@ def _block_means(frame: torch.Tensor) -> torch.Tensor:
     return F.avg_pool2d(grey, FLAT_BLOCK)[0, 0].flatten()
 
 
-def _flattest(candidates: torch.Tensor, gradient: torch.Tensor) -> torch.Tensor:
-    """Of the ``candidates`` (n,) bool, the :data:`CHECK_SHARE` with the least ``gradient`` (at least one)."""
+def _flattest(candidates: torch.Tensor, gradient: torch.Tensor, least: int) -> torch.Tensor:
+    """Of the ``candidates`` (n,) bool, the :data:`CHECK_SHARE` with the least ``gradient`` (at least ``least``)."""
     members = candidates.nonzero().flatten()
-    if members.numel() == 0:
-        return candidates.clone()
-    count = max(1, round(CHECK_SHARE * members.numel()))
     chosen = torch.zeros_like(candidates)
+    count = max(least, round(CHECK_SHARE * members.numel()))
     chosen[members[gradient[members].argsort()[:count]]] = True
     return chosen
+
+
+def _in_range_blocks(denoised: torch.Tensor) -> tuple[torch.Tensor, torch.Tensor, torch.Tensor]:
+    """(rows * cols,) each of the blocks of ``denoised`` (3, H, W): the gradient, the mean, and whether the mean
+    lies in :data:`CHECK_MEAN_RANGE`."""
+    gradient = block_gradient(denoised).flatten().to(torch.float64)
+    means = _block_means(denoised)[: gradient.numel()]
+    return gradient, means, (means >= CHECK_MEAN_RANGE[0]) & (means <= CHECK_MEAN_RANGE[1])
 
 
 def checked_blocks(denoised: torch.Tensor) -> torch.Tensor:
     """(rows * cols,) bool: the :data:`CHECK_SHARE` flattest of the blocks of ``denoised`` (3, H, W) whose mean lies in
     :data:`CHECK_MEAN_RANGE`."""
-    gradient = block_gradient(denoised).flatten().to(torch.float64)
-    means = _block_means(denoised)[: gradient.numel()]
-    inside = (means >= CHECK_MEAN_RANGE[0]) & (means <= CHECK_MEAN_RANGE[1])
-    return _flattest(inside, gradient)
+    gradient, _, inside = _in_range_blocks(denoised)
+    return _flattest(inside, gradient, 1)
 
 
 def checked_blocks_per_intensity(denoised: torch.Tensor) -> dict[int, torch.Tensor]:
     """Per segment of the level curve (:func:`~darksynth.estimation.flat_blocks.level_stratum`) that holds
     :data:`MIN_CHECK_BLOCKS` blocks in :data:`CHECK_MEAN_RANGE`, the flattest :data:`CHECK_SHARE` of them (at least
     :data:`MIN_CHECK_BLOCKS`): flat for the noise at that intensity."""
-    gradient = block_gradient(denoised).flatten().to(torch.float64)
-    means = _block_means(denoised)[: gradient.numel()]
-    inside = (means >= CHECK_MEAN_RANGE[0]) & (means <= CHECK_MEAN_RANGE[1])
+    gradient, means, inside = _in_range_blocks(denoised)
     stratum = level_stratum(means)
     chosen: dict[int, torch.Tensor] = {}
     for segment in sorted(set(stratum[inside].tolist())):
-        members = (inside & (stratum == segment)).nonzero().flatten()
-        if members.numel() < MIN_CHECK_BLOCKS:
-            continue
-        count = max(MIN_CHECK_BLOCKS, round(CHECK_SHARE * members.numel()))
-        picked = torch.zeros_like(inside)
-        picked[members[gradient[members].argsort()[:count]]] = True
-        chosen[segment] = picked
+        members = inside & (stratum == segment)
+        if int(members.sum()) >= MIN_CHECK_BLOCKS:
+            chosen[segment] = _flattest(members, gradient, MIN_CHECK_BLOCKS)
     return chosen
 
 
@@ -262,7 +260,7 @@ def check_level(
     window = _CheckedWindow(frame, denoised, checked_blocks_per_intensity(denoised), values, seed)
     curve = values["level_curve"].reshape(3, len(LEVEL_KNOTS)).to(torch.float64)
     network_curve = network_curve.to(curve)
-    disagreement = float((curve / network_curve.clamp_min(1e-9)).log().mean().exp())
+    disagreement = over_network(curve, network_curve)
     meta: dict[str, Any] = {"window": [top, left, height, width], "over_network": round(disagreement, 3)}
     if not window.strata:
         return _unchecked(curve, network_curve, disagreement, meta, name)
@@ -346,9 +344,20 @@ def _corrected(
     return SelfCheck(corrected, meta, [said + uncertain])
 
 
-def _far(curve: torch.Tensor, network_curve: torch.Tensor) -> bool:
-    ratio = float((curve / network_curve.clamp_min(1e-9)).log().mean().exp())
+def over_network(curve: torch.Tensor, network_curve: torch.Tensor, knots: torch.Tensor | None = None) -> float:
+    """A level curve (3, 8) over the network's: the geometric mean of their ratio over the ``knots`` (3, 8) bool
+    (all by default)."""
+    ratio = curve / network_curve.clamp_min(1e-6)
+    return float((ratio if knots is None else ratio[knots]).log().mean().exp())
+
+
+def far_from_network(ratio: float) -> bool:
+    """Whether a level ``ratio`` times the network's lies :data:`NETWORK_DISAGREEMENT` or more from it."""
     return not 1.0 / NETWORK_DISAGREEMENT <= ratio <= NETWORK_DISAGREEMENT
+
+
+def _far(curve: torch.Tensor, network_curve: torch.Tensor) -> bool:
+    return far_from_network(over_network(curve, network_curve))
 
 
 def _span(factors: dict[int, float]) -> str:

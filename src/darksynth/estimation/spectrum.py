@@ -49,7 +49,7 @@ from darksynth.estimation.flat_blocks import (
     flat_mask,
 )
 from darksynth.estimation.nonlocal_means import nlm_denoise
-from darksynth.estimation.persistence_fit import VIDEO_PRIOR, VIDEO_PRIOR_SOURCE, fit_persistence
+from darksynth.estimation.persistence_fit import VIDEO_PRIOR, fit_persistence, video_prior_record
 from darksynth.estimation.spectral_fit import (
     COMPRESSION_CANDIDATES,
     SpectralParameters,
@@ -254,8 +254,7 @@ def _temporal(
         return fitted.temporal
     if clip:
         # A clip whose blocks all move shows nothing of its noise's persistence; a video's is not independent frames.
-        meta["persistence_prior"] = f"{list(VIDEO_PRIOR)}: {VIDEO_PRIOR_SOURCE}"
-        meta["persistence_source"] = "video prior: no flat block stays still"
+        meta.update(video_prior_record("video prior: no flat block stays still"))
         return torch.tensor(VIDEO_PRIOR, dtype=torch.float64)
     return torch.zeros(OCTAVES, dtype=torch.float64)
 

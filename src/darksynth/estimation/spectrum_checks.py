@@ -12,6 +12,7 @@ import torch.nn.functional as F
 
 from darksynth.estimation.coarse_anchor import ANCHOR_SCALE_RANGE
 from darksynth.estimation.flat_blocks import FLAT_BLOCK
+from darksynth.estimation.self_check import far_from_network, over_network
 from darksynth.noise.spectral import level_std
 
 JPEG_AMBIGUOUS = 1.5
@@ -19,10 +20,6 @@ JPEG_AMBIGUOUS = 1.5
 
 LEVEL_SPREAD = 1.5
 """Levels of the JPEG strengths that fit about as well that differ by more than this are reported as uncertain."""
-
-LEVEL_DISAGREEMENT = 3.0
-"""Measured and network level curves further apart than this factor (their geometric mean ratio over the measured
-knots) get a warning naming both: one of the two misread the reference."""
 
 
 def level_checks(
@@ -35,7 +32,8 @@ def level_checks(
     name: str,
 ) -> torch.Tensor:
     """The fitted level curve (3, 8) std, or the network's where the reference showed no unclipped block, with the
-    comparison of the two in ``meta`` and a warning where they disagree by more than :data:`LEVEL_DISAGREEMENT`."""
+    comparison of the two in ``meta`` and a warning where they disagree by more than
+    :data:`~darksynth.estimation.self_check.NETWORK_DISAGREEMENT` (at the measured knots)."""
     meta["measured_knots"] = [[bool(k) for k in channel] for channel in measured.tolist()]
     if prior_curve is None:
         return curve
@@ -50,8 +48,8 @@ def level_checks(
         return prior_curve.clone()
     meta["level_source"] = "measured on unclipped blocks; unmeasured knots follow the network's curve"
     if bool(measured.any()):
-        ratio = float((curve[measured] / prior_curve[measured].clamp_min(1e-6)).log().mean().exp())
-        if not 1.0 / LEVEL_DISAGREEMENT <= ratio <= LEVEL_DISAGREEMENT:
+        ratio = over_network(curve, prior_curve, measured)
+        if far_from_network(ratio):
             levels = [float(curve[measured].mean()) * 255, float(prior_curve[measured].mean()) * 255]
             warnings.append(
                 f"{name}: the measured noise level ({levels[0]:.2f} 8-bit levels) and the network's "
