@@ -1,4 +1,5 @@
-"""The coarse colour octaves a denoiser's residual cannot show, read about the planes of flat blocks."""
+"""The coarse colour octaves a denoiser's residual cannot show, read in flat blocks as the share of their noise that
+is coarse."""
 
 from __future__ import annotations
 
@@ -8,14 +9,14 @@ from dataclasses import dataclass, field
 import torch
 import torch.nn.functional as F
 
-from darksynth.estimation.flat_blocks import FLAT_BLOCK, block_planes, detrended_block_variance
+from darksynth.estimation.flat_blocks import FLAT_BLOCK, block_planes, detrended_blocks
 from darksynth.estimation.spectral_fit import SpectralParameters, quantised, uncensored_signal
 from darksynth.noise.simulate import add_noise
 from darksynth.noise.spectral import level_std
 from darksynth.noise.values import NoiseValues
 
 ANCHOR_GAIN = 1.5
-"""Exponent on the anchor's variance ratio per step: the unmeasured octaves hold only part of the detrended
+"""Exponent on the ratio of the anchor's odds per step: the unmeasured octaves hold only part of the coarse means'
 variance, so the ratio alone moves their scale too little."""
 
 ANCHOR_WARM_STEPS = 4
@@ -26,9 +27,23 @@ ANCHOR_SCALE_RANGE = (0.1, 100.0)
 noise's power (docs/spectral-noise.md), against 1x where the prior continues a flat spectrum."""
 
 ANCHOR_QUANTILE = 0.25
-"""The quantile over blocks of the detrended variance the anchor matches (the same in the reference and the
-simulations, so any quantile is unbiased for noise): texture left in a flat block only raises its variance, and a
-low quantile reads the blocks it left alone."""
+"""The quantile over blocks of the coarse odds (:func:`coarse_odds`) the anchor matches (the same in the reference and
+the simulations, so any quantile is unbiased for noise): texture left in a flat block is coarse and only raises its
+odds, and a low quantile reads the blocks it left alone."""
+
+
+def anchor_pool(first_unmeasured: int) -> int | None:
+    """Side in px of the means whose variance is a block's coarse part, for the finest octave the residual cannot show
+    (index ``first_unmeasured``, wavelength ``2 ** (k + 1.5)`` px): ``2 ** k``, which keeps that octave and the
+    coarser ones and loses nearly all of the finer, fitted ones; None where a block holds fewer than 4 x 4 such means
+    (a plane takes 3 of them): the octaves from 45 px up alone are not read in a 32-px block.
+
+    Means of 4 px read for the 22-px octave on, which hold the 11-px octave as well, left the phones' colour at
+    16-64 px 1.2-1.8x the real against 0.94-1.12 with 8 px (the development subsample of docs/spectral-noise.md,
+    issue 39); 8-px means read for the 45-px octave on ran its scale to 3-40 on white noise."""
+    side = 2**first_unmeasured
+    return side if side <= FLAT_BLOCK // 4 else None
+
 
 ANCHOR_MOVED = 2.0
 """A scale this far from 1 (either way) must have moved the anchor's statistic to count as a reading."""
@@ -40,9 +55,26 @@ have caused (a factor; the common random numbers make the simulations comparable
 COMPONENT_NAMES = ("brightness", "red-green", "blue-yellow")
 
 
-def anchor_statistic(variances: torch.Tensor) -> torch.Tensor:
-    """The :data:`ANCHOR_QUANTILE` over blocks of detrended variances (3, n): (3,) float64."""
-    return variances.to(torch.float64).quantile(ANCHOR_QUANTILE, dim=1)
+def coarse_odds(frame: torch.Tensor, blocks: torch.Tensor, pool: int) -> torch.Tensor:
+    """Per chosen block of ``frame`` (3, H, W) and component (brightness and the two colours), the odds
+    ``coarse / (total - coarse)`` of its variance about the block's plane: ``coarse`` the variance of its
+    ``pool``-px means, ``total`` that of its pixels. (3, n) float64 for the ``blocks`` (rows, cols) bool.
+
+    A ratio of one block's noise to itself does not depend on the noise's level, which the level curve sets: matched
+    as a variance, an error of a few percent in the level at the blocks' intensities came back as a 2-5x error in the
+    coarse octaves' power (the phones of issue 39). The odds rather than the share: the share saturates at 1 as the
+    coarse power grows, the odds grow with it."""
+    detrended = detrended_blocks(frame, blocks).to(torch.float64)
+    components, side, _, count = detrended.shape
+    total = detrended.square().sum(dim=(1, 2)) / (side * side - 3)
+    means = F.avg_pool2d(detrended.permute(0, 3, 1, 2).reshape(components * count, 1, side, side), pool)
+    coarse = means.reshape(components, count, -1).square().mean(dim=2)
+    return coarse / (total - coarse).clamp_min(1e-30)
+
+
+def anchor_statistic(odds: torch.Tensor) -> torch.Tensor:
+    """The :data:`ANCHOR_QUANTILE` over blocks of the coarse odds (3, n): (3,) float64."""
+    return odds.to(torch.float64).quantile(ANCHOR_QUANTILE, dim=1)
 
 
 @dataclass
@@ -51,14 +83,16 @@ class CoarseAnchor:
 
     Non-local means leaves noise coarser than its search window in the image it returns, so octaves from about
     11 px up barely move its residual and take a prior (the finer octaves' spectrum continued). On a flat block the
-    scene is close to a plane, and the variance about the plane holds every octave under 32 px: its
-    :data:`ANCHOR_QUANTILE` over the measured blocks in the reference, against that of the model's noise added to
-    the blocks' planes (no denoiser: no scene, no coarse noise of the reference in the base), scales the unmeasured
-    octaves (``scale``). Texture left in a flat block reads as coarse noise here, which is why a low quantile over
-    blocks flat for their level is used. Only colour is anchored (see :meth:`update`).
+    scene is close to a plane, and the noise about the plane holds every octave under 32 px: the
+    :data:`ANCHOR_QUANTILE` over the measured blocks of its coarse odds (:func:`coarse_odds`) in the reference,
+    against that of the model's noise added to the blocks' planes (no denoiser: no scene, no coarse noise of the
+    reference in the base), scales the unmeasured octaves (``scale``). Texture left in a flat block reads as coarse
+    noise here, which is why a low quantile over blocks flat for their level is used. Only colour is anchored (see
+    :meth:`update`).
 
     Attributes:
-        target: the reference's statistic of the detrended block variance, brightness and the two colours (3,).
+        target: the reference's statistic of the coarse odds, brightness and the two colours (3,).
+        pool: the side of the means of :func:`coarse_odds` (:func:`anchor_pool`), None where none reads.
         planes: the denoised frame's blocks as planes (3, H, W), the base of the simulations.
         blocks: (rows, cols) bool, the measured blocks.
         scale: the factor (3,) on the unmeasured octaves' power of each component, moved by :meth:`update`.
@@ -67,6 +101,7 @@ class CoarseAnchor:
     """
 
     target: torch.Tensor
+    pool: int | None
     planes: torch.Tensor
     blocks: torch.Tensor
     scale: torch.Tensor = field(default_factory=lambda: torch.ones(3, dtype=torch.float64))
@@ -75,21 +110,25 @@ class CoarseAnchor:
     latest: torch.Tensor | None = None
 
     @classmethod
-    def read(cls, frame: torch.Tensor, denoised: torch.Tensor, mask: torch.Tensor) -> CoarseAnchor:
+    def read(
+        cls, frame: torch.Tensor, denoised: torch.Tensor, mask: torch.Tensor, first_unmeasured: int
+    ) -> CoarseAnchor:
         """The anchor of a reference frame (3, H, W), its denoised version, and the measured pixels ``mask``
-        ((H, W), or (T, H, W) of which the last frame's counts)."""
+        ((H, W), or (T, H, W) of which the last frame's counts), for the octaves from ``first_unmeasured`` on."""
         last_mask = mask[-1] if mask.dim() == 3 else mask
         blocks = F.avg_pool2d(last_mask[None, None], FLAT_BLOCK)[0, 0] > 0.5
+        pool = anchor_pool(first_unmeasured)
         target = (
-            anchor_statistic(detrended_block_variance(frame, blocks))
-            if bool(blocks.any())
+            anchor_statistic(coarse_odds(frame, blocks, pool))
+            if pool is not None and bool(blocks.any())
             else torch.zeros(3, dtype=torch.float64)
         )
-        return cls(target=target, planes=block_planes(denoised), blocks=blocks)
+        return cls(target=target, pool=pool, planes=block_planes(denoised), blocks=blocks)
 
     @property
     def readable(self) -> bool:
-        """Whether the reference gave a target in every component (no measured block: nothing to anchor to)."""
+        """Whether the reference gave a target in every component (no measured block, or unmeasured octaves all too
+        coarse for a block: nothing to anchor to)."""
         return bool((self.target > 0.0).all())
 
     def observe(self, parameters: SpectralParameters, compression: float, seed: int) -> None:
@@ -102,7 +141,7 @@ class CoarseAnchor:
     def simulated(self, values: NoiseValues, curve: torch.Tensor, generator: torch.Generator) -> torch.Tensor:
         signal = uncensored_signal(self.planes, level_std(self.planes, curve.reshape(-1).to(self.planes)))
         synthetic = quantised(add_noise(signal[None, None], values, generator=generator)[0, 0])
-        return anchor_statistic(detrended_block_variance(synthetic, self.blocks))
+        return anchor_statistic(coarse_odds(synthetic, self.blocks, self.pool or FLAT_BLOCK // 4))
 
     def update(self) -> None:
         """Move ``scale`` by the ratio of the target to the last simulation (bounded per step and overall)."""

@@ -143,16 +143,16 @@ def flat_block_std(frames: torch.Tensor) -> float:
     return max(supported) * 255.0
 
 
-def detrended_block_variance(frame: torch.Tensor, blocks: torch.Tensor) -> torch.Tensor:
-    """Variance about each chosen block's least-squares plane of the brightness and the two colour components
-    (:data:`~darksynth.noise.spectral.OPPONENT_BASIS`): (3, n) for the ``blocks`` (rows, cols) bool of ``frame``
-    (3, H, W). Every scale of noise under the block size is in it."""
+def detrended_blocks(frame: torch.Tensor, blocks: torch.Tensor) -> torch.Tensor:
+    """The brightness and the two colour components (:data:`~darksynth.noise.spectral.OPPONENT_BASIS`) of the chosen
+    blocks of ``frame`` (3, H, W) about each block's least-squares plane: (3, FLAT_BLOCK, FLAT_BLOCK, n) for the
+    ``blocks`` (rows, cols) bool. Every scale of noise under the block size is in them."""
     components = torch.einsum("ij,jhw->ihw", OPPONENT_BASIS.to(frame), frame)
     grid = block_grid(components)[
         ..., blocks[: frame.shape[-2] // FLAT_BLOCK, : frame.shape[-1] // FLAT_BLOCK].flatten()
     ]
     detrended = grid - torch.einsum("ij,cjn->cin", _plane_projection(FLAT_BLOCK).to(grid), grid)
-    return detrended.square().sum(dim=1) / (FLAT_BLOCK * FLAT_BLOCK - 3)
+    return detrended.reshape(3, FLAT_BLOCK, FLAT_BLOCK, -1)
 
 
 def block_planes(frame: torch.Tensor) -> torch.Tensor:

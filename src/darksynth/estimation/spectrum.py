@@ -445,7 +445,7 @@ def _fit(
         target if analysed.shape[0] == 1 else measure(analysed[:1] - denoised[:1], denoised[:1], resynthesis.mask)
     )
     first_unmeasured = _first_unmeasured_octave(resynthesis, start, meta)
-    anchor = CoarseAnchor.read(analysed[0], denoised[0], resynthesis.mask)
+    anchor = CoarseAnchor.read(analysed[0], denoised[0], resynthesis.mask, first_unmeasured)
     anchored = first_unmeasured < OCTAVES and anchor.readable
 
     if camera_prior is not None:
