@@ -186,3 +186,18 @@ def test_a_clip_whose_persistence_cannot_be_read_gets_the_video_prior_stated_in_
     assert "shared real night clips" in found.meta["persistence_prior"]
     warning = [w for w in found.warnings if "cannot be read" in w]
     assert len(warning) == 1 and "video prior" in warning[0] and warning[0].startswith("unreadable: "), warning
+
+
+def test_a_codec_that_repeats_most_still_blocks_persists_at_least_as_much_as_it_repeats() -> None:
+    # 85% of the blocks copied each frame, the rest coded afresh: every copied cell's noise persists fully, so no
+    # octave may read under the share of cells repeated (the shared clip132 read 0 as the smaller of its two
+    # readings, 82% repeated, real lag-1 1.00).
+    clip = _codec_like_clip(0.85, (1.0, 1.0, 1.0, 1.0))
+    repeated = float(skipped_shares(clip, torch.ones(256, 256)).mean())
+    found = estimate_spectrum(clip, name="codec.mp4")
+    temporal = found.values["temporal_correlation"]
+    assert repeated > 0.75, repeated
+    # The floor is the share over the estimate's own still flat blocks (rounded to 3 decimals in meta).
+    floor = sum(found.meta["persistence_skipped_share"]) / len(found.meta["persistence_skipped_share"])
+    assert floor > 0.75 and float(temporal.min()) >= floor - 2e-3, (temporal, floor)
+    assert found.meta["persistence_source"].startswith("read: the lag-one reading alone"), found.meta
