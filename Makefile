@@ -20,8 +20,8 @@ demo: $(STAMP)
 	$(BIN)/darksynth demo --out darksynth-demo
 
 lint: $(STAMP)
-	$(BIN)/ruff check src tests benchmarks scripts
-	$(BIN)/ruff format --check src tests benchmarks scripts
+	$(BIN)/ruff check src tests benchmarks scripts examples
+	$(BIN)/ruff format --check src tests benchmarks scripts examples
 	$(BIN)/mypy
 
 # Headless Chromium renders the evaluation report in its test (Debian's package; root on these machines).

@@ -52,8 +52,10 @@ def evaluate_command(
             help=f"Comma-separated methods. Default: {', '.join(default_of(EvaluationOptions, 'methods'))}. "
             "Also by name: den-network (the network's values alone), den-prior (den with the texture dependence "
             "from the camera prior), den-prior-octaves (and the coarse octaves), "
-            "spectral-oracle (the clean-aided fit) and prior (whole cameras drawn from the camera prior, no "
-            "reference). The camera prior's methods use a prior fitted without the set judged."
+            "spectral-oracle (the clean-aided fit), prior (whole cameras drawn from the camera prior, no "
+            "reference) and albumentations' noise at its default ranges: albu-gauss (GaussNoise), albu-iso "
+            "(ISONoise), albu-gauss-jpeg (GaussNoise + ImageCompression). The camera prior's methods use a prior "
+            "fitted without the set judged."
         ),
     ] = "",
     weights: Annotated[

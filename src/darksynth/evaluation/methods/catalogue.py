@@ -18,6 +18,7 @@ import torch
 
 from darksynth.cameras.prior import CameraPrior, held_out_sets, shipped_prior
 from darksynth.errors import DarksynthError
+from darksynth.evaluation.methods.albumentations import ALBUMENTATIONS_METHODS, albumentations_method
 from darksynth.evaluation.methods.classical import (
     PoissonGaussian,
     add_poisson_gaussian,
@@ -307,6 +308,8 @@ METHOD_NAMES: tuple[str, ...] = (
     "den-prior",
     "den-prior-octaves",
     "prior",
+    # What users add to their training today: albumentations' noise at its default ranges.
+    *ALBUMENTATIONS_METHODS,
 )
 
 
@@ -365,6 +368,8 @@ def build_method(name: str, *, weights: dict[str, Path] | None = None, device: s
         return _spectral_oracle_method()
     if name == "prior":
         return _prior_method()
+    if name in ALBUMENTATIONS_METHODS:
+        return albumentations_method(name)
     raise MethodUnavailableError(f"{name}: unknown method (known: {', '.join(METHOD_NAMES)})")
 
 
