@@ -34,11 +34,9 @@ from __future__ import annotations
 
 import argparse
 import json
-import os
 import random
 import subprocess
 import sys
-import tempfile
 from collections.abc import Callable
 from pathlib import Path
 from typing import Any
@@ -46,6 +44,8 @@ from typing import Any
 import numpy as np
 import torch
 from torch.utils.data import DataLoader, Dataset
+
+from darksynth.io.atomic import atomic_output, write_text_atomic
 
 SHARED = Path(__file__).resolve().parents[1].parent / "shared" / "data"
 DEFAULT_PAIRS = SHARED / "real-pairs" / "sidd-phones"
@@ -219,18 +219,6 @@ def test(model: torch.nn.Module | None, test_pairs: list[Any]) -> dict[str, floa
     return {key: float(np.mean([row[key] for row in rows])) for key in ("psnr", "ssim")}
 
 
-def write_atomically(path: Path, write: Callable[[Path], None]) -> None:
-    """``write`` to a temporary file beside ``path``, then rename it into place."""
-    handle, temporary = tempfile.mkstemp(dir=path.parent, prefix=f".{path.stem}-", suffix=path.suffix)
-    os.close(handle)
-    try:
-        write(Path(temporary))
-        os.replace(temporary, path)
-    finally:
-        if os.path.exists(temporary):
-            os.remove(temporary)
-
-
 def plot(results: dict[str, dict[str, float]], path: Path, title: str) -> None:
     """PSNR and SSIM per training noise, as bars, the noisy input as a line."""
     import matplotlib
@@ -250,7 +238,8 @@ def plot(results: dict[str, dict[str, float]], path: Path, title: str) -> None:
         axis.legend(loc="lower right", fontsize=8)
     figure.suptitle(title, fontsize=10)
     figure.tight_layout()
-    write_atomically(path, lambda temporary: figure.savefig(temporary, dpi=120, format="png"))
+    with atomic_output(path) as temporary:
+        figure.savefig(temporary, dpi=120, format="png")
     plt.close(figure)
 
 
@@ -279,12 +268,7 @@ def run(arguments: argparse.Namespace) -> dict[str, Any]:
         },
         "results": results,
     }
-    text = json.dumps(record, indent=2) + "\n"
-
-    def write_record(temporary: Path) -> None:
-        temporary.write_text(text)
-
-    write_atomically(arguments.out / "results.json", write_record)
+    write_text_atomic(arguments.out / "results.json", json.dumps(record, indent=2) + "\n")
     title = f"{arguments.camera.strip('_')} of {arguments.pairs.name}: {len(test_pairs)} real test pairs"
     plot(results, arguments.out / "comparison.png", title)
     return record

@@ -4,13 +4,14 @@ draws' spread, and neither one that moved within it nor one that improved. Handm
 from __future__ import annotations
 
 import copy
-import importlib.util
 import sys
 from pathlib import Path
 from types import ModuleType
 from typing import Any
 
 import pytest
+
+from tests.script_modules import load_script
 
 BENCHMARKS = Path(__file__).resolve().parents[1] / "benchmarks"
 
@@ -20,12 +21,7 @@ def real_data() -> ModuleType:
     # The benchmark imports its neighbour machine.py as the scripts in benchmarks/ do when run.
     sys.path.insert(0, str(BENCHMARKS))
     try:
-        spec = importlib.util.spec_from_file_location("real_data", BENCHMARKS / "real_data.py")
-        assert spec is not None and spec.loader is not None
-        module = importlib.util.module_from_spec(spec)
-        # Its dataclasses look their module up while being made.
-        sys.modules[spec.name] = module
-        spec.loader.exec_module(module)
+        module = load_script(BENCHMARKS / "real_data.py")
     finally:
         sys.path.remove(str(BENCHMARKS))
     return module

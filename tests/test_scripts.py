@@ -3,12 +3,13 @@ is in scripts/README.md's table; every path to a script that a doc, test or modu
 
 from __future__ import annotations
 
-import importlib.util
 import re
 import sys
 from pathlib import Path
 
 import pytest
+
+from tests.script_modules import load_script
 
 ROOT = Path(__file__).resolve().parents[1]
 SCRIPTS = ROOT / "scripts"
@@ -32,11 +33,7 @@ def test_script_imports_as_it_runs_and_its_docstring_says_what_it_makes_and_how(
     saved_path, saved_modules = list(sys.path), set(sys.modules)
     sys.path.insert(0, str(path.parent))
     try:
-        spec = importlib.util.spec_from_file_location(path.stem, path)
-        assert spec is not None and spec.loader is not None
-        module = importlib.util.module_from_spec(spec)
-        sys.modules[spec.name] = module  # a dataclass looks its module up while being made
-        spec.loader.exec_module(module)
+        module = load_script(path)
     finally:
         sys.path[:] = saved_path
         for name in set(sys.modules) - saved_modules:

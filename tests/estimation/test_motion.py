@@ -2,10 +2,8 @@
 
 from __future__ import annotations
 
-import importlib.util
 import json
 import math
-import sys
 from collections.abc import Iterable
 from pathlib import Path
 from typing import Any
@@ -32,6 +30,7 @@ from darksynth.estimation.shutter_confidence import (
 )
 from darksynth.light.darkening import Darkening, darken
 from darksynth.profile import default_profile_path
+from tests.script_modules import load_script
 
 CLIPS = Path(__file__).resolve().parents[3] / "shared" / "data" / "real-lowlight" / "clips"
 
@@ -333,13 +332,7 @@ HARNESS_SEEDS = range(200, 212)
 
 def shutter_harness() -> Any:
     """scripts/light/shutter_harness.py as a module."""
-    spec = importlib.util.spec_from_file_location("shutter_harness", HARNESS)
-    assert spec is not None and spec.loader is not None
-    harness = importlib.util.module_from_spec(spec)
-    # Its dataclass looks its module up while being made.
-    sys.modules[spec.name] = harness
-    spec.loader.exec_module(harness)
-    return harness
+    return load_script(HARNESS)
 
 
 def harness_rows(harness: Any, seeds: Iterable[int]) -> list[dict[str, Any]]:

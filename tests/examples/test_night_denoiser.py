@@ -1,24 +1,20 @@
 """The example of the user's workflow (examples/night_denoiser.py) runs end to end with a few steps."""
 
-import importlib.util
 import json
-import sys
 from pathlib import Path
+from types import ModuleType
 
 import numpy as np
 import pytest
 from PIL import Image
 
+from tests.script_modules import load_script
+
 EXAMPLE = Path(__file__).resolve().parents[2] / "examples" / "night_denoiser.py"
 
 
-def _example():  # type: ignore[no-untyped-def]
-    spec = importlib.util.spec_from_file_location("night_denoiser", EXAMPLE)
-    assert spec is not None and spec.loader is not None
-    module = importlib.util.module_from_spec(spec)
-    sys.modules["night_denoiser"] = module
-    spec.loader.exec_module(module)
-    return module
+def _example() -> ModuleType:
+    return load_script(EXAMPLE)
 
 
 def _scene(generator: np.random.Generator, side: int) -> np.ndarray:

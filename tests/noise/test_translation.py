@@ -3,7 +3,6 @@
 
 from __future__ import annotations
 
-import importlib.util
 import json
 import math
 from pathlib import Path
@@ -26,6 +25,7 @@ from darksynth.noise.values import NoiseValues
 from darksynth.profile import Profile, parse_profile
 from darksynth.recipe import draw_clip_parameters
 from darksynth.synthesize import synthesize
+from tests.script_modules import load_script
 
 ROOT = Path(__file__).resolve().parents[2]
 
@@ -40,13 +40,7 @@ for a 0.6 px kernel; within 2 % without JPEG)."""
 
 
 def _check_script() -> ModuleType:
-    spec = importlib.util.spec_from_file_location(
-        "translated_profile_check", ROOT / "scripts" / "noise" / "translated_profile_check.py"
-    )
-    assert spec is not None and spec.loader is not None
-    module = importlib.util.module_from_spec(spec)
-    spec.loader.exec_module(module)
-    return module
+    return load_script(ROOT / "scripts" / "noise" / "translated_profile_check.py")
 
 
 def band_bound(values: dict[str, object]) -> float:

@@ -140,8 +140,10 @@ class CoarseAnchor:
 
     def simulated(self, values: NoiseValues, curve: torch.Tensor, generator: torch.Generator) -> torch.Tensor:
         signal = uncensored_signal(self.planes, level_std(self.planes, curve.reshape(-1).to(self.planes)))
+        if self.pool is None:
+            raise ValueError("an anchor without a pool reads nothing: check readable before simulating")
         synthetic = quantised(add_noise(signal[None, None], values, generator=generator)[0, 0])
-        return anchor_statistic(coarse_odds(synthetic, self.blocks, self.pool or FLAT_BLOCK // 4))
+        return anchor_statistic(coarse_odds(synthetic, self.blocks, self.pool))
 
     def update(self) -> None:
         """Move ``scale`` by the ratio of the target to the last simulation (bounded per step and overall)."""
