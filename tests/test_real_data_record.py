@@ -158,3 +158,28 @@ def test_missing_and_unmeasured_figures_are_skipped(real_data: ModuleType) -> No
     after["clips"]["starlight_submillilux.mov"] = {"real": 0.5, "synthetic": 0.0, "gap": -0.5}
     assert real_data.regressions(_record(), after) == []
     assert real_data.regressions({}, after) == []
+
+
+def test_targets_name_bands_off_range_unless_the_estimates_said_they_were_their_prior(real_data: ModuleType) -> None:
+    record = _record()
+    entry = record["pairs"]["sidd"]
+    entry["band_ratio"] = {"brightness": [0.95, 1.0, 1.1, 0.7, 0.6], "colour": [1.0, 0.9, 1.1, 1.3, 0.7]}
+    entry["band_prior_share"] = {"brightness": [0.0, 0.0, 0.0, 0.2, 0.8], "colour": [0.0, 0.0, 0.0, 0.0, 0.6]}
+    misses = real_data.target_misses(record)
+    pair_misses = [miss for miss in misses if miss.startswith("pairs/")]
+    # 16-32 px brightness is under 0.8 though most estimates read it; 32-64 px is the prior's in both components;
+    # over 1.25 is a miss whatever the estimates said.
+    assert pair_misses == ["pairs/sidd: brightness band 16-32 px 0.70", "pairs/sidd: colour band 16-32 px 1.30"]
+    assert "photos/dicm: 67% within 0.8-1.25" in misses and "photos/dicm/46.jpg: ratio 9.20" in misses
+
+
+def test_targets_accept_a_clip_that_took_the_video_prior(real_data: ModuleType) -> None:
+    record = _record()
+    record["clips"] = {
+        "clip1": {"real": 0.6, "synthetic": 0.3, "gap": -0.3, "video_prior": False},
+        "clip2": {"real": 0.6, "synthetic": 0.3, "gap": -0.3, "video_prior": True},
+        "clip3": {"real": 0.6, "synthetic": 0.55, "gap": -0.05, "video_prior": False},
+    }
+    assert [miss for miss in real_data.target_misses(record) if miss.startswith("clips/")] == [
+        "clips/clip1: lag-1 gap -0.30"
+    ]

@@ -9,6 +9,7 @@ import numpy as np
 import pytest
 import torch
 
+from darksynth.estimation.coarse_anchor import anchor_pool
 from darksynth.estimation.persistence_fit import VIDEO_PRIOR
 from darksynth.estimation.spectral_fit import quantised
 from darksynth.estimation.spectrum import estimate_spectrum
@@ -112,6 +113,10 @@ def test_octaves_the_reference_cannot_show_continue_the_measured_spectrum() -> N
     held = power[first - 1, 1:].expand(OCTAVES - first, 2) * scale
     assert bool((power[first:, 1:] >= held * 0.99).all() and (power[first:, 1:] <= held * 1.6).all()), power
     assert "continue the finer octaves" in found.meta["octave_prior"]
+    # What was read is stated per component: brightness up to the first octave it cannot show, colour one further
+    # where the anchor read that one (up to 22 px; coarser octaves get no anchor).
+    colour = first + 1 if anchor_pool(first) is not None else first
+    assert found.meta["read_octaves"] == {"brightness": first, "colour": colour}, found.meta["read_octaves"]
     # White noise is measured about white: no octave above 2.5x or below 0.4x the mean (the 16-32 px octave is
     # read on about 20 flat 32-px blocks here, its sampling error alone is some 30 %; a runaway is 100x).
     assert float(power.max()) < 2.5 and float(power.min()) > 0.4, power
@@ -267,6 +272,9 @@ def test_coarse_colour_the_anchor_cannot_read_takes_the_prior_and_says_so() -> N
     scale = dict(zip(["brightness", "red-green", "blue-yellow"], found.meta["coarse_octave_scale"], strict=True))
     assert all(scale[component] == 1.0 for component in released), (scale, released)
     assert any(scale in (0.1, 100.0) for scale in released.values()), released
+    # Released, the anchor read nothing: colour is read no further than brightness.
+    read = found.meta["read_octaves"]
+    assert read["colour"] == read["brightness"] < OCTAVES, read
     assert any("dim.mov: the coarse" in w and "bound" in w for w in found.warnings), found.warnings
     # Held at the bounds, the coarse colour octaves carried 400x the brightness power; continued, they keep about
     # the finer octaves' colour-to-brightness ratio (7x in the finest here: the rounding of a coloured scene).

@@ -16,6 +16,8 @@ from darksynth.evaluation.measures.structure import (
     band_ratios,
     band_summary,
     gaussian_blur,
+    prior_band_shares,
+    prior_bands,
     relative_to_white,
     temporal_lag_correlation,
 )
@@ -158,3 +160,14 @@ def test_temporal_lag_correlation_refuses_bad_clips() -> None:
         temporal_lag_correlation(np.zeros((2, 32, 32, 3)), lag=2)
     with pytest.raises(ValueError, match="sigma"):
         gaussian_blur(np.zeros((32, 32, 3)), sigma=0.0, axes=(0, 1))
+
+
+def test_bands_from_the_first_unread_octave_on_are_the_priors_and_their_share_is_counted_per_pair() -> None:
+    # Octave k of the spectral model sits at 2 ** (k + 1.5) px, the centre of band k: an estimate that read 3
+    # brightness octaves (to 11 px) and 4 colour octaves took the 16-32 and 32-64 px brightness bands from its prior.
+    flags = prior_bands({"brightness": 3, "colour": 4})
+    assert flags == {"brightness": [False, False, False, True, True], "colour": [False, False, False, False, True]}
+    assert prior_bands({"brightness": 6, "colour": 6}) == {c: [False] * len(BANDS) for c in ("brightness", "colour")}
+    shares = prior_band_shares([flags, prior_bands({"brightness": 6, "colour": 6})])
+    assert shares == {"brightness": [0.0, 0.0, 0.0, 0.5, 0.5], "colour": [0.0, 0.0, 0.0, 0.0, 0.5]}
+    assert prior_band_shares([]) == {}

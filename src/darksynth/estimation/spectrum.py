@@ -340,6 +340,15 @@ def _first_unmeasured_octave(resynthesis: _Resynthesis, start: SpectralParameter
     return first_unmeasured
 
 
+def read_octaves(first_unmeasured: int, *, colour_anchored: bool) -> dict[str, int]:
+    """How many octaves of the spectral model, from the finest, the reference's own statistics set, per component
+    (``brightness``, ``colour``); the coarser ones are the prior (the finer octaves' spectrum continued). Brightness
+    is read up to the first octave the probe finds the reference cannot show; colour one octave further where the
+    coarse anchor read that one (its scale carries on to the coarser octaves, with the finer ones' shape)."""
+    colour = first_unmeasured + 1 if colour_anchored else first_unmeasured
+    return {"brightness": min(first_unmeasured, OCTAVES), "colour": min(colour, OCTAVES)}
+
+
 def _anchored_fit(
     resynthesis: _Resynthesis,
     target: SpectralStatistics,
@@ -474,12 +483,14 @@ def _fit(
     fitted, left_over = _anchored_fit(
         resynthesis, target, fits[chosen], chosen, anchor if anchored else None, constrain
     )
-    if anchored and (unmatched := anchor.unmatched()):
+    unmatched = anchor.unmatched() if anchored else []
+    if unmatched:
         # The scale each released component had: a fit that ran to a bound of its range is worth a warning.
         meta["coarse_octave_prior"] = {COMPONENT_NAMES[k]: round(float(anchor.scale[k]), 3) for k in unmatched}
         anchor.release(unmatched)
         fitted = constrain(fitted)  # the released components continue the finer octaves again
     meta["coarse_octave_scale"] = [round(float(v), 3) for v in anchor.scale]
+    meta["read_octaves"] = read_octaves(first_unmeasured, colour_anchored=anchored and not unmatched)
     meta["compression_scores"] = {str(c): round(v, 4) for c, v in scores.items()}
     meta["level_by_compression_8bit"] = {str(c): round(mean_level(fits[c].curve, measured_knots), 3) for c in fits}
     meta["compression_chosen"] = chosen

@@ -31,6 +31,8 @@ __all__ = [
     "band_ratios",
     "band_summary",
     "gaussian_blur",
+    "prior_band_shares",
+    "prior_bands",
     "relative_to_white",
     "temporal_lag_correlation",
 ]
@@ -198,6 +200,31 @@ def band_summary(ratios: Sequence[Mapping[str, Any]]) -> dict[str, Any]:
     logs = [np.log(v) for c in COMPONENTS for v in medians[c] if v is not None and v > 0 and np.isfinite(v)]
     error = float(np.sqrt(np.mean(np.square(logs)))) if logs else None
     return {"band_ratio": medians, "band_rms_log_error": error}
+
+
+def prior_bands(read_octaves: Mapping[str, int]) -> dict[str, list[bool]]:
+    """Per component, which of :data:`BANDS` an estimate took from its prior rather than read on its reference.
+
+    Band ``k`` is centred on octave ``k`` of the spectral model (its nodes at periods of ``2 ** (k + 1.5)`` px: 2.8,
+    5.7, 11, 23, 45; the bands' centres 2.4, 5.7, 11, 23, 45), so a band is the prior's where that octave is.
+
+    Args:
+        read_octaves: per component, how many octaves from the finest the reference set (the estimate's
+            ``meta.spectrum.read_octaves``).
+    """
+    return {c: [band >= int(read_octaves[c]) for band in range(len(BANDS))] for c in COMPONENTS if c in read_octaves}
+
+
+def prior_band_shares(flags: Sequence[Mapping[str, Sequence[bool]]]) -> dict[str, list[float]]:
+    """Per component and band, the share of pairs whose estimate took that band from its prior
+    (:func:`prior_bands` per pair); empty without pairs."""
+    if not flags:
+        return {}
+    return {
+        c: [float(np.mean([bool(row[c][band]) for row in flags if c in row])) for band in range(len(BANDS))]
+        for c in COMPONENTS
+        if any(c in row for row in flags)
+    }
 
 
 def _gaussian_kernel(sigma: float) -> _Array:

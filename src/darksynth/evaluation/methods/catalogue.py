@@ -9,10 +9,10 @@ to 8-bit levels, as the real noisy image was.
 from __future__ import annotations
 
 import dataclasses
-from collections.abc import Callable, Sequence
+from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import torch
 
@@ -31,6 +31,9 @@ from darksynth.noise.simulate import add_noise
 from darksynth.noise.values import NoiseValues
 from darksynth.tensors import to_8bit_levels
 from darksynth.training.weights import DENChoice
+
+if TYPE_CHECKING:
+    from darksynth.estimation.assemble import Estimate
 
 AWGN_SIGMA = 5.0 / 255.0
 """Fixed sigma of the `awgn` baseline: 5 of 255, the middle of the real sets' noise std (2.2-8.3 of 255 on
@@ -62,6 +65,11 @@ class NoiseMethod:
     for_set: Callable[[str], NoiseMethod] | None = None
     """The method as it runs on the set of pairs named so, for a method that draws on the prior over real cameras:
     its prior fitted without that set (and the sets of the same cameras), so no set judges a prior that saw it."""
+
+    read_octaves: Callable[[], Mapping[str, int] | None] | None = None
+    """For a method that reads its spectrum from the noisy image: after a fit, how many octaves of the spectral
+    model (from the finest, per component: ``brightness``, ``colour``) that image set, the rest being its prior
+    (the estimate's ``meta.spectrum.read_octaves``); None where the fit does not say."""
 
     def on_set(self, set_name: str) -> NoiseMethod:
         """The method to run on the set ``set_name``."""
@@ -115,12 +123,24 @@ class _LastEstimate:
     on one pair before it reads the next, so one estimate a pair serves both."""
 
     noisy: torch.Tensor | None = None
-    values: NoiseValues | None = None
+    found: Estimate | None = None
 
-    def get(self, noisy: torch.Tensor, compute: Callable[[], NoiseValues]) -> NoiseValues:
-        if self.noisy is not noisy or self.values is None:
-            self.noisy, self.values = noisy, compute()
-        return self.values
+    def get(self, noisy: torch.Tensor, compute: Callable[[], Estimate]) -> Estimate:
+        if self.noisy is not noisy or self.found is None:
+            self.noisy, self.found = noisy, compute()
+        return self.found
+
+
+@dataclass
+class _LatestReading:
+    """What a DEN method's latest fit read of the spectrum (:attr:`NoiseMethod.read_octaves`)."""
+
+    octaves: Mapping[str, int] | None = None
+
+
+def _read_octaves(found: Estimate) -> Mapping[str, int] | None:
+    spectrum = found.profile.meta.get("spectrum")
+    return spectrum.get("read_octaves") if isinstance(spectrum, dict) else None
 
 
 _LAST_ESTIMATES: dict[tuple[str, str, bool], _LastEstimate] = {}
@@ -138,13 +158,19 @@ def _den_method(
     with_prior = prior and refined
     last = _LAST_ESTIMATES.setdefault((str(weights), device, refine), _LastEstimate())
 
+    latest = _LatestReading()
+
     def fitted_with(camera_prior: CameraPrior | None) -> Fit:
         def fit(noisy: torch.Tensor, clean: torch.Tensor) -> NoiseValues:
             reference = noisy.to(torch.float32)[None]
             if camera_prior is not None and octaves:
                 use = CameraPriorUse(camera_prior, octaves=True)
-                return estimate(reference, model, device=device, refine=refine, camera_prior=use).profile.noise
-            values = last.get(noisy, lambda: estimate(reference, model, device=device, refine=refine).profile.noise)
+                found = estimate(reference, model, device=device, refine=refine, camera_prior=use)
+                latest.octaves = _read_octaves(found)
+                return found.profile.noise
+            found = last.get(noisy, lambda: estimate(reference, model, device=device, refine=refine))
+            latest.octaves = _read_octaves(found)
+            values = found.profile.noise
             # The texture dependence does not enter the fit (it reads flat blocks): added to the shared estimate,
             # it is what estimate --camera-prior gives.
             return values if camera_prior is None else values.replace(**expected_texture(values, camera_prior))
@@ -167,6 +193,7 @@ def _den_method(
         synthesize=synthesize_image,
         details={"weights": str(weights)},
         for_set=on_set if with_prior else None,
+        read_octaves=lambda: latest.octaves,
     )
     return method
 

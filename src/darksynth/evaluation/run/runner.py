@@ -12,7 +12,7 @@ Inception features of crops of all real noise maps with those of all of a method
 from __future__ import annotations
 
 import time
-from collections.abc import Callable, Sequence
+from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
@@ -39,6 +39,8 @@ from darksynth.evaluation.measures.structure import (
     band_powers,
     band_ratios,
     band_summary,
+    prior_band_shares,
+    prior_bands,
     relative_to_white,
 )
 from darksynth.evaluation.measures.texture import textured_flat_ratio
@@ -75,6 +77,9 @@ METRIC_DESCRIPTIONS = {
     "component's variance), median over pairs: 1 in every band for pixel-independent noise",
     "band_ratio": "Per band (fine to coarse) and component (brightness, colour), the median over pairs of the "
     "method's band power over the real noise's: 1 is the right power at that scale",
+    "band_prior_share": "Per band and component, the share of pairs whose estimate took that band from its prior "
+    "(the octaves its reference could not show: the finer octaves' spectrum continued) instead of reading it; only "
+    "for methods that say what they read",
     "band_rms_log_error": "sqrt(mean over the 10 bands of ln(band_ratio)^2): 0 when every band has the real power, "
     "0.69 when every band is off by a factor of 2",
     "texture_ratio": "Median over pairs of the noise's std over the 30% most textured 32-px blocks of the clean image "
@@ -243,6 +248,7 @@ class _MethodRecord:
     bands: list[dict[str, Any]] = field(default_factory=list)
     band_ratios: list[dict[str, Any]] = field(default_factory=list)
     texture_ratios: list[float] = field(default_factory=list)
+    prior_bands: list[dict[str, list[bool]]] = field(default_factory=list)
 
     def add(
         self,
@@ -251,8 +257,11 @@ class _MethodRecord:
         noise: torch.Tensor,
         real_bands: dict[str, Any] | None,
         clean: torch.Tensor,
+        read_octaves: Mapping[str, int] | None = None,
     ) -> None:
         self.rows.append((camera, _pair_metrics(real, noise)))
+        if read_octaves is not None:
+            self.prior_bands.append(prior_bands(read_octaves))
         self.texture_ratios.append(textured_flat_ratio(noise, clean))
         self.real_channels.add(real)
         self.channels.add(noise)
@@ -268,6 +277,8 @@ class _MethodRecord:
         if self.bands:
             entry["band_power"] = band_medians(self.bands)
             entry.update(band_summary(self.band_ratios))
+        if self.prior_bands:
+            entry["band_prior_share"] = prior_band_shares(self.prior_bands)
         entry["texture_ratio"] = _finite_median(self.texture_ratios)
         entry["oracle"] = oracle
         cameras: dict[str, list[dict[str, float]]] = {}
@@ -338,7 +349,8 @@ def _evaluate_pair(
             problems.append(f"{pair.noisy_path}: {name}: {error}")
             continue
         noise = synthetic - loaded.clean
-        record.methods[name].add(pair.camera, real, noise, pair_bands, loaded.clean)
+        read_octaves = method.read_octaves() if method.read_octaves is not None else None
+        record.methods[name].add(pair.camera, real, noise, pair_bands, loaded.clean, read_octaves)
         if features is not None:
             features.add(name, noise, crops_per_pair)
         if keep_example:
