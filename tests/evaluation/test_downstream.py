@@ -16,15 +16,18 @@ from darksynth.evaluation.measures import downstream
 from darksynth.evaluation.measures.downstream import (
     LPIPS_STATUS,
     NOISY_INPUT,
+    REAL_PAIRS,
     DownstreamSettings,
     ResidualDenoiser,
+    camera_folds,
     fit_reference_parameters,
     run_downstream,
     train_denoiser,
+    train_on_real_pairs,
 )
 from darksynth.evaluation.methods.catalogue import NoiseMethod, build_method
 from darksynth.evaluation.methods.classical import PoissonGaussian, add_poisson_gaussian
-from darksynth.evaluation.pairs import list_pair_set, load_pair
+from darksynth.evaluation.pairs import Pair, list_pair_set, load_pair
 from tests.evaluation.conftest import MakeSet, smooth_clean
 
 SIGMA = 20.0
@@ -162,12 +165,16 @@ def test_run_reports_every_set_and_skips_unavailable_methods(make_pair_set: Make
     assert set(results["methods"]) == {"awgn", "pg-oracle"}
     problems = " | ".join(results["problems"])
     assert "nope: unknown method" in problems and "den-v2: no trained weights" in problems and "absent" in problems
+    # A set of two pairs gets the real-pair ceiling, trained on one pair and tested on the other; a set of one
+    # cannot.
+    assert list(results["first"]) == [NOISY_INPUT, "awgn", "pg-oracle", REAL_PAIRS]
+    assert list(results["second"]) == [NOISY_INPUT, "awgn", "pg-oracle"]
+    assert results["first"][REAL_PAIRS]["folds"] == 2
     for name, pairs in (("first", 2), ("second", 1)):
-        assert list(results[name]) == [NOISY_INPUT, "awgn", "pg-oracle"]
         for method, row in results[name].items():
             assert row["pairs"] == pairs
             assert np.isfinite(row["psnr"]) and 0.0 < row["ssim"] <= 1.0
-            assert method == NOISY_INPUT or row["training"]["input_loss"] > 0.0
+            assert method in (NOISY_INPUT, REAL_PAIRS) or row["training"]["input_loss"] > 0.0
     # The fixed awgn law is the same on every set: its denoiser is trained once and reused.
     assert any("second: awgn: same fixed parameters" in message for message in messages)
     assert results["first"]["awgn"]["psnr"] != results["second"]["awgn"]["psnr"]
@@ -176,3 +183,26 @@ def test_run_reports_every_set_and_skips_unavailable_methods(make_pair_set: Make
 def test_run_without_any_available_method_fails(make_pair_set: MakeSet, tmp_path: Path) -> None:
     with pytest.raises(DarksynthError, match="no method can run"):
         run_downstream([make_pair_set(count=1, size=48)], ["nope"], [tmp_path], TINY)
+
+
+def test_folds_alternate_within_each_camera_and_none_is_empty() -> None:
+    pairs = [
+        Pair(name=f"{camera}{index}.png", noisy_path=Path("n"), clean_path=Path("c"), camera=camera)
+        for camera, count in (("a", 3), ("b", 2), ("c", 1))
+        for index in range(count)
+    ]
+    folds = camera_folds(pairs, 2)
+    by_camera = {
+        camera: [fold for pair, fold in zip(pairs, folds, strict=True) if pair.camera == camera] for camera in "abc"
+    }
+    assert sorted(by_camera["a"]) == [0, 0, 1] and sorted(by_camera["b"]) == [0, 1], by_camera
+    assert sorted(folds) == [0, 0, 0, 1, 1, 1]
+
+
+def test_the_denoiser_trained_on_real_pairs_beats_their_noisy_input(make_pair_set: MakeSet) -> None:
+    root = make_pair_set("real", count=2, sigma=SIGMA, size=64)
+    pairs = [load_pair(pair) for pair in list_pair_set(root).pairs]
+    settings = DownstreamSettings(steps=150, batch=4, crop=32, width=8, depth=3)
+    model = train_on_real_pairs(pairs[:1], settings)
+    scores = downstream.test_denoiser(model, pairs[1:])
+    assert scores["psnr"] > scores[NOISY_INPUT]["psnr"] + 1.0, scores

@@ -49,6 +49,13 @@ LEAK = 0.1
 NOISY_INPUT = "noisy input"
 """Row of the unprocessed real noisy image: the reference that a useful denoiser must beat."""
 
+REAL_PAIRS = "real pairs (other folds)"
+"""Row of the denoiser trained on the set's real pairs of the other folds: the ceiling (never ranked)."""
+
+OTHER_IMAGES_METHODS = ("den",)
+"""Methods that also get a row trained on parameters fitted on the other folds' noisy images only (the user's case:
+a profile from a few photos of the camera, then a whole dataset), named ``"<method> (other images)"``."""
+
 Progress = Callable[[str], None]
 
 
@@ -72,6 +79,9 @@ class DownstreamSettings:
         width: feature channels of the denoiser.
         depth: convolution layers of the denoiser (at least 2).
         loss: "l1" or "mse" between the denoised crop and the clean one.
+        folds: the set's pairs split so, each camera's in turn (:func:`camera_folds`), for the rows tested on pairs
+            their training never saw: :data:`REAL_PAIRS` and the methods of :data:`OTHER_IMAGES_METHODS` (fewer than
+            2: no such rows).
     """
 
     steps: int = 3000
@@ -83,6 +93,7 @@ class DownstreamSettings:
     width: int = 16
     depth: int = 5
     loss: Literal["l1", "mse"] = "l1"
+    folds: int = 2
 
     def __post_init__(self) -> None:
         if self.steps < 1 or self.batch < 1 or self.crop < 8:
@@ -91,6 +102,8 @@ class DownstreamSettings:
             raise ValueError("the denoiser needs a depth of at least 2 and a width of at least 1")
         if self.loss not in ("l1", "mse"):
             raise ValueError(f"unknown loss {self.loss!r}: l1 or mse")
+        if self.folds < 0:
+            raise ValueError("folds must be at least 0 (under 2: no rows tested on unseen folds)")
 
 
 class ResidualDenoiser(nn.Module):
@@ -196,23 +209,69 @@ def _clean_crops(images: Sequence[np.ndarray], batch: int, crop: int, generator:
     return out
 
 
-class _DenoiserSteps:
-    """The denoiser's part of :func:`~darksynth.training.scaffold.run_steps`: an Adam step on a batch of
-    synthetic noisy crops (cosine learning rate), and at a report a progress line."""
+Batch = Callable[[], tuple[torch.Tensor, torch.Tensor]]
+"""Makes one training batch: (noisy, clean), each (batch, 3, crop, crop) on 8-bit levels."""
 
-    def __init__(
-        self,
-        method: NoiseMethod,
-        parameters_list: Sequence[Any],
-        images: Sequence[np.ndarray],
-        settings: DownstreamSettings,
-        progress: Progress | None,
-    ) -> None:
-        self.method, self.parameters_list, self.images, self.settings = method, parameters_list, images, settings
-        self.progress = progress
-        self.crops = seeded_generator(derive_seed("darksynth", settings.seed, "downstream/crops"))
-        self.draws = seeded_generator(derive_seed("darksynth", settings.seed, "downstream/parameters"))
-        self.noise = seeded_generator(derive_seed("darksynth", settings.seed, "downstream/noise"))
+
+def _synthetic_batches(
+    method: NoiseMethod, parameters_list: Sequence[Any], images: Sequence[np.ndarray], settings: DownstreamSettings
+) -> Batch:
+    """Random crops of the clean images (the same for every method of a seed), each made noisy by the method with a
+    random entry of ``parameters_list``."""
+    crops = seeded_generator(derive_seed("darksynth", settings.seed, "downstream/crops"))
+    draws = seeded_generator(derive_seed("darksynth", settings.seed, "downstream/parameters"))
+    noise = seeded_generator(derive_seed("darksynth", settings.seed, "downstream/noise"))
+
+    def batch() -> tuple[torch.Tensor, torch.Tensor]:
+        clean = _clean_crops(images, settings.batch, settings.crop, crops)
+        choices = torch.randint(0, len(parameters_list), (settings.batch,), generator=draws).tolist()
+        noisy = torch.stack(
+            [
+                method.synthesize(crop, parameters_list[choice], noise)
+                for crop, choice in zip(clean, choices, strict=True)
+            ]
+        )
+        return noisy, clean
+
+    return batch
+
+
+def _real_batches(pairs: Sequence[LoadedPair], settings: DownstreamSettings) -> Batch:
+    """Random crops of real pairs, the same place in the noisy and the clean image, with the same random flips."""
+    crops = seeded_generator(derive_seed("darksynth", settings.seed, "downstream/real-crops"))
+
+    def integer(high: int) -> int:
+        return int(torch.randint(0, high, (), generator=crops))
+
+    usable = [pair for pair in pairs if min(pair.clean.shape[-2:]) >= settings.crop]
+    if not usable:
+        raise DarksynthError(f"no real pair has both sides of at least {settings.crop} pixels")
+
+    def batch() -> tuple[torch.Tensor, torch.Tensor]:
+        noisy, clean = [], []
+        for _ in range(settings.batch):
+            pair = usable[integer(len(usable))]
+            top = integer(pair.clean.shape[-2] - settings.crop + 1)
+            left = integer(pair.clean.shape[-1] - settings.crop + 1)
+            both = torch.stack([pair.noisy, pair.clean])[..., top : top + settings.crop, left : left + settings.crop]
+            flips = integer(4)
+            if flips & 1:
+                both = both.flip(-1)
+            if flips & 2:
+                both = both.flip(-2)
+            noisy.append(both[0])
+            clean.append(both[1])
+        return torch.stack(noisy), torch.stack(clean)
+
+    return batch
+
+
+class _DenoiserSteps:
+    """The denoiser's part of :func:`~darksynth.training.scaffold.run_steps`: an Adam step on a training batch
+    (cosine learning rate), and at a report a progress line."""
+
+    def __init__(self, label: str, batch: Batch, settings: DownstreamSettings, progress: Progress | None) -> None:
+        self.label, self.batch, self.settings, self.progress = label, batch, settings, progress
         self.model = build_denoiser(settings)
         self.optimizer = torch.optim.Adam(self.model.parameters(), lr=settings.learning_rate)
         self.loss_function = F.l1_loss if settings.loss == "l1" else F.mse_loss
@@ -221,14 +280,7 @@ class _DenoiserSteps:
         settings, model = self.settings, self.model
         for group in self.optimizer.param_groups:
             group["lr"] = settings.learning_rate * 0.5 * (1.0 + math.cos(math.pi * (step - 1) / settings.steps))
-        clean = _clean_crops(self.images, settings.batch, settings.crop, self.crops)
-        choices = torch.randint(0, len(self.parameters_list), (settings.batch,), generator=self.draws).tolist()
-        noisy = torch.stack(
-            [
-                self.method.synthesize(crop, self.parameters_list[choice], self.noise)
-                for crop, choice in zip(clean, choices, strict=True)
-            ]
-        )
+        noisy, clean = self.batch()
         clean_batch = clean.to(device=settings.device, dtype=torch.float32)
         noisy_batch = noisy.to(device=settings.device, dtype=torch.float32)
         loss = self.loss_function(model(noisy_batch), clean_batch)
@@ -243,9 +295,16 @@ class _DenoiserSteps:
         loss = report.mean_losses["loss"]
         if self.progress is not None:
             self.progress(
-                f"{self.method.name}: step {report.step}/{self.settings.steps}, loss {loss:.5f}, {report.seconds:.0f} s"
+                f"{self.label}: step {report.step}/{self.settings.steps}, loss {loss:.5f}, {report.seconds:.0f} s"
             )
         return {"step": report.step, "loss": loss}
+
+
+def _trained(steps: _DenoiserSteps) -> ResidualDenoiser:
+    steps.model.train()
+    run_steps(steps, StepPlan(steps.settings.steps, max(1, steps.settings.steps // 10)))
+    steps.model.eval()
+    return steps.model
 
 
 def train_denoiser(
@@ -268,11 +327,20 @@ def train_denoiser(
     """
     if not parameters_list:
         raise DarksynthError(f"{method.name}: no fitted parameters to synthesise training noise with")
-    steps = _DenoiserSteps(method, parameters_list, _usable_images(clean_images, settings.crop), settings, progress)
-    steps.model.train()
-    run_steps(steps, StepPlan(settings.steps, max(1, settings.steps // 10)))
-    steps.model.eval()
-    return steps.model
+    batch = _synthetic_batches(method, parameters_list, _usable_images(clean_images, settings.crop), settings)
+    return _trained(_DenoiserSteps(method.name, batch, settings, progress))
+
+
+def train_on_real_pairs(
+    pairs: Sequence[LoadedPair], settings: DownstreamSettings, *, progress: Progress | None = None
+) -> ResidualDenoiser:
+    """The settings' denoiser trained on random crops of real pairs (noisy in, clean out): what real data of the
+    camera gives, the ceiling a synthetic method is measured against.
+
+    Raises:
+        DarksynthError: no pair as large as the crop.
+    """
+    return _trained(_DenoiserSteps(REAL_PAIRS, _real_batches(pairs, settings), settings, progress))
 
 
 def denoise(model: nn.Module, noisy: torch.Tensor) -> torch.Tensor:
@@ -364,16 +432,74 @@ def _constant(parameters: Sequence[Any]) -> bool:
 
 def _fit_on_set(
     pair_set: PairSet, built: dict[str, NoiseMethod], problems: list[str], say: Progress
-) -> dict[str, list[Any]]:
-    """Every method's parameters fitted on every readable pair of a set (zero-shot methods on the noisy image)."""
+) -> dict[str, dict[str, Any]]:
+    """Every method's parameters fitted on every readable pair of a set (zero-shot methods on the noisy image), by
+    pair name."""
     say(f"{pair_set.name}: fitting {len(built)} methods on {len(pair_set.pairs)} pairs")
-    fitted: dict[str, list[Any]] = {name: [] for name in built}
+    fitted: dict[str, dict[str, Any]] = {name: {} for name in built}
     for index, loaded in enumerate(_loaded(pair_set.pairs, problems)):
         if index % 25 == 24:
             say(f"{pair_set.name}: fitted on {index + 1} pairs")
         for name, method in built.items():
-            fitted[name].extend(fit_reference_parameters(method, [loaded], problems))
+            for parameters in fit_reference_parameters(method, [loaded], problems):
+                fitted[name][loaded.pair.name] = parameters
     return fitted
+
+
+def camera_folds(pairs: Sequence[Pair], folds: int) -> list[int]:
+    """Each pair's fold: the pairs ordered by camera, then name, go to the folds in turn, so that every fold holds
+    pairs of every camera that has as many pairs as folds (and no fold is empty while there are as many pairs)."""
+    order = sorted(range(len(pairs)), key=lambda index: (pairs[index].camera, pairs[index].name))
+    fold_of = [0] * len(pairs)
+    for position, index in enumerate(order):
+        fold_of[index] = position % folds
+    return fold_of
+
+
+def _scores_on(model: nn.Module, pairs: Iterable[LoadedPair]) -> list[dict[str, float]]:
+    return [image_scores(denoise(model, loaded.noisy), loaded.clean) for loaded in pairs]
+
+
+def _cross_fold_rows(
+    pair_set: PairSet,
+    built: dict[str, NoiseMethod],
+    fitted: dict[str, dict[str, Any]],
+    images: Sequence[np.ndarray],
+    settings: DownstreamSettings,
+    problems: list[str],
+    say: Progress,
+) -> dict[str, Any]:
+    """The rows whose denoisers are tested on the folds their training never saw (:data:`REAL_PAIRS`, the methods of
+    :data:`OTHER_IMAGES_METHODS`): per fold, trained on the other folds' pairs, tested on its own; the scores are
+    the mean over every pair so tested."""
+    fold_of = dict(
+        zip((pair.name for pair in pair_set.pairs), camera_folds(pair_set.pairs, settings.folds), strict=True)
+    )
+    others = [name for name in OTHER_IMAGES_METHODS if name in built]
+    rows: dict[str, list[dict[str, float]]] = {
+        name: [] for name in (REAL_PAIRS, *(f"{n} (other images)" for n in others))
+    }
+    for fold in range(settings.folds):
+        training = [pair for pair in pair_set.pairs if fold_of[pair.name] != fold]
+        tested = [pair for pair in pair_set.pairs if fold_of[pair.name] == fold]
+        if not training or not tested:
+            continue
+        say(f"{pair_set.name}: fold {fold + 1}/{settings.folds}: training on {len(training)} real pairs")
+        try:
+            model = train_on_real_pairs(
+                list(_loaded(training, problems)), settings, progress=_prefixed(say, pair_set.name)
+            )
+            rows[REAL_PAIRS] += _scores_on(model, _loaded(tested, None))
+        except DarksynthError as error:
+            problems.append(f"{pair_set.name}: {REAL_PAIRS}: fold {fold + 1}: {error}")
+        for name in others:
+            parameters = [fitted[name][pair.name] for pair in training if pair.name in fitted[name]]
+            if not parameters:
+                continue
+            say(f"{pair_set.name}: fold {fold + 1}/{settings.folds}: {name} on the other folds' noisy images")
+            model = train_denoiser(built[name], parameters, images, settings, progress=_prefixed(say, pair_set.name))
+            rows[f"{name} (other images)"] += _scores_on(model, _loaded(tested, None))
+    return {name: _mean_scores(scores) | {"folds": settings.folds} for name, scores in rows.items() if scores}
 
 
 def _denoiser_for(
@@ -449,7 +575,7 @@ def run_downstream(
         set_results: dict[str, Any] = {}
         reference_done = False
         for name, method in built.items():
-            parameters = fitted[name]
+            parameters = list(fitted[name].values())
             if not parameters:
                 problems.append(f"{pair_set.name}: {name}: no pair could be fitted; not trained")
                 continue
@@ -461,6 +587,8 @@ def run_downstream(
                 reference_done = True
             scores["training"] = training_summary(model)
             set_results[name] = scores
+        if settings.folds >= 2:
+            set_results |= _cross_fold_rows(pair_set, built, fitted, corpus.images, settings, problems, say)
         results[pair_set.name] = set_results
     results["problems"] = problems
     results["seconds"] = round(time.perf_counter() - started, 1)

@@ -1,0 +1,114 @@
+"""The enhancement example (examples/night_enhancer.py) runs end to end with a few steps, scores as stated, and
+refuses bad input with one line."""
+
+import json
+from pathlib import Path
+from types import ModuleType
+
+import numpy as np
+import pytest
+import torch
+from PIL import Image
+
+from tests.script_modules import load_script
+
+EXAMPLE = Path(__file__).resolve().parents[2] / "examples" / "night_enhancer.py"
+
+
+def _example() -> ModuleType:
+    return load_script(EXAMPLE)
+
+
+def _scene(generator: np.random.Generator, side: int) -> np.ndarray:
+    """A smooth colour scene (H, W, 3) float in [0.15, 0.75]."""
+    y, x = np.mgrid[0:side, 0:side] / side
+    phase = generator.uniform(0, 6.28, 3)
+    return np.stack([0.45 + 0.3 * np.sin(3 * x + 2 * y + p) for p in phase], axis=-1)
+
+
+def _write(path: Path, pixels: np.ndarray) -> None:
+    path.parent.mkdir(parents=True, exist_ok=True)
+    Image.fromarray((np.clip(pixels, 0, 1) * 255).round().astype(np.uint8)).save(path)
+
+
+@pytest.fixture()
+def folders(tmp_path: Path) -> tuple[Path, Path, Path]:
+    """Two low/normal-light pairs (low: a tenth of the light and 2 levels of noise), a folder of the camera's dark
+    photos holding the two test images and one other, and two clean training images."""
+    generator = np.random.default_rng(0)
+    pairs, references = tmp_path / "pairs", tmp_path / "references"
+    for index in range(3):
+        high = _scene(generator, 160)
+        low = 0.1 * high + generator.normal(0, 2 / 255, high.shape)
+        _write(references / f"{index}.png", low)
+        if index < 2:
+            _write(pairs / "high" / f"{index}.png", high)
+            _write(pairs / "low" / f"{index}.png", low)
+    for index in range(2):
+        _write(tmp_path / "clean" / f"image{index}.png", _scene(generator, 96))
+    return pairs, references, tmp_path / "clean"
+
+
+def test_the_example_trains_each_method_on_the_other_photos_and_writes_its_comparison(
+    folders: tuple[Path, Path, Path], tmp_path: Path
+) -> None:
+    pairs, references, clean = folders
+    out = tmp_path / "out"
+    arguments = ["--pairs", str(pairs), "--references", str(references), "--clean", str(clean), "--steps", "2"]
+    arguments += ["--batch", "2", "--crop", "32", "--workers", "0", "--seeds", "0,1", "--out", str(out)]
+    assert _example().main(arguments) == 0
+    record = json.loads((out / "results.json").read_text())
+    # The profiles come from the one photo that is not a test image, with both noise models.
+    assert [Path(path).name for path in record["references"]] == ["2.png"]
+    assert (out / "profiles" / "srgb" / "2.json").is_file() and (out / "profiles" / "paper" / "2.json").is_file()
+    assert set(record["results"]) == {"low input", *_example().METHODS}
+    for name, scores in record["results"].items():
+        assert 3.0 < scores["psnr"] < 60.0 and 0.0 < scores["ssim"] <= 1.0, (name, scores)
+        assert len(scores["per_seed"]["psnr"]) == (1 if name == "low input" else 2)
+        assert set(scores["per_pair"]) == {"0.png", "1.png"}
+    # The pairs need a gain of about 10 (a tenth of the light).
+    gains = [entry["gain"] for entry in record["results"]["low input"]["per_pair"].values()]
+    assert all(8.0 < gain < 12.0 for gain in gains), gains
+    assert (out / "comparison.png").read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
+
+
+def test_gt_mean_psnr_forgives_a_global_gain_and_psnr_does_not() -> None:
+    example = _example()
+    high = torch.rand(3, 32, 32, generator=torch.Generator().manual_seed(0)) * 0.5 + 0.25
+    pair = example.TestPair("a.png", high * 0.1, high)
+    scores = example.pair_scores(high * 0.8, pair)
+    assert scores["gt_mean_psnr"] > 100.0 and scores["psnr"] < 25.0, scores
+    assert abs(scores["gain"] - 10.0) < 1e-6
+
+
+def test_the_training_exposures_are_matched_per_image_and_drawn_from_several_references(
+    folders: tuple[Path, Path, Path], tmp_path: Path
+) -> None:
+    # Two references of different exposures: each image gets one darkening per reference drawn, and a brighter
+    # reference gives a brighter darkened image.
+    example = _example()
+    clean = folders[2]
+    images = example.read_clean_images([clean], 32)
+    generator = np.random.default_rng(1)
+    dark, less_dark = tmp_path / "dark.png", tmp_path / "less_dark.png"
+    scene = _scene(generator, 160)
+    _write(dark, 0.05 * scene + generator.normal(0, 1 / 255, scene.shape))
+    _write(less_dark, 0.3 * scene + generator.normal(0, 1 / 255, scene.shape))
+    profiles = example.estimate_profiles([dark, less_dark], tmp_path / "profiles", "srgb", "cpu")
+    exposures = example.ProfileExposures(images, profiles, 2, seed=0)
+    low_light = example.profile_low_light(exposures, noise=False)
+    clean_image = images[0].float() / 255.0
+    means = {exposures.pick(0, seed)[0]: float(low_light(0, clean_image, seed).mean()) for seed in (0, 1)}
+    assert set(means) == {0, 1}, means
+    assert 3.0 < means[1] / means[0] < 9.0, means
+
+
+def test_a_low_image_without_its_normal_light_image_is_one_line_and_exit_2(
+    folders: tuple[Path, Path, Path], tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    pairs, references, clean = folders
+    (pairs / "high" / "1.png").unlink()
+    arguments = ["--pairs", str(pairs), "--references", str(references), "--clean", str(clean)]
+    assert _example().main([*arguments, "--out", str(tmp_path / "out")]) == 2
+    error = capsys.readouterr().err.strip()
+    assert error.count("\n") == 0 and "1.png" in error and "no normal-light image" in error, error
