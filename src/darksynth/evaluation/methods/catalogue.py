@@ -9,6 +9,8 @@ to 8-bit levels, as the real noisy image was.
 from __future__ import annotations
 
 import dataclasses
+import hashlib
+from collections import OrderedDict
 from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -116,19 +118,26 @@ def synthesize_image(clean: torch.Tensor, values: NoiseValues, generator: torch.
     return to_8bit_levels(add_noise(clean[None], values, generator=generator)[0])
 
 
-@dataclass
-class _LastEstimate:
-    """The last noisy image's estimate without the camera prior, shared by the DEN methods that start from it
-    (``den`` and ``den-prior``, which adds the texture dependence the prior expects): the runner fits every method
-    on one pair before it reads the next, so one estimate a pair serves both."""
+ESTIMATES_KEPT = 1024
+"""How many estimates :class:`_Estimates` keeps (each a profile of a few kilobytes)."""
 
-    noisy: torch.Tensor | None = None
-    found: Estimate | None = None
+
+@dataclass
+class _Estimates:
+    """The estimates of the noisy images seen, by their pixels, shared by the DEN methods that start from them
+    (``den`` and ``den-prior``, which adds the texture dependence the prior expects) and by later runs in the same
+    process (the downstream check after the evaluation, one per seed): the estimate depends on the image alone."""
+
+    found: OrderedDict[bytes, Estimate] = field(default_factory=OrderedDict)
 
     def get(self, noisy: torch.Tensor, compute: Callable[[], Estimate]) -> Estimate:
-        if self.noisy is not noisy or self.found is None:
-            self.noisy, self.found = noisy, compute()
-        return self.found
+        pixels = noisy.detach().to(device="cpu", dtype=torch.float64).contiguous().numpy()
+        key = hashlib.blake2b(pixels.tobytes(), digest_size=16).digest() + repr(pixels.shape).encode()
+        if key not in self.found:
+            self.found[key] = compute()
+            if len(self.found) > ESTIMATES_KEPT:
+                self.found.popitem(last=False)
+        return self.found[key]
 
 
 @dataclass
@@ -143,7 +152,7 @@ def _read_octaves(found: Estimate) -> Mapping[str, int] | None:
     return spectrum.get("read_octaves") if isinstance(spectrum, dict) else None
 
 
-_LAST_ESTIMATES: dict[tuple[str, str, bool], _LastEstimate] = {}
+_ESTIMATES: dict[tuple[str, str, bool], _Estimates] = {}
 
 
 def _den_method(
@@ -156,7 +165,7 @@ def _den_method(
     model = load_den_weights(name, weights, device)
     refined = refines(model.noise_model, refine)
     with_prior = prior and refined
-    last = _LAST_ESTIMATES.setdefault((str(weights), device, refine), _LastEstimate())
+    estimates = _ESTIMATES.setdefault((str(weights), device, refine), _Estimates())
 
     latest = _LatestReading()
 
@@ -168,7 +177,7 @@ def _den_method(
                 found = estimate(reference, model, device=device, refine=refine, camera_prior=use)
                 latest.octaves = _read_octaves(found)
                 return found.profile.noise
-            found = last.get(noisy, lambda: estimate(reference, model, device=device, refine=refine))
+            found = estimates.get(noisy, lambda: estimate(reference, model, device=device, refine=refine))
             latest.octaves = _read_octaves(found)
             values = found.profile.noise
             # The texture dependence does not enter the fit (it reads flat blocks): added to the shared estimate,
