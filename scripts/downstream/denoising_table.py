@@ -10,7 +10,8 @@ Run from the repo root::
         --seeds 0,1,2 --out downstream.json
 
 Options: ``--methods`` (default: every blind method a user compares and pg-oracle), ``--steps`` (1500), ``--clean``
-(repeatable; default the shared Kodak and CBSD68), ``--device``, ``--data``.
+(repeatable; default the shared Kodak and CBSD68), ``--device``, ``--net small|dncnn`` (DnCNN's size with
+``--device cuda`` and tens of thousands of steps), ``--data``.
 
 Every seed runs :func:`darksynth.evaluation.measures.downstream.run_downstream` (the function behind `darksynth
 evaluate --downstream`; the same denoiser, steps and clean images) in one process, so each noisy image is estimated
@@ -33,6 +34,7 @@ import numpy as np
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[2] / "benchmarks"))
 from darksynth.evaluation.measures.downstream import (
+    DENOISER_SIZES,
     NOISY_INPUT,
     REAL_PAIRS,
     DownstreamSettings,
@@ -106,6 +108,7 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--steps", type=int, default=1500)
     parser.add_argument("--clean", type=Path, action="append", default=None)
     parser.add_argument("--device", default="cpu")
+    parser.add_argument("--net", choices=tuple(DENOISER_SIZES), default="small")
     parser.add_argument("--out", type=Path, required=True)
     arguments = parser.parse_args(argv)
     clean = arguments.clean or [arguments.data / "clean" / "images" / name for name in ("kodak24", "cbsd68")]
@@ -115,7 +118,10 @@ def main(argv: list[str] | None = None) -> int:
     print(cpu_summary(), flush=True)
     runs = []
     for seed in seeds:
-        settings = DownstreamSettings(steps=arguments.steps, seed=seed, device=arguments.device)
+        width, depth = DENOISER_SIZES[arguments.net]
+        settings = DownstreamSettings(
+            steps=arguments.steps, seed=seed, device=arguments.device, width=width, depth=depth
+        )
         runs.append(
             run_downstream(roots, methods, clean, settings, progress=lambda message: print(f"  {message}", flush=True))
         )
@@ -127,6 +133,7 @@ def main(argv: list[str] | None = None) -> int:
         "cpu": cpu_summary(),
         "seeds": seeds,
         "steps": arguments.steps,
+        "net": arguments.net,
         "tables": tables,
         "verdicts": {name: verdict(table) for name, table in tables.items()},
         "problems": sorted({problem for run in runs for problem in run.get("problems", [])}),

@@ -57,6 +57,7 @@ def test_bad_pairs_and_names_are_reported_and_the_rest_runs(make_pair_set: MakeS
     [
         (["--methods", "nope"], "no method can run: nope: unknown method"),
         (["--weights", "den-v2"], "expected METHOD=FILE"),
+        (["--downstream-net", "huge"], "--downstream-net 'huge': one of small, dncnn"),
     ],
 )
 def test_fatal_inputs_give_one_error_line(
@@ -76,6 +77,17 @@ def test_no_readable_set_is_fatal(tmp_path: Path) -> None:
     assert "no set of pairs could be read" in stderr and "absent: no such folder" in stderr
 
 
+def test_a_dncnn_sized_downstream_net_is_asked_by_name(make_pair_set: MakeSet, tmp_path: Path) -> None:
+    root = make_pair_set("setN", count=1)
+    code, _, stderr = run_cli(
+        "evaluate", "--pairs", root, "--methods", "awgn", "--no-fid", "--out", tmp_path / "out",
+        "--downstream", root / "clean", "--downstream-steps", "1", "--downstream-net", "dncnn",
+    )  # fmt: skip
+    assert code == 0, stderr
+    settings = json.loads((tmp_path / "out" / "results.json").read_text())["downstream"]["settings"]
+    assert (settings["width"], settings["depth"]) == (64, 17)
+
+
 def test_downstream_check_lands_in_the_results(make_pair_set: MakeSet, tmp_path: Path) -> None:
     root = make_pair_set("setD", count=2)
     out = tmp_path / "out"
@@ -88,7 +100,10 @@ def test_downstream_check_lands_in_the_results(make_pair_set: MakeSet, tmp_path:
     downstream = results["downstream"]
     assert downstream["settings"]["steps"] == 3
     assert set(downstream["setD"]) >= {"awgn", "pg-oracle", "noisy input"}
-    assert "--downstream-steps 3" in results["command"]
+    assert "--downstream-steps 3 --downstream-net small" in results["command"]
+    assert (downstream["settings"]["width"], downstream["settings"]["depth"]) == (16, 5)
+    # Two pairs: the real-pair ceiling, trained on one and tested on the other, is a row too (never ranked).
+    assert downstream["setD"]["real pairs (other folds)"]["pairs"] == 2
     assert downstream["setD"]["awgn"]["psnr"] > 0 and 0 < downstream["setD"]["awgn"]["ssim"] <= 1
     assert "noisy input" in (out / "results.md").read_text()
 

@@ -37,7 +37,7 @@ def evaluate_command_line(pairs: list[Path], out: Path, options: EvaluationOptio
     for root in options.downstream:
         arguments += ["--downstream", str(root)]
     if options.downstream:
-        arguments += ["--downstream-steps", str(options.downstream_steps)]
+        arguments += ["--downstream-steps", str(options.downstream_steps), "--downstream-net", options.downstream_net]
     return shlex.join(["darksynth", "evaluate", *arguments, "--out", str(out)])
 
 
@@ -77,6 +77,13 @@ def evaluate_command(
     downstream_steps: Annotated[int, typer.Option(help="Training steps of each downstream denoiser.")] = default_of(
         EvaluationOptions, "downstream_steps"
     ),
+    downstream_net: Annotated[
+        str,
+        typer.Option(
+            help="Size of each downstream denoiser: small (16 channels, 5 layers; minutes per method on a CPU) or "
+            "dncnn (64 channels, 17 layers, DnCNN's; for a GPU with --device cuda and tens of thousands of steps)."
+        ),
+    ] = default_of(EvaluationOptions, "downstream_net"),
     quiet: Annotated[bool, typer.Option("--quiet", "-q", help=QUIET_HELP)] = False,
 ) -> None:
     from darksynth.evaluation.run.job import rank_by_kld, run_evaluation
@@ -91,6 +98,7 @@ def evaluate_command(
             inception=inception,
             downstream=tuple(downstream or ()),
             downstream_steps=downstream_steps,
+            downstream_net=downstream_net,
         )
         options = dataclasses.replace(options, command=evaluate_command_line(pairs, out, options))
         with progress_display(console, "evaluate", quiet=quiet) as display:

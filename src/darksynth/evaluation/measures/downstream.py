@@ -49,6 +49,10 @@ LEAK = 0.1
 NOISY_INPUT = "noisy input"
 """Row of the unprocessed real noisy image: the reference that a useful denoiser must beat."""
 
+DENOISER_SIZES = {"small": (16, 5), "dncnn": (64, 17)}
+"""The downstream denoiser's (width, depth) by name: ``small``, the default, trains in about 25 s per method on a CPU;
+``dncnn`` is DnCNN's (Zhang et al. 2017), for a GPU and tens of thousands of steps."""
+
 REAL_PAIRS = "real pairs (other folds)"
 """Row of the denoiser trained on the set's real pairs of the other folds: the ceiling (never ranked)."""
 

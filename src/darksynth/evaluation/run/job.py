@@ -58,14 +58,14 @@ def run_evaluation(
             or a file that cannot be read or written (one line naming it).
     """
     # The runner imports scipy (about 0.7 s): only a run pays for it, not the command line's start.
-    from darksynth.evaluation.measures.downstream import DownstreamSettings, run_downstream
+    from darksynth.evaluation.measures.downstream import run_downstream
     from darksynth.evaluation.run.runner import evaluate_pairs
 
     say = progress or (lambda message: None)
     try:
         outcome = evaluate_pairs(pair_roots, options, progress=say)
         if options.downstream:
-            settings = DownstreamSettings(steps=options.downstream_steps, seed=options.seed, device=options.device)
+            settings = options.downstream_settings()
             outcome.results["downstream"] = run_downstream(
                 pair_roots,
                 [name for name in options.methods if name in outcome.results["methods"]],

@@ -8,7 +8,7 @@ from pathlib import Path
 from typing import Final
 
 from darksynth.errors import DarksynthError
-from darksynth.evaluation.measures.downstream import DownstreamSettings
+from darksynth.evaluation.measures.downstream import DENOISER_SIZES, DownstreamSettings
 from darksynth.evaluation.methods.catalogue import DEFAULT_METHODS
 
 _DOWNSTREAM_DEFAULTS: Final = DownstreamSettings()
@@ -26,6 +26,8 @@ class EvaluationOptions:
         inception: compute FID and KID (InceptionV3 features of noise maps).
         downstream: folders of clean training images for the downstream check; none: no check.
         downstream_steps: training steps of each downstream denoiser.
+        downstream_net: the downstream denoiser's size, a name of
+            :data:`~darksynth.evaluation.measures.downstream.DENOISER_SIZES`.
         fid_crops: noise-map tiles per set and per source (real or a method) for FID/KID, spread evenly over
             the pairs.
         examples_per_set: pairs per set shown in the report.
@@ -33,7 +35,7 @@ class EvaluationOptions:
         command: the command that asked for the run, stated in the results.
 
     Raises:
-        DarksynthError: ``downstream_steps`` below 1.
+        DarksynthError: ``downstream_steps`` below 1 or an unknown ``downstream_net``.
     """
 
     methods: Sequence[str] = DEFAULT_METHODS
@@ -43,6 +45,7 @@ class EvaluationOptions:
     inception: bool = True
     downstream: tuple[Path, ...] = ()
     downstream_steps: int = _DOWNSTREAM_DEFAULTS.steps
+    downstream_net: str = "small"
     fid_crops: int = 64
     examples_per_set: int = 2
     example_crop: int = 128
@@ -51,3 +54,13 @@ class EvaluationOptions:
     def __post_init__(self) -> None:
         if self.downstream_steps < 1:
             raise DarksynthError(f"--downstream-steps must be at least 1, got {self.downstream_steps}")
+        if self.downstream_net not in DENOISER_SIZES:
+            known = ", ".join(DENOISER_SIZES)
+            raise DarksynthError(f"--downstream-net {self.downstream_net!r}: one of {known}")
+
+    def downstream_settings(self) -> DownstreamSettings:
+        """The settings of the downstream check these options ask for."""
+        width, depth = DENOISER_SIZES[self.downstream_net]
+        return DownstreamSettings(
+            steps=self.downstream_steps, seed=self.seed, device=self.device, width=width, depth=depth
+        )
