@@ -186,7 +186,7 @@ def train(dataset: NoisyCrops, arguments: argparse.Namespace, label: str) -> tor
     over ``dataset`` in batches of ``--batch``; the same initial weights for every method."""
     from rich.progress import Progress
 
-    from darksynth.evaluation.measures.downstream import ResidualDenoiser
+    from darksynth.evaluation.measures.denoiser import ResidualDenoiser
 
     model = ResidualDenoiser(arguments.width, arguments.depth, seed=arguments.seed).to(arguments.device)
     optimiser = torch.optim.Adam(model.parameters(), lr=1e-3)
@@ -208,7 +208,8 @@ def train(dataset: NoisyCrops, arguments: argparse.Namespace, label: str) -> tor
 
 def test(model: torch.nn.Module | None, test_pairs: list[Any]) -> dict[str, float]:
     """Mean PSNR and SSIM over the test pairs of the model's output (None: the noisy input as it is)."""
-    from darksynth.evaluation.measures.downstream import denoise, image_scores
+    from darksynth.evaluation.measures.denoiser import denoise
+    from darksynth.evaluation.measures.downstream import image_scores
     from darksynth.evaluation.pairs import load_pair
 
     rows = []

@@ -33,13 +33,8 @@ from typing import Any
 import numpy as np
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[2] / "benchmarks"))
-from darksynth.evaluation.measures.downstream import (
-    DENOISER_SIZES,
-    NOISY_INPUT,
-    REAL_PAIRS,
-    DownstreamSettings,
-    run_downstream,
-)
+from darksynth.evaluation.measures.denoiser import DENOISER_SIZES, DownstreamSettings
+from darksynth.evaluation.measures.downstream import NOISY_INPUT, REAL_PAIRS, run_downstream
 from darksynth.io.atomic import write_text_atomic
 from machine import cpu_summary
 

@@ -13,17 +13,19 @@ from PIL import Image
 
 from darksynth.errors import DarksynthError
 from darksynth.evaluation.measures import downstream
+from darksynth.evaluation.measures.denoiser import (
+    DownstreamSettings,
+    ResidualDenoiser,
+    train_denoiser,
+    train_on_real_pairs,
+)
 from darksynth.evaluation.measures.downstream import (
     LPIPS_STATUS,
     NOISY_INPUT,
     REAL_PAIRS,
-    DownstreamSettings,
-    ResidualDenoiser,
     camera_folds,
     fit_reference_parameters,
     run_downstream,
-    train_denoiser,
-    train_on_real_pairs,
 )
 from darksynth.evaluation.methods.catalogue import NoiseMethod, build_method
 from darksynth.evaluation.methods.classical import PoissonGaussian, add_poisson_gaussian

@@ -8,7 +8,7 @@ from pathlib import Path
 from typing import Final
 
 from darksynth.errors import DarksynthError
-from darksynth.evaluation.measures.downstream import DENOISER_SIZES, DownstreamSettings
+from darksynth.evaluation.measures.denoiser import DENOISER_SIZES, DownstreamSettings
 from darksynth.evaluation.methods.catalogue import DEFAULT_METHODS
 
 _DOWNSTREAM_DEFAULTS: Final = DownstreamSettings()
@@ -27,7 +27,7 @@ class EvaluationOptions:
         downstream: folders of clean training images for the downstream check; none: no check.
         downstream_steps: training steps of each downstream denoiser.
         downstream_net: the downstream denoiser's size, a name of
-            :data:`~darksynth.evaluation.measures.downstream.DENOISER_SIZES`.
+            :data:`~darksynth.evaluation.measures.denoiser.DENOISER_SIZES`.
         fid_crops: noise-map tiles per set and per source (real or a method) for FID/KID, spread evenly over
             the pairs.
         examples_per_set: pairs per set shown in the report.
