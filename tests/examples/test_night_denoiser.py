@@ -6,8 +6,8 @@ from types import ModuleType
 
 import numpy as np
 import pytest
-from PIL import Image
 
+from tests.examples.drawn_images import smooth_scene, write_png
 from tests.script_modules import load_script
 
 EXAMPLE = Path(__file__).resolve().parents[2] / "examples" / "night_denoiser.py"
@@ -17,30 +17,18 @@ def _example() -> ModuleType:
     return load_script(EXAMPLE)
 
 
-def _scene(generator: np.random.Generator, side: int) -> np.ndarray:
-    """A smooth colour scene (H, W, 3) float in [0.15, 0.75]."""
-    y, x = np.mgrid[0:side, 0:side] / side
-    phase = generator.uniform(0, 6.28, 3)
-    return np.stack([0.45 + 0.3 * np.sin(3 * x + 2 * y + p) for p in phase], axis=-1)
-
-
-def _write(path: Path, pixels: np.ndarray) -> None:
-    path.parent.mkdir(parents=True, exist_ok=True)
-    Image.fromarray((np.clip(pixels, 0, 1) * 255).round().astype(np.uint8)).save(path)
-
-
 @pytest.fixture()
 def folders(tmp_path: Path) -> tuple[Path, Path]:
     """A pair set of one camera "_CAM_" (3 pairs, 160 px, Gaussian noise of 8 levels) and 2 clean images."""
     generator = np.random.default_rng(0)
     pairs = tmp_path / "pairs"
     for index in range(3):
-        clean = _scene(generator, 160)
+        clean = smooth_scene(generator, 160)
         noisy = clean + generator.normal(0, 8 / 255, clean.shape)
-        _write(pairs / "clean" / f"scene{index}_CAM_.png", clean)
-        _write(pairs / "noisy" / f"scene{index}_CAM_.png", noisy)
+        write_png(pairs / "clean" / f"scene{index}_CAM_.png", clean)
+        write_png(pairs / "noisy" / f"scene{index}_CAM_.png", noisy)
     for index in range(2):
-        _write(tmp_path / "clean" / f"image{index}.png", _scene(generator, 96))
+        write_png(tmp_path / "clean" / f"image{index}.png", smooth_scene(generator, 96))
     return pairs, tmp_path / "clean"
 
 

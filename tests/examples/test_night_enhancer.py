@@ -8,8 +8,8 @@ from types import ModuleType
 import numpy as np
 import pytest
 import torch
-from PIL import Image
 
+from tests.examples.drawn_images import smooth_scene, write_png
 from tests.script_modules import load_script
 
 EXAMPLE = Path(__file__).resolve().parents[2] / "examples" / "night_enhancer.py"
@@ -19,18 +19,6 @@ def _example() -> ModuleType:
     return load_script(EXAMPLE)
 
 
-def _scene(generator: np.random.Generator, side: int) -> np.ndarray:
-    """A smooth colour scene (H, W, 3) float in [0.15, 0.75]."""
-    y, x = np.mgrid[0:side, 0:side] / side
-    phase = generator.uniform(0, 6.28, 3)
-    return np.stack([0.45 + 0.3 * np.sin(3 * x + 2 * y + p) for p in phase], axis=-1)
-
-
-def _write(path: Path, pixels: np.ndarray) -> None:
-    path.parent.mkdir(parents=True, exist_ok=True)
-    Image.fromarray((np.clip(pixels, 0, 1) * 255).round().astype(np.uint8)).save(path)
-
-
 @pytest.fixture()
 def folders(tmp_path: Path) -> tuple[Path, Path, Path]:
     """Two low/normal-light pairs (low: a tenth of the light and 2 levels of noise), a folder of the camera's dark
@@ -38,14 +26,14 @@ def folders(tmp_path: Path) -> tuple[Path, Path, Path]:
     generator = np.random.default_rng(0)
     pairs, references = tmp_path / "pairs", tmp_path / "references"
     for index in range(3):
-        high = _scene(generator, 160)
+        high = smooth_scene(generator, 160)
         low = 0.1 * high + generator.normal(0, 2 / 255, high.shape)
-        _write(references / f"{index}.png", low)
+        write_png(references / f"{index}.png", low)
         if index < 2:
-            _write(pairs / "high" / f"{index}.png", high)
-            _write(pairs / "low" / f"{index}.png", low)
+            write_png(pairs / "high" / f"{index}.png", high)
+            write_png(pairs / "low" / f"{index}.png", low)
     for index in range(2):
-        _write(tmp_path / "clean" / f"image{index}.png", _scene(generator, 96))
+        write_png(tmp_path / "clean" / f"image{index}.png", smooth_scene(generator, 96))
     return pairs, references, tmp_path / "clean"
 
 
@@ -91,9 +79,9 @@ def test_the_training_exposures_are_matched_per_image_and_drawn_from_several_ref
     images = example.read_clean_images([clean], 32)
     generator = np.random.default_rng(1)
     dark, less_dark = tmp_path / "dark.png", tmp_path / "less_dark.png"
-    scene = _scene(generator, 160)
-    _write(dark, 0.05 * scene + generator.normal(0, 1 / 255, scene.shape))
-    _write(less_dark, 0.3 * scene + generator.normal(0, 1 / 255, scene.shape))
+    scene = smooth_scene(generator, 160)
+    write_png(dark, 0.05 * scene + generator.normal(0, 1 / 255, scene.shape))
+    write_png(less_dark, 0.3 * scene + generator.normal(0, 1 / 255, scene.shape))
     profiles = example.estimate_profiles([dark, less_dark], tmp_path / "profiles", "srgb", "cpu")
     exposures = example.ProfileExposures(images, profiles, 2, seed=0)
     low_light = example.profile_low_light(exposures, noise=False)
