@@ -23,6 +23,7 @@ from darksynth.io.arrays import clips_from_numpy, clips_to_numpy
 from darksynth.light.darkening import Darkening, darken
 from darksynth.light.flicker import FlickerGains
 from darksynth.light.shutter import ShutterStage
+from darksynth.noise.codec_repeat import repeat_in_clip, repeat_in_stream
 from darksynth.noise.components import noise_component, noise_parameter
 from darksynth.noise.counter_rng import random_key
 from darksynth.noise.fused_8bit import (
@@ -110,6 +111,7 @@ class ClipSynthesizer:
         self._flicker = FlickerGains(self._values.scalar("flicker"), self._values.scalar("flicker_correlation"))
         fraction, length, angle = (self._values.scalar(n) for n in ("exposure_fraction", "shake_length", "shake_angle"))
         self._shutter = ShutterStage(fraction, length, angle, self.device)
+        self._repeat_share = self._values.scalar("codec_repeat")
 
     def push(self, frame: torch.Tensor) -> list[torch.Tensor]:
         """The next frame (C, H, W) of a clip in, the low-light frames finished so far out, in order. With motion
@@ -137,8 +139,15 @@ class ClipSynthesizer:
 
     def __call__(self, frame: torch.Tensor) -> torch.Tensor:
         """Low-light version of one frame (C, H, W) of a clip whose light stage is done (as :meth:`push` gives
-        it): uint8 in, uint8 out; uint16 and float likewise. Flicker, if any, is drawn here."""
-        return self._frame(frame, flicker=True)
+        it): uint8 in, uint8 out; uint16 and float likewise. Flicker, if any, is drawn here, and after the frame
+        the codec's repeats of still cells from the previous one (:mod:`darksynth.noise.codec_repeat`)."""
+        finished = self._frame(frame, flicker=True)
+        if self._repeat_share <= 0.0:
+            return finished
+        frame = frame.to(self.device)
+        scale = full_scale(frame.dtype)
+        clean = frame.to(torch.float32) / scale if scale else frame.to(torch.float32)
+        return repeat_in_stream(clean, finished, self._repeat_share, self.generator, self._held)
 
     def _frame(self, frame: torch.Tensor, *, flicker: bool) -> torch.Tensor:
         if frame.dim() != 3:
@@ -387,6 +396,9 @@ def _synthesize_clip(clip: torch.Tensor, parameters: ClipParameters, generator: 
     if gains is not None:
         signal = signal * gains
     noisy = add_noise(signal, values, generator=generator)
+    share = values.scalar("codec_repeat")
+    if share > 0.0 and clip.shape[0] > 1:
+        noisy = repeat_in_clip(clean, noisy, share, generator)
     return to_dtype(noisy, clip.dtype)
 
 

@@ -25,6 +25,8 @@ from darksynth.estimation.spectrum import estimate_spectrum
 from darksynth.noise.simulate import add_noise
 from darksynth.noise.spectral import OCTAVES
 from darksynth.noise.values import NoiseValues
+from darksynth.profile import Profile
+from darksynth.synthesize import synthesize
 
 
 def _ar1_frames(rho: float, frames: int = 4, side: int = 128, seed: int = 0) -> torch.Tensor:
@@ -154,13 +156,45 @@ def test_a_codec_that_skips_most_still_blocks_is_read_as_persistent_with_a_warni
     assert float(temporal[:3].min()) > 0.5, temporal
 
 
-def test_a_codec_that_skips_half_the_blocks_gives_the_pooled_correlation() -> None:
-    # Half the blocks repeated: the pooled lag-1 is about 0.5 (repeated blocks persist fully, coded ones not), what
-    # the profile's one coefficient per octave must give.
+def _synthetic_codec_clip(found_values: dict[str, torch.Tensor], seed: int = 5) -> torch.Tensor:
+    """The still scene of the codec clips through the estimate's spectrum, JPEG and codec repeat, as a float clip
+    (the whole-clip route of ``synthesize``), 8-bit levels."""
+    values = NoiseValues.from_values(
+        {
+            name: found_values[name].to(torch.float32)
+            for name in (
+                "level_curve",
+                "octave_power",
+                "octave_correlation",
+                "temporal_correlation",
+                "compression",
+                "codec_repeat",
+            )
+        },
+        dtype=torch.float32,
+    )
+    result = synthesize(
+        _textured_still_clip(),
+        Profile(noise=values),
+        darkening=None,
+        generator=torch.Generator().manual_seed(seed),
+    )
+    assert isinstance(result.image, torch.Tensor)
+    return quantised(result.image)
+
+
+def test_a_codec_that_skips_half_the_blocks_is_put_back_with_its_pooled_correlation() -> None:
+    # Half the blocks repeated, the rest coded afresh (independent): the pooled lag-1 is about 0.5. The profile
+    # repeats that share itself and gives the coded cells' coefficient (about 0), so that its synthetic clip of the
+    # same scene has the same pooled lag-1 (not the share counted twice).
     clip = _codec_like_clip(0.5, (1.0, 1.0, 1.0, 1.0))
     truth = _pooled_lag_one(clip)
-    temporal = estimate_spectrum(clip, name="half").values["temporal_correlation"]
-    assert torch.allclose(temporal[:3], torch.full((3,), truth, dtype=torch.float64), atol=0.15), (temporal, truth)
+    found = estimate_spectrum(clip, name="half")
+    repeated = float(skipped_shares(clip, torch.ones(256, 256)).mean())
+    assert abs(float(found.values["codec_repeat"][0]) - repeated) < 0.1, (found.values["codec_repeat"], repeated)
+    assert float(found.values["temporal_correlation"][:3].max()) < 0.2, found.values["temporal_correlation"]
+    synthetic = _pooled_lag_one(_synthetic_codec_clip(found.values))
+    assert abs(synthetic - truth) < 0.15, (synthetic, truth)
 
 
 def test_a_clip_whose_persistence_cannot_be_read_gets_the_video_prior_stated_in_meta(
@@ -188,16 +222,26 @@ def test_a_clip_whose_persistence_cannot_be_read_gets_the_video_prior_stated_in_
     assert len(warning) == 1 and "video prior" in warning[0] and warning[0].startswith("unreadable: "), warning
 
 
-def test_a_codec_that_repeats_most_still_blocks_persists_at_least_as_much_as_it_repeats() -> None:
-    # 85% of the blocks copied each frame, the rest coded afresh: every copied cell's noise persists fully, so no
-    # octave may read under the share of cells repeated (the shared clip132 read 0 as the smaller of its two
-    # readings, 82% repeated, real lag-1 1.00).
+def test_a_codec_that_repeats_most_still_blocks_is_put_back_with_its_persistence() -> None:
+    # 85% of the blocks copied each frame, the rest coded afresh: the profile repeats the share the estimate's own
+    # still flat blocks show (rounded to 3 decimals in meta), and its synthetic clip of the same scene persists as
+    # the clip does (the shared clip132, 82% repeated, real lag-1 1.00, read 0.68 before the codec repeat).
     clip = _codec_like_clip(0.85, (1.0, 1.0, 1.0, 1.0))
     repeated = float(skipped_shares(clip, torch.ones(256, 256)).mean())
     found = estimate_spectrum(clip, name="codec.mp4")
-    temporal = found.values["temporal_correlation"]
     assert repeated > 0.75, repeated
-    # The floor is the share over the estimate's own still flat blocks (rounded to 3 decimals in meta).
-    floor = sum(found.meta["persistence_skipped_share"]) / len(found.meta["persistence_skipped_share"])
-    assert floor > 0.75 and float(temporal.min()) >= floor - 2e-3, (temporal, floor)
+    share = sum(found.meta["persistence_skipped_share"]) / len(found.meta["persistence_skipped_share"])
+    assert abs(float(found.values["codec_repeat"][0]) - share) < 2e-3, (found.values["codec_repeat"], share)
     assert found.meta["persistence_source"].startswith("read: the lag-one reading alone"), found.meta
+    assert any("codec_repeat" in w for w in found.warnings), found.warnings
+    synthetic = _pooled_lag_one(_synthetic_codec_clip(found.values))
+    assert abs(synthetic - _pooled_lag_one(clip)) < 0.15, (synthetic, _pooled_lag_one(clip))
+
+
+def test_a_pooled_reading_under_the_share_repeated_keeps_the_share_for_the_coded_cells() -> None:
+    # clip132's case: 82% repeated and a pooled reading of 0.57 (fine) and 0.28 (coarser), which independent coded
+    # cells cannot give; a reading at the share is independent coded cells (0), one above it their persistence.
+    pooled = torch.tensor([0.57, 0.28, 0.82, 0.91, 0.82, 0.82], dtype=torch.float64)
+    coded = persistence_fit._coded(pooled, 0.82)
+    assert torch.allclose(coded, torch.tensor([0.82, 0.82, 0.0, 0.5, 0.0, 0.0], dtype=torch.float64), atol=1e-9)
+    assert torch.equal(persistence_fit._coded(pooled, 0.0), pooled)

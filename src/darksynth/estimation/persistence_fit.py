@@ -44,12 +44,13 @@ compressed night video shows. So:
   process, which is what the codec leaves and what a viewer sees. Its own error, noise fitted too strong, is the
   same as on a clip the ratio reads; a still clip that drifts makes it read low, not high (drift adds to ``D_1``);
 * skipped blocks stay in the statistics: their difference is 0, noise that persists fully for that pair of frames,
-  a real property of the video that the synthetic should show. The AR model has no skipped blocks, so the profile
-  says the pooled lag-1 correlation (skipped and coded blocks together, as the lag-one reading sees them), and
-  ``meta`` the share of still blocks the codec repeated per pair (``persistence_skipped_share``: 8-px cells, see
-  :data:`SKIP_CELL`), with a one-line warning when it is above :data:`SKIPPED_WARNING_SHARE`. Where more than
-  :data:`CODEC_SKIPPED_SHARE` were repeated the lag-one reading stands alone, and no coefficient falls under the
-  share repeated (a repeated cell's noise persists fully);
+  a real property of the video that the synthetic should show. ``meta`` gives the share of still blocks the codec
+  repeated per pair (``persistence_skipped_share``: 8-px cells, see :data:`SKIP_CELL`). Above
+  :data:`SKIPPED_WARNING_SHARE` (a codec's, not chance's) the profile's ``codec_repeat`` is that share, which the
+  synthesis copies from frame to frame itself (:mod:`darksynth.noise.codec_repeat`), a one-line warning says so,
+  and the coefficient is the coded cells' (the pooled reading with the repeated cells taken out; a reading under
+  the share repeated is no noise's, and the coded cells keep that share, see :func:`_coded`). Where more than
+  :data:`CODEC_SKIPPED_SHARE` were repeated the lag-one reading stands alone;
 * where neither statistic reads the finest octave, the coefficients are the video prior :data:`VIDEO_PRIOR`
   (what this read gives on the shared real night clips), stated in ``meta.persistence_prior`` and the warning, not
   independent frames. A single image keeps 0 (``estimation.spectrum``): a photo's noise is a still camera's, whose
@@ -117,6 +118,11 @@ script's ``prior (loo)`` lines): on the 9 read references whose real lag-1 is 0.
 median |gap| 0.09, 6 within 0.15 (the two quietest-persisting, clip1021 and clip893 at 0.27 and 0.25, get 0.62 and
 0.55); on the clips that read 0.00 in the real it gives 0.50-0.99. Not 0: every compressed night video shows
 persistence (the held-out ones 0.69 and 0.92)."""
+
+UNDER_REPEATED = 0.1
+"""A pooled lag-one reading this far under the share of still cells a codec repeated is no noise's (see
+:func:`_coded`): independent coded cells give the share itself, within sampling error (a few hundredths on the drawn
+codec clips of ``tests/estimation/test_persistence_fit.py``)."""
 
 VIDEO_PRIOR_SOURCE = "median of this read on the shared real night clips (docs/spectral-noise.md, 'Frame to frame')"
 """Where :data:`VIDEO_PRIOR` comes from, as ``meta`` and the warning state it."""
@@ -285,6 +291,9 @@ class PersistenceFit:
     coefficient: torch.Tensor
     record: dict[str, object]
     notes: list[str]
+    codec_repeat: float = 0.0
+    """The share of still cells the synthesis repeats (:mod:`darksynth.noise.codec_repeat`): the share the codec
+    repeated, where it is above :data:`SKIPPED_WARNING_SHARE` (a codec's, not chance's), else 0."""
 
 
 def video_prior_record(source: str) -> dict[str, object]:
@@ -322,17 +331,19 @@ def fit_persistence(
     repeated = float(skipped.mean())
     record["persistence_skipped_share"] = _rounded(skipped)
     notes = []
+    codec_repeat = 0.0
     if repeated > SKIPPED_WARNING_SHARE:
+        codec_repeat = round(repeated, 3)
         notes.append(
             f"{repeated:.0%} of the still flat blocks repeat bit-identically from frame to frame (a "
-            "codec skipped them, or compression removed their change): read as noise that persists, pooled with "
-            "the blocks that change"
+            "codec skipped them, or compression removed their change): the profile repeats that share of still "
+            "cells (codec_repeat), and reads the persistence pooled with the blocks that change"
         )
     if bool(ratio.target[0] >= 1.0) and bool(lag_one.target[0] >= 1.0 - BEYOND_REACH):
         # Repeated frames: no simulated noise changes so little, the frames' noise is the same.
         record["persistence_source"] = "frames repeated"
         record["persistence_prior"] = "frames repeated: the noise persists fully"
-        return PersistenceFit(torch.full((OCTAVES,), MAX_COEFFICIENT, dtype=torch.float64), record, notes)
+        return PersistenceFit(torch.full((OCTAVES,), MAX_COEFFICIENT, dtype=torch.float64), record, notes, codec_repeat)
     if bool(ratio.readable[0]) and repeated <= CODEC_SKIPPED_SHARE:
         # Each reading errs upward in its own way (see the module): the persistence is what both see.
         coefficient = torch.minimum(ratio.coefficient, lag_one.coefficient)
@@ -352,16 +363,25 @@ def fit_persistence(
         hidden = bool(ratio.response[0] < MIN_TEMPORAL_RESPONSE) and bool(lag_one.response[0] < MIN_TEMPORAL_RESPONSE)
         reason = "its noise hides it" if hidden else "its still blocks change more than noise does"
         prior = _video_prior(record, reason)
-        return PersistenceFit(_at_least(prior.coefficient, repeated), prior.record, notes + prior.notes)
+        return PersistenceFit(prior.coefficient, prior.record, notes + prior.notes, codec_repeat)
     for octave in range(1, OCTAVES):
         # An octave that cannot be read persists like the finer one next to it.
         if not bool(readable[octave]):
             coefficient[octave] = coefficient[octave - 1]
-    return PersistenceFit(_at_least(coefficient, repeated), record, notes)
+    return PersistenceFit(_coded(coefficient, codec_repeat), record, notes, codec_repeat)
 
 
-def _at_least(coefficient: torch.Tensor, repeated: float) -> torch.Tensor:
-    """``coefficient`` (OCTAVES,) floored at ``repeated``, the share of the still cells a codec repeated: a repeated
-    cell's noise persists fully, and a pooled reading under that share is the coded cells changing in ways no noise
-    does (the shared clip132: 82% repeated, read 0.57 at 2-4 px and 0.28 coarser, its real lag-1 1.00)."""
-    return coefficient.clamp_min(min(repeated, MAX_COEFFICIENT))
+def _coded(pooled: torch.Tensor, codec_repeat: float) -> torch.Tensor:
+    """The coefficient per octave of the cells the codec codes afresh, from the ``pooled`` reading (repeated cells
+    included, whose lag-1 is 1): ``pooled = p + (1 - p) r`` for a share ``p`` repeated, which the synthesis repeats
+    itself (:mod:`darksynth.noise.codec_repeat`), so the coefficient does not count the repeated cells twice.
+
+    A pooled reading under ``p`` by more than :data:`UNDER_REPEATED` says the coded cells change more than
+    independent noise does, which no noise does: their persistence is not read there, and they keep the share
+    repeated (a codec that skips most still blocks codes the rest as small changes from the previous frame, which
+    keep its noise: the shared clip132, 82% repeated, read 0.57 at 2-4 px and 0.28 coarser, its real lag-1 1.00)."""
+    if codec_repeat <= 0.0:
+        return pooled
+    coded = ((pooled - codec_repeat) / max(1.0 - codec_repeat, 1e-6)).clamp(0.0, MAX_COEFFICIENT)
+    unread = pooled < codec_repeat - UNDER_REPEATED
+    return torch.where(unread, torch.full_like(coded, min(codec_repeat, MAX_COEFFICIENT)), coded)

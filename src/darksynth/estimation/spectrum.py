@@ -224,8 +224,9 @@ def estimate_spectrum(
         fitted.curve, measured_knots, prior_curve, int(unclipped.sum()) >= MIN_LEVEL_BLOCKS, meta, warnings, name
     )
     meta["strength_over_fitted_noise"] = round(strength / fitted_noise_8bit(fitted.curve, denoised[0], mask), 3)
-    fitted.temporal = _temporal(resynthesis, fitted, target.temporal is not None, clip, meta, warnings, name)
-    return SpectrumEstimate(values=_values(fitted, meta, camera_prior), meta=meta, warnings=warnings)
+    fitted.temporal, repeat = _temporal(resynthesis, fitted, target.temporal is not None, clip, meta, warnings, name)
+    values = _values(fitted, meta, camera_prior) | {"codec_repeat": torch.tensor([repeat], dtype=torch.float64)}
+    return SpectrumEstimate(values=values, meta=meta, warnings=warnings)
 
 
 def _values(fitted: SpectralParameters, meta: dict[str, Any], camera_prior: CameraPriorUse | None) -> dict[str, Any]:
@@ -245,23 +246,24 @@ def _temporal(
     meta: dict[str, Any],
     warnings: list[str],
     name: str,
-) -> torch.Tensor:
+) -> tuple[torch.Tensor, float]:
     """The frame-to-frame correlation per octave: read on a clip's ``still`` blocks over 3 or more frames, the
-    fit's on 2, the video prior for a clip with no still block, 0 for a single image."""
+    fit's on 2, the video prior for a clip with no still block, 0 for a single image; and the share of still cells
+    a codec repeats (read with the persistence, else 0)."""
     if still and resynthesis.analysed.shape[0] >= 3:
         return _persistence(resynthesis, fitted, meta, warnings, name)
     if still:
-        return fitted.temporal
+        return fitted.temporal, 0.0
     if clip:
         # A clip whose blocks all move shows nothing of its noise's persistence; a video's is not independent frames.
         meta.update(video_prior_record("video prior: no flat block stays still"))
-        return torch.tensor(VIDEO_PRIOR, dtype=torch.float64)
-    return torch.zeros(OCTAVES, dtype=torch.float64)
+        return torch.tensor(VIDEO_PRIOR, dtype=torch.float64), 0.0
+    return torch.zeros(OCTAVES, dtype=torch.float64), 0.0
 
 
 def _persistence(
     resynthesis: _Resynthesis, fitted: SpectralParameters, meta: dict[str, Any], warnings: list[str], name: str
-) -> torch.Tensor:
+) -> tuple[torch.Tensor, float]:
     """The frame-to-frame correlation per octave read from frame differences of the still blocks
     (:mod:`darksynth.estimation.persistence_fit`), in place of the residual's correlation the fit moved; where it
     cannot be read, the video prior, stated in ``meta.persistence_prior`` and a warning."""
@@ -275,7 +277,7 @@ def _persistence(
     )
     meta.update(persistence.record)
     warnings.extend(f"{name}: {note}" for note in persistence.notes)
-    return persistence.coefficient
+    return persistence.coefficient, persistence.codec_repeat
 
 
 @dataclass

@@ -16,6 +16,7 @@ All values are on the [0, 1] intensity scale of the image.
 
 from __future__ import annotations
 
+from darksynth.noise.codec_repeat import CODEC_REPEAT
 from darksynth.noise.component_types import (
     LIGHT_STRUCTURES,
     DrawFunction,
@@ -72,6 +73,7 @@ NOISE_COMPONENTS: tuple[NoiseComponent, ...] = (
     COMPRESSION,
     SCENE,
     FLICKER,
+    CODEC_REPEAT,
 )
 """The table. Read it through the functions below, which look it up at each call, so that a component
 listed here (or, in a test, added to it) is seen everywhere."""
