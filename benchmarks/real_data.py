@@ -94,6 +94,7 @@ from darksynth.evaluation.run.options import EvaluationOptions
 from darksynth.evaluation.run.runner import evaluate_pairs
 from darksynth.io.arrays import chw_to_hwc, hwc_to_chw
 from darksynth.models.den import DEN
+from darksynth.recipe import ClipRecipe
 from darksynth.training.weights import default_weights_path, load_weights
 from machine import cpu_summary
 
@@ -416,7 +417,7 @@ def measure_photo(path: Path, network: DEN, seed: int) -> dict[str, Any]:
     if strength is None:
         strength = min(max(flat_block_std(frames[:1]), STRENGTH_RANGE[0]), STRENGTH_RANGE[1])
     denoised = (nlm_denoise(frames[:1], strength)[0] * 255.0).round().clamp(0, 255).to(torch.uint8)
-    options = ApplyOptions(profile=profile, seed=seed, darkening=None)
+    options = ApplyOptions(recipe=ClipRecipe(profile, darkening=None), seed=seed)
     synthetic, _ = synthesize_image(chw_to_hwc(denoised), path.name, options)
     check = self_consistency(frames[0], denoised.float() / 255.0, hwc_to_chw(synthetic).float() / 255.0)
     return {"ratio": _rounded(check.ratio), "blocks": check.blocks, "warnings": warnings}

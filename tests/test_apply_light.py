@@ -19,7 +19,7 @@ from darksynth.io.video import VideoEncoding, VideoWriter, iter_video_frames
 from darksynth.light.darkening import Darkening
 from darksynth.light.motion_blur import MotionBlurStream, shake_blur
 from darksynth.profile import Profile, load_profile, save_profile
-from darksynth.recipe import ClipParameters
+from darksynth.recipe import ClipParameters, ClipRecipe
 from darksynth.synthesize import ClipSynthesizer
 from tests.command_line import run_cli
 from tests.conftest import build_profile
@@ -124,11 +124,11 @@ def test_no_flicker_and_no_blur_leave_the_profile_without_light(tmp_path: Path) 
     from darksynth.apply import ApplyOptions
 
     profile = build_profile(exposure_fraction=0.5, flicker=0.05, ranges={"flicker": [(0.0, 0.1)]})
-    options = ApplyOptions(profile=profile, seed=0, blur=False, flicker=False, jitter=True)
-    drawn, _ = options.recipe().drawn_from()
+    options = ApplyOptions(recipe=ClipRecipe(profile, blur=False, flicker=False, jitter=True), seed=0)
+    drawn, _ = options.recipe.drawn_from()
     assert drawn.noise.scalar("exposure_fraction") == 0.0 and drawn.noise.scalar("flicker") == 0.0
     assert "flicker" not in drawn.ranges
-    kept, _ = dataclasses.replace(options, blur=True, flicker=True).recipe().drawn_from()
+    kept, _ = dataclasses.replace(options.recipe, blur=True, flicker=True).drawn_from()
     assert kept.noise.scalar("exposure_fraction") == 0.5 and "flicker" in kept.ranges
     assert isinstance(load_profile(_light_profile(tmp_path / "p.json", flicker=0.05)), Profile)
 

@@ -29,6 +29,7 @@ from darksynth.evaluation.run.options import EvaluationOptions
 from darksynth.io.video_encoding import VideoEncoding
 from darksynth.models.den import DENConfig
 from darksynth.profile import default_profile_path, load_profile
+from darksynth.recipe import ClipRecipe
 from darksynth.training.loop import TrainConfig
 from darksynth.training.weights import DENChoice, default_weights_path
 from tests.command_line import assert_one_line_error, run_cli
@@ -103,6 +104,29 @@ def test_train_help_shows_the_training_defaults() -> None:
         assert f"[default: {default}]" in entry or f"[default: {default};" in entry, entry
 
 
+RECIPE_CHOICES_WITH_OPTIONS = ("jitter", "blur", "flicker", "match_colour", "camera")
+"""The recipe's choices that are one option each (the profile is --profile, the darkening --alpha, --gamma and
+--no-darken)."""
+
+
+@pytest.mark.parametrize(("command", "names"), [("apply", None), ("convert", None), ("preview", ("jitter",))])
+def test_every_recipe_choice_is_an_option_with_the_recipe_s_default(
+    command: str, names: tuple[str, ...] | None
+) -> None:
+    # The recipe is the one declaration of a clip's choices: a command's option takes its field's default, and a
+    # field added to it without its option fails here (preview shows the profile as measured: no --jitter).
+    fields = {f.name: f.default for f in dataclasses.fields(ClipRecipe)}
+    assert set(RECIPE_CHOICES_WITH_OPTIONS) == set(fields) - {"profile", "darkening"}
+    group = typer.main.get_command(app)
+    assert isinstance(group, typer.core.TyperGroup)
+    parameters = {p.name: p for p in group.commands[command].params}
+    for name in RECIPE_CHOICES_WITH_OPTIONS:
+        if names is not None and name in names:
+            assert name not in parameters, (command, name)
+            continue
+        assert parameters[name].default == fields[name], (command, name, parameters[name].default)
+
+
 def test_apply_without_flags_builds_the_default_options(
     monkeypatch: pytest.MonkeyPatch, rgb_image: Path, profile_file: Path, tmp_path: Path
 ) -> None:
@@ -119,7 +143,7 @@ def test_apply_without_flags_builds_the_default_options(
     (options,) = built
     # Without --seed a random seed is drawn (and recorded): the one field without a default.
     assert options == ApplyOptions(
-        profile=load_profile(profile_file), seed=options.seed, profile_source=str(profile_file)
+        recipe=ClipRecipe(load_profile(profile_file)), seed=options.seed, profile_source=str(profile_file)
     )
 
 
@@ -136,7 +160,9 @@ def test_apply_with_a_camera_alone_takes_the_default_profile(
     code, _, err = run_cli("apply", rgb_image, tmp_path / "out.png", "--camera", "dslr", "--seed", "2")
     assert code == 0, err
     default = default_profile_path()
-    assert built == [ApplyOptions(profile=load_profile(default), seed=2, profile_source=str(default), camera="dslr")]
+    assert built == [
+        ApplyOptions(recipe=ClipRecipe(load_profile(default), camera="dslr"), seed=2, profile_source=str(default))
+    ]
 
 
 @pytest.mark.parametrize("command", ["apply", "preview"])
@@ -170,7 +196,7 @@ def test_convert_without_flags_builds_the_default_options(
     dataset, output = tmp_path / "ds", tmp_path / "out"
     code, _, err = run_cli("convert", dataset, output, "-p", profile_file, "-f", "folder")
     assert code == 0, err
-    assert built == [ConvertOptions(dataset, output, load_profile(profile_file), "folder")]
+    assert built == [ConvertOptions(dataset, output, ClipRecipe(load_profile(profile_file)), "folder")]
 
 
 def test_convert_flags_reach_the_options(monkeypatch: pytest.MonkeyPatch, profile_file: Path, tmp_path: Path) -> None:
@@ -190,17 +216,15 @@ def test_convert_flags_reach_the_options(monkeypatch: pytest.MonkeyPatch, profil
     expected = ConvertOptions(
         tmp_path / "ds",
         tmp_path / "out",
-        load_profile(profile_file),
+        ClipRecipe(load_profile(profile_file), jitter=True, camera="phone"),
         "coco",
         seed=4,
-        jitter=True,
         workers=2,
         shard=Shard(2, 3),
         images_root=Path("pictures"),
         overwrite=True,
         encoding=VideoEncoding(codec="ffv1", crf=0),
         device="meta",
-        camera="phone",
     )
     assert built == [expected]
 

@@ -30,7 +30,7 @@ def test_without_a_camera_the_draws_are_those_of_the_profile_alone() -> None:
     profile = load_profile(default_profile_path())
     ranged = dataclasses.replace(profile, ranges={"shot": ((0.02, 0.08),), "alpha": ((0.1, 0.3),)})
     generator, alone = _seeded(5), _seeded(5)
-    chosen = ClipRecipe(ranged).choose(generator)
+    chosen = ClipRecipe(ranged, jitter=True).choose(generator)
     expected = draw_clip_parameters(ranged, generator=alone)
     assert chosen == expected and "camera" not in chosen.to_json()
     # The generator is left where the draws without the option leave it, so the noise that follows is the same.
@@ -40,8 +40,8 @@ def test_without_a_camera_the_draws_are_those_of_the_profile_alone() -> None:
 def test_the_camera_is_drawn_after_the_draws_every_recipe_makes() -> None:
     profile = dataclasses.replace(load_profile(default_profile_path()), ranges={"alpha": ((0.1, 0.3),)})
     for seed in range(5):
-        plain = ClipRecipe(profile).choose(_seeded(seed))
-        with_camera = ClipRecipe(profile, camera="prior").choose(_seeded(seed))
+        plain = ClipRecipe(profile, jitter=True).choose(_seeded(seed))
+        with_camera = ClipRecipe(profile, jitter=True, camera="prior").choose(_seeded(seed))
         assert with_camera.darkening == plain.darkening
         for name in ("quantization", "banding", "temporal_banding", "periodic"):
             assert torch.equal(with_camera.noise[name], plain.noise[name]), name

@@ -16,7 +16,7 @@ from darksynth.light.darkening import ALPHA_RANGE, GAMMA_RANGE, Darkening, darke
 from darksynth.noise.spectral import level_std
 from darksynth.noise.values import NoiseValues
 from darksynth.profile import default_profile_path, load_profile
-from darksynth.recipe import ClipParameters, ClipRecipe, draw_clip_parameters
+from darksynth.recipe import AUGMENTING, ClipParameters, ClipRecipe, draw_clip_parameters
 from darksynth.synthesize import ClipSynthesizer
 from tests.conftest import ProfileFactory
 from tests.noise.test_simulate import ALL_ON, ALPHA, GAMMA, _ramp_clip
@@ -304,7 +304,7 @@ def test_synthesize_with_a_camera_follows_the_recipe(make_profile: ProfileFactor
     clean = torch.randint(0, 256, (3, 32, 48), dtype=torch.uint8, generator=torch.Generator().manual_seed(3))
     result = darksynth.synthesize(clean, profile, generator=torch.Generator().manual_seed(4), camera="phone")
     generator = torch.Generator().manual_seed(4)
-    chosen = ClipRecipe(profile, camera="phone").choose(generator, clean)
+    chosen = ClipRecipe(profile, jitter=AUGMENTING, camera="phone").choose(generator, clean)
     replayed = darksynth.synthesize(clean, profile, generator=generator, parameters=chosen)
     assert torch.equal(result.image, replayed.image) and result.parameters == chosen.to_json()
     plain = darksynth.synthesize(clean, profile, generator=torch.Generator().manual_seed(4))

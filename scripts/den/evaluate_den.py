@@ -35,6 +35,7 @@ from darksynth.noise.components import NoiseModel
 from darksynth.noise.sampling import random_darkening_values, random_noise_values
 from darksynth.noise.values import NoiseValues
 from darksynth.profile import Profile
+from darksynth.recipe import ClipRecipe
 from darksynth.training.loop import r_squared, vector_names
 from darksynth.training.weights import default_weights_path, load_weights
 
@@ -79,14 +80,14 @@ def main() -> int:
             source = images[trial % len(images)]
             profile = draw_profile(generator, model.noise_model)
             seed = int(torch.randint(0, 2**31, (), generator=generator))
-            options = ApplyOptions(profile=profile, seed=seed)
+            options = ApplyOptions(recipe=ClipRecipe(profile), seed=seed)
             single = work / f"single_{trial}.png"
             apply(source, single, options)
             clip_in, clip_out = work / f"clip_in_{trial}", work / f"clip_out_{trial}"
             clip_in.mkdir()
             for frame in range(args.frames):
                 (clip_in / f"{frame:02d}.png").symlink_to(source)
-            apply(clip_in, clip_out, ApplyOptions(profile=profile, seed=seed, clip=True))
+            apply(clip_in, clip_out, ApplyOptions(recipe=ClipRecipe(profile), seed=seed, clip=True))
             for setting, reference in (
                 ("image", load_reference(single)),
                 ("clip", load_reference(clip_out, clip=True)),

@@ -40,8 +40,7 @@ from darksynth.io.video import (
     probe_video,
     to_stream_size,
 )
-from darksynth.profile import Profile, profile_to_dict
-from darksynth.recipe import ClipParameters, ClipRecipe, DarkeningChoice, check_camera
+from darksynth.recipe import ClipParameters, ClipRecipe
 from darksynth.seeding import derive_seed
 from darksynth.synthesize import ClipSynthesizer
 from darksynth.worker_pool import init_worker
@@ -73,11 +72,9 @@ class ApplyOptions:
     """Everything ``apply`` needs besides the paths.
 
     Attributes:
-        profile: the noise profile.
+        recipe: how each file's (or clip's) parameters are chosen: the profile, the darkening, ``--jitter``,
+            ``--no-blur``, ``--no-flicker``, ``--match-colour``, ``--camera`` (:class:`darksynth.recipe.ClipRecipe`).
         seed: run seed; each task's seed derives from it and the task's relative path.
-        darkening: see :data:`darksynth.recipe.DarkeningChoice`.
-        jitter: draw each file's (or clip's) parameters within the profile's ranges; otherwise every file gets the
-            profile's values (see :class:`darksynth.recipe.ClipRecipe`).
         overwrite: replace outputs that exist before the run (otherwise the run is refused).
         clip: treat each folder of images as one clip (shared parameters and temporal banding).
         workers: processes for folders.
@@ -85,18 +82,10 @@ class ApplyOptions:
         device: torch device for the computation.
         compile: fuse the 8-bit kernel with torch.compile; None decides by stream length.
         profile_source: where the profile came from, for the manifest.
-        blur, flicker: False switches off the profile's motion blur and camera shake, or its flicker
-            (``--no-blur``, ``--no-flicker``).
-        match_colour: also give each input the reference's colour cast (``--match-colour``; needs the profile's
-            ``tone.colour`` and a darkening).
-        camera: draw each file's (or clip's) camera from the prior over real cameras or a preset (``--camera``;
-            see :class:`darksynth.recipe.ClipRecipe`); None keeps the profile's noise.
     """
 
-    profile: Profile
+    recipe: ClipRecipe
     seed: int
-    darkening: DarkeningChoice = "profile"
-    jitter: bool = False
     overwrite: bool = False
     clip: bool = False
     workers: int = 1
@@ -104,25 +93,6 @@ class ApplyOptions:
     device: str = "cpu"
     compile: bool | None = None
     profile_source: str = ""
-    blur: bool = True
-    flicker: bool = True
-    match_colour: bool = False
-    camera: str | None = None
-
-    def __post_init__(self) -> None:
-        check_camera(self.camera)
-
-    def recipe(self) -> ClipRecipe:
-        """How each file's (or clip's) parameters are chosen (:class:`darksynth.recipe.ClipRecipe`)."""
-        return ClipRecipe(
-            self.profile,
-            darkening=self.darkening,
-            jitter=self.jitter,
-            blur=self.blur,
-            flicker=self.flicker,
-            match_colour=self.match_colour,
-            camera=self.camera,
-        )
 
 
 @dataclass(frozen=True)
@@ -222,7 +192,7 @@ def start_task(
     seed = task_seed(options.seed, key)
     generator = torch.Generator(device=options.device).manual_seed(seed)
     first = None if first_frame is None else hwc_to_chw(first_frame)
-    parameters = options.recipe().choose(generator, first, source=key)
+    parameters = options.recipe.choose(generator, first, source=key)
     return seed, generator, parameters
 
 
@@ -396,12 +366,9 @@ def write_manifest(path: Path, input_path: Path, output_path: Path, options: App
         "input": str(input_path),
         "output": str(output_path),
         "profile_source": options.profile_source,
-        "profile": profile_to_dict(options.profile),
+        **options.recipe.to_json(),
         "seed": options.seed,
         "device": options.device,
-        "darkening": options.darkening if isinstance(options.darkening, str | type(None)) else vars(options.darkening),
-        "jitter": options.jitter,
-        "camera": options.camera,
         "clip": options.clip,
         **options.encoding.to_json(),
         "files": sorted(report.records, key=lambda r: r["input"]),

@@ -24,7 +24,6 @@ from typing import Any, Final
 
 from darksynth.errors import DarksynthError, error_reason
 from darksynth.io.atomic import remove_stale_temps, write_text_atomic
-from darksynth.io.video_encoding import VideoEncoding
 from darksynth.profile import Profile, profile_to_dict
 
 STATE_FOLDER: Final = ".darksynth"
@@ -49,8 +48,9 @@ def options_fingerprint(options: Any, *, left_out: frozenset[str] | set[str]) ->
         if option.name in left_out:
             continue
         value = getattr(options, option.name)
-        if isinstance(value, VideoEncoding):
-            # Each choice under its own name, as the command line and the manifest name them.
+        if _is_group(value):
+            # Each choice of a group (the encoding, the recipe) under its own name, as the command line and the
+            # manifest name them.
             fingerprint.update(value.to_json())
             continue
         if isinstance(value, Profile):
@@ -63,10 +63,18 @@ def options_fingerprint(options: Any, *, left_out: frozenset[str] | set[str]) ->
     return fingerprint
 
 
+def _is_group(value: object) -> bool:
+    """Whether an option's value is a group of choices recorded one by one: a dataclass with ``to_json``
+    (:class:`~darksynth.io.video_encoding.VideoEncoding`, :class:`~darksynth.recipe.ClipRecipe`)."""
+    return dataclasses.is_dataclass(value) and not isinstance(value, type) and hasattr(value, "to_json")
+
+
 def changed_options(options: Any, fingerprint: dict[str, Any], recorded: dict[str, Any]) -> list[str]:
     """The names whose value in ``fingerprint`` differs from the earlier run's ``recorded`` one; an option the
     earlier run did not record (it did not exist then) counts at its default."""
-    defaults = {f.name: None if f.default is dataclasses.MISSING else f.default for f in dataclasses.fields(options)}
+    groups = [getattr(options, f.name) for f in dataclasses.fields(options) if _is_group(getattr(options, f.name))]
+    fields = (*dataclasses.fields(options), *(f for group in groups for f in dataclasses.fields(group)))
+    defaults = {f.name: None if f.default is dataclasses.MISSING else f.default for f in fields}
     return sorted(name for name, value in fingerprint.items() if recorded.get(name, defaults.get(name)) != value)
 
 

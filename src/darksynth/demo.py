@@ -12,6 +12,7 @@ from darksynth.io.images import Image, read_image, write_image
 from darksynth.light.darkening import Darkening
 from darksynth.preview import centre_crop, compose_sheet, darkened_pixels
 from darksynth.profile import Profile, default_profile_path, load_profile, save_profile
+from darksynth.recipe import ClipRecipe
 from darksynth.training.weights import default_weights_path, load_weights
 
 SAMPLE = Path(__file__).parent / "data" / "sample"
@@ -54,7 +55,7 @@ def run_demo(out: Path, *, seed: int = 0) -> list[Path]:
             raise DarksynthError(f"{sample_path(name)}: demo sample missing from the installation")
     profile, source = demo_profile()
     # The demo's folder is the demo's own: a second run replaces its files.
-    options = ApplyOptions(profile=profile, seed=seed, profile_source=source, overwrite=True)
+    options = ApplyOptions(recipe=ClipRecipe(profile), seed=seed, profile_source=source, overwrite=True)
     out.mkdir(parents=True, exist_ok=True)
     profile_out = out / "profile.json"
     save_profile(profile_out, profile)

@@ -225,7 +225,7 @@ def run_preview(image_path: Path, out: Path, options: PreviewOptions) -> Preview
     if kind != "image":
         raise DarksynthError(f"{image_path}: is a {kind}; preview takes one image (a frame of it saved as PNG will do)")
     synthesis = options.synthesis
-    reference, missing = named_reference(synthesis.profile, options.profile_path)
+    reference, missing = named_reference(synthesis.recipe.profile, options.profile_path)
     warnings = [missing] if missing else []
     inputs = [image_path, *(p for p in (options.profile_path, reference) if p is not None)]
     check_preview_output(out, inputs, overwrite=options.overwrite)

@@ -3,7 +3,11 @@ training transforms all follow.
 
 A :class:`ClipRecipe` is what the user asked for: the profile, how the darkening is chosen, whether the profile's
 ranges are drawn per clip (``--jitter``), whether its blur and flicker stay on, whether the reference's colour cast
-is matched, and whether each clip gets a whole camera drawn from the prior over real cameras (``--camera``).
+is matched, and whether each clip gets a whole camera drawn from the prior over real cameras (``--camera``). It is
+the one declaration of these choices: ``apply``'s and ``convert``'s options hold one, the command line's options
+take their defaults from its fields (``tests/test_cli.py`` checks every field has its option), and ``synthesize``
+and the transforms build one. A new choice is a field here, the code that acts on it in :meth:`ClipRecipe.choose`
+or the synthesizer, and its option.
 :meth:`ClipRecipe.choose` turns it, a generator and the clip's first frame into the clip's :class:`ClipParameters`,
 in one fixed order of draws, so that a seed gives the same parameters from the library, the command line and a
 transform.
@@ -27,11 +31,15 @@ from darksynth.noise.sampling import random_uniform
 from darksynth.noise.spectral_components import SPECTRUM_REPLACES
 from darksynth.noise.structure_translation import spectral_tensors
 from darksynth.noise.values import NoiseValues
-from darksynth.profile import Profile, without_light
+from darksynth.profile import Profile, profile_to_dict, without_light
 
 DarkeningChoice = Darkening | Literal["profile"] | None
 """``"profile"``: the profile's darkening, else alpha/gamma drawn from its ranges, else from the paper's
 ranges. A :class:`Darkening`: exactly that. None: no darkening (the input already has the target brightness)."""
+
+AUGMENTING = True
+"""The ``jitter`` of the library's calls (``synthesize``, the transforms): they make training data, where each clip
+drawn within the profile's ranges is the augmentation; the command line reproduces the profile unless ``--jitter``."""
 
 
 @dataclass(frozen=True)
@@ -193,8 +201,10 @@ class ClipRecipe:
     Attributes:
         profile: the noise profile (its tones, when it has the reference's, match each input's darkening).
         darkening: see :data:`DarkeningChoice`.
-        jitter: draw each clip's values within the profile's ranges; otherwise every clip gets the profile's values
-            and a fixed darkening (:func:`fixed_darkening`), and its seed drives only the noise itself.
+        jitter: draw each clip's values within the profile's ranges; otherwise (the default: the reference's camera
+            as measured) every clip gets the profile's values and a fixed darkening (:func:`fixed_darkening`), and
+            its seed drives only the noise itself. ``synthesize`` and the transforms, which make training data,
+            draw (:data:`AUGMENTING`).
         blur, flicker: False switches off the profile's motion blur and camera shake, or its flicker.
         match_colour: also give each input the reference's colour cast (needs the profile's ``tone.colour`` and a
             darkening).
@@ -206,7 +216,7 @@ class ClipRecipe:
 
     profile: Profile
     darkening: DarkeningChoice = "profile"
-    jitter: bool = True
+    jitter: bool = False
     blur: bool = True
     flicker: bool = True
     match_colour: bool = False
@@ -214,6 +224,19 @@ class ClipRecipe:
 
     def __post_init__(self) -> None:
         check_camera(self.camera)
+
+    def to_json(self) -> dict[str, Any]:
+        """Every choice as a JSON value under its field's name (a manifest's and a resumable run's record)."""
+        darkening = self.darkening
+        return {
+            "profile": profile_to_dict(self.profile),
+            "darkening": darkening if isinstance(darkening, str | None) else dataclasses.asdict(darkening),
+            "jitter": self.jitter,
+            "blur": self.blur,
+            "flicker": self.flicker,
+            "match_colour": self.match_colour,
+            "camera": self.camera,
+        }
 
     def drawn_from(self) -> tuple[Profile, DarkeningChoice]:
         """The profile and darkening choice the draws start from, before an input is seen."""

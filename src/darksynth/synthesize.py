@@ -47,7 +47,7 @@ from darksynth.noise.spectral import clip_grid, octave_covariances
 from darksynth.noise.spectral_8bit import SPECTRAL_PATH, SpectralPixelPass, level_tables, to_8bit
 from darksynth.noise.spectral_kernel import SpectralKernelStream, compiled_spectral_kernels
 from darksynth.profile import Profile
-from darksynth.recipe import ClipParameters, ClipRecipe, DarkeningChoice
+from darksynth.recipe import AUGMENTING, ClipParameters, ClipRecipe, DarkeningChoice
 from darksynth.tensors import CLIP_DIMS, eight_bit_levels, full_scale, scale_channels, to_dtype
 
 logger = logging.getLogger(__name__)
@@ -358,7 +358,7 @@ def synthesize(
     flat = clips.reshape(-1, *clips.shape[-CLIP_DIMS:])
     outputs = []
     records = []
-    recipe = ClipRecipe(profile, darkening=darkening, camera=camera)
+    recipe = ClipRecipe(profile, darkening=darkening, jitter=AUGMENTING, camera=camera)
     for clip in flat:
         chosen = parameters if parameters is not None else recipe.choose(generator, clip[0])
         records.append(chosen.to_json())

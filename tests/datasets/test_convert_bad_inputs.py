@@ -15,6 +15,7 @@ from darksynth.apply_outputs import STATE_FOLDER
 from darksynth.datasets import MANIFEST_NAME, ConvertOptions, convert_dataset
 from darksynth.errors import DarksynthError
 from darksynth.profile import load_profile
+from darksynth.recipe import ClipRecipe
 from tests.command_line import run_cli
 from tests.datasets.conftest import tree_bytes, write_image, write_video
 
@@ -189,7 +190,9 @@ def test_bad_options(
 
 def test_output_inside_dataset_is_refused(folder_dataset: Path, profile_path: Path) -> None:
     with pytest.raises(DarksynthError, match="inside the input folder"):
-        convert_dataset(ConvertOptions(folder_dataset, folder_dataset / "out", load_profile(profile_path), "folder"))
+        convert_dataset(
+            ConvertOptions(folder_dataset, folder_dataset / "out", ClipRecipe(load_profile(profile_path)), "folder")
+        )
 
 
 def test_video_options_do_not_block_the_resume_of_an_image_dataset(

@@ -27,6 +27,7 @@ from darksynth.datasets import (
 from darksynth.datasets.formats import coco_image_roots, rewrite_yolo_yaml
 from darksynth.io.video import VideoWriter, probe_video
 from darksynth.profile import load_profile
+from darksynth.recipe import ClipRecipe
 from tests.datasets.conftest import HEIGHT, WIDTH, write_image
 
 
@@ -41,7 +42,9 @@ def _mean(path: Path) -> float:
 
 def test_coco_images_converted_annotations_still_valid(coco_dataset: Path, profile_path: Path, tmp_path: Path) -> None:
     output = tmp_path / "out"
-    report = convert_dataset(ConvertOptions(coco_dataset, output, load_profile(profile_path), "coco", seed=1))
+    report = convert_dataset(
+        ConvertOptions(coco_dataset, output, ClipRecipe(load_profile(profile_path)), "coco", seed=1)
+    )
     assert report.failures == [] and report.converted == 3 and report.carried == 2
     annotations = "annotations/instances_train2017.json"
     assert (output / annotations).read_bytes() == (coco_dataset / annotations).read_bytes()
@@ -62,7 +65,7 @@ def test_coco_images_converted_annotations_still_valid(coco_dataset: Path, profi
 
 def test_yolo_labels_copied_and_yaml_points_at_output(yolo_dataset: Path, profile_path: Path, tmp_path: Path) -> None:
     output = tmp_path / "out"
-    report = convert_dataset(ConvertOptions(yolo_dataset, output, load_profile(profile_path), "yolo"))
+    report = convert_dataset(ConvertOptions(yolo_dataset, output, ClipRecipe(load_profile(profile_path)), "yolo"))
     assert report.failures == [] and report.converted == 4
     for label in (yolo_dataset / "labels").rglob("*.txt"):
         assert (output / label.relative_to(yolo_dataset)).read_bytes() == label.read_bytes()
@@ -101,7 +104,7 @@ def test_rewrite_yolo_yaml_keeps_inline_comments(tmp_path: Path) -> None:
 
 def test_folder_mirrors_tree(folder_dataset: Path, profile_path: Path, tmp_path: Path) -> None:
     output = tmp_path / "out"
-    report = convert_dataset(ConvertOptions(folder_dataset, output, load_profile(profile_path), "folder"))
+    report = convert_dataset(ConvertOptions(folder_dataset, output, ClipRecipe(load_profile(profile_path)), "folder"))
     assert report.converted == 4 and report.failures == []
     visible = sorted(p.relative_to(output).as_posix() for p in output.rglob("*") if p.is_file())
     visible = [p for p in visible if not p.startswith(".darksynth/")]
@@ -114,7 +117,9 @@ def test_video_folder_videos_and_clips_converted_masks_copied(
     video_dataset: Path, profile_path: Path, tmp_path: Path
 ) -> None:
     output = tmp_path / "out"
-    report = convert_dataset(ConvertOptions(video_dataset, output, load_profile(profile_path), "video-folder"))
+    report = convert_dataset(
+        ConvertOptions(video_dataset, output, ClipRecipe(load_profile(profile_path)), "video-folder")
+    )
     assert report.failures == [] and report.converted == 2
     before, after = probe_video(video_dataset / "videos/walk.mp4"), probe_video(output / "videos/walk.mp4")
     assert (after.width, after.height, after.frame_count, after.fps) == (WIDTH, HEIGHT, 6, Fraction(25))
@@ -156,7 +161,7 @@ def test_without_jitter_every_file_gets_the_profile_values(
     folder_dataset: Path, ranged_profile: Path, tmp_path: Path
 ) -> None:
     output = tmp_path / "out"
-    convert_dataset(ConvertOptions(folder_dataset, output, load_profile(ranged_profile), "folder"))
+    convert_dataset(ConvertOptions(folder_dataset, output, ClipRecipe(load_profile(ranged_profile)), "folder"))
     parameters = [f["parameters"] for f in _manifest(output)["files"]]
     assert all(p == parameters[0] for p in parameters)
     profile = load_profile(ranged_profile)
@@ -166,7 +171,9 @@ def test_without_jitter_every_file_gets_the_profile_values(
 
 def test_jitter_draws_per_file_within_ranges(folder_dataset: Path, ranged_profile: Path, tmp_path: Path) -> None:
     output = tmp_path / "out"
-    convert_dataset(ConvertOptions(folder_dataset, output, load_profile(ranged_profile), "folder", jitter=True, seed=5))
+    convert_dataset(
+        ConvertOptions(folder_dataset, output, ClipRecipe(load_profile(ranged_profile), jitter=True), "folder", seed=5)
+    )
     manifest = _manifest(output)
     assert manifest["jitter"] is True
     shots = [f["parameters"]["noise"]["shot"] for f in manifest["files"]]
@@ -182,7 +189,7 @@ def test_convert_item_on_a_row_writes_its_record(folder_dataset: Path, profile_p
     output = (tmp_path / "out").resolve()
     plan = plan_dataset(folder_dataset, "folder")
     options = ConvertOptions(
-        dataset=folder_dataset.resolve(), output=output, profile=load_profile(profile_path), format="folder"
+        recipe=ClipRecipe(load_profile(profile_path)), dataset=folder_dataset.resolve(), output=output, format="folder"
     )
     options = pickle.loads(pickle.dumps(options))
     row = plan.items[0].to_row()
@@ -193,7 +200,7 @@ def test_convert_item_on_a_row_writes_its_record(folder_dataset: Path, profile_p
     assert (output / "cat/0.png").is_file()
     # The same bytes as the whole-dataset run.
     full = tmp_path / "full"
-    convert_dataset(ConvertOptions(folder_dataset, full, load_profile(profile_path), "folder"))
+    convert_dataset(ConvertOptions(folder_dataset, full, ClipRecipe(load_profile(profile_path)), "folder"))
     assert (full / "cat/0.png").read_bytes() == (output / "cat/0.png").read_bytes()
 
 
@@ -202,9 +209,9 @@ def test_convert_item_reports_a_bad_file_as_a_failed_record(tmp_path: Path, prof
     dataset.mkdir()
     (dataset / "broken.png").write_bytes(b"not a png")
     options = ConvertOptions(
+        recipe=ClipRecipe(load_profile(profile_path)),
         dataset=dataset.resolve(),
         output=(tmp_path / "out").resolve(),
-        profile=load_profile(profile_path),
         format="folder",
     )
     record = convert_item(MediaItem("image", "broken.png", ("broken.png",)), options)

@@ -13,12 +13,13 @@ from darksynth.datasets.ray_convert import convert_dataset_with_ray
 from darksynth.errors import DarksynthError
 from darksynth.io.video_encoding import VideoEncoding
 from darksynth.profile import load_profile, profile_to_dict
+from darksynth.recipe import ClipRecipe
 from tests.command_line import run_cli
 
 
 @pytest.fixture
 def options(tmp_path: Path, ranged_profile: Path) -> ConvertOptions:
-    return ConvertOptions(tmp_path / "ds", tmp_path / "out", load_profile(ranged_profile), "coco", seed=3)
+    return ConvertOptions(tmp_path / "ds", tmp_path / "out", ClipRecipe(load_profile(ranged_profile)), "coco", seed=3)
 
 
 def test_fingerprint_is_the_state_earlier_runs_recorded(options: ConvertOptions) -> None:
@@ -26,11 +27,13 @@ def test_fingerprint_is_the_state_earlier_runs_recorded(options: ConvertOptions)
 
     The keys added since are pix_fmt (the default pixel format of H.264 went from 4:4:4 to 4:2:0 with it, so a
     conversion begun before must not resume: its videos and the new ones would differ), and blur, flicker,
-    match_colour and camera, which an earlier state without them reads at their defaults, as before them."""
+    match_colour and camera, which an earlier state without them reads at their defaults, as before them, and
+    darkening, which the recipe holds for ``apply`` (always "profile" for a conversion, as before it)."""
     assert options.fingerprint() == {
         "dataset": str(options.dataset),
         "format": "coco",
-        "profile": profile_to_dict(options.profile),
+        "profile": profile_to_dict(options.recipe.profile),
+        "darkening": "profile",
         "seed": 3,
         "jitter": False,
         "images_root": None,
@@ -46,19 +49,20 @@ def test_fingerprint_is_the_state_earlier_runs_recorded(options: ConvertOptions)
 
 
 def test_only_scheduling_options_leave_the_fingerprint_unchanged(options: ConvertOptions) -> None:
-    names = {option.name for option in dataclasses.fields(ConvertOptions)} - {"encoding"}
-    # The encoding's choices are recorded one by one.
-    assert set(options.fingerprint()) == names - SCHEDULING_OPTIONS | {"codec", "crf", "pix_fmt"}
+    names = {option.name for option in dataclasses.fields(ConvertOptions)} - {"encoding", "recipe"}
+    # The encoding's and the recipe's choices are recorded one by one.
+    recipe = {option.name for option in dataclasses.fields(ClipRecipe)}
+    assert set(options.fingerprint()) == names - SCHEDULING_OPTIONS | {"codec", "crf", "pix_fmt"} | recipe
     scheduled = dataclasses.replace(options, output=Path("elsewhere"), workers=4, shard=Shard(1, 2), overwrite=True)
     assert scheduled.fingerprint() == options.fingerprint()
     for change in (
         {"seed": 4},
-        {"jitter": True},
+        {"recipe": dataclasses.replace(options.recipe, jitter=True)},
         {"encoding": VideoEncoding(codec="ffv1")},
         {"encoding": VideoEncoding(crf=3)},
         {"encoding": VideoEncoding(pix_fmt="yuv444p")},
         {"images_root": Path("x")},
-        {"camera": "prior"},
+        {"recipe": dataclasses.replace(options.recipe, camera="prior")},
     ):
         assert dataclasses.replace(options, **change).fingerprint() != options.fingerprint(), change
 
@@ -78,7 +82,6 @@ def test_checked_options_have_absolute_paths(
     [
         ({"format": "voc"}, "unknown dataset format 'voc'; use one of coco, yolo, folder, video-folder"),
         ({"workers": 0}, "--workers must be at least 1, got 0"),
-        ({"camera": "nikon"}, "unknown camera 'nikon'; choose one of prior, phone, dslr, dslr-jpeg"),
     ],
 )
 def test_bad_options_are_refused_by_check(options: ConvertOptions, change: dict[str, object], message: str) -> None:
@@ -86,17 +89,21 @@ def test_bad_options_are_refused_by_check(options: ConvertOptions, change: dict[
         dataclasses.replace(options, **change).checked()
 
 
+def test_an_unknown_camera_is_refused_by_the_recipe(options: ConvertOptions) -> None:
+    with pytest.raises(DarksynthError, match="unknown camera 'nikon'; choose one of prior, phone, dslr, dslr-jpeg"):
+        dataclasses.replace(options.recipe, camera="nikon")
+
+
 def test_apply_options_fix_the_parameters_unless_jitter(options: ConvertOptions) -> None:
     fixed = options.apply_options()
-    assert not fixed.jitter and fixed.profile == options.profile
-    drawn_from, darkening = fixed.recipe().drawn_from()
-    assert drawn_from.ranges == {} and darkening == fixed_darkening(options.profile)
-    jittered = dataclasses.replace(options, jitter=True).apply_options()
-    assert jittered.jitter and jittered.recipe().drawn_from() == (options.profile, "profile")
+    assert fixed.recipe is options.recipe and not fixed.recipe.jitter
+    drawn_from, darkening = fixed.recipe.drawn_from()
+    assert drawn_from.ranges == {} and darkening == fixed_darkening(options.recipe.profile)
+    jittered = dataclasses.replace(options, recipe=dataclasses.replace(options.recipe, jitter=True)).apply_options()
+    assert jittered.recipe.drawn_from() == (options.recipe.profile, "profile")
     assert (fixed.seed, fixed.workers, fixed.encoding, fixed.device) == (3, 1, VideoEncoding(), "cpu")
     encoded = dataclasses.replace(options, encoding=VideoEncoding(codec="ffv1", crf=None)).apply_options()
     assert encoded.encoding == VideoEncoding(codec="ffv1")
-    assert dataclasses.replace(options, camera="phone").apply_options().recipe().camera == "phone"
 
 
 @pytest.mark.parametrize(

@@ -14,6 +14,7 @@ import pytest
 from darksynth.apply_outputs import STATE_FOLDER
 from darksynth.datasets import MANIFEST_NAME, ConvertOptions, Shard, convert_dataset, shard_of
 from darksynth.profile import load_profile
+from darksynth.recipe import ClipRecipe
 from tests.datasets.conftest import tree_bytes, write_image
 
 IMAGES = 40
@@ -57,7 +58,9 @@ def test_killed_run_resumes_to_the_same_bytes(tmp_path: Path, profile_path: Path
     assert rerun.returncode == 0, rerun.stderr
     assert f"({IMAGES - done_before} new, {done_before} already done)" in rerun.stderr
 
-    report = convert_dataset(ConvertOptions(dataset, full, load_profile(profile_path), "folder", seed=3, jitter=True))
+    report = convert_dataset(
+        ConvertOptions(dataset, full, ClipRecipe(load_profile(profile_path), jitter=True), "folder", seed=3)
+    )
     assert report.converted == IMAGES
     resumed_tree, full_tree = tree_bytes(resumed), tree_bytes(full)
     assert not [name for name in resumed_tree if ".tmp-" in name]
@@ -71,34 +74,36 @@ def test_shards_partition_and_together_equal_a_full_run(coco_dataset: Path, prof
         write_image(coco_dataset / "train2017" / f"extra{index}.png", index)
     sharded, full = tmp_path / "sharded", tmp_path / "full"
     first = convert_dataset(
-        ConvertOptions(coco_dataset, sharded, load_profile(profile_path), "coco", shard=Shard(1, 2), workers=2)
+        ConvertOptions(
+            coco_dataset, sharded, ClipRecipe(load_profile(profile_path)), "coco", shard=Shard(1, 2), workers=2
+        )
     )
     assert first.manifest is None and first.pending > 0 and first.other_shards == first.pending
     second = convert_dataset(
-        ConvertOptions(coco_dataset, sharded, load_profile(profile_path), "coco", shard=Shard(2, 2))
+        ConvertOptions(coco_dataset, sharded, ClipRecipe(load_profile(profile_path)), "coco", shard=Shard(2, 2))
     )
     assert second.manifest == (sharded / MANIFEST_NAME).resolve()
     assert first.converted + second.converted == 8 and first.converted > 0 and second.converted > 0
     assert second.already_done == 0  # no item was done twice
-    convert_dataset(ConvertOptions(coco_dataset, full, load_profile(profile_path), "coco"))
+    convert_dataset(ConvertOptions(coco_dataset, full, ClipRecipe(load_profile(profile_path)), "coco"))
     assert tree_bytes(sharded) == tree_bytes(full)
 
 
 def test_rerun_of_a_complete_run_converts_nothing(folder_dataset: Path, profile_path: Path, tmp_path: Path) -> None:
     output = tmp_path / "out"
-    convert_dataset(ConvertOptions(folder_dataset, output, load_profile(profile_path), "folder"))
+    convert_dataset(ConvertOptions(folder_dataset, output, ClipRecipe(load_profile(profile_path)), "folder"))
     before = tree_bytes(output)
-    again = convert_dataset(ConvertOptions(folder_dataset, output, load_profile(profile_path), "folder"))
+    again = convert_dataset(ConvertOptions(folder_dataset, output, ClipRecipe(load_profile(profile_path)), "folder"))
     assert (again.converted, again.already_done, again.carried) == (0, 4, 0)
     assert tree_bytes(output) == before
 
 
 def test_deleted_output_is_converted_again(folder_dataset: Path, profile_path: Path, tmp_path: Path) -> None:
     output = tmp_path / "out"
-    convert_dataset(ConvertOptions(folder_dataset, output, load_profile(profile_path), "folder"))
+    convert_dataset(ConvertOptions(folder_dataset, output, ClipRecipe(load_profile(profile_path)), "folder"))
     before = tree_bytes(output)
     (output / "dog" / "1.jpg").unlink()
-    again = convert_dataset(ConvertOptions(folder_dataset, output, load_profile(profile_path), "folder"))
+    again = convert_dataset(ConvertOptions(folder_dataset, output, ClipRecipe(load_profile(profile_path)), "folder"))
     assert (again.converted, again.already_done) == (1, 3)
     assert tree_bytes(output) == before
 

@@ -10,6 +10,7 @@ import pytest
 from darksynth.datasets import ConvertOptions, convert_dataset
 from darksynth.datasets.ray_convert import convert_dataset_with_ray
 from darksynth.profile import load_profile
+from darksynth.recipe import ClipRecipe
 from tests.command_line import run_cli
 from tests.datasets.conftest import tree_bytes, write_image
 
@@ -30,10 +31,10 @@ def test_ray_conversion_equals_a_local_one_and_resumes(
 ) -> None:
     local, distributed = tmp_path / "local", tmp_path / "ray"
     expected = convert_dataset(
-        ConvertOptions(coco_dataset, local, load_profile(ranged_profile), "coco", seed=3, jitter=True)
+        ConvertOptions(coco_dataset, local, ClipRecipe(load_profile(ranged_profile), jitter=True), "coco", seed=3)
     )
     report = convert_dataset_with_ray(
-        ConvertOptions(coco_dataset, distributed, load_profile(ranged_profile), "coco", seed=3, jitter=True)
+        ConvertOptions(coco_dataset, distributed, ClipRecipe(load_profile(ranged_profile), jitter=True), "coco", seed=3)
     )
     assert report.converted == expected.converted > 0
     assert report.failures == expected.failures
@@ -44,7 +45,7 @@ def test_ray_conversion_equals_a_local_one_and_resumes(
     victim = next(p for p in sorted(distributed.rglob("*.jpg")) if ".darksynth" not in p.parts)
     victim.unlink()
     again = convert_dataset_with_ray(
-        ConvertOptions(coco_dataset, distributed, load_profile(ranged_profile), "coco", seed=3, jitter=True)
+        ConvertOptions(coco_dataset, distributed, ClipRecipe(load_profile(ranged_profile), jitter=True), "coco", seed=3)
     )
     assert (again.converted, again.already_done) == (1, expected.converted - 1)
     assert tree_bytes(distributed) == tree_bytes(local)
@@ -58,7 +59,9 @@ def test_ray_conversion_reports_a_broken_file_and_converts_the_rest(
     for index in range(3):
         write_image(dataset / "cats" / f"{index}.png", index)
     (dataset / "cats" / "broken.png").write_bytes(b"not a png")
-    report = convert_dataset_with_ray(ConvertOptions(dataset, tmp_path / "out", load_profile(profile_path), "folder"))
+    report = convert_dataset_with_ray(
+        ConvertOptions(dataset, tmp_path / "out", ClipRecipe(load_profile(profile_path)), "folder")
+    )
     assert report.converted == 3
     assert len(report.failures) == 1 and "broken.png" in report.failures[0]
     assert not (tmp_path / "out" / "cats" / "broken.png").exists()

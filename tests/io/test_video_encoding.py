@@ -11,6 +11,7 @@ from darksynth.apply import ApplyOptions
 from darksynth.apply_outputs import UNRECORDED_OPTIONS, VIDEO_OPTIONS, changed_options, options_fingerprint
 from darksynth.io.video_encoding import DEFAULT_CODEC, DEFAULT_CRF, VideoEncoding
 from darksynth.profile import load_profile
+from darksynth.recipe import ClipRecipe
 
 
 @pytest.mark.parametrize(
@@ -34,13 +35,17 @@ def test_resolving_makes_every_choice_by_the_codecs_rules_and_keeps_them(
 
 
 def test_the_fingerprint_records_each_choice_under_its_option_name(profile_file: Path) -> None:
-    options = ApplyOptions(load_profile(profile_file), seed=1, encoding=VideoEncoding(codec="ffv1", pix_fmt="bgr0"))
+    options = ApplyOptions(
+        recipe=ClipRecipe(load_profile(profile_file)), seed=1, encoding=VideoEncoding(codec="ffv1", pix_fmt="bgr0")
+    )
     fingerprint = options_fingerprint(options, left_out=UNRECORDED_OPTIONS)
     assert {k: fingerprint[k] for k in ("codec", "crf", "pix_fmt")} == {"codec": "ffv1", "crf": None, "pix_fmt": "bgr0"}
     assert "encoding" not in fingerprint
     without_videos = options_fingerprint(options, left_out=UNRECORDED_OPTIONS | VIDEO_OPTIONS)
     assert set(fingerprint) - set(without_videos) == {"codec", "crf", "pix_fmt"}
     # An earlier run that left the codec's defaults differs by those two choices alone, named as the flags are.
-    earlier = options_fingerprint(ApplyOptions(load_profile(profile_file), seed=1), left_out=UNRECORDED_OPTIONS)
+    earlier = options_fingerprint(
+        ApplyOptions(recipe=ClipRecipe(load_profile(profile_file)), seed=1), left_out=UNRECORDED_OPTIONS
+    )
     assert changed_options(options, fingerprint, earlier) == ["codec", "pix_fmt"]
     assert changed_options(options, fingerprint, {k: v for k, v in fingerprint.items() if k != "crf"}) == []

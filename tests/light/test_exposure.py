@@ -38,6 +38,7 @@ from darksynth.noise.level import channel_noise_std
 from darksynth.noise.simulate import noise_sum
 from darksynth.noise.values import NoiseValues
 from darksynth.profile import Profile, parse_profile, profile_to_dict
+from darksynth.recipe import ClipRecipe
 from darksynth.synthesize import synthesize
 
 
@@ -90,7 +91,7 @@ def test_apply_darkens_each_input_to_the_reference_s_tones(tmp_path: Path) -> No
     target = _target()
 
     def run(name: str, profile: Profile, darkening: Darkening | str = "profile") -> dict[str, dict[str, float]]:
-        options = ApplyOptions(profile=profile, seed=0, darkening=darkening)  # type: ignore[arg-type]
+        options = ApplyOptions(recipe=ClipRecipe(profile, darkening=darkening), seed=0)  # type: ignore[arg-type]
         apply(folder, tmp_path / name, options)
         manifest = json.loads((tmp_path / name / "darksynth-manifest.json").read_text())
         return {record["input"]: record["parameters"]["darkening"] for record in manifest["files"]}
@@ -203,7 +204,7 @@ def test_apply_matches_the_colour_only_when_asked(tmp_path: Path) -> None:
     profile = _profile(_orange_target())
     casts = {}
     for name, match in (("plain", False), ("orange", True)):
-        report = apply(folder, tmp_path / name, ApplyOptions(profile=profile, seed=0, match_colour=match))
+        report = apply(folder, tmp_path / name, ApplyOptions(recipe=ClipRecipe(profile, match_colour=match), seed=0))
         (record,) = report.records
         assert ("colour_scale" in record["parameters"]) is match
         pixels = np.array(Image.open(tmp_path / name / "a.png").convert("RGB"))

@@ -29,7 +29,7 @@ from darksynth.noise.level import mean_noise_variance
 from darksynth.noise.sampling import random_noise_values
 from darksynth.noise.values import NoiseValues
 from darksynth.profile import load_profile, profile_schema, save_profile
-from darksynth.recipe import ClipParameters
+from darksynth.recipe import ClipParameters, ClipRecipe
 from darksynth.synthesize import ClipSynthesizer
 
 DITHER = 0.08
@@ -141,7 +141,7 @@ def test_apply_on_an_image_writes_it_and_records_it_in_the_manifest(tmp_path: Pa
     Image.fromarray(np.full((64, 80, 3), 200, dtype=np.uint8)).save(source)
     profile = load_profile(_write(tmp_path / "p.json", _document(7, dither=DITHER)))
     out = tmp_path / "out.png"
-    report = apply(source, out, ApplyOptions(profile=profile, seed=3))
+    report = apply(source, out, ApplyOptions(recipe=ClipRecipe(profile), seed=3))
     pixels = np.asarray(Image.open(out), dtype=np.float64) - round(0.5 * 200)
     assert np.abs(pixels).max() <= DITHER * 255 + 1
     assert abs(pixels.std() / (DITHER * 255 / math.sqrt(3)) - 1.0) < 0.1

@@ -5,8 +5,8 @@ from __future__ import annotations
 
 import dataclasses
 import logging
-from collections.abc import Mapping, Sequence
-from typing import TYPE_CHECKING, Annotated, Any, TypeVar, get_args
+from collections.abc import Sequence
+from typing import TYPE_CHECKING, Annotated, Any, get_args
 
 import typer
 from rich.console import Console
@@ -17,7 +17,7 @@ from darksynth.models.den import Variant
 from darksynth.recipe import DarkeningChoice
 
 if TYPE_CHECKING:
-    from _typeshed import DataclassInstance
+    pass
 
 console = Console(stderr=True)
 
@@ -57,17 +57,6 @@ def default_of(options: type[Any], name: str) -> Any:
                 return option.default_factory()
             raise TypeError(f"{options.__name__}.{name} has no default")
     raise TypeError(f"{options.__name__} has no field {name!r}")
-
-
-OptionsT = TypeVar("OptionsT", bound="DataclassInstance")
-
-
-def options_from(options: type[OptionsT], arguments: Mapping[str, object], **values: object) -> OptionsT:
-    """A job's options dataclass from a command's arguments: each field takes the argument of its name (the
-    command's options are named after the fields whose defaults :func:`default_of` gives them), ``values`` the
-    fields that an option does not give as it is (a file to read, a choice to check)."""
-    named = {field.name: arguments[field.name] for field in dataclasses.fields(options) if field.name in arguments}
-    return options(**(named | values))
 
 
 def checked_choice(flag: str, value: str, choices: Sequence[str]) -> str:

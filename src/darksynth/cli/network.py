@@ -8,7 +8,7 @@ from typing import Annotated, cast
 
 import typer
 
-from darksynth.cli.common import QUIET_HELP, VARIANTS, checked_choice, console, default_of, fail, options_from, say
+from darksynth.cli.common import QUIET_HELP, VARIANTS, checked_choice, console, default_of, fail, say
 from darksynth.console_progress import progress_display
 from darksynth.errors import DarksynthError, error_reason
 from darksynth.estimation.assemble import EstimateOptions
@@ -80,9 +80,14 @@ def train_command(
 
     try:
         noise_model = cast(NoiseModel, checked_choice("--model", model, NETWORK_MODELS))
-        config = options_from(
-            TrainConfig,
-            locals(),
+        config = TrainConfig(
+            steps=steps,
+            batch=batch,
+            frames=frames,
+            crop=crop,
+            learning_rate=learning_rate,
+            seed=seed,
+            device=device,
             den=DENConfig(
                 variant=cast(Variant, checked_choice("--variant", variant, VARIANTS)),
                 width=width,
@@ -90,6 +95,11 @@ def train_command(
                 noise_model=noise_model,
                 log_levels=LOG_LEVELS[noise_model],
             ),
+            lambda_parameters=lambda_parameters,
+            lambda_reconstruction=lambda_reconstruction,
+            bright_fraction=bright_fraction,
+            lambda_level=lambda_level,
+            validate_every=validate_every,
         )
         ranks = ranks_from_environment(os.environ)  # torchrun's WORLD_SIZE, RANK, LOCAL_RANK; none: one process
         corpus = load_corpus(data, clips or [], minimum_side=crop)

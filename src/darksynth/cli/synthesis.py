@@ -4,9 +4,8 @@ whole annotated dataset), ``preview`` (one image, before converting) and ``demo`
 from __future__ import annotations
 
 import secrets
-from collections.abc import Mapping
 from pathlib import Path
-from typing import Annotated, Any, cast
+from typing import Annotated, cast
 
 import typer
 
@@ -19,7 +18,6 @@ from darksynth.cli.common import (
     darkening_choice,
     default_of,
     fail,
-    options_from,
     say,
 )
 from darksynth.cli.synthesis_options import (
@@ -43,6 +41,7 @@ from darksynth.errors import DarksynthError
 from darksynth.io.video_encoding import VideoEncoding
 from darksynth.preview import PANEL_SIZE
 from darksynth.profile import default_profile_path, load_profile
+from darksynth.recipe import ClipRecipe, DarkeningChoice
 
 
 def _profile_path(profile: Path | None, camera: str | None) -> Path:
@@ -61,22 +60,34 @@ def _profile_path(profile: Path | None, camera: str | None) -> Path:
     return default_profile_path()
 
 
-def _apply_options(arguments: Mapping[str, Any], **values: object) -> ApplyOptions:
-    """``apply``'s options from the arguments of ``apply`` or ``preview``: each field named like an argument takes
-    it (:func:`~darksynth.cli.common.options_from`); the profile is read from ``--profile`` (its path kept for the
-    manifest; the default profile's with ``--camera`` alone), the seed drawn (and recorded) when ``--seed`` is
-    omitted, the darkening checked from ``--alpha``, ``--gamma`` and ``--no-darken``; ``values`` give the fields the
-    command reads otherwise."""
-    profile, seed = _profile_path(arguments["profile"], arguments["camera"]), arguments["seed"]
-    return options_from(
-        ApplyOptions,
-        arguments,
-        profile=load_profile(profile),
-        seed=seed if seed is not None else secrets.randbits(31),
-        darkening=darkening_choice(arguments["alpha"], arguments["gamma"], arguments["no_darken"]),
-        profile_source=str(profile),
-        **values,
+def _recipe(
+    profile: Path | None,
+    camera: str | None,
+    darkening: DarkeningChoice,
+    *,
+    jitter: bool,
+    blur: bool,
+    flicker: bool,
+    match_colour: bool,
+) -> tuple[ClipRecipe, Path]:
+    """The recipe a command's options ask for, and the profile file it read (``--profile``, or the default profile
+    with ``--camera`` alone; kept for the manifest)."""
+    path = _profile_path(profile, camera)
+    recipe = ClipRecipe(
+        load_profile(path),
+        darkening=darkening,
+        jitter=jitter,
+        blur=blur,
+        flicker=flicker,
+        match_colour=match_colour,
+        camera=camera,
     )
+    return recipe, path
+
+
+def _run_seed(seed: int | None) -> int:
+    """``--seed``, or a random one (recorded in the manifest and printed) when it is omitted."""
+    return seed if seed is not None else secrets.randbits(31)
 
 
 def run_with_progress(
@@ -108,7 +119,7 @@ def apply_command(
     clip: Annotated[bool, typer.Option("--clip", help="Each folder of frames is one clip.")] = default_of(
         ApplyOptions, "clip"
     ),
-    jitter: JitterOption = default_of(ApplyOptions, "jitter"),
+    jitter: JitterOption = default_of(ClipRecipe, "jitter"),
     overwrite: Annotated[
         bool, typer.Option("--overwrite", help="Replace outputs that exist (otherwise the run is refused).")
     ] = default_of(ApplyOptions, "overwrite"),
@@ -117,18 +128,30 @@ def apply_command(
     crf: CrfOption = default_of(VideoEncoding, "crf"),
     pix_fmt: PixFmtOption = default_of(VideoEncoding, "pix_fmt"),
     device: DeviceOption = default_of(ApplyOptions, "device"),
-    blur: BlurOption = default_of(ApplyOptions, "blur"),
-    flicker: FlickerOption = default_of(ApplyOptions, "flicker"),
-    match_colour: MatchColourOption = default_of(ApplyOptions, "match_colour"),
-    camera: CameraOption = default_of(ApplyOptions, "camera"),
+    blur: BlurOption = default_of(ClipRecipe, "blur"),
+    flicker: FlickerOption = default_of(ClipRecipe, "flicker"),
+    match_colour: MatchColourOption = default_of(ClipRecipe, "match_colour"),
+    camera: CameraOption = default_of(ClipRecipe, "camera"),
     compile_kernel: Annotated[
         bool | None, typer.Option("--compile/--no-compile", help="Fuse the 8-bit kernel (default: for long clips).")
     ] = default_of(ApplyOptions, "compile"),
     quiet: QuietOption = False,
 ) -> None:
     try:
-        options = _apply_options(
-            locals(), encoding=VideoEncoding(codec=codec, crf=crf, pix_fmt=pix_fmt), compile=compile_kernel
+        darkening = darkening_choice(alpha, gamma, no_darken)
+        recipe, source = _recipe(
+            profile, camera, darkening, jitter=jitter, blur=blur, flicker=flicker, match_colour=match_colour
+        )
+        options = ApplyOptions(
+            recipe=recipe,
+            seed=_run_seed(seed),
+            overwrite=overwrite,
+            clip=clip,
+            workers=workers,
+            encoding=VideoEncoding(codec=codec, crf=crf, pix_fmt=pix_fmt),
+            device=device,
+            compile=compile_kernel,
+            profile_source=str(source),
         )
         report = run_with_progress(input_path, output_path, options, quiet=quiet)
     except DarksynthError as error:
@@ -159,7 +182,7 @@ def convert_command(
     workers: Annotated[int, typer.Option(min=1, help="Processes on this machine.")] = default_of(
         ConvertOptions, "workers"
     ),
-    jitter: JitterOption = default_of(ConvertOptions, "jitter"),
+    jitter: JitterOption = default_of(ClipRecipe, "jitter"),
     shard: Annotated[str | None, typer.Option(help="Convert only part K of N (1-based), e.g. 3/8.")] = default_of(
         ConvertOptions, "shard"
     ),
@@ -173,10 +196,10 @@ def convert_command(
     crf: CrfOption = default_of(VideoEncoding, "crf"),
     pix_fmt: PixFmtOption = default_of(VideoEncoding, "pix_fmt"),
     device: DeviceOption = default_of(ConvertOptions, "device"),
-    blur: BlurOption = default_of(ConvertOptions, "blur"),
-    flicker: FlickerOption = default_of(ConvertOptions, "flicker"),
-    match_colour: MatchColourOption = default_of(ConvertOptions, "match_colour"),
-    camera: CameraOption = default_of(ConvertOptions, "camera"),
+    blur: BlurOption = default_of(ClipRecipe, "blur"),
+    flicker: FlickerOption = default_of(ClipRecipe, "flicker"),
+    match_colour: MatchColourOption = default_of(ClipRecipe, "match_colour"),
+    camera: CameraOption = default_of(ClipRecipe, "camera"),
     use_ray: Annotated[
         bool,
         typer.Option(
@@ -190,13 +213,21 @@ def convert_command(
     from darksynth.datasets import convert_dataset
 
     try:
-        options = options_from(
-            ConvertOptions,
-            locals(),
-            profile=load_profile(_profile_path(profile, camera)),
+        recipe, _ = _recipe(
+            profile, camera, "profile", jitter=jitter, blur=blur, flicker=flicker, match_colour=match_colour
+        )
+        options = ConvertOptions(
+            dataset=dataset,
+            output=output,
+            recipe=recipe,
             format=cast(DatasetFormat, checked_choice("--format", dataset_format, FORMATS)),
+            seed=seed,
+            workers=workers,
             shard=None if shard is None else Shard.parse(shard),
+            images_root=images_root,
+            overwrite=overwrite,
             encoding=VideoEncoding(codec=codec, crf=crf, pix_fmt=pix_fmt),
+            device=device,
         )
         if use_ray:
             from darksynth.datasets.ray_convert import convert_dataset_with_ray
@@ -252,17 +283,27 @@ def preview_command(
     ] = "x".join(map(str, PANEL_SIZE)),
     overwrite: Annotated[bool, typer.Option("--overwrite", help="Replace an existing OUT.")] = False,
     device: DeviceOption = default_of(ApplyOptions, "device"),
-    blur: BlurOption = default_of(ApplyOptions, "blur"),
-    flicker: FlickerOption = default_of(ApplyOptions, "flicker"),
-    match_colour: MatchColourOption = default_of(ApplyOptions, "match_colour"),
-    camera: CameraOption = default_of(ApplyOptions, "camera"),
+    blur: BlurOption = default_of(ClipRecipe, "blur"),
+    flicker: FlickerOption = default_of(ClipRecipe, "flicker"),
+    match_colour: MatchColourOption = default_of(ClipRecipe, "match_colour"),
+    camera: CameraOption = default_of(ClipRecipe, "camera"),
 ) -> None:
     from darksynth.preview import PreviewOptions, parse_panel_size, run_preview
 
     try:
+        darkening = darkening_choice(alpha, gamma, no_darken)
+        recipe, source = _recipe(
+            profile,
+            camera,
+            darkening,
+            jitter=default_of(ClipRecipe, "jitter"),
+            blur=blur,
+            flicker=flicker,
+            match_colour=match_colour,
+        )
         options = PreviewOptions(
             # --overwrite here replaces OUT, the preview's own file, not outputs of apply's.
-            synthesis=_apply_options(locals(), overwrite=False),
+            synthesis=ApplyOptions(recipe=recipe, seed=_run_seed(seed), device=device, profile_source=str(source)),
             panel_size=parse_panel_size(crop),
             overwrite=overwrite,
             profile_path=profile,

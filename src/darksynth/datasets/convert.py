@@ -46,7 +46,6 @@ from darksynth.datasets.formats import rewrite_yolo_yaml as _rewrite_yolo_yaml
 from darksynth.errors import DarksynthError, error_reason
 from darksynth.io.atomic import atomic_output, write_text_atomic
 from darksynth.io.atomic import remove_stale_temps as remove_temps_of
-from darksynth.profile import profile_to_dict
 
 _STATE_NAME: Final = "convert-state.json"
 _RECORDS: Final = "records"
@@ -327,12 +326,10 @@ def write_manifest_if_complete(options: ConvertOptions, plan: DatasetPlan) -> tu
         "dataset": str(options.dataset),
         "dataset_format": plan.format,
         "seed": options.seed,
-        "jitter": options.jitter,
-        "camera": options.camera,
+        **options.recipe.to_json(),
         "device": options.device,
         **options.encoding.to_json(),
         "images_root": None if options.images_root is None else str(options.images_root),
-        "profile": profile_to_dict(options.profile),
         "files": done,
         "failures": failed,
         "problems": [{"file": p.key, "problem": p.message} for p in plan.problems],

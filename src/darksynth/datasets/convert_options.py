@@ -18,8 +18,7 @@ from darksynth.datasets.formats import FORMATS, DatasetFormat
 from darksynth.errors import DarksynthError
 from darksynth.io.discover import check_output_location
 from darksynth.io.video_encoding import DEFAULT_ENCODING, VideoEncoding
-from darksynth.profile import Profile
-from darksynth.recipe import check_camera
+from darksynth.recipe import ClipRecipe
 
 
 def shard_of(key: str, count: int) -> int:
@@ -67,34 +66,27 @@ class ConvertOptions:
     Attributes:
         dataset: the dataset root.
         output: the output root (never the dataset or inside it).
-        profile: the noise profile.
+        recipe: how each item's parameters are chosen, as for ``apply`` (:class:`darksynth.recipe.ClipRecipe`).
         format: the dataset format, one of :data:`darksynth.datasets.formats.FORMATS`.
         seed: run seed; each item's seed derives from it and the item's relative path.
-        jitter: draw parameters per item within the profile's ranges; otherwise every item gets the profile's
-            values (see :func:`darksynth.recipe.fixed_darkening` for the darkening).
         workers: processes on this machine.
         shard: the part of the dataset this run handles, or None for all of it.
         images_root: COCO: the folder ``file_name`` entries are relative to (tried first).
         overwrite: start over in an output written with other options.
-        encoding, device, blur, flicker, match_colour, camera: as for ``apply``.
+        encoding, device: as for ``apply``.
     """
 
     dataset: Path
     output: Path
-    profile: Profile
+    recipe: ClipRecipe
     format: DatasetFormat
     seed: int = 0
-    jitter: bool = False
     workers: int = 1
     shard: Shard | None = None
     images_root: Path | None = None
     overwrite: bool = False
     encoding: VideoEncoding = DEFAULT_ENCODING
     device: str = "cpu"
-    blur: bool = True
-    flicker: bool = True
-    match_colour: bool = False
-    camera: str | None = None
 
     def checked(self) -> ConvertOptions:
         """These options with absolute paths, once checked.
@@ -103,7 +95,6 @@ class ConvertOptions:
             DarksynthError: an unknown format or camera, fewer than one worker, an output that is the dataset or
                 inside it.
         """
-        check_camera(self.camera)
         if self.format not in FORMATS:
             raise DarksynthError(f"unknown dataset format {self.format!r}; use one of {', '.join(FORMATS)}")
         if self.workers < 1:
@@ -112,18 +103,9 @@ class ConvertOptions:
         return dataclasses.replace(self, dataset=self.dataset.resolve(), output=self.output.resolve())
 
     def apply_options(self) -> ApplyOptions:
-        """The ``apply`` options of each item (``jitter`` means the same for both commands)."""
+        """The ``apply`` options of each item (the same recipe)."""
         return ApplyOptions(
-            profile=self.profile,
-            seed=self.seed,
-            jitter=self.jitter,
-            workers=self.workers,
-            encoding=self.encoding,
-            device=self.device,
-            blur=self.blur,
-            flicker=self.flicker,
-            match_colour=self.match_colour,
-            camera=self.camera,
+            recipe=self.recipe, seed=self.seed, workers=self.workers, encoding=self.encoding, device=self.device
         )
 
     def fingerprint(self, *, has_videos: bool = True) -> dict[str, Any]:

@@ -27,7 +27,7 @@ from darksynth.io.arrays import numpy_to_tensor, tensor_to_numpy
 from darksynth.light.darkening import Darkening
 from darksynth.noise.values import NoiseValues
 from darksynth.profile import Profile, profile_to_dict
-from darksynth.recipe import ClipParameters, ClipRecipe, DarkeningChoice
+from darksynth.recipe import AUGMENTING, ClipParameters, ClipRecipe, DarkeningChoice
 from darksynth.transforms.low_light import (
     as_profile,
     check_camera_name,
@@ -140,7 +140,7 @@ class AlbumentationsLowLight(ImageOnlyTransform):  # type: ignore[misc]  # album
         clean = check_image(_target_tensor(data))
         generator = torch.Generator().manual_seed(mix_seed("parameters", seed))
         first = clean if clean.dim() == 3 else clean[0]
-        recipe = ClipRecipe(self._profile, darkening=self._darkening_choice, camera=self.camera)
+        recipe = ClipRecipe(self._profile, darkening=self._darkening_choice, jitter=AUGMENTING, camera=self.camera)
         drawn = recipe.choose(generator, first)
         darkening = drawn.darkening
         return {
