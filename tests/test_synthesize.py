@@ -121,7 +121,7 @@ def test_a_frame_size_change_within_a_clip_redraws_the_held_patterns_with_one_lo
     assert all(out.shape == large.shape for out in outputs)
     warnings = [r.getMessage() for r in caplog.records if "frame size changed" in r.getMessage()]
     assert len(warnings) == 1 and "3x64x48 to 3x96x80" in warnings[0]
-    assert not synthesizer._fusable and synthesizer._held["temporal_banding"].shape[-1] == 80
+    assert synthesizer.route_name == "composer" and synthesizer.held["temporal_banding"].shape[-1] == 80
     # The held column pattern is the same in every frame at the new size: its column means agree across frames
     # far better than the per-pixel noise alone would make them (std 0.01 / sqrt(96) per column mean).
     column_means = torch.stack([out.mean(dim=-2) for out in outputs])

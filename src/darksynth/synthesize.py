@@ -24,28 +24,9 @@ from darksynth.light.darkening import Darkening, darken
 from darksynth.light.flicker import FlickerGains
 from darksynth.light.shutter import ShutterStage
 from darksynth.noise.codec_repeat import repeat_in_clip, repeat_in_stream
-from darksynth.noise.components import noise_component, noise_parameter
-from darksynth.noise.counter_rng import random_key
-from darksynth.noise.fused_8bit import (
-    FAST_PATH,
-    FULL_SCALE,
-    PixelKernel,
-    compiled_pixel_kernel,
-    kernel_scalars,
-    pixel_kernel_8bit,
-    pixel_kernel_in_pieces,
-)
-from darksynth.noise.simulate import (
-    add_noise,
-    apply_output_stages,
-    column_components_active,
-    column_noise,
-    exposure_gains,
-    scene_stage,
-)
-from darksynth.noise.spectral import clip_grid, octave_covariances
-from darksynth.noise.spectral_8bit import SPECTRAL_PATH, SpectralPixelPass, level_tables, to_8bit
-from darksynth.noise.spectral_kernel import SpectralKernelStream, compiled_spectral_kernels
+from darksynth.noise.components import noise_parameter
+from darksynth.noise.frame_routes import ClipState, ComposerRoute, SpectralRoute, eight_bit_route
+from darksynth.noise.simulate import add_noise, exposure_gains, scene_stage
 from darksynth.profile import Profile
 from darksynth.recipe import AUGMENTING, ClipParameters, ClipRecipe, DarkeningChoice
 from darksynth.tensors import CLIP_DIMS, eight_bit_levels, full_scale, scale_channels, to_dtype
@@ -56,17 +37,18 @@ logger = logging.getLogger(__name__)
 class ClipSynthesizer:
     """Darkening + f(v) for the frames of one clip, one frame at a time (memory does not grow with length).
 
-    Every frame goes through the composer (:func:`darksynth.noise.simulate.add_noise`), which holds the
-    components a clip keeps fixed (temporal banding) from the first frame on. 8-bit frames whose values the
-    fused kernel covers (:data:`darksynth.noise.fused_8bit.FAST_PATH` in the table) take it for the per-pixel part.
-    8-bit frames of a spectral profile (:data:`darksynth.noise.spectral_8bit.SPECTRAL_PATH`) read their darkened
-    level and noise std from tables of the 256 levels and draw the composer's bits.
+    The light stage comes first (the shutter's blur and shake, the frame's flicker gain on the darkening); then the
+    frame's route through f(v), chosen once for the clip's 8-bit frames by
+    :data:`darksynth.noise.frame_routes.ROUTES` (the fused white kernel, the spectral tables, their compiled
+    kernels, or the general composer, which every other dtype takes); then a codec's repeats of still cells
+    (:mod:`darksynth.noise.codec_repeat`). Components a clip keeps fixed (temporal banding) and the spectrum's
+    frame-to-frame state are held from the first frame on.
 
     Args:
         parameters: the clip's parameters (see :func:`draw_clip_parameters`).
         generator: source of randomness, consumed frame after frame.
         device: where the work runs (``"cpu"``, ``"cuda"``); frames are moved there and results returned there.
-        compile: fuse the 8-bit kernel with ``torch.compile``; worth it for a long stream of same-sized frames.
+        compile: fuse the 8-bit kernels with ``torch.compile``; worth it for a long stream of same-sized frames.
         name: what the clip is called in log messages (its file or folder).
     """
 
@@ -83,35 +65,30 @@ class ClipSynthesizer:
         self.name = name
         self.generator = generator
         self.device = torch.device(device)
-        self._values = parameters.noise.to(self.device, torch.float32)
-        self._held: dict[str, Any] = {}
-        self._kernel: PixelKernel = compiled_pixel_kernel() if compile else pixel_kernel_8bit
-        uncovered = self._values.uncovered_by(FAST_PATH)
-        self._fusable = not uncovered
-        # A profile of the spectral model (its curve set) whose other values the spectral path draws; the paper's
-        # white model never takes it, so its frames keep their bits.
-        self._spectral = (
-            bool(uncovered)
-            and self._values.is_active(noise_component("spectral"))
-            and self._values.covered_by(SPECTRAL_PATH)
-        )
-        self._spectral_pass: SpectralPixelPass | None = None
-        # Compiled, a spectral stream takes the fused kernels (the same law, counter-based draws); they do not draw
-        # the texture factor, which the eager pass does.
-        self._textured = not self._values.is_neutral(noise_parameter("texture_gain"))
-        self._spectral_compiled = compile and self._spectral and not self._textured
-        self._spectral_stream: SpectralKernelStream | None = None
-        if uncovered and not self._spectral:
-            logger.debug("8-bit frames take the general composer: %s not covered by %s", uncovered, FAST_PATH)
-        self._scalars: tuple[torch.Tensor, ...] | None = None
+        values = parameters.noise.to(self.device, torch.float32)
+        self._state = ClipState(values, parameters.noise, self.device, generator)
+        self._darkening = parameters.darkening
+        self._route = eight_bit_route(self._state, self._darkening, compile=compile)
+        self._composer = ComposerRoute(self._state, self._darkening)
         self._frame_shape: torch.Size | None = None
         self._frames_done = 0
         # Light (darksynth.light): the shutter (motion blur, shake), the frame's darkening times its flicker gain.
-        self._darkening = parameters.darkening
-        self._flicker = FlickerGains(self._values.scalar("flicker"), self._values.scalar("flicker_correlation"))
-        fraction, length, angle = (self._values.scalar(n) for n in ("exposure_fraction", "shake_length", "shake_angle"))
+        self._flicker = FlickerGains(values.scalar("flicker"), values.scalar("flicker_correlation"))
+        fraction, length, angle = (values.scalar(n) for n in ("exposure_fraction", "shake_length", "shake_angle"))
         self._shutter = ShutterStage(fraction, length, angle, self.device)
-        self._repeat_share = self._values.scalar("codec_repeat")
+        self._repeat_share = values.scalar("codec_repeat")
+
+    @property
+    def route_name(self) -> str:
+        """The route the clip's 8-bit frames take now: ``fused``, ``compiled spectral``, ``spectral`` or
+        ``composer`` (:data:`darksynth.noise.frame_routes.ROUTES`)."""
+        return self._route.name
+
+    @property
+    def held(self) -> dict[str, Any]:
+        """The clip's state held from frame to frame (temporal banding's pattern, the spectrum's state, the codec's
+        previous frame), by component."""
+        return self._state.held
 
     def push(self, frame: torch.Tensor) -> list[torch.Tensor]:
         """The next frame (C, H, W) of a clip in, the low-light frames finished so far out, in order. With motion
@@ -127,16 +104,6 @@ class ClipSynthesizer:
         """A single image (C, H, W): its camera shake, if any, and no flicker (it needs a sequence)."""
         return self._frame(self._shutter.image(frame), flicker=False)
 
-    def _set_gain(self, gain: float) -> None:
-        """This frame's darkening: the clip's times the flicker gain (the tables read from it are redone)."""
-        base = self.parameters.darkening or Darkening(alpha=1.0, gamma=1.0)
-        self._darkening = Darkening(alpha=base.alpha * gain, gamma=base.gamma)
-        self._scalars = None
-        curve = self._values["level_curve"]
-        for stage in (stage for stage in (self._spectral_pass, self._spectral_stream) if stage is not None):
-            channels = len(stage.signal_table)
-            stage.signal_table, stage.std_table = level_tables(channels, self._darkening, curve, device=self.device)
-
     def __call__(self, frame: torch.Tensor) -> torch.Tensor:
         """Low-light version of one frame (C, H, W) of a clip whose light stage is done (as :meth:`push` gives
         it): uint8 in, uint8 out; uint16 and float likewise. Flicker, if any, is drawn here, and after the frame
@@ -147,7 +114,23 @@ class ClipSynthesizer:
         frame = frame.to(self.device)
         scale = full_scale(frame.dtype)
         clean = frame.to(torch.float32) / scale if scale else frame.to(torch.float32)
-        return repeat_in_stream(clean, finished, self._repeat_share, self.generator, self._held)
+        return repeat_in_stream(clean, finished, self._repeat_share, self.generator, self.held)
+
+    def float_image_on_levels(self, image: torch.Tensor) -> torch.Tensor | None:
+        """A float image (C, H, W) in [0, 1] whose values are 8-bit levels (``ToTensor`` of a PNG or JPEG) through
+        the spectral tables, unrounded: the 8-bit route's draws, so the same result; None when the clip's route is
+        not the spectral model's or the image is not on levels."""
+        levels = eight_bit_levels(image) if isinstance(self._route, SpectralRoute) else None
+        if levels is None or not isinstance(self._route, SpectralRoute):
+            return None
+        return to_dtype(self._route.noisy(levels.to(self.device), rounded=False), image.dtype)
+
+    def _set_gain(self, gain: float) -> None:
+        """This frame's darkening: the clip's times the flicker gain (the routes' tables are redone)."""
+        base = self.parameters.darkening or Darkening(alpha=1.0, gamma=1.0)
+        self._darkening = Darkening(alpha=base.alpha * gain, gamma=base.gamma)
+        self._route.set_darkening(self._darkening)
+        self._composer.set_darkening(self._darkening)
 
     def _frame(self, frame: torch.Tensor, *, flicker: bool) -> torch.Tensor:
         if frame.dim() != 3:
@@ -162,21 +145,8 @@ class ClipSynthesizer:
         if flicker and self._flicker.active:
             # The gain is drawn before the frame's noise, from the same generator.
             self._set_gain(self._flicker.next(self.generator))
-        if frame.dtype == torch.uint8 and self._fusable:
-            return self._fused(frame)
-        if frame.dtype == torch.uint8 and self._spectral_compiled:
-            compiled = self._spectral_kernels(frame)
-            if compiled is not None:
-                return compiled
-        if frame.dtype == torch.uint8 and self._spectral:
-            return self._spectral_8bit(frame)
-        scale = full_scale(frame.dtype)
-        clean = frame.to(torch.float32) / scale if scale else frame.to(torch.float32)
-        darkening = self._darkening
-        signal = clean if darkening is None else darken(clean, darkening.alpha, darkening.gamma)
-        # A frame is a clip of one frame for the composer.
-        noisy = add_noise(signal[None], self._values, generator=self.generator, held=self._held)[0]
-        return to_dtype(noisy, frame.dtype)
+        route = self._route if frame.dtype == torch.uint8 else self._composer
+        return route(frame)
 
     def _restart_for_new_size(self, shape: torch.Size) -> None:
         # A stream whose frames change size (a video that switches resolution, a folder of mixed sizes): the
@@ -191,112 +161,8 @@ class ClipSynthesizer:
             "x".join(map(str, shape)),
             self._frames_done,
         )
-        self._held.clear()
-        self._fusable = self._spectral = self._spectral_compiled = False
-
-    def _kernel_scalars(self) -> tuple[torch.Tensor, ...]:
-        if self._scalars is None:
-            darkening = self._darkening
-            self._scalars = kernel_scalars(
-                darkening.alpha if darkening else None,
-                darkening.gamma if darkening else None,
-                # The float64 values, as given: squaring before the cast to float32 keeps the kernel's bits.
-                self.parameters.noise,
-                device=self.device,
-            )
-        return self._scalars
-
-    def _columns_8bit(self, frame: torch.Tensor) -> torch.Tensor:
-        columns = column_noise(
-            (1, *frame.shape), self._values, generator=self.generator, held=self._held, device=self.device
-        )[0]
-        return columns * FULL_SCALE
-
-    def _fused(self, frame: torch.Tensor) -> torch.Tensor:
-        columns_8bit = self._columns_8bit(frame)
-        scalars = self._kernel_scalars()
-        key = random_key(self.generator).to(self.device)
-        if self._kernel is not pixel_kernel_8bit:
-            try:
-                return self._kernel(frame, key, *scalars, columns_8bit)
-            except Exception as error:
-                # torch.compile fails in many ways on a platform without a working compiler; the eager kernel
-                # gives the same bits, only slower.
-                logger.warning("compiled 8-bit kernel failed (%s); using the eager kernel", error)
-                self._kernel = pixel_kernel_8bit
-        return pixel_kernel_in_pieces(self._kernel, frame, key, scalars, columns_8bit)
-
-    def _spectral_kernels(self, frame: torch.Tensor) -> torch.Tensor | None:
-        """The uint8 frame through the compiled spectral kernels and the output stages; None once they have failed
-        (the stream then goes on through the eager spectral path, which has the same law)."""
-        values = self._values
-        columns = self._columns_8bit(frame) if column_components_active(values) else None
-        try:
-            if self._spectral_stream is None:
-                mix, ar_mix, pixel = compiled_spectral_kernels()
-                self._spectral_stream = SpectralKernelStream(
-                    (frame.shape[0], frame.shape[1], frame.shape[2]),
-                    octave_covariances(values["octave_power"], values["octave_correlation"]),
-                    values["temporal_correlation"],
-                    self._darkening,
-                    values["level_curve"],
-                    values.scalar("quantization"),
-                    mix=mix,
-                    ar_mix=ar_mix,
-                    pixel=pixel,
-                    device=self.device,
-                )
-            out = self._spectral_stream(frame, self.generator, columns)
-        except Exception as error:
-            # A platform without a working compiler (as for the other kernels).
-            logger.warning("compiled spectral kernels failed (%s); using the eager spectral path", error)
-            self._spectral_compiled = False
-            return None
-        if values.is_neutral(noise_parameter("compression")):
-            return out
-        compressed = apply_output_stages(out.to(torch.float32)[None] / FULL_SCALE, values, generator=self.generator)
-        return to_dtype(compressed[0], frame.dtype)
-
-    def _spectral_8bit(self, frame: torch.Tensor, *, rounded: bool = True) -> torch.Tensor:
-        """The uint8 frame through the spectral path: the composer's draws in the composer's order (columns, the
-        spectral unit noise, quantization, the output stages), the level and std read from 8-bit tables. Not
-        ``rounded``: the float32 result in [0, 1], before the rounding to 8 bits."""
-        values = self._values
-        columns = None
-        if column_components_active(values):
-            columns = column_noise(
-                (1, *frame.shape), values, generator=self.generator, held=self._held, device=self.device
-            )[0]
-        if self._spectral_pass is None:
-            channels, height, width = frame.shape
-            self._spectral_pass = SpectralPixelPass(
-                channels,
-                height,
-                width,
-                self._darkening,
-                values["level_curve"],
-                values.scalar("quantization"),
-                device=self.device,
-                texture=(values.scalar("texture_gain"), values.scalar("texture_scale")) if self._textured else None,
-            )
-        grid = clip_grid(
-            octave_covariances(values["octave_power"], values["octave_correlation"]),
-            values["temporal_correlation"],
-            frame.shape,
-            device=self.device,
-            dtype=torch.float32,
-            state=self._held,
-        )
-        generator = self.generator if self.generator is not None else torch.default_generator
-        compressed = not values.is_neutral(noise_parameter("compression"))
-        noisy = self._spectral_pass.noisy(
-            frame, grid.frame(generator), columns, generator, rounded=rounded and not compressed
-        )
-        if compressed:
-            noisy = apply_output_stages(noisy[None], values, generator=self.generator)[0]
-            return to_8bit(noisy) if rounded else noisy
-        # Not rounded, the result is the pass's own array, which the next frame overwrites.
-        return noisy if rounded else noisy.clone()
+        self._state.held.clear()
+        self._route = self._composer
 
 
 @dataclass(frozen=True)
@@ -384,9 +250,9 @@ def _synthesize_clip(clip: torch.Tensor, parameters: ClipParameters, generator: 
         # A float image of 8-bit levels (``ToTensor`` of a PNG or JPEG, as training loops pass them) has the
         # 8-bit path's tables: the composer's draws in the composer's order, so the same result.
         synthesizer = ClipSynthesizer(parameters, generator=generator, device=clip.device)
-        levels = eight_bit_levels(clip[0]) if synthesizer._spectral else None
-        if levels is not None:
-            return to_dtype(synthesizer._spectral_8bit(levels, rounded=False)[None], clip.dtype)
+        on_levels = synthesizer.float_image_on_levels(clip[0])
+        if on_levels is not None:
+            return on_levels[None]
     scale = full_scale(clip.dtype)
     clean = clip.to(torch.float32) / scale if scale else clip.to(torch.float32)
     clean = scene_stage(clean, values, generator=generator)

@@ -3,13 +3,13 @@
 from __future__ import annotations
 
 import logging
-import sys
 
 import pytest
 import torch
 
 from darksynth.light.darkening import Darkening, darken
-from darksynth.noise import fused_8bit
+from darksynth.noise import frame_routes, fused_8bit
+from darksynth.noise.frame_routes import ClipState, ComposerRoute
 from darksynth.noise.fused_8bit import FAST_PATH
 from darksynth.noise.simulate import add_noise
 from darksynth.noise.spectral import OCTAVES
@@ -37,7 +37,7 @@ def test_the_fused_kernel_covers_what_the_table_declares(extra: dict[str, object
     values = NoiseValues.from_values(PAPER | extra)  # type: ignore[arg-type]
     assert values.covered_by(FAST_PATH) is covered
     synthesizer = ClipSynthesizer(ClipParameters(values, None), generator=torch.Generator().manual_seed(0))
-    assert synthesizer._fusable is covered
+    assert (synthesizer.route_name == "fused") is covered
 
 
 def test_fused_and_general_paths_draw_the_same_law() -> None:
@@ -47,7 +47,7 @@ def test_fused_and_general_paths_draw_the_same_law() -> None:
     frame8 = torch.full((3, 256, 256), 200, dtype=torch.uint8)
     fused = ClipSynthesizer(parameters, generator=torch.Generator().manual_seed(1))
     general = ClipSynthesizer(parameters, generator=torch.Generator().manual_seed(1))
-    assert fused._fusable
+    assert fused.route_name == "fused"
     out8 = torch.stack([fused(frame8) for _ in range(4)]).double() / 255.0
     out_float = torch.stack([general(frame8.float() / 255.0) for _ in range(4)]).double()
     # The general path keeps floats: round it as the 8-bit path does before comparing.
@@ -65,8 +65,7 @@ def test_a_failing_compiled_kernel_falls_back_once_with_a_log_line(
     def broken(*args: object) -> torch.Tensor:
         raise RuntimeError("no working C compiler")
 
-    # darksynth.synthesize is also the name of the package's function: reach the module itself.
-    monkeypatch.setattr(sys.modules["darksynth.synthesize"], "compiled_pixel_kernel", lambda: broken)
+    monkeypatch.setattr(frame_routes, "compiled_pixel_kernel", lambda: broken)
     parameters = ClipParameters(NoiseValues.from_values({"read": 0.02}), None)
     frame = torch.full((3, 32, 32), 100, dtype=torch.uint8)
     with caplog.at_level(logging.WARNING, logger="darksynth.synthesize"):
@@ -96,9 +95,10 @@ def test_srgb_values_drawn_for_a_clip_take_the_spectral_path() -> None:
     them, compiled or not; given untranslated to a synthesizer they take the general composer, which translates."""
     profile = Profile(noise=NoiseValues.from_values(SRGB))  # type: ignore[arg-type]
     drawn = draw_clip_parameters(profile, darkening=None)
-    assert ClipSynthesizer(drawn)._spectral and ClipSynthesizer(drawn, compile=True)._spectral_compiled
+    assert ClipSynthesizer(drawn).route_name == "spectral"
+    assert ClipSynthesizer(drawn, compile=True).route_name == "compiled spectral"
     untranslated = ClipSynthesizer(ClipParameters(profile.noise, None))
-    assert not untranslated._spectral and not untranslated._fusable
+    assert untranslated.route_name == "composer"
 
 
 SPECTRAL = {
@@ -123,7 +123,7 @@ SPECTRAL = {
 )
 def test_the_spectral_path_is_taken_for_spectral_profiles_only(values: dict[str, object], taken: bool) -> None:
     parameters = ClipParameters(NoiseValues.from_values(values), None)  # type: ignore[arg-type]
-    assert ClipSynthesizer(parameters)._spectral is taken
+    assert (ClipSynthesizer(parameters).route_name == "spectral") is taken
 
 
 @pytest.mark.parametrize(
@@ -147,9 +147,11 @@ def test_the_spectral_path_draws_the_general_composers_bits(extra: dict[str, obj
         0, 256, (3, channels, 72, 136), dtype=torch.uint8, generator=torch.Generator().manual_seed(0)
     )
     fast = ClipSynthesizer(parameters, generator=torch.Generator().manual_seed(5))
-    general = ClipSynthesizer(parameters, generator=torch.Generator().manual_seed(5))
-    general._spectral = False
-    assert fast._spectral
+    values = parameters.noise.to("cpu", torch.float32)
+    general = ComposerRoute(
+        ClipState(values, parameters.noise, torch.device("cpu"), torch.Generator().manual_seed(5)), parameters.darkening
+    )
+    assert fast.route_name == "spectral"
     for frame in frames:
         assert torch.equal(fast(frame), general(frame))
     assert not torch.equal(fast(frames[0]), fast(frames[0]))  # new noise every frame

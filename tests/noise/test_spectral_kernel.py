@@ -3,7 +3,6 @@
 from __future__ import annotations
 
 import logging
-import sys
 
 import pytest
 import scipy.stats
@@ -11,6 +10,7 @@ import torch
 
 from darksynth.estimation.spectral_statistics import measure
 from darksynth.light.darkening import Darkening
+from darksynth.noise import frame_routes
 from darksynth.noise.counter_rng import random_key
 from darksynth.noise.spectral import OCTAVES, crop_unit, octave_covariances, spectral_tables
 from darksynth.noise.spectral_8bit import level_tables
@@ -35,7 +35,7 @@ EAGER_KERNELS = (spectral_mix_kernel, spectral_ar_mix_kernel, spectral_pixel_ker
 
 def _eager_kernels(monkeypatch: pytest.MonkeyPatch) -> None:
     """The stream with the kernels run eagerly: the compiled ones' values (tested below), in a test's time."""
-    monkeypatch.setattr(sys.modules["darksynth.synthesize"], "compiled_spectral_kernels", lambda: EAGER_KERNELS)
+    monkeypatch.setattr(frame_routes, "compiled_spectral_kernels", lambda: EAGER_KERNELS)
 
 
 def _field(mixed: torch.Tensor, height: int, width: int) -> torch.Tensor:
@@ -113,9 +113,9 @@ def test_the_compiled_path_draws_the_eager_paths_law(monkeypatch: pytest.MonkeyP
     frame = torch.full((3, 256, 256), 150, dtype=torch.uint8)
     compiled = ClipSynthesizer(parameters, generator=torch.Generator().manual_seed(1), compile=True)
     eager = ClipSynthesizer(parameters, generator=torch.Generator().manual_seed(2), compile=False)
-    assert compiled._spectral_compiled and not eager._spectral_compiled and eager._spectral
+    assert (compiled.route_name, eager.route_name) == ("compiled spectral", "spectral")
     ours, theirs = _frames(compiled, frame, 12), _frames(eager, frame, 12)
-    assert compiled._spectral_stream is not None  # the compiled path drew them
+    assert compiled.route_name == "compiled spectral"  # the compiled path drew them, without falling back
     assert not torch.equal(ours[0], ours[1])
     assert torch.allclose(ours.mean(dim=(0, 2, 3)), theirs.mean(dim=(0, 2, 3)), atol=0.3)
     noise = [(f - f.mean(dim=(0, 2, 3), keepdim=True)) / 255.0 for f in (ours, theirs)]
@@ -138,9 +138,9 @@ def test_the_compiled_path_is_taken_for_compiled_spectral_streams_only(monkeypat
     _eager_kernels(monkeypatch)
     spectral = ClipParameters(NoiseValues.from_values(SPECTRAL), None)  # type: ignore[arg-type]
     with_shot = ClipParameters(NoiseValues.from_values(SPECTRAL | {"shot": 0.02}), None)  # type: ignore[arg-type]
-    assert ClipSynthesizer(spectral, compile=True)._spectral_compiled
-    assert not ClipSynthesizer(spectral, compile=False)._spectral_compiled
-    assert not ClipSynthesizer(with_shot, compile=True)._spectral_compiled
+    assert ClipSynthesizer(spectral, compile=True).route_name == "compiled spectral"
+    assert ClipSynthesizer(spectral, compile=False).route_name == "spectral"
+    assert ClipSynthesizer(with_shot, compile=True).route_name == "composer"
     # A seed fixes the frames.
     frame = torch.full((3, 48, 64), 90, dtype=torch.uint8)
     first, second = (
@@ -156,13 +156,13 @@ def test_failing_compiled_spectral_kernels_fall_back_to_the_eager_path_with_a_lo
     def broken(*args: object) -> torch.Tensor:
         raise RuntimeError("no working C compiler")
 
-    monkeypatch.setattr(sys.modules["darksynth.synthesize"], "compiled_spectral_kernels", lambda: (broken,) * 3)
+    monkeypatch.setattr(frame_routes, "compiled_spectral_kernels", lambda: (broken,) * 3)
     parameters = ClipParameters(NoiseValues.from_values(SPECTRAL), None)  # type: ignore[arg-type]
     frame = torch.full((3, 48, 64), 90, dtype=torch.uint8)
     with caplog.at_level(logging.WARNING, logger="darksynth.synthesize"):
         synthesizer = ClipSynthesizer(parameters, generator=torch.Generator().manual_seed(2), compile=True)
         frames = _frames(synthesizer, frame, 3)
-    assert not synthesizer._spectral_compiled and synthesizer._spectral
+    assert synthesizer.route_name == "spectral"
     assert frames.std(dim=(0, 2, 3)).min() > 1.0  # noisy frames, from the eager path
     warnings = [r for r in caplog.records if "compiled spectral kernels failed" in r.getMessage()]
     assert len(warnings) == 1 and "no working C compiler" in warnings[0].getMessage()
@@ -177,7 +177,7 @@ def test_flicker_moves_the_spectral_paths_frames_by_their_gain(monkeypatch: pyte
     synthesizer = ClipSynthesizer(
         ClipParameters(values, Darkening(0.3, 1.0)), generator=torch.Generator().manual_seed(0), compile=compiled
     )
-    assert synthesizer._spectral and synthesizer._spectral_compiled is compiled
+    assert synthesizer.route_name == ("compiled spectral" if compiled else "spectral")
     grey = torch.full((3, 64, 80), 200, dtype=torch.uint8)
     means = torch.tensor([float(synthesizer(grey).double().mean()) for _ in range(200)])
     gains = means / means.mean()

@@ -98,10 +98,10 @@ def test_a_texture_scale_alone_changes_nothing_and_a_gain_does() -> None:
 def test_a_texture_gain_takes_the_eager_spectral_pass_not_the_compiled_kernels_and_streams() -> None:
     plain = NoiseValues.from_values(SPECTRAL_VALUES)  # type: ignore[arg-type]
     parameters = ClipParameters(plain.replace(texture_scale=0.003), Darkening(0.3, 1.0))
-    assert ClipSynthesizer(parameters)._spectral
+    assert ClipSynthesizer(parameters).route_name == "spectral"
     textured = ClipParameters(plain.replace(texture_gain=1.0, texture_scale=0.003), Darkening(0.3, 1.0))
     stream = ClipSynthesizer(textured, generator=torch.Generator().manual_seed(2), compile=True)
-    assert stream._spectral and not stream._fusable and not stream._spectral_compiled
+    assert stream.route_name == "spectral"
     clean = (scene(3, 128, 160) * 255.0).round().to(torch.uint8)
     frames = torch.stack([stream(frame) for frame in clean]).double() / 255.0
     darkened = 0.3 * clean.double() / 255.0
