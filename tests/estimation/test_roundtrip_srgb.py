@@ -53,7 +53,7 @@ def test_the_shipped_srgb_network_estimates_every_parameter(model: DEN) -> None:
     assert model.noise_model == "srgb"
     # Banding so that the column components are measured present (without it they are set absent).
     result = estimate(_reference({"read": (0.02,), "banding": (0.01,)}, 1, 0), model, refine=False)
-    predicted = model_parameters("srgb", model.config.table_version)
+    predicted = model_parameters("srgb", model.config.profile_version)
     assert set(result.profile.ranges) == {p.name for p in predicted}
     # Newer parameters than the network's table stay neutral, without a range.
     assert result.profile.noise.is_neutral(noise_parameter("chroma_length"))

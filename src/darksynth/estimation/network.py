@@ -50,6 +50,6 @@ def run_network(
     # What the network does not estimate (the sRGB structure, for the paper's model) stays neutral, without a range.
     ranges = {
         p.name: tuple(zip(low[p.name].tolist(), high[p.name].tolist(), strict=True))
-        for p in model_parameters(noise_model, network.config.table_version)
+        for p in model_parameters(noise_model, network.config.profile_version)
     }
     return NetworkEstimate(per_crop=per_crop, noise=noise, ranges=ranges)

@@ -27,7 +27,8 @@ import torch.nn.functional as F
 from torch import nn
 
 from darksynth.models.statistics import model_statistics
-from darksynth.noise.components import NoiseModel, model_parameters, profile_version, vector_size
+from darksynth.noise.components import NoiseModel, model_parameters, vector_size
+from darksynth.noise.components import profile_version as current_profile_version
 from darksynth.noise.values import NoiseValues
 
 Variant = Literal["v2", "v3"]
@@ -60,8 +61,8 @@ class DENConfig:
     channels: int = 3
     noise_model: NoiseModel = "srgb"
     log_levels: bool = True
-    table_version: int = field(default_factory=profile_version)
-    """The parameter table's version the head was built for: it predicts the noise model's parameters that had
+    profile_version: int = field(default_factory=current_profile_version)
+    """The profile version whose parameters the head was built for: it predicts the noise model's parameters that had
     arrived by then (:func:`darksynth.noise.components.model_parameters`), so a component added to the table
     later leaves a trained network readable (version-1 weights: 1, version-2 weights: 2)."""
 
@@ -139,15 +140,15 @@ class DENOutput:
     dark: torch.Tensor | None
     noise_model: NoiseModel = "srgb"
     log_levels: bool = False
-    table_version: int | None = None
+    profile_version: int | None = None
 
     @property
     def values(self) -> NoiseValues:
         """The estimated noise values in the parameters' units, batched (B,); those the noise model lacks neutral."""
         return NoiseValues.from_vector(
-            denormalise(self.normalised, self.noise_model, self.log_levels, self.table_version),
+            denormalise(self.normalised, self.noise_model, self.log_levels, self.profile_version),
             self.noise_model,
-            self.table_version,
+            self.profile_version,
         )
 
 
@@ -180,7 +181,7 @@ class DEN(nn.Module):
             self.to_image = nn.Sequential(nn.Conv2d(widths[0], 4 * config.channels, 1), nn.PixelShuffle(2))
         # The statistics span many decades and are standardised with the mean and spread measured on training
         # data before training starts (set_statistics_scale); the buffers travel with the weights.
-        statistics = sum(s.size for s in model_statistics(config.noise_model, config.table_version))
+        statistics = sum(s.size for s in model_statistics(config.noise_model, config.profile_version))
         self.register_buffer("statistics_mean", torch.zeros(statistics))
         self.register_buffer("statistics_scale", torch.ones(statistics))
         self.pooled_norm = nn.LayerNorm(2 * widths[-1])
@@ -189,7 +190,7 @@ class DEN(nn.Module):
             nn.GELU(),
             nn.Linear(config.head_width, config.head_width),
             nn.GELU(),
-            nn.Linear(config.head_width, vector_size(config.noise_model, config.table_version)),
+            nn.Linear(config.head_width, vector_size(config.noise_model, config.profile_version)),
         )
 
     @torch.no_grad()
@@ -229,7 +230,7 @@ class DEN(nn.Module):
             dark=dark,
             noise_model=self.config.noise_model,
             log_levels=self.config.log_levels,
-            table_version=self.config.table_version,
+            profile_version=self.config.profile_version,
         )
 
     def features(self, clip: torch.Tensor) -> torch.Tensor:
@@ -260,9 +261,9 @@ class DEN(nn.Module):
 
     def normalise(self, vector: torch.Tensor) -> torch.Tensor:
         """v in the parameters' units -> the [0, 1] space this model's head predicts in (training targets)."""
-        return normalise(vector, self.config.noise_model, self.config.log_levels, self.config.table_version)
+        return normalise(vector, self.config.noise_model, self.config.log_levels, self.config.profile_version)
 
     def statistics(self, clip: torch.Tensor) -> torch.Tensor:
         """The fixed noise statistics this model's head reads, before standardisation."""
-        statistics = model_statistics(self.config.noise_model, self.config.table_version)
+        statistics = model_statistics(self.config.noise_model, self.config.profile_version)
         return torch.cat([s.compute(clip) for s in statistics], dim=-1)

@@ -90,9 +90,11 @@ def load_weights(path: Path, *, device: torch.device | str = "cpu") -> DEN:
             # Version 1 predates the sRGB model: its weights are the paper's model.
             settings["noise_model"] = "paper"
             settings["log_levels"] = False
-        # Versions 1 and 2 predate the table version in the config: their heads were built for the table
-        # of their time.
-        settings.setdefault("table_version", int(metadata["version"]))
+        # Weights written before the rename call the profile version "table_version"; versions 1 and 2 predate
+        # it in the config: their heads were built for the table of their time.
+        if "table_version" in settings:
+            settings["profile_version"] = settings.pop("table_version")
+        settings.setdefault("profile_version", int(metadata["version"]))
         config = DENConfig(**settings)
         model = DEN(config)
         model.load_state_dict(load_file(str(path), device=str(device)))
