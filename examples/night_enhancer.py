@@ -16,7 +16,9 @@ The enhancement counterpart of ``examples/night_denoiser.py`` and the paper's ow
    what a user of albumentations writes for low light: ``MultiplicativeNoise`` (brightness x U(0.05, 0.3)) and
    ``RandomGamma`` (gamma 1-2.5) followed by ``GaussNoise`` (``albu-gamma-gauss``) or ``ISONoise``
    (``albu-gamma-iso``);
-4. every enhancer tested on the real low -> normal-light pairs (``--pairs DIR``: ``low/NAME``, ``high/NAME``): PSNR,
+4. with ``--methods ...,real-pairs``, the ceiling: the same enhancer trained on the camera's real pairs of the other
+   fold (two folds alternating in name order), tested on its own fold's (not run by default: two trainings a seed);
+5. every enhancer tested on the real low -> normal-light pairs (``--pairs DIR``: ``low/NAME``, ``high/NAME``): PSNR,
    SSIM and GT-mean PSNR (the output scaled to the normal-light image's mean first, which leaves out the global
    brightness the pair's two exposures do not fix), per pair and averaged, for each of ``--seeds``; written to
    ``OUT/results.json`` and drawn in ``OUT/comparison.png``.
@@ -60,7 +62,10 @@ DEFAULT_PAIRS = SHARED / "enhance-pairs" / "lol"
 DEFAULT_REFERENCES = SHARED / "real-lowlight" / "images" / "lol"
 DEFAULT_CLEAN = tuple(SHARED / "clean" / "images" / name for name in ("kodak24", "cbsd68", "mcmaster", "mirflickr"))
 METHODS = ("darksynth", "darkening-only", "darksynth-paper", "albu-gamma-gauss", "albu-gamma-iso")
-"""What the enhancer is trained on (module docstring)."""
+"""What the enhancer is trained on by default (module docstring)."""
+REAL_PAIRS = "real-pairs"
+"""The ceiling, run only when ``--methods`` names it: trained on the camera's real pairs of the other fold (the
+pairs alternate between two folds in name order), tested on those of its own; two trainings per seed."""
 IMAGE_SUFFIXES = (".png", ".jpg", ".jpeg", ".tif", ".tiff", ".bmp")
 
 LowLightCrop = Callable[[int, torch.Tensor, int], torch.Tensor]
@@ -231,6 +236,40 @@ class LowLightCrops(Dataset[tuple[torch.Tensor, torch.Tensor]]):
         return self.low_light(image_index, clean, sample_seed).float(), clean
 
 
+class RealPairCrops(Dataset[tuple[torch.Tensor, torch.Tensor]]):
+    """``length`` random crops of real pairs, the low crop and the same crop of the normal-light image, drawn from
+    ``seed`` and the sample's index alone (as :class:`LowLightCrops`)."""
+
+    def __init__(self, pairs: list[TestPair], crop: int, length: int, seed: int) -> None:
+        self.pairs, self.crop, self.length, self.seed = pairs, crop, length, seed
+
+    def __len__(self) -> int:
+        return self.length
+
+    def __getitem__(self, index: int) -> tuple[torch.Tensor, torch.Tensor]:
+        draw = random.Random(self.seed * 1_000_003 + index)
+        pair = self.pairs[draw.randrange(len(self.pairs))]
+        top = draw.randrange(pair.low.shape[1] - self.crop + 1)
+        left = draw.randrange(pair.low.shape[2] - self.crop + 1)
+        low, high = (image[:, top : top + self.crop, left : left + self.crop] for image in (pair.low, pair.high))
+        return (low.flip(-1), high.flip(-1)) if draw.random() < 0.5 else (low, high)
+
+
+def real_pair_scores(pairs: list[TestPair], arguments: argparse.Namespace, seed: int) -> dict[str, dict[str, float]]:
+    """The ceiling's scores for one seed: each fold's pairs tested on an enhancer trained on the other fold's."""
+    if len(pairs) < 2:
+        raise ExampleError(f"{arguments.pairs}: {REAL_PAIRS} needs at least 2 pairs (one to train on, one to test)")
+    scores: dict[str, dict[str, float]] = {}
+    for fold in (0, 1):
+        training = [pair for index, pair in enumerate(pairs) if index % 2 != fold]
+        tested = [pair for index, pair in enumerate(pairs) if index % 2 == fold]
+        torch.manual_seed(seed)
+        dataset = RealPairCrops(training, arguments.crop, arguments.steps * arguments.batch, seed)
+        model = train(dataset, arguments, seed, f"{REAL_PAIRS} (fold {fold + 1} of 2), seed {seed}")
+        scores |= test(model, tested, arguments.device)
+    return {pair.name: scores[pair.name] for pair in pairs}
+
+
 def _block(inputs: int, outputs: int) -> nn.Sequential:
     return nn.Sequential(
         nn.Conv2d(inputs, outputs, 3, padding=1, padding_mode="reflect"),
@@ -267,7 +306,9 @@ class Enhancer(nn.Module):
         return output[..., :height, :width]
 
 
-def train(dataset: LowLightCrops, arguments: argparse.Namespace, seed: int, label: str) -> Enhancer:
+def train(
+    dataset: Dataset[tuple[torch.Tensor, torch.Tensor]], arguments: argparse.Namespace, seed: int, label: str
+) -> Enhancer:
     """The enhancer trained with Adam and an L1 loss, cosine-decayed, one pass over ``dataset`` in batches of
     ``--batch``."""
     from rich.progress import Progress
@@ -398,11 +439,13 @@ def run(arguments: argparse.Namespace) -> dict[str, Any]:
     input_scores = test(None, test_pairs, arguments.device)
     results: dict[str, dict[str, Any]] = {"low input": summary([input_scores])}
     for method in arguments.methods:
-        making = low_light(method)
         per_seed = []
         for seed in arguments.seeds:
+            if method == REAL_PAIRS:
+                per_seed.append(real_pair_scores(test_pairs, arguments, seed))
+                continue
             torch.manual_seed(seed)
-            dataset = LowLightCrops(images, making, arguments.crop, arguments.steps * arguments.batch, seed)
+            dataset = LowLightCrops(images, low_light(method), arguments.crop, arguments.steps * arguments.batch, seed)
             model = train(dataset, arguments, seed, f"{method}, seed {seed}")
             per_seed.append(test(model, test_pairs, arguments.device))
         results[method] = summary(per_seed)
@@ -452,9 +495,9 @@ def parse(argv: list[str] | None = None) -> argparse.Namespace:
         arguments.seeds = [int(seed) for seed in arguments.seeds.split(",") if seed]
     except ValueError:
         parser.error(f"--seeds: integers separated by commas, got {arguments.seeds!r}")
-    unknown = [name for name in arguments.methods if name not in METHODS]
+    unknown = [name for name in arguments.methods if name not in (*METHODS, REAL_PAIRS)]
     if unknown or min(arguments.steps, arguments.batch, arguments.exposures, len(arguments.seeds)) < 1:
-        parser.error(f"methods are {', '.join(METHODS)}; steps, batch, exposures and seeds at least 1")
+        parser.error(f"methods are {', '.join((*METHODS, REAL_PAIRS))}; steps, batch, exposures and seeds at least 1")
     if arguments.crop < 8 or arguments.crop % 4:
         parser.error("--crop must be a multiple of 4 of at least 8")
     return arguments

@@ -60,6 +60,30 @@ def test_the_example_trains_each_method_on_the_other_photos_and_writes_its_compa
     assert (out / "comparison.png").read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
 
 
+def test_the_real_pair_ceiling_tests_each_pair_on_an_enhancer_trained_on_the_other_fold(
+    folders: tuple[Path, Path, Path], tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    pairs, references, clean = folders
+    example = _example()
+    trained_on: list[list[str]] = []
+    original = example.RealPairCrops.__init__
+
+    def recording(self: object, pairs: list[object], *args: object) -> None:
+        trained_on.append([pair.name for pair in pairs])  # type: ignore[attr-defined]
+        original(self, pairs, *args)
+
+    monkeypatch.setattr(example.RealPairCrops, "__init__", recording)
+    out = tmp_path / "out"
+    arguments = ["--pairs", str(pairs), "--references", str(references), "--clean", str(clean), "--steps", "2"]
+    arguments += ["--batch", "2", "--crop", "32", "--workers", "0", "--methods", "real-pairs", "--out", str(out)]
+    assert example.main(arguments) == 0
+    # Fold 1 (0.png) is tested on a net trained on fold 2 (1.png), and the other way round; no profile is needed.
+    assert trained_on == [["1.png"], ["0.png"]]
+    assert not (out / "profiles").exists()
+    record = json.loads((out / "results.json").read_text())
+    assert set(record["results"]["real-pairs"]["per_pair"]) == {"0.png", "1.png"}
+
+
 def test_gt_mean_psnr_forgives_a_global_gain_and_psnr_does_not() -> None:
     example = _example()
     high = torch.rand(3, 32, 32, generator=torch.Generator().manual_seed(0)) * 0.5 + 0.25
