@@ -52,7 +52,9 @@ def repeat_cells(
     by the same cell of ``previous`` (the previous finished frame, same shape and dtype)."""
     if share <= 0.0:
         return frame
-    draws = torch.rand(still.shape, generator=generator, device="cpu").to(still.device)
+    # Drawn on the generator's device (a CUDA generator cannot fill a CPU tensor), used where the cells are.
+    device = generator.device if generator is not None else still.device
+    draws = torch.rand(still.shape, generator=generator, device=device).to(still.device)
     copied = still & (draws < share)
     mask = copied.repeat_interleave(CELL, dim=-2).repeat_interleave(CELL, dim=-1)
     mask = mask[..., : frame.shape[-2], : frame.shape[-1]]
