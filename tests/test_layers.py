@@ -10,9 +10,9 @@ sibling of its own layer):
    ``console_progress`` (how a command shows its progress), ``worker_pool`` (worker processes that end with their
    parent);
 2. ``noise``: the components, their table, the carrier of values, the composer;
-3. ``profile``, ``cameras`` (the bank of real cameras, the prior over them and its presets), ``light.exposure``
+3. ``profile``, ``cameras`` (the bank of real cameras, the prior over them and its presets), ``exposure``
    (an input's darkening matched to the reference's tones: it simulates the profile's noise on the input, so it sits
-   above ``noise`` while the rest of ``light`` sits below);
+   above ``noise``, out of ``light``, which sits below: no package imports one above it);
 4. ``recipe`` (a clip's parameters chosen in one place: the draws, the matched darkening and colour cast),
    ``models``, ``apply_outputs`` (what ``apply`` may write where: claiming outputs, resuming);
 5. ``synthesize`` (the composer run on images, clips and streams);
@@ -23,8 +23,8 @@ sibling of its own layer):
 9. ``cli``, the package ``__init__``; 10. ``main``, the entry point (the light app, or the cli); 11. ``__main__``,
    which only calls it.
 
-A unit is a top-level module or package, or a module of a package named on its own (``light.exposure``): such a
-module has its layer, the rest of its package the package's.
+A unit is a top-level module or package, or a module of a package named on its own in :data:`LAYERS` (none is
+today): such a module has its layer, the rest of its package the package's.
 
 The pure core (``tensors``, ``light``, ``noise``) also never imports ``io``: reading and writing files is
 for the edges, so the core runs on tensors alone.
@@ -60,7 +60,7 @@ LAYERS: dict[str, int] = {
     "noise": 2,
     "profile": 3,
     "cameras": 3,
-    "light.exposure": 3,
+    "exposure": 3,
     "recipe": 4,
     "models": 4,
     "apply_outputs": 4,
@@ -80,7 +80,7 @@ LAYERS: dict[str, int] = {
     "__init__": 9,
 }
 
-PURE_CORE = frozenset({"tensors", "light", "light.exposure", "noise"})
+PURE_CORE = frozenset({"tensors", "light", "noise"})
 
 ESTIMATION_STAGES: dict[str, int] = {
     "__init__": 0,
@@ -276,20 +276,21 @@ def test_the_check_sees_an_upward_import(tmp_path: Path) -> None:
     assert _imported_units(module) == {"profile", "io"}
 
 
-def test_a_module_with_a_layer_of_its_own_is_its_own_unit(tmp_path: Path) -> None:
-    """The control: ``light.exposure`` is a unit apart from ``light`` both as a file and as an import, so a module of
-    ``light`` importing it is caught as importing upward."""
-    assert _unit(SOURCE / "light" / "exposure.py") == "light.exposure"
-    assert _unit(SOURCE / "light" / "tones.py") == "light"
+def test_a_module_with_a_layer_of_its_own_is_its_own_unit(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
+    """The control: a module of a package given a layer of its own (here ``light.tones``, for the test) is a unit
+    apart from its package both as a file and as an import, so a module of the package importing it is caught as
+    importing upward. (``exposure`` was such a module of ``light`` until it became a module of its own.)"""
+    monkeypatch.setitem(LAYERS, "light.tones", 3)
+    assert _unit(SOURCE / "light" / "tones.py") == "light.tones"
+    assert _unit(SOURCE / "light" / "darkening.py") == "light"
     module = tmp_path / "bad.py"
     module.write_text(
-        "from darksynth.light.exposure import matched_darkening\n"
-        "from darksynth.light import exposure, tones\n"
-        "import darksynth.light.darkening\n",
+        "from darksynth.light.tones import colour_cast\n"
+        "from darksynth.light import darkening\n"
+        "import darksynth.light.shutter\n",
         encoding="utf-8",
     )
-    assert _imported_units(module) == {"light.exposure", "light"}
-    assert LAYERS["light.exposure"] > LAYERS["noise"] > LAYERS["light"]
+    assert _imported_units(module) == {"light.tones", "light"}
 
 
 def test_the_stage_check_sees_a_stage_import(tmp_path: Path) -> None:

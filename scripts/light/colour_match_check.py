@@ -29,8 +29,8 @@ import numpy as np
 import torch
 
 from darksynth.estimation.reference import load_reference
+from darksynth.exposure import matched_colour, matched_darkening
 from darksynth.io.images import read_image
-from darksynth.light.exposure import matched_colour, matched_darkening
 from darksynth.light.tones import ToneTarget, colour_cast, median_noise, tone_quantiles
 from darksynth.profile import default_profile_path, load_profile
 from darksynth.recipe import ClipParameters

@@ -38,9 +38,9 @@ import torch
 
 from darksynth.estimation.assemble import estimate
 from darksynth.estimation.reference import load_reference
+from darksynth.exposure import compass_search
 from darksynth.io.images import read_image
 from darksynth.light.darkening import Darkening
-from darksynth.light.exposure import compass_search
 from darksynth.profile import Profile
 from darksynth.synthesize import synthesize
 from darksynth.tensors import luminance

@@ -188,7 +188,7 @@ def start_task(
     """A task's seed, the generator its noise is drawn from and its parameters, all fixed by the run seed and the
     task's key (its path relative to the input; for a single input file, its name). With ``first_frame`` (H, W, C)
     and a profile that carries the reference's tones, the darkening is matched to them
-    (:func:`darksynth.light.exposure.matched_darkening`), and with ``match_colour`` the colour cast too."""
+    (:func:`darksynth.exposure.matched_darkening`), and with ``match_colour`` the colour cast too."""
     seed = task_seed(options.seed, key)
     generator = torch.Generator(device=options.device).manual_seed(seed)
     first = None if first_frame is None else hwc_to_chw(first_frame)

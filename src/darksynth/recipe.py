@@ -24,8 +24,8 @@ import torch
 from darksynth.cameras.presets import CAMERA_CHOICES, camera_source
 from darksynth.cameras.prior import BLIND_OCTAVES, CameraPrior, measured_entries, on_measured_scale
 from darksynth.errors import DarksynthError
+from darksynth.exposure import ColourScale, matched_colour, matched_darkening
 from darksynth.light.darkening import ALPHA_RANGE, GAMMA_RANGE, Darkening
-from darksynth.light.exposure import ColourScale, matched_colour, matched_darkening
 from darksynth.noise.components import noise_parameter, noise_parameters
 from darksynth.noise.sampling import random_uniform
 from darksynth.noise.spectral_components import SPECTRUM_REPLACES
@@ -63,7 +63,7 @@ class CameraDraw:
 @dataclass(frozen=True)
 class ClipParameters:
     """The parameters chosen for one clip (or one image): noise values, the darkening, if any, the channel
-    factors that give it the reference's colour cast (:func:`darksynth.light.exposure.matched_colour`) and, when
+    factors that give it the reference's colour cast (:func:`darksynth.exposure.matched_colour`) and, when
     its camera was drawn, where from (its values are in ``noise``)."""
 
     noise: NoiseValues
@@ -251,7 +251,7 @@ class ClipRecipe:
     ) -> ClipParameters:
         """One clip's parameters: the draws from :meth:`drawn_from`, with the darkening matched to the reference's
         tones on ``first_frame`` (C, H, W; uint8, uint16 or float) when the profile carries them
-        (:func:`darksynth.light.exposure.matched_darkening`), and with ``match_colour`` the colour cast too.
+        (:func:`darksynth.exposure.matched_darkening`), and with ``match_colour`` the colour cast too.
         ``source`` names the input in the log when no match can be made. With ``camera``, the clip's camera is
         drawn last, after the draws every recipe makes, so that a seed gives the same darkening and ranges with or
         without it (:func:`random_camera`)."""

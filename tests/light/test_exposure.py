@@ -14,8 +14,7 @@ from PIL import Image
 
 from darksynth.apply import ApplyOptions, apply
 from darksynth.errors import ProfileError
-from darksynth.light.darkening import Darkening, darken
-from darksynth.light.exposure import (
+from darksynth.exposure import (
     compass_search,
     fit_output_darkening,
     match_darkening,
@@ -25,6 +24,7 @@ from darksynth.light.exposure import (
     simulated_luminance_quantiles,
     sorted_quantiles,
 )
+from darksynth.light.darkening import Darkening, darken
 from darksynth.light.tones import (
     PROBABILITIES,
     ToneTarget,
@@ -119,7 +119,7 @@ def test_apply_darkens_each_input_to_the_reference_s_tones(tmp_path: Path) -> No
 def test_no_target_or_a_uniform_input_keeps_the_profile_s_darkening(caplog: pytest.LogCaptureFixture) -> None:
     grey = torch.full((3, 64, 64), 120, dtype=torch.uint8)
     assert matched_darkening(grey, None) is None
-    with caplog.at_level(logging.WARNING, logger="darksynth.light.exposure"):
+    with caplog.at_level(logging.WARNING, logger="darksynth.exposure"):
         assert matched_darkening(grey, _target(), source="grey.png") is None
     assert any("grey.png" in r.getMessage() and "profile's darkening is used" in r.getMessage() for r in caplog.records)
     # uint8 and the same frame as float give the same match.

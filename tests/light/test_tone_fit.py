@@ -8,8 +8,8 @@ import pytest
 import torch
 
 from darksynth.errors import DarksynthError
+from darksynth.exposure import match_darkening
 from darksynth.light.darkening import Darkening, darken
-from darksynth.light.exposure import match_darkening
 from darksynth.light.tone_fit import TONE_PRIOR_LOG_QUANTILES, TONE_PRIOR_LOG_SPREAD, fit_darkening
 from darksynth.light.tones import PROBABILITIES, median_noise, tone_quantiles
 from tests.tone_scenes import noisy_8bit, prior_scene

@@ -7,12 +7,11 @@
 - light beyond the darkening: motion blur along the scene's own flow and camera shake
   (:mod:`~darksynth.light.motion_blur`, in linear light: :mod:`~darksynth.light.linear_light`), the shutter stage of
   a stream and of a clip (:mod:`~darksynth.light.shutter`), and the per-frame gain of flicker
-  (:mod:`~darksynth.light.flicker`);
-- an input's darkening matched to a reference's exposure (:mod:`~darksynth.light.exposure`).
+  (:mod:`~darksynth.light.flicker`).
 
-All but the last are pure functions on frames and sit below the noise model; the exposure match simulates the
-profile's noise on the input, so :mod:`~darksynth.light.exposure` sits above it (``tests/test_layers.py``) and this
-package imports none of it. Blur and flicker are components of the one table
+All are pure functions on frames and sit below the noise model. An input's darkening matched to a reference's
+exposure simulates the profile's noise on the input, so it is a module above the noise model, not of this package:
+:mod:`darksynth.exposure` (``tests/test_layers.py``). Blur and flicker are components of the one table
 (:mod:`darksynth.noise.light_components` declares them on the functions here), carried with the noise values. The
 estimators of light are in :mod:`darksynth.estimation` (``darkening``, ``motion``, ``flicker``, ``shutter_fit``).
 """

@@ -102,7 +102,7 @@ class DarkeningEstimate:
             it; 1: the reference says nothing about it and the value is the paper's mid-range). Empty without
             the prior (``use_prior=False``).
         tone_quantiles: the fitted tone quantiles (at :data:`~darksynth.light.tones.PROBABILITIES`), which
-            ``apply`` matches each input's exposure to (:func:`~darksynth.light.exposure.match_darkening`).
+            ``apply`` matches each input's exposure to (:func:`~darksynth.exposure.match_darkening`).
         block_noise: the noise in a block median the fit was given.
     """
 

@@ -33,7 +33,7 @@ _MEDIAN_EFFICIENCY = 1.2533  # std of the median of n normal samples is about 1.
 @dataclass(frozen=True)
 class ToneTarget:
     """The reference's exposure, which ``apply`` and ``synthesize`` match each input's darkening to
-    (:func:`~darksynth.light.exposure.match_darkening`); a profile's ``tone``.
+    (:func:`~darksynth.exposure.match_darkening`); a profile's ``tone``.
 
     Attributes:
         quantiles: the reference's :func:`tone_quantiles` at :data:`PROBABILITIES`.
