@@ -19,7 +19,7 @@ from typing import Final, Self
 import av
 import numpy as np
 from av.container import InputContainer, OutputContainer
-from av.video.reformatter import ColorRange
+from av.video.reformatter import ColorRange, Colorspace
 from av.video.stream import VideoStream
 from PIL import Image as PILImage
 
@@ -205,7 +205,7 @@ class VideoWriter:
                 raise DarksynthError(
                     f"{self.path}: the {self.path.suffix.lower()} container cannot hold {self.encoding.codec} video"
                 )
-            self._stream = self._add_stream(container)
+            self._stream = _output_stream(container, self.path, self.width, self.height, self.fps, self.encoding)
             self._container = container
             if self.audio_from is not None:
                 source = stack.enter_context(_open_input(self.audio_from))
@@ -239,13 +239,7 @@ class VideoWriter:
             raise ValueError(
                 f"frame must be a ({self.height}, {self.width}, 3) uint8 array, got {frame.shape} {frame.dtype}"
             )
-        video_frame = av.VideoFrame.from_ndarray(np.ascontiguousarray(frame), format="rgb24")
-        pix_fmt = self._stream.codec_context.pix_fmt
-        if pix_fmt is not None and not av.VideoFormat(pix_fmt).is_rgb:
-            # Converting here, not in the encoder, fixes the matrix and range to the ones the stream is tagged with.
-            video_frame = video_frame.reformat(
-                format=pix_fmt, dst_colorspace=self._colorspace, dst_color_range=ColorRange.MPEG
-            )
+        video_frame = _stream_frame(frame, self._stream.codec_context.pix_fmt, self._colorspace)
         video_frame.pts = self._frames_written
         video_frame.time_base = 1 / self.fps
         if self._audio is not None:
@@ -276,11 +270,7 @@ class VideoWriter:
                 raise DarksynthError(f"{self.path}: no frames were written")
             if container is None or stream is None:
                 raise RuntimeError("VideoWriter lost its container")
-            packets = stream.encode(None)
-            if self.encoding.codec == "libx265" and self._frames_written <= _X265_MAX_BFRAME_DELAY:
-                for packet in packets:
-                    packet.dts = packet.pts
-            container.mux(packets)
+            _flush(container, stream, self.encoding, self._frames_written)
             if audio is not None:
                 audio.mux_until(container, None)
         except BaseException as err:
@@ -294,21 +284,44 @@ class VideoWriter:
             raise DarksynthError(f"{self.path}: finishing the video failed ({error_reason(err)})") from err
         return False
 
-    def _add_stream(self, container: OutputContainer) -> VideoStream:
-        codec = self.encoding.codec or DEFAULT_CODEC
-        stream = container.add_stream(codec, rate=self.fps)
-        if not isinstance(stream, VideoStream):
-            raise DarksynthError(f"{self.path}: {codec} is not a video codec")
-        stream.width = self.width
-        stream.height = self.height
-        # An explicit time base of 1/fps keeps rates like 30000/1001 exact in every container.
-        stream.codec_context.time_base = 1 / self.fps
-        configure_stream(stream, self.encoding)
-        return stream
-
     def _describe(self) -> str:
         encoding = self.encoding
         return f"{self.width}x{self.height} at {self.fps} fps with {encoding.codec} in {encoding.pix_fmt}"
+
+
+def _output_stream(
+    container: OutputContainer, path: Path, width: int, height: int, fps: Fraction, encoding: VideoEncoding
+) -> VideoStream:
+    """The output's video stream, configured as ``encoding`` says."""
+    codec = encoding.codec or DEFAULT_CODEC
+    stream = container.add_stream(codec, rate=fps)
+    if not isinstance(stream, VideoStream):
+        raise DarksynthError(f"{path}: {codec} is not a video codec")
+    stream.width = width
+    stream.height = height
+    # An explicit time base of 1/fps keeps rates like 30000/1001 exact in every container.
+    stream.codec_context.time_base = 1 / fps
+    configure_stream(stream, encoding)
+    return stream
+
+
+def _stream_frame(frame: np.ndarray, pix_fmt: str | None, colorspace: Colorspace) -> av.VideoFrame:
+    """An (H, W, 3) uint8 RGB frame as the stream's pixel format."""
+    video_frame = av.VideoFrame.from_ndarray(np.ascontiguousarray(frame), format="rgb24")
+    if pix_fmt is not None and not av.VideoFormat(pix_fmt).is_rgb:
+        # Converting here, not in the encoder, fixes the matrix and range to the ones the stream is tagged with.
+        video_frame = video_frame.reformat(format=pix_fmt, dst_colorspace=colorspace, dst_color_range=ColorRange.MPEG)
+    return video_frame
+
+
+def _flush(container: OutputContainer, stream: VideoStream, encoding: VideoEncoding, frames: int) -> None:
+    """The encoder's last packets muxed (a short x265 clip's decoding times are its presentation times: see
+    :data:`_X265_MAX_BFRAME_DELAY`)."""
+    packets = stream.encode(None)
+    if encoding.codec == "libx265" and frames <= _X265_MAX_BFRAME_DELAY:
+        for packet in packets:
+            packet.dts = packet.pts
+    container.mux(packets)
 
 
 def _open_input(path: Path) -> InputContainer:
