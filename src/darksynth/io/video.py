@@ -179,9 +179,7 @@ class VideoWriter:
             raise DarksynthError(f"{path}: video size must be positive, got {width}x{height}")
         if fps <= 0:
             raise DarksynthError(f"{path}: frame rate must be positive, got {fps}")
-        self.path = path
-        self.width = width
-        self.height = height
+        self.path, self.width, self.height = path, width, height
         self.fps = Fraction(fps)
         self.encoding = encoding.resolved(path, width, height)
         self.audio_from = audio_from
