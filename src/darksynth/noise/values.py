@@ -34,21 +34,7 @@ class NoiseValues(Mapping[str, torch.Tensor]):
     __slots__ = ("_neutral", "_tensors")
 
     def __init__(self, tensors: Mapping[str, torch.Tensor]) -> None:
-        parameters = table.noise_parameters()
-        names = [p.name for p in parameters]
-        if set(tensors) != set(names):
-            missing = sorted(set(names) - set(tensors))
-            extra = sorted(set(tensors) - set(names))
-            raise ValueError(f"noise values need exactly the table's parameters; missing {missing}, unknown {extra}")
-        first = tensors[names[0]]
-        batch = tuple(first.shape[:-1])
-        for parameter in parameters:
-            tensor = tensors[parameter.name]
-            if tuple(tensor.shape) != (*batch, parameter.size):
-                raise ValueError(
-                    f"noise value {parameter.name} must be shaped {(*batch, parameter.size)}, got {tuple(tensor.shape)}"
-                )
-        self._tensors = {name: tensors[name] for name in names}
+        self._tensors = _checked(tensors)
         # Which parameters are neutral, asked by the composer at every frame of a stream: computed once (the
         # values are never changed in place; a change makes new values), so a stream on CUDA does not wait for
         # the device at each frame.
@@ -90,23 +76,12 @@ class NoiseValues(Mapping[str, torch.Tensor]):
         unknown = sorted(set(values) - set(parameters))
         if unknown:
             raise KeyError(f"unknown noise parameter {unknown[0]!r}; known: {', '.join(parameters)}")
-        tensors = {}
-        for name, parameter in parameters.items():
-            shape = (*batch_shape, parameter.size)
-            if name not in values:
-                tensors[name] = torch.full(shape, parameter.neutral, dtype=dtype, device=device)
-                continue
-            raw = values[name]
-            if isinstance(raw, torch.Tensor):
-                tensor = raw.to(dtype=dtype, device=device)
-            else:
-                tensor = torch.tensor([raw] if isinstance(raw, int | float) else list(raw), dtype=dtype, device=device)
-            if tensor.dim() == 0:
-                tensor = tensor.reshape(1)
-            if tensor.shape[-1] not in (1, parameter.size):
-                raise ValueError(f"noise value {name} needs {parameter.size} value(s), got {tuple(tensor.shape)}")
-            tensors[name] = tensor.expand(shape).clone()
-        return cls(tensors)
+        return cls(
+            {
+                name: _value_tensor(parameter, values.get(name), (*batch_shape, parameter.size), dtype, device)
+                for name, parameter in parameters.items()
+            }
+        )
 
     @classmethod
     def from_vector(
@@ -215,13 +190,8 @@ class NoiseValues(Mapping[str, torch.Tensor]):
         ``section``: only the parameters of that profile section (``noise`` or ``light``), else all."""
         if self.batch_shape:
             raise ValueError(f"only unbatched noise values have a JSON form, these have batch {self.batch_shape}")
-        document: dict[str, JsonValue] = {}
-        for parameter in table.noise_parameters():
-            if section is not None and table.profile_section(parameter) != section:
-                continue
-            numbers = [float(v) for v in self._tensors[parameter.name].tolist()]
-            document[parameter.name] = numbers if parameter.size > 1 else numbers[0]
-        return document
+        parameters = [p for p in table.noise_parameters() if section is None or table.profile_section(p) == section]
+        return {p.name: _json_value(p, self._tensors[p.name]) for p in parameters}
 
     # --- what is set ----------------------------------------------------------------------------------------
 
@@ -243,3 +213,48 @@ class NoiseValues(Mapping[str, torch.Tensor]):
     def covered_by(self, fast_path: str) -> bool:
         """Whether the fast path draws these values: every parameter it does not cover is neutral."""
         return not self.uncovered_by(fast_path)
+
+
+def _checked(tensors: Mapping[str, torch.Tensor]) -> dict[str, torch.Tensor]:
+    """``tensors`` in table order, once they are exactly the table's parameters, each shaped ``(*batch, size)`` with
+    one batch shape."""
+    parameters = table.noise_parameters()
+    names = [p.name for p in parameters]
+    if set(tensors) != set(names):
+        missing = sorted(set(names) - set(tensors))
+        extra = sorted(set(tensors) - set(names))
+        raise ValueError(f"noise values need exactly the table's parameters; missing {missing}, unknown {extra}")
+    batch = tuple(tensors[names[0]].shape[:-1])
+    for parameter in parameters:
+        shape = tuple(tensors[parameter.name].shape)
+        if shape != (*batch, parameter.size):
+            raise ValueError(f"noise value {parameter.name} must be shaped {(*batch, parameter.size)}, got {shape}")
+    return {name: tensors[name] for name in names}
+
+
+def _value_tensor(
+    parameter: Parameter,
+    raw: float | Sequence[float] | torch.Tensor | None,
+    shape: tuple[int, ...],
+    dtype: torch.dtype,
+    device: torch.device | str | None,
+) -> torch.Tensor:
+    """One parameter's tensor of ``shape`` from a number, a list or a tensor (one number stands for all values of a
+    vector parameter); its neutral value where nothing is given."""
+    if raw is None:
+        return torch.full(shape, parameter.neutral, dtype=dtype, device=device)
+    if isinstance(raw, torch.Tensor):
+        tensor = raw.to(dtype=dtype, device=device)
+    else:
+        tensor = torch.tensor([raw] if isinstance(raw, int | float) else list(raw), dtype=dtype, device=device)
+    if tensor.dim() == 0:
+        tensor = tensor.reshape(1)
+    if tensor.shape[-1] not in (1, parameter.size):
+        raise ValueError(f"noise value {parameter.name} needs {parameter.size} value(s), got {tuple(tensor.shape)}")
+    return tensor.expand(shape).clone()
+
+
+def _json_value(parameter: Parameter, tensor: torch.Tensor) -> JsonValue:
+    """A parameter's unbatched values in JSON: a number for a parameter of size 1, a list otherwise."""
+    numbers = [float(v) for v in tensor.tolist()]
+    return numbers if parameter.size > 1 else numbers[0]

@@ -19,6 +19,7 @@ from darksynth.evaluation.report.results_model import (
     ChannelStatistics,
     EvaluationResults,
     Interval,
+    MethodScores,
 )
 from darksynth.evaluation.report.verdicts import best_per_camera, best_per_downstream_metric, best_per_metric
 
@@ -153,15 +154,22 @@ def ordered(names: Sequence[str] | Mapping[str, Any], order: Sequence[str]) -> l
     return [n for n in order if n in names] + [n for n in names if n not in order]
 
 
+def _set_cell(row: MethodScores, metric: str, best: bool) -> Cell:
+    """A method's cell of a metric in a set's table: the value with its interval (KID: its spread)."""
+    value = row.value(metric)
+    extra = _interval(row.interval(metric))
+    if metric == "kid" and is_finite(row.kid_std) and is_finite(value):
+        extra = f"± {num(row.kid_std, 2)}"
+    return Cell(metric, num(value), extra, best)
+
+
 class Layout:
     """The tables of both reports: which rows, in which order, with which values formatted how."""
 
     def __init__(
         self, results: EvaluationResults, order: Sequence[str], colours: Mapping[str, str] | None = None
     ) -> None:
-        self.results = results
-        self.order = order
-        self.colours = colours or {}
+        self.results, self.order, self.colours = results, order, colours or {}
         downstream = results.downstream
         self.references = downstream.references if downstream is not None else frozenset()
 
@@ -176,14 +184,7 @@ class Layout:
         best = best_per_metric(self.results, set_name)
         rows = []
         for name in ordered(methods, self.order):
-            row = methods[name]
-            cells = []
-            for metric in SET_METRICS:
-                value = row.value(metric)
-                extra = _interval(row.interval(metric))
-                if metric == "kid" and is_finite(row.kid_std) and is_finite(value):
-                    extra = f"± {num(row.kid_std, 2)}"
-                cells.append(Cell(metric, num(value), extra, name in best[metric]))
+            cells = [_set_cell(methods[name], metric, name in best[metric]) for metric in SET_METRICS]
             rows.append(Row(self.method(name), cells))
         headers = [Header(metric, SET_HEADERS[metric]) for metric in SET_METRICS]
         caption = f"{set_name}: real vs synthetic noise. {LEGEND}"
