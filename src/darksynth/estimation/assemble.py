@@ -103,14 +103,18 @@ def estimate(
             (:func:`darksynth.estimation.spectrum.estimate_spectrum`); None (the default) leaves it out.
     """
     record = describe_reference(reference, source)
-    meta: dict[str, Any] = {"source": source}
-    warnings = reference_warnings(record, spectrum_frames=TEMPORAL_FRAMES)
-    if record.cuts:
-        meta["scene_cuts"] = record.cuts
-    found = estimate_noise(
-        record, network, meta, warnings, batch=batch, device=device, refine=refine, camera_prior=camera_prior
-    )
-    darkening, tone = estimate_profile_darkening(record, found.ranges, meta, warnings)
-    noise = estimate_light(record, found.noise, meta, warnings)
-    profile = Profile(noise=noise, darkening=darkening, ranges=found.ranges, meta=meta, tone=tone)
+    # Each measurement returns its record (values, meta, warnings); the profile is their composition.
+    found = estimate_noise(record, network, batch=batch, device=device, refine=refine, camera_prior=camera_prior)
+    darkening = estimate_profile_darkening(record)
+    light = estimate_light(record, found.noise)
+    meta: dict[str, Any] = {"source": source, **({"scene_cuts": record.cuts} if record.cuts else {})}
+    meta |= found.meta | {"darkening": darkening.meta, "light": light.meta}
+    warnings = [
+        *reference_warnings(record, spectrum_frames=TEMPORAL_FRAMES),
+        *found.warnings,
+        *darkening.warnings,
+        *light.warnings,
+    ]
+    ranges = found.ranges | darkening.ranges
+    profile = Profile(noise=light.noise, darkening=darkening.darkening, ranges=ranges, meta=meta, tone=darkening.tone)
     return Estimate(profile=profile, per_crop=found.per_crop, warnings=warnings)

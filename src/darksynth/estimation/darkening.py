@@ -6,6 +6,7 @@ tone target, which ``apply`` matches each input's exposure to.
 from __future__ import annotations
 
 import itertools
+from dataclasses import dataclass
 from typing import Any
 
 import numpy as np
@@ -193,14 +194,21 @@ def _darkening_origin(name: str, value: float, found: DarkeningEstimate) -> dict
     return {"value": round(value, 4), "source": origin, "prior_share": None if share is None else round(share, 3)}
 
 
-def estimate_profile_darkening(
-    reference: Reference,
-    ranges: dict[str, tuple[tuple[float, float], ...]],
-    meta: dict[str, Any],
-    warnings: list[str],
-) -> tuple[Darkening | None, ToneTarget | None]:
-    """The reference's darkening, its per-frame range for a clip, and how it was found (in ``meta``); and its tone
-    quantiles, which ``apply`` matches each input's exposure to.
+@dataclass(frozen=True)
+class DarkeningReading:
+    """What :func:`estimate_profile_darkening` read: the darkening (None: not readable), the tone target, a clip's
+    per-frame ranges of alpha and gamma, the profile's ``meta.darkening`` and the warnings."""
+
+    darkening: Darkening | None
+    tone: ToneTarget | None
+    ranges: dict[str, tuple[tuple[float, float], ...]]
+    meta: dict[str, Any]
+    warnings: list[str]
+
+
+def estimate_profile_darkening(reference: Reference) -> DarkeningReading:
+    """The reference's darkening, its per-frame range for a clip, and how it was found; and its tone quantiles,
+    which ``apply`` matches each input's exposure to.
 
     A reference too dark to read gives no darkening (``apply`` then falls back to the paper's ranges) and a
     warning, not an error: the noise estimate is still good.
@@ -217,29 +225,30 @@ def estimate_profile_darkening(
         # The pooled estimate and each frame's own (for the clip's range) from one pass over the frames.
         found, per_frame_found = estimate_darkening_pooled_and_per_frame(sampled, source=source, statistics=statistics)
     except DarksynthError as error:
-        warnings.append(f"{error}; the profile has no darkening, apply will draw it from the paper's ranges")
-        meta["darkening"] = {
+        meta = {
             "method": "not estimated: too dark or too flat",
             "alpha": {"source": f"prior: apply draws it from the paper's range {list(ALPHA_RANGE)}"},
             "gamma": {"source": f"prior: apply draws it from the paper's range {list(GAMMA_RANGE)}"},
         }
-        return None, None
+        warning = f"{error}; the profile has no darkening, apply will draw it from the paper's ranges"
+        return DarkeningReading(None, None, {}, meta, [warning])
     # A single image has no frames to spread over: its four regions say how much the estimate depends on content.
     regions = estimate_darkening_spread(sampled[:1], statistics=statistics) if reference.frames.shape[0] == 1 else []
-    meta["darkening"] = _darkening_meta(found, regions)
+    meta = _darkening_meta(found, regions)
     notes = _darkening_notes(found, source)
     if notes:
-        meta["darkening"]["notes"] = [
+        meta["notes"] = [
             *notes,
             "apply and synthesize match each input to the reference's tones (the profile's tone), not to this alpha "
             "and gamma, which remain the profile's darkening for readers that do not match",
         ]
+    ranges: dict[str, tuple[tuple[float, float], ...]] = {}
     if frames.shape[0] > 1:
         per_frame = [estimated.darkening for estimated in per_frame_found if estimated is not None]
         if len(per_frame) > 1:
-            ranges.update(_per_frame_ranges(found.darkening, per_frame))
-            meta["darkening"]["ranges"] = "10th-90th percentile over frames"
-    return found.darkening, _tone_target(found, frames)
+            ranges = _per_frame_ranges(found.darkening, per_frame)
+            meta["ranges"] = "10th-90th percentile over frames"
+    return DarkeningReading(found.darkening, _tone_target(found, frames), ranges, meta, [])
 
 
 def _darkening_meta(found: DarkeningEstimate, regions: list[DarkeningEstimate]) -> dict[str, Any]:

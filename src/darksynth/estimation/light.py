@@ -4,6 +4,7 @@ which prior stands where nothing could be."""
 
 from __future__ import annotations
 
+from dataclasses import dataclass
 from typing import Any
 
 from darksynth.estimation.motion import SHUTTER_LIMIT, estimate_motion
@@ -12,14 +13,21 @@ from darksynth.noise.components import noise_parameter
 from darksynth.noise.values import NoiseValues
 
 
-def estimate_light(reference: Reference, noise: NoiseValues, meta: dict[str, Any], warnings: list[str]) -> NoiseValues:
-    """``noise`` with the light values read off the reference; ``meta.light`` says what was measured and which prior
+@dataclass(frozen=True)
+class LightReading:
+    """What :func:`estimate_light` read: the noise values with the light set, ``meta.light`` and the warnings."""
+
+    noise: NoiseValues
+    meta: dict[str, Any]
+    warnings: list[str]
+
+
+def estimate_light(reference: Reference, noise: NoiseValues) -> LightReading:
+    """``noise`` with the light values read off the reference; ``meta`` says what was measured and which prior
     stands. A clip where they cannot be read warns (a single image cannot show either: its priors are stated in
     ``meta`` only)."""
     motion = estimate_motion(reference.frames, uniform=reference.uniform, cuts=reference.cuts)
-    meta["light"] = motion.to_meta()
-    if reference.frames.shape[0] > 1:
-        warnings.extend(f"{reference.name}: {note}" for note in motion.notes)
+    warnings = [f"{reference.name}: {note}" for note in motion.notes] if reference.frames.shape[0] > 1 else []
     measured = {
         "exposure_fraction": motion.exposure_fraction,
         "flicker": motion.flicker,
@@ -35,4 +43,4 @@ def estimate_light(reference: Reference, noise: NoiseValues, meta: dict[str, Any
         explained = key == "exposure_fraction" and motion.exposure_fraction > SHUTTER_LIMIT
         if value != measured[key] and not explained:
             warnings.append(f"{reference.name}: {key} measured {measured[key]:.3g} is held at its bound {value:g}")
-    return noise.replace(**bounded)
+    return LightReading(noise.replace(**bounded), motion.to_meta(), warnings)

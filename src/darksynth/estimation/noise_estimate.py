@@ -14,7 +14,7 @@ heteroscedastic values. Last, how much noise the profile adds on the reference (
 from __future__ import annotations
 
 from collections.abc import Sequence
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from typing import Any
 
 import torch
@@ -49,11 +49,14 @@ stands, with a warning that it is uncertain."""
 
 @dataclass
 class NoiseEstimate:
-    """The noise values a profile takes, their ranges, and the network's values per crop (N,)."""
+    """The noise values a profile takes, their ranges, the network's values per crop (N,), what was read (the
+    profile's ``meta`` entries of the noise) and the warnings of what could not be."""
 
     noise: NoiseValues
     ranges: dict[str, tuple[Range, ...]]
     per_crop: NoiseValues
+    meta: dict[str, Any] = field(default_factory=dict)
+    warnings: list[str] = field(default_factory=list)
 
 
 def refines(noise_model: NoiseModel, refine: bool = True) -> bool:
@@ -65,8 +68,6 @@ def refines(noise_model: NoiseModel, refine: bool = True) -> bool:
 def estimate_noise(
     reference: Reference,
     network: DEN,
-    meta: dict[str, Any],
-    warnings: list[str],
     *,
     batch: int = 16,
     device: torch.device | str = "cpu",
@@ -74,17 +75,18 @@ def estimate_noise(
     camera_prior: CameraPriorUse | None = None,
 ) -> NoiseEstimate:
     """The network on the reference's crop grid, the columns decided, and with ``refine`` the spectrum measured;
-    what was read goes into ``meta``, what could not be into ``warnings``."""
+    what was read is the record's ``meta``, what could not be its ``warnings``."""
     frames = reference.frames
     found = run_network(frames, network, batch=batch, device=device)
     noise, ranges = found.noise, dict(found.ranges)
-    meta.update(
-        estimator=f"DEN {network.config.variant} width {network.config.width} depth {network.config.depth}",
-        noise_model=network.noise_model,
-        crops=found.per_crop.batch_shape[0],
-        frames=int(frames.shape[0]),
-        aggregate="median over crops; ranges are the 10th-90th percentiles",
-    )
+    warnings: list[str] = []
+    meta: dict[str, Any] = {
+        "estimator": f"DEN {network.config.variant} width {network.config.width} depth {network.config.depth}",
+        "noise_model": network.noise_model,
+        "crops": found.per_crop.batch_shape[0],
+        "frames": int(frames.shape[0]),
+        "aggregate": "median over crops; ranges are the 10th-90th percentiles",
+    }
     noise = decide_columns(frames, reference.measured, noise, ranges, meta)
     if refines(network.noise_model, refine) and not reference.all_uniform:
         noise = _measure_spectrum(frames, noise, ranges, meta, warnings, reference.name, camera_prior)
@@ -100,7 +102,7 @@ def estimate_noise(
             "single image: temporal banding cannot be told from banding; their split is the network's prior "
             "(what it learned from the training table's ranges), not a measurement"
         )
-    return NoiseEstimate(noise=noise, ranges=ranges, per_crop=found.per_crop)
+    return NoiseEstimate(noise=noise, ranges=ranges, per_crop=found.per_crop, meta=meta, warnings=warnings)
 
 
 def _measure_spectrum(
