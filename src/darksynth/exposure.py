@@ -22,7 +22,7 @@ from darksynth.light.tones import PROBABILITIES, TONE_BLOCK, ToneTarget, colour_
 from darksynth.noise.level import channel_noise_std
 from darksynth.noise.simulate import noise_sum
 from darksynth.noise.values import NoiseValues
-from darksynth.tensors import LUMINANCE_WEIGHTS, full_scale
+from darksynth.tensors import LUMINANCE_WEIGHTS, unit_float
 
 logger = logging.getLogger(__name__)
 
@@ -129,9 +129,7 @@ def matched_colour(
 
 def _unit_frame(frame: torch.Tensor) -> torch.Tensor:
     """A frame (C, H, W) of any pixel type as float32 values in [0, 1], on the CPU."""
-    clean = frame.to(torch.float32).cpu()
-    scale = full_scale(frame.dtype)
-    return clean / scale if scale else clean
+    return unit_float(frame.cpu())
 
 
 # --- the output's luminance quantiles, simulated on a sample of the input's pixels ----------------------------

@@ -29,7 +29,7 @@ from darksynth.noise.frame_routes import ClipState, ComposerRoute, SpectralRoute
 from darksynth.noise.simulate import add_noise, exposure_gains, scene_stage
 from darksynth.profile import Profile
 from darksynth.recipe import AUGMENTING, ClipParameters, ClipRecipe, DarkeningChoice
-from darksynth.tensors import CLIP_DIMS, eight_bit_levels, full_scale, scale_channels, to_dtype
+from darksynth.tensors import CLIP_DIMS, eight_bit_levels, scale_channels, to_dtype, unit_float
 
 logger = logging.getLogger(__name__)
 
@@ -67,9 +67,9 @@ class ClipSynthesizer:
         self.device = torch.device(device)
         values = parameters.noise.to(self.device, torch.float32)
         self._state = ClipState(values, parameters.noise, self.device, generator)
-        self._darkening = parameters.darkening
-        self._route = eight_bit_route(self._state, self._darkening, compile=compile)
-        self._composer = ComposerRoute(self._state, self._darkening)
+        # Each route holds the frame's darkening (the clip's, times the flicker gain once flicker draws one).
+        self._route = eight_bit_route(self._state, parameters.darkening, compile=compile)
+        self._composer = ComposerRoute(self._state, parameters.darkening)
         self._frame_shape: torch.Size | None = None
         self._frames_done = 0
         # Light (darksynth.light): the shutter (motion blur, shake), the frame's darkening times its flicker gain.
@@ -111,26 +111,26 @@ class ClipSynthesizer:
         finished = self._frame(frame, flicker=True)
         if self._repeat_share <= 0.0:
             return finished
-        frame = frame.to(self.device)
-        scale = full_scale(frame.dtype)
-        clean = frame.to(torch.float32) / scale if scale else frame.to(torch.float32)
+        clean = unit_float(frame.to(self.device))
         return repeat_in_stream(clean, finished, self._repeat_share, self.generator, self.held)
 
     def float_image_on_levels(self, image: torch.Tensor) -> torch.Tensor | None:
         """A float image (C, H, W) in [0, 1] whose values are 8-bit levels (``ToTensor`` of a PNG or JPEG) through
         the spectral tables, unrounded: the 8-bit route's draws, so the same result; None when the clip's route is
         not the spectral model's or the image is not on levels."""
-        levels = eight_bit_levels(image) if isinstance(self._route, SpectralRoute) else None
-        if levels is None or not isinstance(self._route, SpectralRoute):
+        if not isinstance(self._route, SpectralRoute):
+            return None
+        levels = eight_bit_levels(image)
+        if levels is None:
             return None
         return to_dtype(self._route.noisy(levels.to(self.device), rounded=False), image.dtype)
 
     def _set_gain(self, gain: float) -> None:
         """This frame's darkening: the clip's times the flicker gain (the routes' tables are redone)."""
         base = self.parameters.darkening or Darkening(alpha=1.0, gamma=1.0)
-        self._darkening = Darkening(alpha=base.alpha * gain, gamma=base.gamma)
-        self._route.set_darkening(self._darkening)
-        self._composer.set_darkening(self._darkening)
+        darkening = Darkening(alpha=base.alpha * gain, gamma=base.gamma)
+        self._route.set_darkening(darkening)
+        self._composer.set_darkening(darkening)
 
     def _frame(self, frame: torch.Tensor, *, flicker: bool) -> torch.Tensor:
         if frame.dim() != 3:
@@ -253,9 +253,7 @@ def _synthesize_clip(clip: torch.Tensor, parameters: ClipParameters, generator: 
         on_levels = synthesizer.float_image_on_levels(clip[0])
         if on_levels is not None:
             return on_levels[None]
-    scale = full_scale(clip.dtype)
-    clean = clip.to(torch.float32) / scale if scale else clip.to(torch.float32)
-    clean = scene_stage(clean, values, generator=generator)
+    clean = scene_stage(unit_float(clip), values, generator=generator)
     darkening = parameters.darkening
     signal = clean if darkening is None else darken(clean, darkening.alpha, darkening.gamma)
     gains = exposure_gains(signal, values, generator=generator)

@@ -54,6 +54,14 @@ def full_scale(dtype: torch.dtype) -> float | None:
     raise ValueError(f"unsupported pixel type {dtype}")
 
 
+def unit_float(image: torch.Tensor) -> torch.Tensor:
+    """Pixels of any type as float32 values in [0, 1] (float pixels are already on that scale): the inverse of
+    :func:`to_dtype`."""
+    scale = full_scale(image.dtype)
+    image = image.to(torch.float32)
+    return image / scale if scale else image
+
+
 def to_dtype(image: torch.Tensor, dtype: torch.dtype) -> torch.Tensor:
     """Values in [0, 1] as pixels of ``dtype`` (integers rounded)."""
     scale = full_scale(dtype)

@@ -40,7 +40,7 @@ from darksynth.noise.spectral import clip_grid, octave_covariances
 from darksynth.noise.spectral_8bit import SPECTRAL_PATH, SpectralPixelPass, level_tables, to_8bit
 from darksynth.noise.spectral_kernel import SpectralKernelStream, compiled_spectral_kernels
 from darksynth.noise.values import NoiseValues
-from darksynth.tensors import full_scale, to_dtype
+from darksynth.tensors import to_dtype, unit_float
 
 logger = logging.getLogger(__name__)
 
@@ -86,9 +86,7 @@ class ComposerRoute:
         self.darkening = darkening
 
     def __call__(self, frame: torch.Tensor) -> torch.Tensor:
-        scale = full_scale(frame.dtype)
-        clean = frame.to(torch.float32) / scale if scale else frame.to(torch.float32)
-        darkening = self.darkening
+        clean, darkening = unit_float(frame), self.darkening
         signal = clean if darkening is None else darken(clean, darkening.alpha, darkening.gamma)
         state = self.state
         noisy = add_noise(signal[None], state.values, generator=state.generator, held=state.held)[0]
@@ -145,9 +143,7 @@ class SpectralRoute:
     def set_darkening(self, darkening: Darkening | None) -> None:
         self.darkening = darkening
         if self._pass is not None:
-            curve, device = self.state.values["level_curve"], self.state.device
-            tables = level_tables(len(self._pass.signal_table), darkening, curve, device=device)
-            self._pass.signal_table, self._pass.std_table = tables
+            _redo_level_tables(self._pass, darkening, self.state)
 
     def __call__(self, frame: torch.Tensor) -> torch.Tensor:
         return self.noisy(frame, rounded=True)
@@ -204,9 +200,7 @@ class CompiledSpectralRoute:
     def set_darkening(self, darkening: Darkening | None) -> None:
         self.darkening = darkening
         if self._stream is not None:
-            curve, device = self.state.values["level_curve"], self.state.device
-            tables = level_tables(len(self._stream.signal_table), darkening, curve, device=device)
-            self._stream.signal_table, self._stream.std_table = tables
+            _redo_level_tables(self._stream, darkening, self.state)
         if self._eager is not None:
             self._eager.set_darkening(darkening)
 
@@ -240,6 +234,16 @@ class CompiledSpectralRoute:
             return out
         compressed = apply_output_stages(out.to(torch.float32)[None] / FULL_SCALE, values, generator=state.generator)
         return to_dtype(compressed[0], frame.dtype)
+
+
+def _redo_level_tables(
+    stage: SpectralPixelPass | SpectralKernelStream, darkening: Darkening | None, state: ClipState
+) -> None:
+    """A spectral stage's 8-bit tables of the darkened level and the curve's std, redone for a frame's darkening."""
+    channels = len(stage.signal_table)
+    stage.signal_table, stage.std_table = level_tables(
+        channels, darkening, state.values["level_curve"], device=state.device
+    )
 
 
 def _spectral(values: NoiseValues) -> bool:
