@@ -73,6 +73,8 @@ MEASUREMENT_KEYS = (
     "strength_over_fitted_noise",
     "knot_response",
     "compression_chosen",
+    "compression_scores",
+    "level_by_compression_8bit",
 )
 """What each case keeps of the estimate's record of its measurement (``meta.spectrum``), to tell why it missed."""
 

@@ -1,19 +1,25 @@
-"""Noise that follows texture on the real pairs: the clean-aided fit's texture_gain and texture_scale, and the
-textured-to-flat noise std ratio of the real noise and of the fitted model's.
+"""Noise that follows texture on the real pairs: the fitted texture_gain and texture_scale, the textured-to-flat
+noise std ratio of the real noise and of the fitted model's, and the synthetic-over-real std on the flat and on the
+textured blocks.
 
 Makes: docs/spectral-noise.md, "Noise that follows texture" (the table of median fitted gain and scale and the real
-and synthetic textured-to-flat ratio per set).
+and synthetic textured-to-flat ratio per set, ``--method spectral-oracle``) and "What the blind estimate does not
+read: noise on texture" (``--method den``).
 
 Run from the repo root::
 
     .venv/bin/python scripts/noise/texture_check.py --pairs ../shared/data/real-pairs/polyu --limit 30
+    .venv/bin/python scripts/noise/texture_check.py --method den --pairs ../shared/data/real-pairs/polyu --every 10
 
-Options: ``--pairs DIR`` (repeatable) ``[--limit N] [--seed 0]``.
+Options: ``--pairs DIR`` (repeatable) ``[--method spectral-oracle|den] [--limit N] [--every K] [--seed 0]``.
 
-Per set, the first ``--limit`` pairs in name order (all without it), each through the ``spectral-oracle`` method of
-``darksynth evaluate`` as the evaluation runs it (its fit, its synthesis, the evaluation's seed for the pair), and
-the evaluation's measure (``evaluation.measures.texture.textured_flat_ratio``) on the real and the synthetic noise.
-Printed: one line per pair, then per set the medians over pairs.
+Per set, the first ``--limit`` pairs in name order (all without it; with ``--every K`` each K-th of them), each
+through the method of ``darksynth evaluate`` as the evaluation runs it (its fit, its synthesis, the evaluation's
+seed for the pair), and the evaluation's measure (``evaluation.measures.texture.textured_flat_ratio``) on the real
+and the synthetic noise. With ``den`` (the blind estimate on the noisy image) also what a blind read of texture's
+noise would start from: the same ratio of the residual of non-local means (``noisy - D(noisy)``, its strength by
+the estimate's rule, read on the whole image), on the real noisy image and on the synthetic one. Printed: one line
+per pair, then per set the medians over pairs.
 """
 
 from __future__ import annotations
@@ -22,59 +28,92 @@ import argparse
 import statistics
 import time
 from pathlib import Path
+from typing import Any
 
+import torch
+
+from darksynth.estimation.flat_blocks import flat_block_std
+from darksynth.estimation.nonlocal_means import nlm_denoise
+from darksynth.estimation.spectrum import NLM_STRENGTH
+from darksynth.estimation.texture_fit import block_power
 from darksynth.evaluation.measures.texture import textured_flat_ratio
 from darksynth.evaluation.methods.catalogue import build_methods
 from darksynth.evaluation.pairs import list_pair_set, load_pair
+from darksynth.noise.texture import block_detail, textured_and_flat
 from darksynth.seeding import derive_seed, seeded_generator
 
-METHOD = "spectral-oracle"
+METHODS = ("spectral-oracle", "den")
+"""The clean-aided fit, and the blind estimate on the noisy image."""
 
 
-def check_set(root: Path, limit: int | None, seed: int) -> dict[str, float]:
-    """Fit, synthesize and measure the first ``limit`` pairs of one set; the medians over its pairs."""
-    methods, problems = build_methods([METHOD], weights={}, device="cpu")
+def region_stds(noise: torch.Tensor, clean: torch.Tensor) -> tuple[float, float]:
+    """The std of ``noise`` (C, H, W) over the 30% least and the 30% most textured blocks of ``clean`` (each
+    block's power about its mean, as ``textured_flat_ratio`` reads it)."""
+    textured, flat = textured_and_flat(block_detail(clean[None].to(torch.float64)))
+    power = block_power(noise[None]).flatten()
+    return float(power[flat.flatten()].mean().sqrt()), float(power[textured.flatten()].mean().sqrt())
+
+
+def residual_ratio(noisy: torch.Tensor, clean: torch.Tensor, strength: float) -> float:
+    """The textured-to-flat ratio of the non-local-means residual of ``noisy`` (C, H, W) at ``strength`` 8-bit
+    levels, with the blocks of ``clean``: what a blind read of texture's noise sees."""
+    return textured_flat_ratio(noisy - nlm_denoise(noisy[None], strength)[0], clean)
+
+
+def check_pair(method_name: str, method: Any, pair_set: Any, pair: Any, seed: int) -> dict[str, float]:
+    """One pair's fit, synthesis and figures."""
+    loaded = load_pair(pair)
+    values = method.fit(loaded.noisy, loaded.clean)
+    generator = seeded_generator(derive_seed("darksynth", seed, f"{pair_set.name}/{pair.name}/{method_name}"))
+    synthetic = method.synthesize(loaded.clean, values, generator)
+    (real_flat, real_textured), (made_flat, made_textured) = (
+        region_stds(noise, loaded.clean) for noise in (loaded.noise, synthetic - loaded.clean)
+    )
+    row = {
+        "gain": values.scalar("texture_gain"),
+        "scale": values.scalar("texture_scale"),
+        "real": textured_flat_ratio(loaded.noise, loaded.clean),
+        "synthetic": textured_flat_ratio(synthetic - loaded.clean, loaded.clean),
+        "flat_level": made_flat / real_flat,
+        "textured_level": made_textured / real_textured,
+    }
+    if method_name == "den":
+        strength = min(max(NLM_STRENGTH * flat_block_std(loaded.noisy[None]), 1.0), 40.0)
+        row["residual_real"] = residual_ratio(loaded.noisy, loaded.clean, strength)
+        row["residual_synthetic"] = residual_ratio(synthetic, loaded.clean, strength)
+    return row
+
+
+def check_set(root: Path, method_name: str, limit: int | None, every: int, seed: int) -> dict[str, float]:
+    """Fit, synthesize and measure the first ``limit`` pairs of one set (each ``every``-th); the medians."""
+    methods, problems = build_methods([method_name], weights={}, device="cpu")
     if problems:
         raise SystemExit("; ".join(problems))
-    method = methods[METHOD]
     pair_set = list_pair_set(root)
-    pairs = sorted(pair_set.pairs, key=lambda pair: pair.name)[:limit]
+    pairs = sorted(pair_set.pairs, key=lambda pair: pair.name)[:limit][::every]
     rows = []
     for pair in pairs:
         started = time.perf_counter()
-        loaded = load_pair(pair)
-        values = method.fit(loaded.noisy, loaded.clean)
-        generator = seeded_generator(derive_seed("darksynth", seed, f"{pair_set.name}/{pair.name}/{METHOD}"))
-        synthetic = method.synthesize(loaded.clean, values, generator)
-        row = {
-            "gain": values.scalar("texture_gain"),
-            "scale": values.scalar("texture_scale"),
-            "real": textured_flat_ratio(loaded.noise, loaded.clean),
-            "synthetic": textured_flat_ratio(synthetic - loaded.clean, loaded.clean),
-        }
+        row = check_pair(method_name, methods[method_name], pair_set, pair, seed)
         rows.append(row)
-        print(
-            f"{pair_set.name} {pair.name}: gain {row['gain']:.3f} scale {row['scale']:.3f} ratio real "
-            f"{row['real']:.3f} synthetic {row['synthetic']:.3f} ({time.perf_counter() - started:.1f} s)",
-            flush=True,
-        )
-    medians = {key: statistics.median(row[key] for row in rows) for key in ("gain", "scale", "real", "synthetic")}
-    print(
-        f"{pair_set.name} ({len(rows)} pairs) median: gain {medians['gain']:.3f} scale {medians['scale']:.4f} "
-        f"ratio real {medians['real']:.3f} synthetic {medians['synthetic']:.3f}",
-        flush=True,
-    )
+        figures = " ".join(f"{key} {value:.3f}" for key, value in row.items())
+        print(f"{pair_set.name} {pair.name}: {figures} ({time.perf_counter() - started:.1f} s)", flush=True)
+    medians = {key: statistics.median(row[key] for row in rows) for key in rows[0]}
+    figures = " ".join(f"{key} {value:.3f}" for key, value in medians.items())
+    print(f"{pair_set.name} ({len(rows)} pairs, {method_name}) median: {figures}", flush=True)
     return medians
 
 
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.split("\n")[0])
     parser.add_argument("--pairs", type=Path, action="append", required=True)
+    parser.add_argument("--method", choices=METHODS, default=METHODS[0])
     parser.add_argument("--limit", type=int, default=None)
+    parser.add_argument("--every", type=int, default=1)
     parser.add_argument("--seed", type=int, default=0)
     arguments = parser.parse_args()
     for root in arguments.pairs:
-        check_set(root, arguments.limit, arguments.seed)
+        check_set(root, arguments.method, arguments.limit, arguments.every, arguments.seed)
 
 
 if __name__ == "__main__":
