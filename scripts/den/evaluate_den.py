@@ -33,7 +33,7 @@ from darksynth.estimation.reference import load_reference
 from darksynth.light.darkening import Darkening
 from darksynth.noise.components import NoiseModel
 from darksynth.noise.sampling import random_darkening_values, random_noise_values
-from darksynth.noise.values import NoiseValues
+from darksynth.noise.values import NoiseValues, model_vector
 from darksynth.profile import Profile
 from darksynth.recipe import ClipRecipe
 from darksynth.training.loop import r_squared, vector_names
@@ -51,7 +51,7 @@ def draw_profile(generator: torch.Generator, model: NoiseModel) -> Profile:
 
 
 def vector(profile: Profile, model: NoiseModel) -> list[float]:
-    return [float(v) for v in profile.noise.vector(model)]
+    return [float(v) for v in model_vector(profile.noise, model)]
 
 
 def main() -> int:

@@ -13,7 +13,7 @@ from darksynth.light.darkening import darken
 from darksynth.light.tones import luminance_quantiles, tone_quantiles
 from darksynth.models.den import DEN
 from darksynth.noise.components import model_parameters, noise_parameter, vector_size
-from darksynth.noise.values import NoiseValues
+from darksynth.noise.values import NoiseValues, model_vector
 from darksynth.profile import validate_profile
 
 
@@ -30,7 +30,7 @@ def _reference(
 
 
 def _profile_vector(result_noise: NoiseValues) -> np.ndarray:
-    return result_noise.vector().numpy()
+    return model_vector(result_noise).numpy()
 
 
 def test_profile_is_the_median_over_crops_and_ranges_the_10th_to_90th_percentile(
@@ -39,7 +39,7 @@ def test_profile_is_the_median_over_crops_and_ranges_the_10th_to_90th_percentile
     # 1 frame of 48 x 240: side 48, a 1 x 5 grid, so an odd number of crops and an unambiguous median.
     result = estimate(_reference(1, 48, 240, banding=0.1), tiny_model(head_width=16))
     assert result.profile.meta["columns"]["decision"] == "present"
-    per_crop = result.per_crop.vector().numpy()
+    per_crop = model_vector(result.per_crop).numpy()
     assert per_crop.shape == (5, vector_size())
     assert result.profile.meta["crops"] == 5
     assert np.ptp(per_crop, axis=0).min() > 0  # the crops really disagree
@@ -57,7 +57,7 @@ def test_even_number_of_crops_gives_a_value_between_the_middle_two(tiny_model: C
     # 8 frames of 48 x 144: two windows of four frames times a 1 x 3 grid.
     result = estimate(_reference(8, 48, 144, banding=0.1), tiny_model())
     assert result.profile.meta["columns"]["decision"] == "present"
-    per_crop = np.sort(result.per_crop.vector().numpy(), axis=0)
+    per_crop = np.sort(model_vector(result.per_crop).numpy(), axis=0)
     assert len(per_crop) == 6
     profile = _profile_vector(result.profile.noise)
     assert (profile >= per_crop[2] - 1e-7).all() and (profile <= per_crop[3] + 1e-7).all()
@@ -348,7 +348,7 @@ def test_batch_size_does_not_change_the_estimate(tiny_model: Callable[..., DEN])
     reference = _reference(1, 48, 240)
     whole = estimate(reference, model, batch=16)
     one_by_one = estimate(reference, model, batch=1)
-    np.testing.assert_allclose(one_by_one.per_crop.vector(), whole.per_crop.vector(), rtol=1e-5, atol=1e-7)
+    np.testing.assert_allclose(model_vector(one_by_one.per_crop), model_vector(whole.per_crop), rtol=1e-5, atol=1e-7)
 
 
 @pytest.mark.parametrize("level", [0.0, 1.0])

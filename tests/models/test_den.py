@@ -9,6 +9,7 @@ import torch
 
 from darksynth.models.den import DEN, denormalise, normalise
 from darksynth.noise.components import model_parameters, vector_size
+from darksynth.noise.values import model_vector
 
 LOW = torch.tensor([p.training_range[0] for p in model_parameters("srgb") for _ in range(p.size)])
 HIGH = torch.tensor([p.training_range[1] for p in model_parameters("srgb") for _ in range(p.size)])
@@ -60,7 +61,7 @@ def test_predictions_lie_inside_the_training_ranges(
     clip = {"random": _clip(shape), "zeros": torch.zeros(shape), "ones": torch.ones(shape)}[content]
     with torch.no_grad():
         output = model(clip)
-    values = output.values.vector()
+    values = model_vector(output.values)
     assert values.shape == (3, vector_size())
     assert torch.isfinite(values).all()
     assert (values >= LOW - 1e-7).all()
@@ -76,13 +77,13 @@ def test_values_are_the_normalised_output_on_the_parameter_scale(tiny_model: Cal
     with torch.no_grad():
         linear = tiny_model(log_levels=False)(_clip((2, 1, 3, 32, 32)))
         logarithmic = tiny_model(log_levels=True)(_clip((2, 1, 3, 32, 32)))
-    torch.testing.assert_close(linear.values.vector(), LOW + linear.normalised * (HIGH - LOW))
+    torch.testing.assert_close(model_vector(linear.values), LOW + linear.normalised * (HIGH - LOW))
     # Levels with a log floor: floor * (high / floor) ** n; the other entries stay linear.
     n = logarithmic.normalised
     expected = torch.where(
         LOGARITHMIC, FLOOR.clamp_min(1e-12) * (HIGH / FLOOR.clamp_min(1e-12)) ** n, LOW + n * (HIGH - LOW)
     )
-    torch.testing.assert_close(logarithmic.values.vector(), expected)
+    torch.testing.assert_close(model_vector(logarithmic.values), expected)
 
 
 def test_log_levels_normalise_relative_precision_evenly() -> None:
@@ -120,7 +121,7 @@ def test_paper_model_predicts_the_papers_eight_values(tiny_model: Callable[..., 
     with torch.no_grad():
         output = model(_clip((2, 2, 3, 32, 40)))
     assert output.normalised.shape == (2, 8)
-    assert output.values.vector("paper").shape == (2, 8)
+    assert model_vector(output.values, "paper").shape == (2, 8)
     # It reads only the paper's statistics: fewer head inputs than the sRGB model.
     srgb = tiny_model()
     assert model.head[0].in_features < srgb.head[0].in_features

@@ -21,7 +21,7 @@ from darksynth.noise.structure_translation import (
     spectral_tensors,
     valid_channel_correlation,
 )
-from darksynth.noise.values import NoiseValues
+from darksynth.noise.values import NoiseValues, stacked_values
 from darksynth.profile import Profile, parse_profile
 from darksynth.recipe import draw_clip_parameters
 from darksynth.synthesize import synthesize
@@ -98,7 +98,7 @@ def test_white_noise_and_short_kernels_keep_their_band_powers() -> None:
 def test_the_translation_moves_the_structure_into_the_spectral_values_and_leaves_white_clips_alone() -> None:
     white = {"shot": 0.05, "read": 0.01, "quantization": 0.004, "compression": 0.3}
     structured = white | {"correlation_length": 1.2, "chroma_length": 2.0, "channel_correlation": [0.5, 0.4, 0.3]}
-    batch = NoiseValues.stack([NoiseValues.from_values(white), NoiseValues.from_values(structured)])
+    batch = stacked_values([NoiseValues.from_values(white), NoiseValues.from_values(structured)])
     translated = NoiseValues(spectral_tensors(batch))
     assert translated.clip(0) == batch.clip(0)
     clip = translated.clip(1)

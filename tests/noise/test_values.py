@@ -15,7 +15,7 @@ from darksynth.noise.components import (
     vector_size,
 )
 from darksynth.noise.sampling import random_noise_values
-from darksynth.noise.values import NoiseValues
+from darksynth.noise.values import NoiseValues, model_vector, stacked_values, values_from_vector
 
 
 def test_missing_parameters_are_neutral_and_unknown_ones_refused() -> None:
@@ -47,10 +47,10 @@ def test_json_view_keeps_profile_numbers_exactly() -> None:
 def test_batches_stack_select_and_compare() -> None:
     a = NoiseValues.from_values({"read": 0.01})
     b = NoiseValues.from_values({"read": 0.02})
-    batch = NoiseValues.stack([a, b])
+    batch = stacked_values([a, b])
     assert batch.batch_shape == (2,)
     assert batch.clip(1) == b and batch.clip(0) != b
-    assert NoiseValues.stack([batch, batch]).batch_shape == (4,)
+    assert stacked_values([batch, batch]).batch_shape == (4,)
     assert batch.map(lambda t: t.max(dim=0).values) == b
     assert a.scalar("read") == 0.01
     with pytest.raises(ValueError, match="scalar view"):
@@ -73,31 +73,31 @@ def test_activity_follows_amplitudes_and_shapes() -> None:
 
 def test_vector_view_keeps_batch_shape_and_dtype_and_widens_to_the_srgb_model() -> None:
     vector = torch.rand(4, vector_size("paper"), generator=torch.Generator().manual_seed(0))
-    values = NoiseValues.from_vector(vector, "paper")
+    values = values_from_vector(vector, "paper")
     assert values.batch_shape == (4,) and values.dtype == vector.dtype
-    assert values.vector("srgb").shape == (4, vector_size("srgb"))
+    assert model_vector(values, "srgb").shape == (4, vector_size("srgb"))
 
 
 def test_vector_round_trip_with_batch_dimensions() -> None:
     vector = torch.rand(4, 2, vector_size(), generator=torch.Generator().manual_seed(0))
-    values = NoiseValues.from_vector(vector)
+    values = values_from_vector(vector)
     assert values["shot"].shape == (4, 2, 1) and values["periodic"].shape == (4, 2, 3)
     assert torch.equal(values["shot"][..., 0], vector[..., 0])
     assert torch.equal(values["periodic"], vector[..., 12:15])
-    assert torch.equal(values.vector(), vector)
+    assert torch.equal(model_vector(values), vector)
     paper_vector = vector[..., :8]
-    paper_values = NoiseValues.from_vector(paper_vector, "paper")
+    paper_values = values_from_vector(paper_vector, "paper")
     assert list(paper_values) == list(noise_parameter_names())
     # What the paper's model lacks is neutral: white, uncompressed noise.
     assert torch.equal(paper_values["channel_gain"], torch.ones(4, 2, 2))
     assert torch.equal(paper_values["compression"], torch.zeros(4, 2, 1))
     assert torch.equal(paper_values["periodic"], paper_vector[..., 5:8])
-    assert torch.equal(paper_values.vector("paper"), paper_vector)
+    assert torch.equal(model_vector(paper_values, "paper"), paper_vector)
 
 
 def test_values_round_trip_through_the_vector() -> None:
     values = random_noise_values(batch_shape=(3,), generator=torch.Generator().manual_seed(1))
-    back = NoiseValues.from_vector(values.vector())
+    back = values_from_vector(model_vector(values))
     assert list(back) == list(noise_parameter_names())
     for name in noise_parameter_names():
         assert torch.equal(back[name], values[name])
@@ -105,6 +105,6 @@ def test_values_round_trip_through_the_vector() -> None:
 
 def test_vector_of_wrong_length_is_rejected() -> None:
     with pytest.raises(ValueError, match="16"):
-        NoiseValues.from_vector(torch.zeros(2, 8))
+        values_from_vector(torch.zeros(2, 8))
     with pytest.raises(ValueError, match="8"):
-        NoiseValues.from_vector(torch.zeros(2, 7), "paper")
+        values_from_vector(torch.zeros(2, 7), "paper")

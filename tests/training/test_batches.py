@@ -10,7 +10,7 @@ from darksynth.noise.components import (
     model_parameters,
     vector_size,
 )
-from darksynth.noise.values import NoiseValues
+from darksynth.noise.values import values_from_vector
 from darksynth.training.batches import synthesize_batch
 
 LOW = torch.tensor([p.training_range[0] for p in model_parameters("srgb") for _ in range(p.size)])
@@ -57,7 +57,7 @@ def test_every_component_is_present_when_absence_is_impossible() -> None:
     vectors = torch.cat(
         [synthesize_batch(_clean(), generator=generator, absent_probability=0.0).vector for _ in range(40)]
     )
-    values = NoiseValues.from_vector(vectors)
+    values = values_from_vector(vectors)
     for parameter in model_parameters("srgb"):
         off = (values[parameter.name] == parameter.neutral).all(-1).float().mean().item()
         expected = parameter.training_off_probability or 0.0
@@ -81,7 +81,7 @@ def test_absence_switches_whole_components() -> None:
     vectors = torch.cat(
         [synthesize_batch(_clean(), generator=generator, absent_probability=0.5).vector for _ in range(10)]
     )
-    values = NoiseValues.from_vector(vectors)
+    values = values_from_vector(vectors)
     for component in NOISE_COMPONENTS:
         # Parameters that training also switches off alone may be neutral while the rest is on.
         together = [p for p in component.parameters if p.training_off_probability is None]

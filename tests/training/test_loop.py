@@ -12,7 +12,7 @@ from safetensors.torch import load_file
 
 from darksynth.errors import DarksynthError
 from darksynth.models.den import DENConfig
-from darksynth.noise.values import NoiseValues
+from darksynth.noise.values import values_from_vector
 from darksynth.training.corpus import CleanCorpus, load_corpus
 from darksynth.training.loop import TrainConfig, level_loss, r_squared, train, training_batch, vector_names
 from darksynth.training.weights import load_weights
@@ -163,5 +163,5 @@ def test_level_loss_is_zero_for_the_true_vector_and_grows_with_a_wrong_level() -
     assert level_loss(batch.values, batch, device).item() == pytest.approx(0.0, abs=1e-12)
     louder = batch.vector.clone()
     louder[:, vector_names(CONFIG.den.noise_model).index("read")] *= 4.0
-    louder_values = NoiseValues.from_vector(louder, CONFIG.den.noise_model)
+    louder_values = values_from_vector(louder, CONFIG.den.noise_model)
     assert level_loss(louder_values, batch, device).item() > 0.01

@@ -14,7 +14,7 @@ import torch
 from darksynth.estimation.reference import crop_grid
 from darksynth.models.den import DEN
 from darksynth.noise.components import model_parameters
-from darksynth.noise.values import NoiseValues
+from darksynth.noise.values import NoiseValues, stacked_values
 
 
 @dataclass(frozen=True)
@@ -39,7 +39,7 @@ def run_network(
     """Run the network on the crops of a reference (T, 3, H, W) in [0, 1], ``batch`` crops per forward pass."""
     crops = crop_grid(reference)
     network = network.to(device).eval()
-    per_crop = NoiseValues.stack(
+    per_crop = stacked_values(
         [network(crops[i : i + batch].to(device)).values.to("cpu") for i in range(0, len(crops), batch)]
     ).to(dtype=torch.float64)
     # quantile(0.5) averages the two middle crops of an even count, where Tensor.median takes the lower one.

@@ -29,7 +29,7 @@ from torch import nn
 from darksynth.models.statistics import model_statistics
 from darksynth.noise.components import NoiseModel, model_parameters, vector_size
 from darksynth.noise.components import profile_version as current_profile_version
-from darksynth.noise.values import NoiseValues
+from darksynth.noise.values import NoiseValues, values_from_vector
 
 Variant = Literal["v2", "v3"]
 MODEL_NAME = "darksynth-den"
@@ -145,7 +145,7 @@ class DENOutput:
     @property
     def values(self) -> NoiseValues:
         """The estimated noise values in the parameters' units, batched (B,); those the noise model lacks neutral."""
-        return NoiseValues.from_vector(
+        return values_from_vector(
             denormalise(self.normalised, self.noise_model, self.log_levels, self.profile_version),
             self.noise_model,
             self.profile_version,

@@ -39,7 +39,7 @@ from darksynth.noise.simulate import add_noise, apply_output_stages, column_comp
 from darksynth.noise.spectral import clip_grid, octave_covariances
 from darksynth.noise.spectral_8bit import SPECTRAL_PATH, SpectralPixelPass, level_tables, to_8bit
 from darksynth.noise.spectral_kernel import SpectralKernelStream, compiled_spectral_kernels
-from darksynth.noise.values import NoiseValues
+from darksynth.noise.values import NoiseValues, covered_by, uncovered_by
 from darksynth.tensors import to_dtype, unit_float
 
 logger = logging.getLogger(__name__)
@@ -250,9 +250,9 @@ def _spectral(values: NoiseValues) -> bool:
     # A profile of the spectral model (its curve set) whose other values the spectral path draws; the paper's white
     # model never takes it, so its frames keep their bits.
     return (
-        bool(values.uncovered_by(FAST_PATH))
+        bool(uncovered_by(values, FAST_PATH))
         and values.is_active(noise_component("spectral"))
-        and values.covered_by(SPECTRAL_PATH)
+        and covered_by(values, SPECTRAL_PATH)
     )
 
 
@@ -270,7 +270,7 @@ class Route:
 
 
 ROUTES: tuple[Route, ...] = (
-    Route(lambda values, _: values.covered_by(FAST_PATH), lambda s, d, c: FusedRoute(s, d, compile=c)),
+    Route(lambda values, _: covered_by(values, FAST_PATH), lambda s, d, c: FusedRoute(s, d, compile=c)),
     Route(
         lambda values, compile: compile and _spectral(values) and not _textured(values),
         lambda s, d, _: CompiledSpectralRoute(s, d),
@@ -286,5 +286,5 @@ def eight_bit_route(state: ClipState, darkening: Darkening | None, *, compile: b
     """The route of a clip's 8-bit frames, by :data:`ROUTES`."""
     route = next(row for row in ROUTES if row.takes(state.values, compile)).make(state, darkening, compile)
     if isinstance(route, ComposerRoute):
-        logger.debug("8-bit frames take the general composer: %s", state.values.uncovered_by(FAST_PATH))
+        logger.debug("8-bit frames take the general composer: %s", uncovered_by(state.values, FAST_PATH))
     return route

@@ -92,7 +92,7 @@ def kernel_scalars(
 
     Args:
         alpha, gamma: darkening x_d = alpha * x ** (1 / gamma); both None leaves the input level unchanged.
-        values: unbatched noise values that the kernel covers (``values.covered_by(FAST_PATH)``).
+        values: unbatched noise values that the kernel covers (``covered_by(values, FAST_PATH)``).
         device: device of the tensors.
     """
     shot, read, quantization = values.scalar("shot"), values.scalar("read"), values.scalar("quantization")

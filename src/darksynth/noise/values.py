@@ -28,7 +28,7 @@ class NoiseValues(Mapping[str, torch.Tensor]):
     """Every noise parameter's values, by name, as tensors shaped ``(*batch, size)``.
 
     Build one with :meth:`from_values` (numbers, lists or tensors by name; the rest neutral), :meth:`neutral`
-    or :meth:`from_vector`; every entry has the same batch shape, dtype and device.
+    or :func:`values_from_vector`; every entry has the same batch shape, dtype and device.
     """
 
     __slots__ = ("_neutral", "_tensors")
@@ -39,8 +39,6 @@ class NoiseValues(Mapping[str, torch.Tensor]):
         # values are never changed in place; a change makes new values), so a stream on CUDA does not wait for
         # the device at each frame.
         self._neutral: dict[str, bool] = {}
-
-    # --- construction ---------------------------------------------------------------------------------------
 
     @classmethod
     def neutral(
@@ -84,34 +82,9 @@ class NoiseValues(Mapping[str, torch.Tensor]):
         )
 
     @classmethod
-    def from_vector(
-        cls, vector: torch.Tensor, noise_model: NoiseModel = "srgb", version: int | None = None
-    ) -> NoiseValues:
-        """Split a noise model's flat v ``(*batch, vector_size(noise_model, version))`` into named values; the
-        parameters the noise model lacks (or that arrived after ``version``) are neutral (white, uncompressed
-        noise for the ``paper`` model)."""
-        parameters = table.model_parameters(noise_model, version)
-        size = sum(p.size for p in parameters)
-        if vector.shape[-1] != size:
-            raise ValueError(f"a {noise_model} noise vector must end in {size} values, got shape {tuple(vector.shape)}")
-        parts = torch.split(vector, [p.size for p in parameters], dim=-1)
-        given = {p.name: part for p, part in zip(parameters, parts, strict=True)}
-        return cls.from_values(given, batch_shape=tuple(vector.shape[:-1]), device=vector.device, dtype=vector.dtype)
-
-    @classmethod
     def from_json(cls, noise: Mapping[str, Any]) -> NoiseValues:
         """The values of a JSON object like :meth:`to_json` writes (unchecked: profiles validate first)."""
         return cls.from_values({name: value for name, value in noise.items()})
-
-    @classmethod
-    def stack(cls, items: Sequence[NoiseValues]) -> NoiseValues:
-        """One batch from unbatched values (or concatenated batches when the items are batched)."""
-        names = table.noise_parameter_names()
-        if items[0].batch_shape:
-            return cls({name: torch.cat([item[name] for item in items]) for name in names})
-        return cls({name: torch.stack([item[name] for item in items]) for name in names})
-
-    # --- mapping --------------------------------------------------------------------------------------------
 
     def __getitem__(self, name: str) -> torch.Tensor:
         return self._tensors[name]
@@ -133,8 +106,6 @@ class NoiseValues(Mapping[str, torch.Tensor]):
         if not self.batch_shape:
             return f"NoiseValues({self.to_json()})"
         return f"NoiseValues(batch {self.batch_shape}, {', '.join(self._tensors)})"
-
-    # --- properties and views -------------------------------------------------------------------------------
 
     @property
     def batch_shape(self) -> tuple[int, ...]:
@@ -173,11 +144,6 @@ class NoiseValues(Mapping[str, torch.Tensor]):
         """The unbatched values of one clip of a batch with one batch dimension."""
         return self.map(lambda t: t[index])
 
-    def vector(self, noise_model: NoiseModel = "srgb", version: int | None = None) -> torch.Tensor:
-        """The flat v of a noise model at a table version, ``(*batch, vector_size(noise_model, version))``: the
-        network's view."""
-        return torch.cat([self._tensors[p.name] for p in table.model_parameters(noise_model, version)], dim=-1)
-
     def scalar(self, name: str) -> float:
         """The single value of a parameter of size 1 in unbatched values: a fused kernel's view."""
         tensor = self._tensors[name]
@@ -193,8 +159,6 @@ class NoiseValues(Mapping[str, torch.Tensor]):
         parameters = [p for p in table.noise_parameters() if section is None or table.profile_section(p) == section]
         return {p.name: _json_value(p, self._tensors[p.name]) for p in parameters}
 
-    # --- what is set ----------------------------------------------------------------------------------------
-
     def is_neutral(self, parameter: Parameter) -> bool:
         """Whether the parameter is at its neutral value in every clip."""
         if parameter.name not in self._neutral:
@@ -205,14 +169,47 @@ class NoiseValues(Mapping[str, torch.Tensor]):
         """Whether the component draws anything: one of its amplitude parameters is not neutral in some clip."""
         return any(not self.is_neutral(p) for p in component.parameters if p.role == "amplitude")
 
-    def uncovered_by(self, fast_path: str) -> list[str]:
-        """The set parameters that a fast path declared in the table (:attr:`Parameter.fast_paths`) does not
-        draw; empty when it draws these values with the general composer's law."""
-        return [p.name for p in table.noise_parameters() if fast_path not in p.fast_paths and not self.is_neutral(p)]
 
-    def covered_by(self, fast_path: str) -> bool:
-        """Whether the fast path draws these values: every parameter it does not cover is neutral."""
-        return not self.uncovered_by(fast_path)
+def stacked_values(items: Sequence[NoiseValues]) -> NoiseValues:
+    """One batch from unbatched values (or concatenated batches when the items are batched)."""
+    names = table.noise_parameter_names()
+    if items[0].batch_shape:
+        return NoiseValues({name: torch.cat([item[name] for item in items]) for name in names})
+    return NoiseValues({name: torch.stack([item[name] for item in items]) for name in names})
+
+
+def values_from_vector(
+    vector: torch.Tensor, noise_model: NoiseModel = "srgb", version: int | None = None
+) -> NoiseValues:
+    """Split a noise model's flat v ``(*batch, vector_size(noise_model, version))`` into named values; the parameters
+    the noise model lacks (or that arrived after ``version``) are neutral (white, uncompressed noise for the
+    ``paper`` model). The inverse of :func:`model_vector`."""
+    parameters = table.model_parameters(noise_model, version)
+    size = sum(p.size for p in parameters)
+    if vector.shape[-1] != size:
+        raise ValueError(f"a {noise_model} noise vector must end in {size} values, got shape {tuple(vector.shape)}")
+    parts = torch.split(vector, [p.size for p in parameters], dim=-1)
+    given = {p.name: part for p, part in zip(parameters, parts, strict=True)}
+    return NoiseValues.from_values(
+        given, batch_shape=tuple(vector.shape[:-1]), device=vector.device, dtype=vector.dtype
+    )
+
+
+def model_vector(values: NoiseValues, noise_model: NoiseModel = "srgb", version: int | None = None) -> torch.Tensor:
+    """The flat v of a noise model at a table version, ``(*batch, vector_size(noise_model, version))``: the
+    network's view of ``values``."""
+    return torch.cat([values[p.name] for p in table.model_parameters(noise_model, version)], dim=-1)
+
+
+def uncovered_by(values: NoiseValues, fast_path: str) -> list[str]:
+    """The set parameters of ``values`` that a fast path declared in the table (:attr:`Parameter.fast_paths`) does
+    not draw; empty when it draws these values with the general composer's law."""
+    return [p.name for p in table.noise_parameters() if fast_path not in p.fast_paths and not values.is_neutral(p)]
+
+
+def covered_by(values: NoiseValues, fast_path: str) -> bool:
+    """Whether the fast path draws ``values``: every parameter it does not cover is neutral."""
+    return not uncovered_by(values, fast_path)
 
 
 def _checked(tensors: Mapping[str, torch.Tensor]) -> dict[str, torch.Tensor]:

@@ -11,7 +11,7 @@ from darksynth.noise.components import NoiseModel, model_parameters, noise_compo
 from darksynth.noise.sampling import random_darkening_values, random_noise_values
 from darksynth.noise.simulate import add_noise
 from darksynth.noise.structure_translation import spectral_tensors
-from darksynth.noise.values import NoiseValues
+from darksynth.noise.values import NoiseValues, model_vector
 from darksynth.tensors import to_8bit_levels
 
 BRIGHT_ALPHA_RANGE = (0.3, 1.0)
@@ -32,7 +32,7 @@ class TrainingBatch:
     @property
     def vector(self) -> torch.Tensor:
         """The true v of the noise model, (B, vector_size(noise_model)): the network's target."""
-        return self.values.vector(self.noise_model)
+        return model_vector(self.values, self.noise_model)
 
 
 def synthesize_batch(

@@ -21,7 +21,7 @@ from darksynth.io.atomic import atomic_output, write_text_atomic
 from darksynth.models.den import DEN, DENConfig
 from darksynth.noise.components import NoiseModel, model_parameters
 from darksynth.noise.level import mean_noise_variance
-from darksynth.noise.values import NoiseValues
+from darksynth.noise.values import NoiseValues, model_vector
 from darksynth.seeding import seeded_generator
 from darksynth.training.batches import TrainingBatch, synthesize_batch
 from darksynth.training.corpus import CleanCorpus
@@ -132,7 +132,7 @@ def evaluate(model: DEN, batches: list[TrainingBatch], device: torch.device) -> 
     model.eval()
     predicted, truth = [], []
     for batch in batches:
-        predicted.append(model(batch.noisy.to(device)).values.vector(model.noise_model).cpu())
+        predicted.append(model_vector(model(batch.noisy.to(device)).values, model.noise_model).cpu())
         truth.append(batch.vector)
     model.train()
     p, t = torch.cat(predicted), torch.cat(truth)
