@@ -42,3 +42,24 @@ def test_the_check_sees_a_long_function(tmp_path: Path) -> None:
     module = tmp_path / "long.py"
     module.write_text(f'def fits():\n{body}\n\ndef too_long():\n    """One line more."""\n{body}', encoding="utf-8")
     assert long_functions(module) == ["too_long (61)"]
+
+
+def repeated_module_names(root: Path) -> dict[str, list[str]]:
+    """Module file names (``__init__.py`` aside) that stand in more than one package below ``root``."""
+    places: dict[str, list[str]] = {}
+    for path in sorted(root.rglob("*.py")):
+        if path.name != "__init__.py":
+            places.setdefault(path.name, []).append(str(path.relative_to(root)))
+    return {name: paths for name, paths in places.items() if len(paths) > 1}
+
+
+def test_each_module_name_stands_for_one_module() -> None:
+    # One name, one meaning: "darkening.py" in two packages made every mention of it ambiguous.
+    assert repeated_module_names(SOURCE) == {}
+
+
+def test_the_check_sees_a_repeated_module_name(tmp_path: Path) -> None:
+    for package in ("light", "estimation"):
+        (tmp_path / package).mkdir()
+        (tmp_path / package / "darkening.py").write_text("", encoding="utf-8")
+    assert repeated_module_names(tmp_path) == {"darkening.py": ["estimation/darkening.py", "light/darkening.py"]}

@@ -98,11 +98,11 @@ ESTIMATION_STAGES: dict[str, int] = {
     "persistence_fit": 2,
     "spectrum_checks": 3,
     "spectrum": 4,
-    "network": 1,
-    "darkening": 1,
+    "network_reading": 1,
+    "darkening_reading": 1,
     "noise_estimate": 5,
     "light": 3,
-    "flicker": 0,
+    "flicker_reading": 0,
     "cross_spectra": 0,
     "shutter_confidence": 0,
     "shutter_fit": 1,
@@ -298,8 +298,8 @@ def test_the_stage_check_sees_a_stage_import(tmp_path: Path) -> None:
     module = tmp_path / "bad.py"
     module.write_text(
         "from darksynth.estimation.assemble import estimate\n"
-        "import darksynth.estimation.network\n"
+        "import darksynth.estimation.network_reading\n"
         "from darksynth.estimation import columns\n",
         encoding="utf-8",
     )
-    assert _imported_stages(module) == {"assemble", "network", "columns"}
+    assert _imported_stages(module) == {"assemble", "network_reading", "columns"}

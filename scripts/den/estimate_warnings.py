@@ -3,7 +3,7 @@
 Makes: docs/den.md, "What estimate says, on the shared references" (the before/after table of warnings and column
 decisions over the 41 references, and the column ratios); with ``--confidence`` the table of tone-curve error per
 confidence bin in docs/darkening-estimate.md, "In the profile (`estimate()`)", which
-src/darksynth/estimation/darkening.py quotes. docs/refine.md ("Version 3: the default") quotes a run of it too.
+src/darksynth/estimation/darkening_reading.py quotes. docs/refine.md ("Version 3: the default") quotes a run of it too.
 
 Run from the repo root::
 
@@ -37,7 +37,7 @@ import torch
 
 from darksynth.errors import DarksynthError
 from darksynth.estimation.assemble import EstimateOptions, estimate_file
-from darksynth.estimation.darkening import estimate_darkening
+from darksynth.estimation.darkening_reading import estimate_darkening
 from darksynth.estimation.noise_estimate import NOISE_FREE_STD
 from darksynth.estimation.reference import load_reference
 from darksynth.light.darkening import ALPHA_RANGE, GAMMA_RANGE, Darkening, darken

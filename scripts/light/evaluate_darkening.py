@@ -29,7 +29,7 @@ import numpy as np
 import torch
 
 from darksynth.errors import DarksynthError
-from darksynth.estimation.darkening import estimate_darkening, estimate_darkening_spread
+from darksynth.estimation.darkening_reading import estimate_darkening, estimate_darkening_spread
 from darksynth.estimation.reference import load_reference
 from darksynth.light.darkening import ALPHA_RANGE, GAMMA_RANGE, Darkening, darken
 from darksynth.light.tone_fit import TONE_PRIOR_LOG_QUANTILES

@@ -15,7 +15,7 @@ Options: ``--pairs DIR`` (repeatable) ``[--method spectral-oracle|den] [--limit 
 
 Per set, the first ``--limit`` pairs in name order (all without it; with ``--every K`` each K-th of them), each
 through the method of ``darksynth evaluate`` as the evaluation runs it (its fit, its synthesis, the evaluation's
-seed for the pair), and the evaluation's measure (``evaluation.measures.texture.textured_flat_ratio``) on the real
+seed for the pair), and the evaluation's measure (``evaluation.measures.texture_ratio.textured_flat_ratio``) on the real
 and the synthetic noise. With ``den`` (the blind estimate on the noisy image) also what a blind read of texture's
 noise would start from: the same ratio of the residual of non-local means (``noisy - D(noisy)``, its strength by
 the estimate's rule, read on the whole image), on the real noisy image and on the synthetic one. Printed: one line
@@ -36,7 +36,7 @@ from darksynth.estimation.flat_blocks import flat_block_std
 from darksynth.estimation.nonlocal_means import nlm_denoise
 from darksynth.estimation.spectrum import NLM_STRENGTH
 from darksynth.estimation.texture_fit import block_power
-from darksynth.evaluation.measures.texture import textured_flat_ratio
+from darksynth.evaluation.measures.texture_ratio import textured_flat_ratio
 from darksynth.evaluation.methods.catalogue import build_methods
 from darksynth.evaluation.pairs import list_pair_set, load_pair
 from darksynth.noise.texture import block_detail, textured_and_flat

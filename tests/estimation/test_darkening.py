@@ -8,7 +8,7 @@ import pytest
 import torch
 
 from darksynth.errors import DarksynthError
-from darksynth.estimation.darkening import (
+from darksynth.estimation.darkening_reading import (
     estimate_darkening,
     estimate_darkening_pooled_and_per_frame,
     estimate_darkening_spread,

@@ -12,7 +12,7 @@ from PIL import Image
 
 from darksynth.estimation.spectral_fit import oracle_spectral_fit, quantised
 from darksynth.estimation.texture_fit import TEXTURE_GAINS, interpolated_gain
-from darksynth.evaluation.measures.texture import textured_flat_ratio
+from darksynth.evaluation.measures.texture_ratio import textured_flat_ratio
 from darksynth.noise.simulate import add_noise
 from darksynth.noise.values import NoiseValues
 

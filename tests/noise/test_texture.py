@@ -12,7 +12,7 @@ import pytest
 import torch
 from scipy.ndimage import gaussian_filter
 
-from darksynth.evaluation.measures.texture import textured_flat_ratio
+from darksynth.evaluation.measures.texture_ratio import textured_flat_ratio
 from darksynth.light.darkening import Darkening
 from darksynth.models.statistics import model_statistics
 from darksynth.noise.components import model_parameters, noise_parameter, profile_version

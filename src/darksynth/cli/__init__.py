@@ -6,8 +6,8 @@ import sys
 from collections.abc import Callable, Sequence
 from typing import Any
 
+from darksynth.cli.den_commands import estimate_command, train_command
 from darksynth.cli.evaluate import evaluate_command
-from darksynth.cli.network import estimate_command, train_command
 from darksynth.cli.synthesis import apply_command, convert_command, demo_command, preview_command
 from darksynth.commands import COMMAND_HELP, new_app
 

@@ -2,7 +2,7 @@
 
 The reference is read once into a :class:`~darksynth.estimation.reference.Reference` (its frames, the frames to
 measure, the uniform frames, the scene cuts); the noise (:mod:`~darksynth.estimation.noise_estimate`: the network,
-the columns, the spectrum), the darkening (:mod:`~darksynth.estimation.darkening`) and the light
+the columns, the spectrum), the darkening (:mod:`~darksynth.estimation.darkening_reading`) and the light
 (:mod:`~darksynth.estimation.light`) are each read off it without looking at the others' results; the profile
 assembles them, with everything each measurement found in ``meta`` and everything it could not read in the
 warnings.
@@ -18,7 +18,7 @@ import torch
 
 from darksynth.cameras.prior import shipped_prior
 from darksynth.estimation.camera_conditional import CameraPriorUse
-from darksynth.estimation.darkening import estimate_profile_darkening
+from darksynth.estimation.darkening_reading import estimate_profile_darkening
 from darksynth.estimation.light import estimate_light
 from darksynth.estimation.noise_estimate import estimate_noise
 from darksynth.estimation.reference import MAX_FRAMES, describe_reference, load_reference, reference_warnings

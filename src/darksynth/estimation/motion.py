@@ -75,7 +75,7 @@ import numpy as np
 import torch
 
 from darksynth.estimation.cross_spectra import align_along, align_phase, phase_ramp, without_persistent_noise
-from darksynth.estimation.flicker import (
+from darksynth.estimation.flicker_reading import (
     FLICKER_CORRELATION_PRIOR,
     FLICKER_PRIOR,
     PairFlow,

@@ -21,7 +21,7 @@ import torch
 
 from darksynth.estimation.camera_conditional import CameraPriorUse
 from darksynth.estimation.columns import decide_columns
-from darksynth.estimation.network import run_network
+from darksynth.estimation.network_reading import run_network
 from darksynth.estimation.reference import Reference
 from darksynth.estimation.self_check import check_level
 from darksynth.estimation.spectrum import estimate_spectrum

@@ -217,7 +217,7 @@ class BandStatistics:
         white_ratio: The real noise's band power over white noise of the same variance (empty for a method).
         ratio: A method's median over pairs of its band power over the real one's (empty for the real noise).
         texture_ratio: Median over pairs of the noise's std on the most textured blocks over that on the flattest
-            (:mod:`darksynth.evaluation.measures.texture`); None: not computed.
+            (:mod:`darksynth.evaluation.measures.texture_ratio`); None: not computed.
     """
 
     power: Mapping[str, tuple[float | None, ...]]

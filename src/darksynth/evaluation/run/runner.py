@@ -43,7 +43,7 @@ from darksynth.evaluation.measures.structure import (
     prior_bands,
     relative_to_white,
 )
-from darksynth.evaluation.measures.texture import textured_flat_ratio
+from darksynth.evaluation.measures.texture_ratio import textured_flat_ratio
 from darksynth.evaluation.methods.catalogue import NoiseMethod, build_methods
 from darksynth.evaluation.pairs import LoadedPair, PairSet, list_pair_sets, load_pair
 from darksynth.evaluation.report.html import ReportExample
