@@ -84,7 +84,7 @@ import torch
 from darksynth.apply import ApplyOptions, synthesize_image
 from darksynth.errors import DarksynthError
 from darksynth.estimation.assemble import estimate
-from darksynth.estimation.flat_blocks import flat_block_std
+from darksynth.estimation.flat_blocks import denoiser_strength
 from darksynth.estimation.nonlocal_means import nlm_denoise
 from darksynth.estimation.reference import load_reference
 from darksynth.estimation.self_check import CONSISTENT_RANGE, self_consistency
@@ -113,9 +113,6 @@ STATIC_FRAMES = 8
 """Frames of the static synthetic clip (the temporal check's default)."""
 OUTLIER_RANGE = (0.5, 2.0)
 """A photo whose self-consistency ratio lies outside it is named."""
-STRENGTH_RANGE = (1.0, 40.0)
-"""The denoiser strength (8-bit levels) taken from the reference's flat-block std when the profile does not state
-the one the estimate used (the rule of ``scripts/noise/spectral_reference_check.py``)."""
 
 TOLERANCES = {
     "level_ratio": 0.02,
@@ -415,7 +412,8 @@ def measure_photo(path: Path, network: DEN, seed: int) -> dict[str, Any]:
     profile, warnings = _estimate(frames, network, path)
     strength = profile.meta.get("spectrum", {}).get("denoiser_strength_8bit")
     if strength is None:
-        strength = min(max(flat_block_std(frames[:1]), STRENGTH_RANGE[0]), STRENGTH_RANGE[1])
+        # The profile does not state the strength the estimate used: the estimate's rule on the first frame.
+        strength = denoiser_strength(frames[:1])
     denoised = (nlm_denoise(frames[:1], strength)[0] * 255.0).round().clamp(0, 255).to(torch.uint8)
     options = ApplyOptions(recipe=ClipRecipe(profile, darkening=None), seed=seed)
     synthetic, _ = synthesize_image(chw_to_hwc(denoised), path.name, options)

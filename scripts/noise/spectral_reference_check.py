@@ -36,7 +36,7 @@ import torch.nn.functional as F
 from PIL import Image, ImageDraw
 
 from darksynth.estimation.assemble import estimate
-from darksynth.estimation.flat_blocks import FLAT_BLOCK, STRENGTH_CLIPPED_SHARE, clipped_share, flat_block_std
+from darksynth.estimation.flat_blocks import FLAT_BLOCK, STRENGTH_CLIPPED_SHARE, clipped_share, denoiser_strength
 from darksynth.estimation.nonlocal_means import nlm_denoise
 from darksynth.estimation.reference import load_reference
 from darksynth.estimation.spectral_fit import quantised
@@ -101,7 +101,7 @@ def main() -> None:
     for kind, path, folder in chosen:
         frames = load_reference(path, clip=folder, max_frames=16)
         first = frames[:1]
-        denoised = nlm_denoise(first, min(max(flat_block_std(first), 1.0), 40.0))
+        denoised = nlm_denoise(first, denoiser_strength(first))
         # Blocks the real camera clipped (crushed black, a lamp) hold no noise to compare: both sides are judged on
         # the blocks of the reference with at most 1 % clipped pixels.
         usable = (clipped_share(first[0]) <= STRENGTH_CLIPPED_SHARE).flatten()

@@ -45,7 +45,7 @@ from darksynth.estimation.flat_blocks import (
     MIN_LEVEL_BLOCKS,
     analysis_window,
     clipped_share,
-    flat_block_std,
+    denoiser_strength,
     flat_mask,
 )
 from darksynth.estimation.nonlocal_means import nlm_denoise
@@ -85,14 +85,6 @@ TEXTURED_GRADIENT = 4.0 / 255
 
 TEMPORAL_FRAMES = 4
 """Consecutive frames a clip is analysed on for the frame-to-frame correlation."""
-
-NLM_STRENGTH = 1.0
-"""Non-local means strength ``h`` in 8-bit levels per 8-bit level of the flat blocks' noise std (the pilot reads
-the noisiest intensity: :func:`flat_block_std`). With ``h`` under the noise, non-local means finds no patch like a
-pixel's own and returns the noise: its residual shrinks as the noise grows (at 0.7x it keeps 75 % of white noise's
-std, at 1x 95 %), and a fit by re-synthesis can settle on a level far too weak. 1.25 was tried: the round trip's
-first 15 cases read the same (median |std ratio - 1| 0.097), but the stronger smoothing flattened a coarse
-texture so that a panning clip looked still."""
 
 START_ITERATIONS, FINAL_ITERATIONS = 2, 3
 """Corrections with each JPEG candidate (one draw), then with the best one (two draws)."""
@@ -189,7 +181,7 @@ def estimate_spectrum(
     frames = reference[:TEMPORAL_FRAMES] if clip else reference[:1]
     top, left, height, width = analysis_window(frames[0])
     frames = frames[..., top : top + height, left : left + width]
-    strength = min(max(NLM_STRENGTH * flat_block_std(frames), 1.0), 40.0)
+    strength = denoiser_strength(frames)
     denoised = nlm_denoise(frames, strength)
     unclipped = clipped_share(frames) <= CLIPPED_SHARE
     mask, flat_gradient = flat_mask(denoised[0], unclipped)

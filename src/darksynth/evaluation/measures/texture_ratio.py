@@ -30,13 +30,21 @@ def textured_flat_ratio(noise: torch.Tensor, clean: torch.Tensor, share: float =
     Returns:
         The ratio (1: the noise ignores texture); nan for an image under one block or without flat power.
     """
+    flat, textured = flat_and_textured_std(noise, clean, share)
+    return textured / flat if flat > 0 else math.nan
+
+
+def flat_and_textured_std(
+    noise: torch.Tensor, clean: torch.Tensor, share: float = TEXTURE_SHARE
+) -> tuple[float, float]:
+    """The two stds :func:`textured_flat_ratio` divides: the noise's over the ``share`` least textured blocks of
+    ``clean`` and over the ``share`` most textured (nan for an image under one block)."""
     if noise.dim() == 3:
         noise, clean = noise[None], clean[None]
     detail = block_detail(clean.to(torch.float64), TEXTURE_BLOCK)
     if detail.numel() == 0:
-        return math.nan
+        return math.nan, math.nan
     noise = noise.to(torch.float64)
     power = (block_mean(noise.square()) - block_mean(noise).square()).mean(dim=1)
     textured, flat = textured_and_flat(detail, share)
-    flat_power = float(power[flat].mean())
-    return math.sqrt(float(power[textured].mean()) / flat_power) if flat_power > 0 else math.nan
+    return math.sqrt(float(power[flat].mean())), math.sqrt(float(power[textured].mean()))
