@@ -117,7 +117,7 @@ def noise_statistics(clip: torch.Tensor) -> torch.Tensor:
     return torch.cat([pixel_noise_statistics(clip), column_noise_statistics(clip)], dim=-1)
 
 
-# --- Statistics of the sRGB noise model -------------------------------------------------------------------
+# The multi-scale statistics, for the sRGB noise model.
 # Real sRGB noise is spatially correlated, differs per channel, is correlated across channels and is often
 # JPEG-compressed (docs/srgb-noise.md). The paper's statistics above read only neighbouring-pixel differences
 # pooled over channels, which see a fraction of correlated noise. These read the noise at three scales, per
@@ -126,8 +126,8 @@ def noise_statistics(clip: torch.Tensor) -> torch.Tensor:
 SCALES = (1, 2, 4)
 """Block sizes the second differences are measured at: correlated noise loses less energy with the scale."""
 
-SRGB_STATISTICS_SIZE = len(SCALES) * 2 * 3 + len(SCALES) * 2 + 2 * 3 + 2 + 1
-"""Length of :func:`srgb_noise_statistics`' vector: per scale, direction and channel (18), per scale and
+MULTISCALE_STATISTICS_SIZE = len(SCALES) * 2 * 3 + len(SCALES) * 2 + 2 * 3 + 2 + 1
+"""Length of :func:`multiscale_noise_statistics`' vector: per scale, direction and channel (18), per scale and
 direction (6), channel correlations at two scales (6), JPEG block grid along x and y (2), chroma subsampling (1)."""
 
 
@@ -164,11 +164,11 @@ def _block_grid_strength(first_differences: torch.Tensor, batch: int) -> torch.T
     return _log(by_phase.max(-1).values) - _log(by_phase.mean(-1))
 
 
-def srgb_noise_statistics(clip: torch.Tensor) -> torch.Tensor:
+def multiscale_noise_statistics(clip: torch.Tensor) -> torch.Tensor:
     """Multi-scale, per-channel, cross-channel and compression statistics of a clip (B, T, C, H, W) in [0, 1].
 
     Returns:
-        (B, SRGB_STATISTICS_SIZE): log median |second difference| per scale (1, 2, 4 px blocks), direction (y,
+        (B, MULTISCALE_STATISTICS_SIZE): log median |second difference| per scale (1, 2, 4 px blocks), direction (y,
         x) and channel; log mean square of the same per scale and direction; channel correlations of the
         second differences at scales 1 and 2; JPEG block-grid strength along y and x; and the drop of chroma
         against luma energy from scale 1 to 2 (4:2:0 subsampling removes fine chroma).
@@ -226,11 +226,11 @@ class EstimatorStatistics:
 PAPER_STATISTICS = EstimatorStatistics("paper", STATISTICS_SIZE, noise_statistics)
 """What reveals the paper's components: level-binned pixel noise and column patterns."""
 
-SRGB_STATISTICS = EstimatorStatistics("srgb", SRGB_STATISTICS_SIZE, srgb_noise_statistics)
+MULTISCALE_STATISTICS = EstimatorStatistics("multiscale", MULTISCALE_STATISTICS_SIZE, multiscale_noise_statistics)
 """What reveals the sRGB structure: multi-scale, per-channel and cross-channel noise, JPEG grid, chroma."""
 
 
-STATISTICS: dict[StatisticsName, EstimatorStatistics] = {"paper": PAPER_STATISTICS, "srgb": SRGB_STATISTICS}
+STATISTICS: dict[StatisticsName, EstimatorStatistics] = {"paper": PAPER_STATISTICS, "multiscale": MULTISCALE_STATISTICS}
 """The statistics each parameter of the table names (:attr:`darksynth.noise.component_types.Parameter.statistics`)."""
 
 
@@ -238,6 +238,6 @@ def model_statistics(noise_model: NoiseModel = "srgb", version: int | None = Non
     """The statistics the network of a noise model reads: those its parameters name, in table order."""
     names: list[StatisticsName] = []
     for parameter in model_parameters(noise_model, version):
-        if parameter.statistics not in names:
+        if parameter.statistics is not None and parameter.statistics not in names:
             names.append(parameter.statistics)
     return tuple(STATISTICS[name] for name in names)

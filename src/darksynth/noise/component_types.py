@@ -32,15 +32,17 @@ LIGHT_STRUCTURES: frozenset[str] = frozenset({"scene", "exposure"})
 """The structures of light: in the profile's ``light`` section, outside the estimation network's v."""
 
 NoiseModel = Literal["paper", "srgb", "spectral"]
-
-StatisticsName = Literal["paper", "srgb"]
-"""The statistics vectors the estimation network reads (:data:`darksynth.models.statistics.STATISTICS`)."""
 """``paper``: the paper's five components (profile version 1, DEN model version 1). ``srgb``: those plus the
 structure of real sRGB noise (per-channel gains, spatial and cross-channel correlation, JPEG; profile versions 2
 and 3): the vocabulary of the estimation network's vector, drawn as the spectral model
 (:mod:`darksynth.noise.structure_translation`). ``spectral``: those plus the measured spectrum (per-octave colour
 covariances, level curves, temporal correlation; docs/spectral-noise.md, profile version 4), estimated by
 measurement on the reference rather than by the network."""
+
+StatisticsName = Literal["paper", "multiscale"]
+"""The statistics vectors the estimation network reads (:data:`darksynth.models.statistics.STATISTICS`): the
+paper's level-binned pixel noise and column patterns, and the sRGB model's multi-scale, per-channel and JPEG
+statistics."""
 
 Role = Literal["amplitude", "shape"]
 """``amplitude``: the component draws nothing when all its amplitude parameters are neutral. ``shape``: shapes
@@ -111,7 +113,8 @@ class Parameter:
             This is also the scale of the estimator's output head for the parameter.
         statistics: the name of the fixed statistics that reveal the parameter to the estimator; the network of a
             noise model reads those of all its parameters (:func:`darksynth.models.statistics.model_statistics`,
-            beside the network, which is their only reader).
+            beside the network, which is their only reader). None for a parameter no network predicts (the
+            spectral model's, measured on the reference).
         fast_paths: the fast paths that draw this parameter at any value; every other fast path is taken only
             while the parameter is neutral (:meth:`darksynth.noise.values.NoiseValues.covered_by`).
     """
@@ -128,7 +131,7 @@ class Parameter:
     role: Role = "amplitude"
     training_off_probability: float | None = None
     log_floor: float | None = None
-    statistics: StatisticsName = "paper"
+    statistics: StatisticsName | None = "paper"
     fast_paths: frozenset[FastPath] = frozenset()
 
 

@@ -83,7 +83,7 @@ COMPRESSION = NoiseComponent(
             noise_model="srgb",
             fast_paths=COMPRESSION_PATHS,
             since_version=2,
-            statistics="srgb",
+            statistics="multiscale",
             training_off_probability=0.4,
         ),
     ),

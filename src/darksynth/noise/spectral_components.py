@@ -39,7 +39,6 @@ _SPECTRAL_PARAMETERS: tuple[Parameter, ...] = (
         noise_model="spectral",
         fast_paths=SPECTRAL_PATHS,
         since_version=4,
-        statistics="srgb",
     ),
     Parameter(
         "octave_power",
@@ -52,7 +51,6 @@ _SPECTRAL_PARAMETERS: tuple[Parameter, ...] = (
         noise_model="spectral",
         fast_paths=SPECTRAL_PATHS,
         since_version=4,
-        statistics="srgb",
         role="shape",
     ),
     Parameter(
@@ -65,7 +63,6 @@ _SPECTRAL_PARAMETERS: tuple[Parameter, ...] = (
         noise_model="spectral",
         fast_paths=SPECTRAL_PATHS,
         since_version=4,
-        statistics="srgb",
         role="shape",
     ),
     Parameter(
@@ -77,7 +74,6 @@ _SPECTRAL_PARAMETERS: tuple[Parameter, ...] = (
         noise_model="spectral",
         fast_paths=SPECTRAL_PATHS,
         since_version=4,
-        statistics="srgb",
         role="shape",
         training_off_probability=0.5,
     ),
@@ -95,7 +91,6 @@ _SPECTRAL_PARAMETERS: tuple[Parameter, ...] = (
         noise_model="spectral",
         fast_paths=SPECTRAL_PATHS,
         since_version=6,
-        statistics="srgb",
         role="shape",
         training_off_probability=0.5,
     ),
@@ -110,7 +105,6 @@ _SPECTRAL_PARAMETERS: tuple[Parameter, ...] = (
         neutral=TEXTURE_SCALE_NEUTRAL,
         noise_model="spectral",
         since_version=6,
-        statistics="srgb",
         role="shape",
         fast_paths=ALL_8BIT_PATHS,
     ),
