@@ -85,6 +85,7 @@ PURE_CORE = frozenset({"tensors", "light", "noise"})
 ESTIMATION_STAGES: dict[str, int] = {
     "__init__": 0,
     "reference": 0,
+    "findings": 0,
     "columns": 0,
     "nonlocal_means": 0,
     "flat_blocks": 0,

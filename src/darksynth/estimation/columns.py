@@ -96,19 +96,19 @@ def decide_columns(
     reference: torch.Tensor,
     frames: list[int],
     noise: NoiseValues,
-    ranges: dict[str, tuple[tuple[float, float], ...]],
-    meta: dict[str, Any],
-) -> NoiseValues:
-    """Set the column components absent (neutral, without ranges) when the reference shows no column pattern.
+) -> tuple[NoiseValues, dict[str, Any]]:
+    """Set the column components absent (neutral; the caller drops their ranges, named in the record's
+    ``set_absent``) when the reference shows no column pattern.
 
     The network never predicts exactly zero: on a reference without stripes it gives small banding and periodic
     values that draw faint vertical stripes. The presence is measured on the whole reference instead
-    (:func:`column_presence`), and what was tested and decided goes into ``meta["columns"]``.
+    (:func:`column_presence`). Returns the values and the record of what was tested and decided (the profile's
+    ``meta["columns"]``).
     """
     names = [p.name for c in noise_components() if c.structure == "column" for p in c.parameters]
     presence = column_presence(reference, frames)
     absent = not presence.present
-    meta["columns"] = {
+    record: dict[str, Any] = {
         "test": "robust std of the column means high-passed along x over that of the row means high-passed "
         f"along y, scaled to H pixels; present at a ratio of {COLUMN_RATIO} or more",
         "ratio": round(presence.ratio, 3),
@@ -119,12 +119,10 @@ def decide_columns(
         "frames_measured": frames,
     }
     if presence.shared_ratio is not None:
-        meta["columns"]["shared_ratio"] = round(presence.shared_ratio, 3)
+        record["shared_ratio"] = round(presence.shared_ratio, 3)
     if not absent:
-        return noise
-    meta["columns"]["set_absent"] = names
-    meta["columns"]["network_values"] = {name: [round(float(v), 5) for v in noise[name].tolist()] for name in names}
-    for name in names:
-        ranges.pop(name, None)
+        return noise, record
+    record["set_absent"] = names
+    record["network_values"] = {name: [round(float(v), 5) for v in noise[name].tolist()] for name in names}
     neutral = {p.name: p.neutral for c in noise_components() if c.structure == "column" for p in c.parameters}
-    return noise.replace(**neutral)
+    return noise.replace(**neutral), record

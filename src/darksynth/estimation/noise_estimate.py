@@ -21,6 +21,7 @@ import torch
 
 from darksynth.estimation.camera_conditional import CameraPriorUse
 from darksynth.estimation.columns import decide_columns
+from darksynth.estimation.findings import Findings
 from darksynth.estimation.network_reading import run_network
 from darksynth.estimation.reference import Reference
 from darksynth.estimation.self_check import check_level
@@ -78,54 +79,60 @@ def estimate_noise(
     what was read is the record's ``meta``, what could not be its ``warnings``."""
     frames = reference.frames
     found = run_network(frames, network, batch=batch, device=device)
-    noise, ranges = found.noise, dict(found.ranges)
-    warnings: list[str] = []
-    meta: dict[str, Any] = {
-        "estimator": f"DEN {network.config.variant} width {network.config.width} depth {network.config.depth}",
-        "noise_model": network.noise_model,
-        "crops": found.per_crop.batch_shape[0],
-        "frames": int(frames.shape[0]),
-        "aggregate": "median over crops; ranges are the 10th-90th percentiles",
-    }
-    noise = decide_columns(frames, reference.measured, noise, ranges, meta)
+    noise = found.noise
+    findings = Findings(
+        {
+            "estimator": f"DEN {network.config.variant} width {network.config.width} depth {network.config.depth}",
+            "noise_model": network.noise_model,
+            "crops": found.per_crop.batch_shape[0],
+            "frames": int(frames.shape[0]),
+            "aggregate": "median over crops; ranges are the 10th-90th percentiles",
+        }
+    )
+    noise, columns = decide_columns(frames, reference.measured, noise)
+    findings.meta["columns"] = columns
+    # A parameter the estimate set itself (a column component found absent, a measured one) loses the network's
+    # range: ``apply --jitter`` would otherwise draw the network's values back.
+    replaced = list(columns.get("set_absent", []))
     if refines(network.noise_model, refine) and not reference.all_uniform:
-        noise = _measure_spectrum(frames, noise, ranges, meta, warnings, reference.name, camera_prior)
+        noise, measured_names, spectrum = _measure_spectrum(frames, noise, reference.name, camera_prior)
+        findings.include(spectrum)
+        replaced += measured_names
     noise_std = profile_noise_std(noise, frames, reference.measured)
-    meta["noise_std_8bit"] = round(noise_std * 255, 3)
+    findings.meta["noise_std_8bit"] = round(noise_std * 255, 3)
     if noise_std < NOISE_FREE_STD:
-        warnings.append(
+        findings.warnings.append(
             f"{reference.name}: nearly noise-free; the profile adds noise of std {noise_std * 255:.2f} "
             f"8-bit levels on it (below {NOISE_FREE_STD * 255:.1f})"
         )
     if frames.shape[0] == 1:
-        meta["note"] = (
+        findings.meta["note"] = (
             "single image: temporal banding cannot be told from banding; their split is the network's prior "
             "(what it learned from the training table's ranges), not a measurement"
         )
-    return NoiseEstimate(noise=noise, ranges=ranges, per_crop=found.per_crop, meta=meta, warnings=warnings)
+    ranges = {name: spread for name, spread in found.ranges.items() if name not in replaced}
+    return NoiseEstimate(noise, ranges, found.per_crop, meta=findings.meta, warnings=findings.warnings)
 
 
 def _measure_spectrum(
     reference: torch.Tensor,
     noise: NoiseValues,
-    ranges: dict[str, tuple[Range, ...]],
-    meta: dict[str, Any],
-    warnings: list[str],
     source: str,
     camera_prior: CameraPriorUse | None,
-) -> NoiseValues:
-    """The network's values with the heteroscedastic part and compression replaced by the measured spectrum; the
-    replaced parameters lose their ranges (``apply --jitter`` would otherwise add the network's noise back)."""
+) -> tuple[NoiseValues, tuple[str, ...], Findings]:
+    """The network's values with the heteroscedastic part and compression replaced by the measured spectrum, the
+    names of the replaced parameters, and the findings (the measurement's record is ``meta["spectrum"]``)."""
+    findings = Findings()
     if min(reference.shape[-2:]) < REFINE_MIN_SIDE:
-        warnings.append(
+        findings.warnings.append(
             f"{source}: {reference.shape[-1]}x{reference.shape[-2]} is too small to measure the noise's spectrum on "
             f"(needs {REFINE_MIN_SIDE} px a side); the profile keeps the network's values, which are weaker and "
             "greyer than real noise (docs/spectral-noise.md)"
         )
-        meta["spectrum"] = {"method": "not measured: reference too small"}
-        return noise
+        findings.meta["spectrum"] = {"method": "not measured: reference too small"}
+        return noise, (), findings
     if min(reference.shape[-2:]) < CERTAIN_LEVEL_SIDE:
-        warnings.append(
+        findings.warnings.append(
             f"{source}: {reference.shape[-1]}x{reference.shape[-2]} holds few blocks to measure the noise on (under "
             f"{CERTAIN_LEVEL_SIDE} px a side): the level it measures per channel is unreliable"
         )
@@ -137,14 +144,12 @@ def _measure_spectrum(
     check = check_level(reference[0], measured, network_curve, found.meta["denoiser_strength_8bit"], source)
     measured = measured.replace(level_curve=check.curve.flatten().to(measured["level_curve"]))
     replaced = (*SPECTRUM_REPLACES, "compression")
-    for name in replaced:
-        ranges.pop(name, None)
-    warnings.extend(found.warnings + check.warnings)
-    meta["spectrum"] = found.meta | {
+    findings.warnings += found.warnings + check.warnings
+    findings.meta["spectrum"] = found.meta | {
         "self_check": check.meta,
         "network_values": {name: [round(float(v), 5) for v in noise[name].tolist()] for name in replaced},
     }
-    return measured
+    return measured, replaced, findings
 
 
 def network_level_curve(noise: NoiseValues) -> torch.Tensor:

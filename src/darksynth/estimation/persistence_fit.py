@@ -302,8 +302,9 @@ def video_prior_record(source: str) -> dict[str, object]:
 
 
 def _video_prior(record: dict[str, object], reason: str) -> PersistenceFit:
-    """The fit of a clip whose finest octave neither statistic reads: :data:`VIDEO_PRIOR`, stated."""
-    record.update(video_prior_record("video prior"))
+    """The fit of a clip whose finest octave neither statistic reads: :data:`VIDEO_PRIOR`, stated (with the fit's
+    ``record`` so far)."""
+    record = record | video_prior_record("video prior")
     note = (
         f"the frame-to-frame correlation of the noise cannot be read ({reason}): the video prior "
         f"{VIDEO_PRIOR[0]}-{max(VIDEO_PRIOR)} per octave ({VIDEO_PRIOR_SOURCE})"

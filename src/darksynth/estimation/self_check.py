@@ -280,17 +280,16 @@ def check_level(
 def _unchecked(
     curve: torch.Tensor, network_curve: torch.Tensor, disagreement: float, meta: dict[str, Any], name: str
 ) -> SelfCheck:
-    """No block to check on: a level :data:`NETWORK_DISAGREEMENT` from the network's gives way to it."""
-    meta["result"] = "no flat block with a mean of 8-247 levels to check on"
+    """No block to check on: a level :data:`NETWORK_DISAGREEMENT` from the network's gives way to it; ``meta`` is
+    the check's record so far (a new one is returned)."""
+    meta = meta | {"result": "no flat block with a mean of 8-247 levels to check on"}
     if not _far(curve, network_curve):
-        meta["kept"] = "measurement, unchecked"
-        return SelfCheck(curve, meta, [])
-    meta["kept"] = "network"
+        return SelfCheck(curve, meta | {"kept": "measurement, unchecked"}, [])
     warning = (
         f"{name}: the measured level is {disagreement:.1f}x the network's and no flat block of 8-247 levels can "
         "check it: the profile holds the network's level curve"
     )
-    return SelfCheck(network_curve.clone(), meta, [warning])
+    return SelfCheck(network_curve.clone(), meta | {"kept": "network"}, [warning])
 
 
 def _corrected(
@@ -302,7 +301,7 @@ def _corrected(
     name: str,
 ) -> SelfCheck:
     """A level its check contradicts, scaled to what the check supports, or the network's where that checks
-    better (see :func:`check_level`)."""
+    better (see :func:`check_level`); ``meta`` is the check's record so far (a new one is returned)."""
     corrected, second = curve, first
     for _ in range(CORRECTION_STEPS):
         # A segment's std follows both of its knots, and a knot serves two segments: a few steps settle them.
@@ -314,7 +313,7 @@ def _corrected(
     factors = {
         s: float(v) for s, v in enumerate((corrected / curve.clamp_min(1e-12)).mean(0)[:-1].tolist()) if s in first
     }
-    meta["corrected"] = _describe(second)
+    meta = meta | {"corrected": _describe(second)}
     worst_first = max(first.items(), key=lambda item: abs(math.log(max(item[1].ratio, 1e-12))))
     said = (
         f"{name}: the measured noise put back on the denoised reference gives {worst_first[1].ratio:.2f}x the noise "
@@ -324,24 +323,24 @@ def _corrected(
     if _within(second, FALLBACK_RANGE) and (
         not far or _within(second, CONSISTENT_RANGE) or not _far(corrected, network_curve)
     ):
-        meta["kept"] = "measurement scaled to what the check supports"
         scaled = f"; its level is scaled by {_span(factors)} to what the reference supports (now {_worst(second):.2f}x"
-        return SelfCheck(corrected, meta, [f"{said}{scaled} at worst)"])
+        kept = {"kept": "measurement scaled to what the check supports"}
+        return SelfCheck(corrected, meta | kept, [f"{said}{scaled} at worst)"])
     network = window.checked(network_curve)
-    meta["network"] = _describe(network)
+    meta = meta | {"network": _describe(network)}
     if _worst(network) <= _worst(second):
-        meta["kept"] = "network: the measurement failed its check"
         fallback = (
             f", and scaled to what the reference supports still {_worst(second):.2f}x; the profile holds the "
             f"network's level curve ({_worst(network):.2f}x at worst)"
         )
-        return SelfCheck(network_curve.clone(), meta, [said + fallback])
-    meta["kept"] = "measurement scaled to what the check supports, though it still fails"
+        kept = {"kept": "network: the measurement failed its check"}
+        return SelfCheck(network_curve.clone(), meta | kept, [said + fallback])
     uncertain = (
         f"; scaled by {_span(factors)} it is still {_worst(second):.2f}x at worst (the network's level: "
         f"{_worst(network):.2f}x): the level is uncertain"
     )
-    return SelfCheck(corrected, meta, [said + uncertain])
+    kept = {"kept": "measurement scaled to what the check supports, though it still fails"}
+    return SelfCheck(corrected, meta | kept, [said + uncertain])
 
 
 def over_network(curve: torch.Tensor, network_curve: torch.Tensor, knots: torch.Tensor | None = None) -> float:

@@ -40,6 +40,7 @@ from darksynth.estimation.camera_conditional import (
     prior_octaves,
 )
 from darksynth.estimation.coarse_anchor import ANCHOR_WARM_STEPS, COMPONENT_NAMES, CoarseAnchor
+from darksynth.estimation.findings import Findings
 from darksynth.estimation.flat_blocks import (
     CLIPPED_SHARE,
     MIN_LEVEL_BLOCKS,
@@ -175,7 +176,6 @@ def estimate_spectrum(
         The parameters (``level_curve``, ``octave_power``, ``octave_correlation``, ``temporal_correlation``,
         ``compression``) and a record of the measurement for the profile's ``meta``, with warnings.
     """
-    warnings: list[str] = []
     reference = reference.to(torch.float32)
     clip = reference.shape[0] >= 2
     frames = reference[:TEMPORAL_FRAMES] if clip else reference[:1]
@@ -185,91 +185,89 @@ def estimate_spectrum(
     denoised = nlm_denoise(frames, strength)
     unclipped = clipped_share(frames) <= CLIPPED_SHARE
     mask, flat_gradient = flat_mask(denoised[0], unclipped)
-    meta: dict[str, Any] = {
-        "method": "blind spectral measurement (docs/spectral-noise.md): non-local-means residual on the flat "
-        "unclipped blocks of each intensity, band-passed per octave, corrected by re-synthesis on the denoised "
-        "reference",
-        "window": [top, left, height, width],
-        "frames": int(frames.shape[0]),
-        "denoiser_strength_8bit": round(strength, 3),
-        "flat_block_gradient_8bit": round(flat_gradient * 255, 3),
-        "unclipped_blocks": f"{int(unclipped.sum())} of {unclipped.numel()}",
-    }
+    findings = Findings(
+        {
+            "method": "blind spectral measurement (docs/spectral-noise.md): non-local-means residual on the flat "
+            "unclipped blocks of each intensity, band-passed per octave, corrected by re-synthesis on the denoised "
+            "reference",
+            "window": [top, left, height, width],
+            "frames": int(frames.shape[0]),
+            "denoiser_strength_8bit": round(strength, 3),
+            "flat_block_gradient_8bit": round(flat_gradient * 255, 3),
+            "unclipped_blocks": f"{int(unclipped.sum())} of {unclipped.numel()}",
+        }
+    )
     if flat_gradient > TEXTURED_GRADIENT:
-        warnings.append(
+        findings.warnings.append(
             f"{name}: no flat region (its flattest blocks still have a gradient of {flat_gradient * 255:.1f} 8-bit "
             "levels per pixel): fine texture may be read as noise, the level may be too high"
         )
-    temporal_mask = still_flat_mask(frames, denoised, mask, strength, seed, meta, warnings, name) if clip else None
-    if not clip:
-        meta["temporal_prior"] = "single image: frame-to-frame correlation of the noise not measurable; prior 0"
-    # Moving pixels carry the scene's change, not the noise's persistence: a clip is read on its still blocks.
-    measured_mask = temporal_mask if temporal_mask is not None else mask
-    analysed = frames if temporal_mask is not None else frames[:1]
-    analysed_denoised = denoised if temporal_mask is not None else denoised[:1]
-    target = measure(analysed - analysed_denoised, analysed_denoised, measured_mask)
-    measured_knots = ~torch.isnan(target.knot_variance).expand(3, -1)
-    resynthesis = _Resynthesis(analysed, analysed_denoised, measured_mask, strength, seed)
-    fitted = _fit(resynthesis, target, meta, measured_knots, prior_curve, camera_prior)
-    warnings += readability_warnings(meta, fitted.curve, measured_knots, name)
-    fitted.curve = level_checks(
-        fitted.curve, measured_knots, prior_curve, int(unclipped.sum()) >= MIN_LEVEL_BLOCKS, meta, warnings, name
+    resynthesis, still = _analysed(frames, denoised, mask, strength, seed, name)
+    findings.include(still)
+    target = measure(resynthesis.analysed - resynthesis.denoised, resynthesis.denoised, resynthesis.mask)
+    fitted, measured_knots, fit = _fit(resynthesis, target, prior_curve, camera_prior)
+    findings.include(fit)
+    findings.warnings += readability_warnings(fit.meta, fitted.curve, measured_knots, name)
+    enough_blocks = int(unclipped.sum()) >= MIN_LEVEL_BLOCKS
+    fitted.curve, level = level_checks(fitted.curve, measured_knots, prior_curve, enough_blocks, name)
+    findings.include(level)
+    findings.meta["strength_over_fitted_noise"] = round(
+        strength / fitted_noise_8bit(fitted.curve, denoised[0], mask), 3
     )
-    meta["strength_over_fitted_noise"] = round(strength / fitted_noise_8bit(fitted.curve, denoised[0], mask), 3)
-    fitted.temporal, repeat = _temporal(resynthesis, fitted, target.temporal is not None, clip, meta, warnings, name)
-    values = _values(fitted, meta, camera_prior) | {"codec_repeat": torch.tensor([repeat], dtype=torch.float64)}
-    return SpectrumEstimate(values=values, meta=meta, warnings=warnings)
+    compression = fit.meta["compression_chosen"]
+    fitted.temporal, repeat, temporal = _temporal(
+        resynthesis, fitted, compression, still=target.temporal is not None, clip=clip, name=name
+    )
+    findings.include(temporal)
+    values = _values(fitted, compression, camera_prior) | {"codec_repeat": torch.tensor([repeat], dtype=torch.float64)}
+    return SpectrumEstimate(values=values, meta=findings.meta, warnings=findings.warnings)
 
 
-def _values(fitted: SpectralParameters, meta: dict[str, Any], camera_prior: CameraPriorUse | None) -> dict[str, Any]:
+def _analysed(
+    frames: torch.Tensor, denoised: torch.Tensor, mask: torch.Tensor, strength: float, seed: int, name: str
+) -> tuple[_Resynthesis, Findings]:
+    """What the fit reads: a clip's frames on the flat blocks that stay still through them (moving pixels carry the
+    scene's change, not the noise's persistence), else the first frame on its flat blocks."""
+    if frames.shape[0] == 1:
+        single = Findings(
+            {"temporal_prior": "single image: frame-to-frame correlation of the noise not measurable; prior 0"}
+        )
+        return _Resynthesis(frames, denoised, mask, strength, seed), single
+    still_mask, findings = still_flat_mask(frames, denoised, mask, strength, seed, name)
+    if still_mask is None:
+        return _Resynthesis(frames[:1], denoised[:1], mask, strength, seed), findings
+    return _Resynthesis(frames, denoised, still_mask, strength, seed), findings
+
+
+def _values(fitted: SpectralParameters, compression: float, camera_prior: CameraPriorUse | None) -> dict[str, Any]:
     """The table's values of a fit: its spectrum, the JPEG strength it chose and the texture dependence the camera
     prior expects."""
-    values = fitted.as_values() | {"compression": torch.tensor([meta["compression_chosen"]], dtype=torch.float64)}
+    values = fitted.as_values() | {"compression": torch.tensor([compression], dtype=torch.float64)}
     if camera_prior is not None:
         values |= expected_texture(values, camera_prior.prior)
     return values
 
 
 def _temporal(
-    resynthesis: _Resynthesis,
-    fitted: SpectralParameters,
-    still: bool,
-    clip: bool,
-    meta: dict[str, Any],
-    warnings: list[str],
-    name: str,
-) -> tuple[torch.Tensor, float]:
-    """The frame-to-frame correlation per octave: read on a clip's ``still`` blocks over 3 or more frames, the
-    fit's on 2, the video prior for a clip with no still block, 0 for a single image; and the share of still cells
-    a codec repeats (read with the persistence, else 0)."""
+    resynthesis: _Resynthesis, fitted: SpectralParameters, compression: float, *, still: bool, clip: bool, name: str
+) -> tuple[torch.Tensor, float, Findings]:
+    """The frame-to-frame correlation per octave: read on a clip's ``still`` blocks over 3 or more frames (from
+    frame differences, :mod:`darksynth.estimation.persistence_fit`, in place of the residual's correlation the fit
+    moved; where that cannot be read, the video prior with a warning), the fit's on 2, the video prior for a clip
+    with no still block, 0 for a single image; and the share of still cells a codec repeats (read with the
+    persistence, else 0)."""
     if still and resynthesis.analysed.shape[0] >= 3:
-        return _persistence(resynthesis, fitted, meta, warnings, name)
+        analysed, denoised, mask, seed = resynthesis.analysed, resynthesis.denoised, resynthesis.mask, resynthesis.seed
+        persistence = fit_persistence(analysed, denoised, mask, fitted, compression, seed)
+        notes = [f"{name}: {note}" for note in persistence.notes]
+        return persistence.coefficient, persistence.codec_repeat, Findings(persistence.record, notes)
     if still:
-        return fitted.temporal, 0.0
+        return fitted.temporal, 0.0, Findings()
     if clip:
         # A clip whose blocks all move shows nothing of its noise's persistence; a video's is not independent frames.
-        meta.update(video_prior_record("video prior: no flat block stays still"))
-        return torch.tensor(VIDEO_PRIOR, dtype=torch.float64), 0.0
-    return torch.zeros(OCTAVES, dtype=torch.float64), 0.0
-
-
-def _persistence(
-    resynthesis: _Resynthesis, fitted: SpectralParameters, meta: dict[str, Any], warnings: list[str], name: str
-) -> tuple[torch.Tensor, float]:
-    """The frame-to-frame correlation per octave read from frame differences of the still blocks
-    (:mod:`darksynth.estimation.persistence_fit`), in place of the residual's correlation the fit moved; where it
-    cannot be read, the video prior, stated in ``meta.persistence_prior`` and a warning."""
-    persistence = fit_persistence(
-        resynthesis.analysed,
-        resynthesis.denoised,
-        resynthesis.mask,
-        fitted,
-        meta["compression_chosen"],
-        resynthesis.seed,
-    )
-    meta.update(persistence.record)
-    warnings.extend(f"{name}: {note}" for note in persistence.notes)
-    return persistence.coefficient, persistence.codec_repeat
+        prior = Findings(video_prior_record("video prior: no flat block stays still"))
+        return torch.tensor(VIDEO_PRIOR, dtype=torch.float64), 0.0, prior
+    return torch.zeros(OCTAVES, dtype=torch.float64), 0.0, Findings()
 
 
 @dataclass
@@ -320,18 +318,18 @@ class _Resynthesis:
         return simulate_and_measure
 
 
-def _first_unmeasured_octave(resynthesis: _Resynthesis, start: SpectralParameters, meta: dict[str, Any]) -> int:
+def _first_unmeasured_octave(resynthesis: _Resynthesis, start: SpectralParameters) -> tuple[int, dict[str, Any]]:
     """The finest octave the reference cannot show (:data:`OCTAVES` when it shows them all), probed on its first
-    frame, with the responses and the prior's note in ``meta``."""
+    frame, with the responses and the prior's note for ``meta``."""
     responses = octave_responses(resynthesis.simulator(0.0, 1), start)
     first_unmeasured = next((k for k in PROBED_OCTAVES if responses[k] < MIN_RESPONSE), OCTAVES)
-    meta["octave_response"] = [round(float(r), 3) for r in responses]
+    meta: dict[str, Any] = {"octave_response": [round(float(r), 3) for r in responses]}
     if first_unmeasured < OCTAVES:
         meta["octave_prior"] = (
             f"octaves {first_unmeasured + 1}-{OCTAVES} (wavelengths from {2 ** (first_unmeasured + 1.5):.0f} px) "
             "barely move this reference's statistics: they continue the finer octaves' spectrum"
         )
-    return first_unmeasured
+    return first_unmeasured, meta
 
 
 def read_octaves(first_unmeasured: int, *, colour_anchored: bool) -> dict[str, int]:
@@ -425,16 +423,15 @@ def _prior_note(camera_prior: CameraPriorUse, first_prior: int) -> dict[str, Any
 def _fit(
     resynthesis: _Resynthesis,
     target: SpectralStatistics,
-    meta: dict[str, Any],
-    measured_knots: torch.Tensor,
     prior_curve: torch.Tensor | None,
     camera_prior: CameraPriorUse | None,
-) -> SpectralParameters:
+) -> tuple[SpectralParameters, torch.Tensor, Findings]:
     """The fit by re-synthesis on the denoised frames: the octaves the reference shows probed, each JPEG strength
     fitted on the first frame, the knots probed at the best, which is fitted further on all analysed frames with the
-    coarse colour anchored; the choices and what was left over in ``meta``. ``measured_knots`` (C, 8) loses the
-    knots the probe finds unresponsive, in place (the caller checks the level against them)."""
+    coarse colour anchored. Returns the fit, the knots (C, 8) the target measures and the probe finds responsive (the
+    caller checks the level against them), and the choices and what was left over."""
     analysed, denoised = resynthesis.analysed, resynthesis.denoised
+    measured_knots = ~torch.isnan(target.knot_variance).expand(3, -1)  # narrowed by the probe, read by the constraint
 
     def constrain_curve(parameters: SpectralParameters) -> SpectralParameters:
         if prior_curve is not None:
@@ -447,10 +444,9 @@ def _fit(
     spatial_target = (
         target if analysed.shape[0] == 1 else measure(analysed[:1] - denoised[:1], denoised[:1], resynthesis.mask)
     )
-    first_unmeasured = _first_unmeasured_octave(resynthesis, start, meta)
+    first_unmeasured, meta = _first_unmeasured_octave(resynthesis, start)
     anchor = CoarseAnchor.read(analysed[0], denoised[0], resynthesis.mask, first_unmeasured)
     anchored = first_unmeasured < OCTAVES and anchor.readable
-
     if camera_prior is not None:
         first_prior = prior_first_octave(first_unmeasured)
         meta["camera_prior"] = _prior_note(camera_prior, first_prior)
@@ -489,4 +485,4 @@ def _fit(
     meta["level_by_compression_8bit"] = {str(c): round(mean_level(fits[c].curve, measured_knots), 3) for c in fits}
     meta["compression_chosen"] = chosen
     meta["mismatch"] = round(left_over, 4)
-    return fitted
+    return fitted, measured_knots, Findings(meta)

@@ -11,6 +11,7 @@ import torch
 import torch.nn.functional as F
 
 from darksynth.estimation.coarse_anchor import ANCHOR_SCALE_RANGE
+from darksynth.estimation.findings import Findings
 from darksynth.estimation.flat_blocks import FLAT_BLOCK
 from darksynth.estimation.self_check import far_from_network, over_network
 from darksynth.noise.spectral import level_std
@@ -27,36 +28,34 @@ def level_checks(
     measured: torch.Tensor,
     prior_curve: torch.Tensor | None,
     level_measured: bool,
-    meta: dict[str, Any],
-    warnings: list[str],
     name: str,
-) -> torch.Tensor:
-    """The fitted level curve (3, 8) std, or the network's where the reference showed no unclipped block, with the
-    comparison of the two in ``meta`` and a warning where they disagree by more than
+) -> tuple[torch.Tensor, Findings]:
+    """The fitted level curve (3, 8) std, or the network's where the reference showed no unclipped block, with
+    findings that compare the two and warn where they disagree by more than
     :data:`~darksynth.estimation.self_check.NETWORK_DISAGREEMENT` (at the measured knots)."""
-    meta["measured_knots"] = [[bool(k) for k in channel] for channel in measured.tolist()]
+    findings = Findings({"measured_knots": [[bool(k) for k in channel] for channel in measured.tolist()]})
     if prior_curve is None:
-        return curve
+        return curve, findings
     prior_curve = prior_curve.to(curve)
-    meta["network_level_curve_8bit"] = [[round(float(v) * 255, 3) for v in c] for c in prior_curve]
+    findings.meta["network_level_curve_8bit"] = [[round(float(v) * 255, 3) for v in c] for c in prior_curve]
     if not level_measured:
-        warnings.append(
+        findings.warnings.append(
             f"{name}: no block free of clipped pixels (crushed black or saturated): the noise level could not be "
             "measured; the profile holds the network's level curve"
         )
-        meta["level_source"] = "network: no unclipped block to measure on"
-        return prior_curve.clone()
-    meta["level_source"] = "measured on unclipped blocks; unmeasured knots follow the network's curve"
+        findings.meta["level_source"] = "network: no unclipped block to measure on"
+        return prior_curve.clone(), findings
+    findings.meta["level_source"] = "measured on unclipped blocks; unmeasured knots follow the network's curve"
     if bool(measured.any()):
         ratio = over_network(curve, prior_curve, measured)
         if far_from_network(ratio):
             levels = [float(curve[measured].mean()) * 255, float(prior_curve[measured].mean()) * 255]
-            warnings.append(
+            findings.warnings.append(
                 f"{name}: the measured noise level ({levels[0]:.2f} 8-bit levels) and the network's "
                 f"({levels[1]:.2f}) differ by {max(ratio, 1 / ratio):.1f}x at the intensities the reference shows "
                 "(the self-check decides which the profile keeps)"
             )
-    return curve
+    return curve, findings
 
 
 def fitted_noise_8bit(curve: torch.Tensor, denoised: torch.Tensor, mask: torch.Tensor) -> float:

@@ -3,11 +3,10 @@ be read (moving pixels carry the scene's change, not the noise's persistence).""
 
 from __future__ import annotations
 
-from typing import Any
-
 import torch
 import torch.nn.functional as F
 
+from darksynth.estimation.findings import Findings
 from darksynth.estimation.flat_blocks import FLAT_BLOCK, blocks_to_mask
 from darksynth.estimation.nonlocal_means import nlm_denoise
 from darksynth.estimation.spectral_fit import initial_parameters, quantised
@@ -56,12 +55,10 @@ def still_flat_mask(
     mask: torch.Tensor,
     strength: float,
     seed: int,
-    meta: dict[str, Any],
-    warnings: list[str],
     name: str,
-) -> torch.Tensor | None:
+) -> tuple[torch.Tensor | None, Findings]:
     """The measured blocks of a clip that stay still over its frames, as a pixel mask; None (with a warning) when
-    fewer than :data:`MIN_STILL_BLOCKS` do."""
+    fewer than :data:`MIN_STILL_BLOCKS` do. The findings hold the stillness threshold and the count."""
     height, width = frames.shape[-2:]
     first = initial_parameters(measure(frames[:1] - denoised[:1], denoised[:1], mask))
     first_values = NoiseValues.from_values(first.as_values(), dtype=torch.float32)
@@ -69,21 +66,21 @@ def still_flat_mask(
         STILL_CHANGE,
         STILL_NOISE_FACTOR * noise_only_change(denoised[:1], first_values, frames.shape[0], strength, seed=seed),
     )
-    meta["still_threshold_8bit"] = round(threshold * 255, 3)
+    findings = Findings({"still_threshold_8bit": round(threshold * 255, 3)})
     still = block_change(denoised) < threshold
     flat = F.avg_pool2d(mask[None, None], FLAT_BLOCK)[0, 0] > 0.5
     both = still[: flat.shape[0], : flat.shape[1]] & flat
-    meta["still_flat_blocks"] = int(both.sum())
+    findings.meta["still_flat_blocks"] = int(both.sum())
     if int(both.sum()) < MIN_STILL_BLOCKS:
-        warnings.append(
+        findings.warnings.append(
             f"{name}: only {int(both.sum())} flat blocks stay still over {frames.shape[0]} frames (the camera "
             "or the scene moves): the frame-to-frame correlation of the noise is the video prior (what the shared real "
             "night clips read; docs/spectral-noise.md)"
         )
-        return None
+        return None, findings
     if frames.shape[0] == 2:
-        warnings.append(
+        findings.warnings.append(
             f"{name}: 2 frames: the frame-to-frame correlation of the noise is read on one pair of frames "
             "(uncertain; give more frames)"
         )
-    return blocks_to_mask(both, height, width)
+    return blocks_to_mask(both, height, width), findings
