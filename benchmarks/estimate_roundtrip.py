@@ -74,6 +74,8 @@ MEASUREMENT_KEYS = (
     "knot_response",
     "compression_chosen",
     "compression_scores",
+    "read_octaves",
+    "coarse_anchor",
     "level_by_compression_8bit",
 )
 """What each case keeps of the estimate's record of its measurement (``meta.spectrum``), to tell why it missed."""

@@ -1,10 +1,12 @@
-"""The coarse anchor's statistic: the odds of a flat block's noise that survive averaging into coarse means."""
+"""The coarse anchor: its statistic (the odds of a flat block's noise that survive averaging into coarse means) and
+what it says it read."""
 
 import torch
 import torch.nn.functional as F
 
-from darksynth.estimation.coarse_anchor import anchor_pool, coarse_odds
+from darksynth.estimation.coarse_anchor import CoarseAnchor, anchor_pool, coarse_odds
 from darksynth.estimation.flat_blocks import FLAT_BLOCK
+from darksynth.estimation.spectrum import _anchor_outcome
 
 
 def _flat_noise(side: int, std: float, seed: int, blur: float = 0.0) -> torch.Tensor:
@@ -60,3 +62,28 @@ def test_only_the_chosen_blocks_are_read() -> None:
     blocks = torch.zeros(4, 4, dtype=torch.bool)
     blocks[1, 2] = blocks[3, 0] = True
     assert coarse_odds(frame, blocks, 8).shape == (3, 2)
+
+
+def _anchor() -> CoarseAnchor:
+    frame = _flat_noise(128, 4.0 / 255.0, 11)
+    return CoarseAnchor.read(frame, frame, torch.ones(128, 128), first_unmeasured=3)
+
+
+def test_an_anchor_that_only_saw_empty_statistics_read_nothing_and_says_so() -> None:
+    # Weak noise erased by JPEG and 8-bit rounding leaves a simulated colour statistic of 0: the update is skipped.
+    anchor = _anchor()
+    assert anchor.readable and not anchor.observed
+    anchor.last = torch.tensor([0.5, 0.0, 0.3], dtype=torch.float64)
+    anchor.update()
+    assert not anchor.observed and torch.equal(anchor.scale, torch.ones(3, dtype=torch.float64))
+    unmatched, meta = _anchor_outcome(anchor, True, 3)
+    assert unmatched == [] and meta["coarse_anchor"].startswith("not read")
+    assert meta["read_octaves"] == {"brightness": 3, "colour": 3}  # colour not counted one octave further
+    # Statistics that follow the scale: the anchor moves and the colour octave it anchors counts as read.
+    anchor.last = anchor.target / 2.0
+    anchor.update()
+    anchor.last = anchor.target * 0.95
+    anchor.update()
+    assert anchor.observed and bool((anchor.scale[1:] > 1.0).all()) and float(anchor.scale[0]) == 1.0
+    _, meta = _anchor_outcome(anchor, True, 3)
+    assert "coarse_anchor" not in meta and meta["read_octaves"] == {"brightness": 3, "colour": 4}

@@ -145,6 +145,13 @@ class CoarseAnchor:
         synthetic = quantised(add_noise(signal[None, None], values, generator=generator)[0, 0])
         return anchor_statistic(coarse_odds(synthetic, self.blocks, self.pool))
 
+    @property
+    def observed(self) -> bool:
+        """Whether an update moved the scale on a simulation. A simulated statistic of 0 in any component is skipped
+        (weak noise that JPEG and 8-bit rounding erase leaves no colour on a quarter of the flat blocks), and an
+        anchor that only ever saw such statistics holds the prior: it read nothing."""
+        return self.first is not None
+
     def update(self) -> None:
         """Move ``scale`` by the ratio of the target to the last simulation (bounded per step and overall)."""
         if self.last is not None and bool((self.last > 0.0).all()):

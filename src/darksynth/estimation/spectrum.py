@@ -332,6 +332,22 @@ def _first_unmeasured_octave(resynthesis: _Resynthesis, start: SpectralParameter
     return first_unmeasured, meta
 
 
+def _anchor_outcome(anchor: CoarseAnchor, anchored: bool, first_unmeasured: int) -> tuple[list[int], dict[str, Any]]:
+    """The colour components released to the prior (:meth:`CoarseAnchor.unmatched`) and what ``meta`` says of the
+    anchor: their scales before the release (one at a bound warns), an anchor that read nothing, the octaves read."""
+    unmatched = anchor.unmatched() if anchored else []
+    meta: dict[str, Any] = {}
+    if unmatched:
+        meta["coarse_octave_prior"] = {COMPONENT_NAMES[k]: round(float(anchor.scale[k]), 3) for k in unmatched}
+        anchor.release(unmatched)
+    meta["coarse_octave_scale"] = [round(float(v), 3) for v in anchor.scale]
+    if anchored and not anchor.observed:
+        meta["coarse_anchor"] = "not read: no simulation left a colour statistic to match; the prior stands"
+    colour_read = anchored and anchor.observed and not unmatched
+    meta["read_octaves"] = read_octaves(first_unmeasured, colour_anchored=colour_read)
+    return unmatched, meta
+
+
 def read_octaves(first_unmeasured: int, *, colour_anchored: bool) -> dict[str, int]:
     """How many octaves of the spectral model, from the finest, the reference's own statistics set, per component
     (``brightness``, ``colour``); the coarser ones are the prior (the finer octaves' spectrum continued). Brightness
@@ -473,14 +489,10 @@ def _fit(
     fitted, left_over = _anchored_fit(
         resynthesis, target, fits[chosen], chosen, anchor if anchored else None, constrain
     )
-    unmatched = anchor.unmatched() if anchored else []
+    unmatched, outcome = _anchor_outcome(anchor, anchored, first_unmeasured)
     if unmatched:
-        # The scale each released component had: a fit that ran to a bound of its range is worth a warning.
-        meta["coarse_octave_prior"] = {COMPONENT_NAMES[k]: round(float(anchor.scale[k]), 3) for k in unmatched}
-        anchor.release(unmatched)
         fitted = constrain(fitted)  # the released components continue the finer octaves again
-    meta["coarse_octave_scale"] = [round(float(v), 3) for v in anchor.scale]
-    meta["read_octaves"] = read_octaves(first_unmeasured, colour_anchored=anchored and not unmatched)
+    meta |= outcome
     meta["compression_scores"] = {str(c): round(v, 4) for c, v in scores.items()}
     meta["level_by_compression_8bit"] = {str(c): round(mean_level(fits[c].curve, measured_knots), 3) for c in fits}
     meta["compression_chosen"] = chosen
