@@ -6,7 +6,7 @@ import torch.nn.functional as F
 
 from darksynth.estimation.coarse_anchor import CoarseAnchor, anchor_pool, coarse_odds
 from darksynth.estimation.flat_blocks import FLAT_BLOCK
-from darksynth.estimation.spectrum import _anchor_outcome
+from darksynth.estimation.spectrum import anchor_outcome
 
 
 def _flat_noise(side: int, std: float, seed: int, blur: float = 0.0) -> torch.Tensor:
@@ -76,7 +76,7 @@ def test_an_anchor_that_only_saw_empty_statistics_read_nothing_and_says_so() -> 
     anchor.last = torch.tensor([0.5, 0.0, 0.3], dtype=torch.float64)
     anchor.update()
     assert not anchor.observed and torch.equal(anchor.scale, torch.ones(3, dtype=torch.float64))
-    unmatched, meta = _anchor_outcome(anchor, True, 3)
+    unmatched, meta = anchor_outcome(anchor, True, 3)
     assert unmatched == [] and meta["coarse_anchor"].startswith("not read")
     assert meta["read_octaves"] == {"brightness": 3, "colour": 3}  # colour not counted one octave further
     # Statistics that follow the scale: the anchor moves and the colour octave it anchors counts as read.
@@ -85,5 +85,5 @@ def test_an_anchor_that_only_saw_empty_statistics_read_nothing_and_says_so() -> 
     anchor.last = anchor.target * 0.95
     anchor.update()
     assert anchor.observed and bool((anchor.scale[1:] > 1.0).all()) and float(anchor.scale[0]) == 1.0
-    _, meta = _anchor_outcome(anchor, True, 3)
+    _, meta = anchor_outcome(anchor, True, 3)
     assert "coarse_anchor" not in meta and meta["read_octaves"] == {"brightness": 3, "colour": 4}

@@ -332,7 +332,7 @@ def _first_unmeasured_octave(resynthesis: _Resynthesis, start: SpectralParameter
     return first_unmeasured, meta
 
 
-def _anchor_outcome(anchor: CoarseAnchor, anchored: bool, first_unmeasured: int) -> tuple[list[int], dict[str, Any]]:
+def anchor_outcome(anchor: CoarseAnchor, anchored: bool, first_unmeasured: int) -> tuple[list[int], dict[str, Any]]:
     """The colour components released to the prior (:meth:`CoarseAnchor.unmatched`) and what ``meta`` says of the
     anchor: their scales before the release (one at a bound warns), an anchor that read nothing, the octaves read."""
     unmatched = anchor.unmatched() if anchored else []
@@ -489,7 +489,7 @@ def _fit(
     fitted, left_over = _anchored_fit(
         resynthesis, target, fits[chosen], chosen, anchor if anchored else None, constrain
     )
-    unmatched, outcome = _anchor_outcome(anchor, anchored, first_unmeasured)
+    unmatched, outcome = anchor_outcome(anchor, anchored, first_unmeasured)
     if unmatched:
         fitted = constrain(fitted)  # the released components continue the finer octaves again
     meta |= outcome
