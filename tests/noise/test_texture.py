@@ -15,8 +15,10 @@ from scipy.ndimage import gaussian_filter
 from darksynth.evaluation.measures.texture_ratio import textured_flat_ratio
 from darksynth.light.darkening import Darkening
 from darksynth.models.statistics import model_statistics
+from darksynth.noise import frame_routes
 from darksynth.noise.components import model_parameters, noise_parameter, profile_version
 from darksynth.noise.spectral_components import spectral_clips
+from darksynth.noise.spectral_kernel import spectral_ar_mix_kernel, spectral_mix_kernel, spectral_pixel_kernel
 from darksynth.noise.texture import (
     DETAIL_BLUR_SIGMA,
     DETAIL_WINDOW_SIGMA,
@@ -95,18 +97,35 @@ def test_a_texture_scale_alone_changes_nothing_and_a_gain_does() -> None:
     assert all(textured[case] != plain[case] for case in plain)
 
 
-def test_a_texture_gain_takes_the_eager_spectral_pass_not_the_compiled_kernels_and_streams() -> None:
+def _eager_kernels(monkeypatch: pytest.MonkeyPatch) -> None:
+    """The compiled route with its kernels run eagerly: the compiled ones' values (tests/noise/test_spectral_kernel.py),
+    in a test's time."""
+    eager = (spectral_mix_kernel, spectral_ar_mix_kernel, spectral_pixel_kernel)
+    monkeypatch.setattr(frame_routes, "compiled_spectral_kernels", lambda: eager)
+
+
+@pytest.mark.parametrize("compile", [True, False], ids=["compiled", "eager"])
+def test_a_texture_gain_draws_stronger_noise_on_texture_through_either_spectral_route(
+    monkeypatch: pytest.MonkeyPatch, compile: bool
+) -> None:
+    _eager_kernels(monkeypatch)
     plain = NoiseValues.from_values(SPECTRAL_VALUES)  # type: ignore[arg-type]
-    parameters = ClipParameters(plain.replace(texture_scale=0.003), Darkening(0.3, 1.0))
-    assert ClipSynthesizer(parameters).route_name == "spectral"
     textured = ClipParameters(plain.replace(texture_gain=1.0, texture_scale=0.003), Darkening(0.3, 1.0))
-    stream = ClipSynthesizer(textured, generator=torch.Generator().manual_seed(2), compile=True)
-    assert stream.route_name == "spectral"
+    stream = ClipSynthesizer(textured, generator=torch.Generator().manual_seed(2), compile=compile)
+    route = "compiled spectral" if compile else "spectral"
+    assert stream.route_name == route
     clean = (scene(3, 128, 160) * 255.0).round().to(torch.uint8)
     frames = torch.stack([stream(frame) for frame in clean]).double() / 255.0
+    assert stream.route_name == route  # drawn by that route, without falling back
     darkened = 0.3 * clean.double() / 255.0
     # The right half holds a fine grating, the left half smooth shading: the noise is stronger on the grating.
     assert textured_flat_ratio(frames - darkened, darkened) > 1.5
+    # A texture scale without a gain takes the same route and draws no texture factor.
+    untextured = ClipParameters(plain.replace(texture_scale=0.003), Darkening(0.3, 1.0))
+    stream = ClipSynthesizer(untextured, generator=torch.Generator().manual_seed(2), compile=compile)
+    frames = torch.stack([stream(frame) for frame in clean]).double() / 255.0
+    assert stream.route_name == route
+    assert textured_flat_ratio(frames - darkened, darkened) < 1.2
 
 
 def test_the_network_neither_reads_nor_predicts_texture() -> None:

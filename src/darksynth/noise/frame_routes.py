@@ -155,7 +155,6 @@ class SpectralRoute:
         columns = state.columns(frame.shape) if column_components_active(values) else None
         if self._pass is None:
             channels, height, width = frame.shape
-            textured = not values.is_neutral(noise_parameter("texture_gain"))
             self._pass = SpectralPixelPass(
                 channels,
                 height,
@@ -164,7 +163,7 @@ class SpectralRoute:
                 values["level_curve"],
                 values.scalar("quantization"),
                 device=state.device,
-                texture=(values.scalar("texture_gain"), values.scalar("texture_scale")) if textured else None,
+                texture=_texture(values),
             )
         grid = clip_grid(
             octave_covariances(values["octave_power"], values["octave_correlation"]),
@@ -185,8 +184,8 @@ class SpectralRoute:
 
 
 class CompiledSpectralRoute:
-    """The spectral model's law through compiled kernels (counter-based draws); they do not draw the texture factor,
-    so a textured profile never takes it. Where compiling fails, the stream goes on through :class:`SpectralRoute`."""
+    """The spectral model's law through compiled kernels (counter-based draws), the texture factor included. Where
+    compiling fails, the stream goes on through :class:`SpectralRoute`."""
 
     def __init__(self, state: ClipState, darkening: Darkening | None) -> None:
         self.state, self.darkening = state, darkening
@@ -223,6 +222,7 @@ class CompiledSpectralRoute:
                     ar_mix=ar_mix,
                     pixel=pixel,
                     device=state.device,
+                    texture=_texture(values),
                 )
             out = self._stream(frame, state.generator, columns)
         except Exception as error:
@@ -256,8 +256,11 @@ def _spectral(values: NoiseValues) -> bool:
     )
 
 
-def _textured(values: NoiseValues) -> bool:
-    return not values.is_neutral(noise_parameter("texture_gain"))
+def _texture(values: NoiseValues) -> tuple[float, float] | None:
+    """(``texture_gain``, ``texture_scale``) of a profile whose noise follows texture, else None."""
+    if values.is_neutral(noise_parameter("texture_gain")):
+        return None
+    return values.scalar("texture_gain"), values.scalar("texture_scale")
 
 
 @dataclass(frozen=True)
@@ -272,7 +275,7 @@ class Route:
 ROUTES: tuple[Route, ...] = (
     Route(lambda values, _: covered_by(values, FAST_PATH), lambda s, d, c: FusedRoute(s, d, compile=c)),
     Route(
-        lambda values, compile: compile and _spectral(values) and not _textured(values),
+        lambda values, compile: compile and _spectral(values),
         lambda s, d, _: CompiledSpectralRoute(s, d),
     ),
     Route(lambda values, _: _spectral(values), lambda s, d, _: SpectralRoute(s, d)),

@@ -34,7 +34,8 @@ from darksynth.noise.counter_rng import byte_from_word, first_word, flat_index, 
 from darksynth.noise.fused_8bit import FULL_SCALE, compiled_function
 from darksynth.noise.quantization import QUANTIZATION_LEVELS
 from darksynth.noise.spectral import crop_unit, spectral_tables
-from darksynth.noise.spectral_8bit import LEVELS, level_tables
+from darksynth.noise.spectral_8bit import LEVELS, level_tables, read_levels
+from darksynth.noise.texture import texture_modulation
 
 
 def _white(key: torch.Tensor, channels: int, rows: int, values: int) -> torch.Tensor:
@@ -140,6 +141,7 @@ class SpectralKernelStream:
         mix, ar_mix, pixel: :func:`spectral_mix_kernel`, :func:`spectral_ar_mix_kernel` and
             :func:`spectral_pixel_kernel`, compiled (or not, for tests).
         device: where the frames are.
+        texture: (``texture_gain``, ``texture_scale``) when the noise follows texture, else None.
     """
 
     def __init__(
@@ -155,6 +157,7 @@ class SpectralKernelStream:
         ar_mix: Callable[..., tuple[torch.Tensor, torch.Tensor]],
         pixel: Kernel,
         device: torch.device,
+        texture: tuple[float, float] | None = None,
     ) -> None:
         channels, self.height, self.width = shape
         # The eager path's cached tables: a stream of either kind builds them once.
@@ -166,6 +169,9 @@ class SpectralKernelStream:
         self.no_columns = torch.zeros((channels, 1, self.width), dtype=torch.float32, device=device)
         self._mix, self._ar_mix, self._pixel = mix, ar_mix, pixel
         self._state: torch.Tensor | None = None
+        self.texture = texture
+        # The darkened frame the texture factor is read on (the eager pass's own signal array, reused).
+        self._signal = torch.empty(shape, dtype=torch.float32, device=device) if texture is not None else None
 
     def __call__(
         self, frame: torch.Tensor, generator: torch.Generator | None, column_pattern: torch.Tensor | None
@@ -186,12 +192,19 @@ class SpectralKernelStream:
         spectrum = torch.view_as_complex(mixed.view(*mixed.shape[:2], -1, 2))
         field = torch.fft.irfft2(spectrum, s=(tables.grid_height, tables.grid_width))
         columns = self.no_columns if column_pattern is None else column_pattern
+        frame = frame.contiguous()
+        unit = crop_unit(field, self.height, self.width)
+        if self.texture is not None and self._signal is not None:
+            # The std's texture factor, read as the composer reads it: on the darkened frame before the columns.
+            # std * (unit * factor) is the kernel's std * unit with the factor on the std.
+            darkened = read_levels(frame, self.signal_table, self._signal)
+            unit = unit * texture_modulation(darkened, *self.texture)
         return self._pixel(
-            frame.contiguous(),
+            frame,
             random_key(generator).to(frame.device),
             self.signal_table,
             self.std_table,
-            crop_unit(field, self.height, self.width),
+            unit,
             self.quantization_step,
             columns,
         )
