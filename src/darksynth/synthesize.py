@@ -66,7 +66,7 @@ class ClipSynthesizer:
         self.generator = generator
         self.device = torch.device(device)
         values = parameters.noise.to(self.device, torch.float32)
-        self._state = ClipState(values, parameters.noise, self.device, generator)
+        self._state = ClipState(values, self.device, generator)
         # Each route holds the frame's darkening (the clip's, times the flicker gain once flicker draws one).
         self._route = eight_bit_route(self._state, parameters.darkening, compile=compile)
         self._composer = ComposerRoute(self._state, parameters.darkening)

@@ -149,7 +149,7 @@ def test_the_spectral_path_draws_the_general_composers_bits(extra: dict[str, obj
     fast = ClipSynthesizer(parameters, generator=torch.Generator().manual_seed(5))
     values = parameters.noise.to("cpu", torch.float32)
     general = ComposerRoute(
-        ClipState(values, parameters.noise, torch.device("cpu"), torch.Generator().manual_seed(5)), parameters.darkening
+        ClipState(values, torch.device("cpu"), torch.Generator().manual_seed(5)), parameters.darkening
     )
     assert fast.route_name == "spectral"
     for frame in frames:

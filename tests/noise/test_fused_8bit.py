@@ -126,10 +126,7 @@ def _kernel_argument(name: str, generator: torch.Generator) -> torch.Tensor:
         "std_table": lambda: torch.rand(256, generator=generator) * 30.0,
         "level_step": lambda: torch.tensor(5.0 / 256.0),
         "key": lambda: random_key(generator),
-        "alpha": lambda: torch.tensor(0.9),
-        "inverse_gamma": lambda: torch.tensor(1.3),
-        "shot_squared": lambda: torch.tensor(0.3**2),
-        "read_squared": lambda: torch.tensor(0.05**2),
+        "darkened_table": lambda: torch.rand(256, generator=generator) * 1.1 - 0.05,
         "quantization_step": lambda: torch.tensor(0.02 / 256.0),
         "column_pattern": lambda: torch.randn((3, 1, 130), generator=generator) * 4.0,
     }
@@ -162,14 +159,14 @@ def test_compiled_kernel_is_bit_identical_to_eager() -> None:
 
 
 def test_kernel_in_pieces_is_bit_identical_to_one_call() -> None:
-    from darksynth.noise.fused_8bit import kernel_scalars, pixel_kernel_in_pieces
+    from darksynth.noise.fused_8bit import kernel_tables, pixel_kernel_in_pieces
 
     generator = torch.Generator().manual_seed(5)
     frame = torch.randint(0, 256, (3, 301, 517), dtype=torch.uint8, generator=generator)
     columns = torch.randn(3, 1, 517, generator=generator) * 3
     key = torch.tensor([123_456_789, -5], dtype=torch.int32)
-    values = NoiseValues.from_values({"shot": 0.1, "read": 0.02, "quantization": 0.01})
-    scalars = kernel_scalars(0.3, 0.6, values, device=torch.device("cpu"))
+    values = NoiseValues.from_values({"shot": 0.1, "read": 0.02, "quantization": 0.01}).to("cpu", torch.float32)
+    scalars = kernel_tables(Darkening(0.3, 0.6), values, device=torch.device("cpu"))
     whole = pixel_kernel_8bit(frame, key, *scalars, columns)
     # Pieces of 7 rows (3619 values) cut every channel into many blocks, the last one partial.
     pieces = pixel_kernel_in_pieces(pixel_kernel_8bit, frame, key, scalars, columns, piece_values=3619)

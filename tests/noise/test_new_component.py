@@ -1,14 +1,16 @@
 """A component declared in the table, and nowhere else, goes end to end.
 
-The test declares a dummy component (uniform dither, a profile-version-4 parameter that no fast path covers)
+The test declares a dummy component (uniform dither, a profile-version-7 parameter that no fast path covers)
 inside the test, adds it to the table, and runs it through sampling, the profile schema (load, save, version
 rules), the composer, ``synthesize`` on float and 8-bit input, the level's closed form, ``apply`` on an image
 file and its manifest. Nothing else in darksynth is changed for it: if a consumer kept its own list of
-components, this test would fail there.
+components, this test would fail there. A second one, white Gaussian noise with its variance law declared, is
+drawn by the fused 8-bit kernel as well as by the composer, again with nothing but its declaration.
 """
 
 from __future__ import annotations
 
+import dataclasses
 import json
 import math
 from collections.abc import Iterator, Mapping
@@ -24,6 +26,7 @@ from darksynth.apply import ApplyOptions, apply
 from darksynth.errors import ProfileError
 from darksynth.light.darkening import Darkening
 from darksynth.noise import components
+from darksynth.noise.component_types import FUSED_PATHS
 from darksynth.noise.components import NoiseComponent, Parameter
 from darksynth.noise.level import mean_noise_variance
 from darksynth.noise.sampling import random_noise_values
@@ -159,3 +162,60 @@ def test_without_the_declaration_the_parameter_is_unknown(tmp_path: Path) -> Non
     with pytest.raises(ProfileError, match=r"unsupported version 7"):
         load_profile(_write(tmp_path / "v7.json", _document(7)))
     assert "dither" not in NoiseValues.neutral()
+
+
+HUM = 0.03
+
+
+def _hum_variance(values: Mapping[str, torch.Tensor], signal: torch.Tensor) -> torch.Tensor:
+    # Grows with the level as a hum on the sensor's supply would with its gain: (h * (1 + x))^2.
+    hum = values["hum"][..., 0].reshape(*values["hum"].shape[:-1], *([1] * 4))
+    return (hum * (1.0 + signal)).square() if signal.dim() >= 4 else (hum.reshape(()) * (1.0 + signal)).square()
+
+
+def _draw_hum(
+    signal: torch.Tensor, values: Mapping[str, torch.Tensor], generator: torch.Generator | None
+) -> torch.Tensor:
+    unit = torch.randn(signal.shape, generator=generator, device=signal.device, dtype=signal.dtype)
+    return _hum_variance(values, signal).sqrt() * unit
+
+
+WHITE_HUM = NoiseComponent(
+    name="hum",
+    parameters=(
+        Parameter(
+            "hum", 1, "std h of N(0, (h (1 + x))^2) per pixel", 0.5, (0.0, 0.1), since_version=7, fast_paths=FUSED_PATHS
+        ),
+    ),
+    structure="pixel",
+    draw=_draw_hum,
+    variance=lambda values, means: (values["hum"][:, :1] * (1.0 + means)).square(),
+    white_variance=_hum_variance,
+    reference="a white Gaussian component that exists only in this test",
+)
+
+
+def test_a_white_gaussian_component_with_its_law_is_drawn_by_the_fused_8bit_kernel(
+    monkeypatch: pytest.MonkeyPatch,
+) -> None:
+    monkeypatch.setattr(components, "NOISE_COMPONENTS", (*components.NOISE_COMPONENTS, WHITE_HUM))
+    parameters = ClipParameters(NoiseValues.from_values({"hum": HUM, "read": 0.01}), Darkening(0.5, 1.0))
+    fused = ClipSynthesizer(parameters, generator=torch.Generator().manual_seed(1))
+    assert fused.route_name == "fused"
+    dark, bright = (torch.full((3, 128, 64), level, dtype=torch.uint8) for level in (40, 240))
+    frame = torch.cat([dark, bright], dim=-1)
+    fused_frame = fused(frame).double()
+    # Float frames take the general composer, which draws the component by its own draw function.
+    composer_frame = ClipSynthesizer(parameters, generator=torch.Generator().manual_seed(2))(frame.float() / 255.0)
+    for columns, level in ((slice(0, 64), 40), (slice(64, 128), 240)):
+        signal = 0.5 * level / 255.0
+        expected = math.sqrt((HUM * (1.0 + signal)) ** 2 + 0.01**2) * 255.0
+        fused_std = float((fused_frame[..., columns] - signal * 255.0).std())
+        composer_std = float((composer_frame[..., columns].double() - signal).std()) * 255.0
+        # 24k values a side: the std's relative standard error is 0.5%; rounding to 8 bits adds 1/12 level^2.
+        assert abs(fused_std / math.sqrt(expected**2 + 1.0 / 12.0) - 1.0) < 0.03, (level, fused_std, expected)
+        assert abs(composer_std / expected - 1.0) < 0.03, (level, composer_std, expected)
+    # The same component without its law: the fused kernel cannot draw it, and the composer does.
+    lawless = dataclasses.replace(WHITE_HUM, white_variance=None)
+    monkeypatch.setattr(components, "NOISE_COMPONENTS", (*components.NOISE_COMPONENTS[:-1], lawless))
+    assert ClipSynthesizer(parameters, generator=torch.Generator()).route_name == "composer"

@@ -56,8 +56,8 @@ the level curve's std read from a table of the 256 input levels, then the compos
 and compression: the default path of a profile from ``estimate``, and of a translated sRGB structure."""
 
 FUSED_PATHS: frozenset[FastPath] = frozenset({"fused_8bit"})
-"""The white 8-bit kernel: the levels (shot, read), quantization, which it draws itself, and the column components,
-which the composer draws and it adds."""
+"""The white 8-bit kernel: the white Gaussian pixel components (by their ``white_variance`` laws: shot and read),
+quantization, which it draws itself, and the column components, which the composer draws and it adds."""
 
 SPECTRAL_PATHS: frozenset[FastPath] = frozenset({"spectral_8bit"})
 """The spectrum and the level curve: the spectral path only."""
@@ -86,6 +86,11 @@ of a clip, where the component keeps its state."""
 VarianceFunction = Callable[[Mapping[str, torch.Tensor], torch.Tensor], torch.Tensor]
 """``variance(values, channel_means) -> (B, C)``: the component's contribution to the mean noise variance of
 clips whose channels have the mean levels ``channel_means`` (B, C), with ``values`` shaped (B, size)."""
+
+WhiteVarianceFunction = Callable[[Mapping[str, torch.Tensor], torch.Tensor], torch.Tensor]
+"""``white_variance(values, signal) -> variance``: for a component that draws independent zero-mean Gaussian noise
+at every pixel, its variance at each value of the darkened ``signal`` (*batch, T, C, H, W), shaped like it, with
+``values`` shaped (*batch, size)."""
 
 
 @dataclass(frozen=True)
@@ -151,6 +156,12 @@ class NoiseComponent:
     """True when one draw is held over all frames of a clip: a frame-by-frame stream draws it once."""
     draw_in_stream: StreamDrawFunction | None = None
     """How a frame-by-frame stream draws it, for a component with memory from frame to frame; None: ``draw``."""
+    white_variance: WhiteVarianceFunction | None = None
+    """The law of a white Gaussian pixel component, the one every route draws it by: ``draw`` (the composer) and
+    the fused 8-bit kernel, whose std table is the square root of the sum of the active components' laws at the 256
+    darkened levels (:func:`darksynth.noise.simulate.white_pixel_std`). A component with a law whose parameters
+    declare :data:`FUSED_PATHS` is fast on 8-bit input with its module and its line in the table. None: the
+    component is not white Gaussian noise (or only with its shape parameters neutral, which the law then assumes)."""
 
 
 def shapes_neutral(parameters: tuple[Parameter, ...], values: Mapping[str, torch.Tensor]) -> bool:

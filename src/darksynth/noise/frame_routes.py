@@ -31,7 +31,8 @@ from darksynth.noise.fused_8bit import (
     FULL_SCALE,
     PixelKernel,
     compiled_pixel_kernel,
-    kernel_scalars,
+    draws,
+    kernel_tables,
     pixel_kernel_8bit,
     pixel_kernel_in_pieces,
 )
@@ -47,11 +48,10 @@ logger = logging.getLogger(__name__)
 
 @dataclass
 class ClipState:
-    """What every route of one clip reads: its values (float32 on ``device``; ``exact`` as given, float64), where
+    """What every route of one clip reads: its values (float32 on ``device``, as the composer reads them), where
     the work runs, the clip's held state and its generator."""
 
     values: NoiseValues
-    exact: NoiseValues
     device: torch.device
     generator: torch.Generator | None
     held: dict[str, Any] = field(default_factory=dict)
@@ -94,40 +94,33 @@ class ComposerRoute:
 
 
 class FusedRoute:
-    """The paper's white model on an 8-bit frame: heteroscedastic and quantization noise drawn in one fused kernel
-    (compiled with ``compile``), the column components from the composer."""
+    """The paper's white model on an 8-bit frame: the white Gaussian components (by their laws) and quantization
+    noise drawn in one fused kernel (compiled with ``compile``), the column components from the composer."""
 
     name = "fused"
 
     def __init__(self, state: ClipState, darkening: Darkening | None, *, compile: bool) -> None:
         self.state, self.darkening = state, darkening
         self._kernel: PixelKernel = compiled_pixel_kernel() if compile else pixel_kernel_8bit
-        self._scalars: tuple[torch.Tensor, ...] | None = None
+        self._tables: tuple[torch.Tensor, ...] | None = None
 
     def set_darkening(self, darkening: Darkening | None) -> None:
-        self.darkening, self._scalars = darkening, None
+        self.darkening, self._tables = darkening, None
 
     def __call__(self, frame: torch.Tensor) -> torch.Tensor:
         columns_8bit = self.state.columns(frame.shape) * FULL_SCALE
-        if self._scalars is None:
-            darkening = self.darkening
-            self._scalars = kernel_scalars(
-                darkening.alpha if darkening else None,
-                darkening.gamma if darkening else None,
-                # The float64 values, as given: squaring before the cast to float32 keeps the kernel's bits.
-                self.state.exact,
-                device=self.state.device,
-            )
+        if self._tables is None:
+            self._tables = kernel_tables(self.darkening, self.state.values, device=self.state.device)
         key = random_key(self.state.generator).to(self.state.device)
         if self._kernel is not pixel_kernel_8bit:
             try:
-                return self._kernel(frame, key, *self._scalars, columns_8bit)
+                return self._kernel(frame, key, *self._tables, columns_8bit)
             except Exception as error:
                 # torch.compile fails in many ways on a platform without a working compiler; the eager kernel
                 # gives the same bits, only slower.
                 logger.warning("compiled 8-bit kernel failed (%s); using the eager kernel", error)
                 self._kernel = pixel_kernel_8bit
-        return pixel_kernel_in_pieces(self._kernel, frame, key, self._scalars, columns_8bit)
+        return pixel_kernel_in_pieces(self._kernel, frame, key, self._tables, columns_8bit)
 
 
 class SpectralRoute:
@@ -273,7 +266,7 @@ class Route:
 
 
 ROUTES: tuple[Route, ...] = (
-    Route(lambda values, _: covered_by(values, FAST_PATH), lambda s, d, c: FusedRoute(s, d, compile=c)),
+    Route(lambda values, _: draws(values), lambda s, d, c: FusedRoute(s, d, compile=c)),
     Route(
         lambda values, compile: compile and _spectral(values),
         lambda s, d, _: CompiledSpectralRoute(s, d),

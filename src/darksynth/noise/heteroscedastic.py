@@ -7,6 +7,18 @@ import torch
 from darksynth.tensors import per_clip
 
 
+def heteroscedastic_variance(
+    signal: torch.Tensor, shot: torch.Tensor | float, read: torch.Tensor | float
+) -> torch.Tensor:
+    """Variance of the heteroscedastic noise at each pixel: shot^2 * x + read^2 (arguments as
+    :func:`heteroscedastic_std`)."""
+    shot_t = per_clip(shot, signal, device=signal.device)
+    read_t = per_clip(read, signal, device=signal.device)
+    # The variance, not the standard deviation, is linear in x (Poisson photon counts); negative inputs
+    # would make it undefined, so the signal is clamped at black.
+    return shot_t.square() * signal.clamp_min(0.0) + read_t.square()
+
+
 def heteroscedastic_std(signal: torch.Tensor, shot: torch.Tensor | float, read: torch.Tensor | float) -> torch.Tensor:
     """Standard deviation of the heteroscedastic noise at each pixel: sqrt(shot^2 * x + read^2).
 
@@ -22,11 +34,7 @@ def heteroscedastic_std(signal: torch.Tensor, shot: torch.Tensor | float, read: 
         Foi, Trimeche, Katkovnik, Egiazarian 2008, Practical Poissonian-Gaussian noise modeling and fitting
         for single-image raw-data.
     """
-    shot_t = per_clip(shot, signal, device=signal.device)
-    read_t = per_clip(read, signal, device=signal.device)
-    # The variance, not the standard deviation, is linear in x (Poisson photon counts); negative inputs
-    # would make it undefined, so the signal is clamped at black.
-    return torch.sqrt(shot_t.square() * signal.clamp_min(0.0) + read_t.square())
+    return torch.sqrt(heteroscedastic_variance(signal, shot, read))
 
 
 def heteroscedastic_noise(

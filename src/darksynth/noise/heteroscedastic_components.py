@@ -13,7 +13,7 @@ from collections.abc import Mapping
 import torch
 
 from darksynth.noise.component_types import FUSED_PATHS, NoiseComponent, Parameter, shapes_neutral
-from darksynth.noise.heteroscedastic import heteroscedastic_noise
+from darksynth.noise.heteroscedastic import heteroscedastic_noise, heteroscedastic_variance
 from darksynth.noise.spectral_components import spectral_clips
 from darksynth.noise.structure_translation import spectral_tensors
 
@@ -119,12 +119,18 @@ def _heteroscedastic_variance(values: Mapping[str, torch.Tensor], channel_means:
     return per_channel * torch.stack([gains[:, 0], torch.ones_like(gains[:, 0]), gains[:, 1]], dim=1).square()
 
 
+def _white_heteroscedastic_variance(values: Mapping[str, torch.Tensor], signal: torch.Tensor) -> torch.Tensor:
+    # The white case, shot and read alone: what the fused kernel covers (the shape parameters declare no fast path).
+    return heteroscedastic_variance(signal, values["shot"][..., 0], values["read"][..., 0])
+
+
 HETEROSCEDASTIC = NoiseComponent(
     name="heteroscedastic",
     parameters=_HETEROSCEDASTIC_PARAMETERS,
     structure="pixel",
     draw=_draw_heteroscedastic,
     variance=_heteroscedastic_variance,
+    white_variance=_white_heteroscedastic_variance,
     reference="Foi et al. 2008, Practical Poissonian-Gaussian noise modeling and fitting; "
     "structure: docs/srgb-noise.md (retired drawing), docs/spectral-noise.md",
 )

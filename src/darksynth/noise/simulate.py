@@ -24,13 +24,14 @@ from darksynth.noise.components import NoiseComponent, noise_components
 from darksynth.noise.values import NoiseValues
 
 
-def _active(values: NoiseValues, structure: str) -> tuple[NoiseComponent, ...]:
+def active_components(values: NoiseValues, structure: str) -> tuple[NoiseComponent, ...]:
+    """The components of ``structure`` that draw anything for ``values``, in table order."""
     return tuple(c for c in noise_components() if c.structure == structure and values.is_active(c))
 
 
 def column_components_active(values: NoiseValues) -> bool:
     """Whether any column component draws anything for ``values``."""
-    return bool(_active(values, "column"))
+    return bool(active_components(values, "column"))
 
 
 def column_noise(
@@ -58,7 +59,7 @@ def column_noise(
     # frame-sized allocation.
     probe = torch.empty((), device=device).expand(shape)
     total = torch.zeros((*shape[:-2], 1, shape[-1]), device=device)
-    for component in _active(values, "column"):
+    for component in active_components(values, "column"):
         if component.per_clip and held is not None:
             if component.name not in held:
                 held[component.name] = component.draw(probe, values, generator)
@@ -81,7 +82,7 @@ def pixel_noise(
     """The sum of the active per-pixel components for a darkened clip (*batch, T, C, H, W); ``held`` as for
     :func:`column_noise`, where components with memory from frame to frame keep their state."""
     total = torch.zeros_like(signal)
-    for component in _active(values, "pixel"):
+    for component in active_components(values, "pixel"):
         if held is not None and component.draw_in_stream is not None:
             total = total + component.draw_in_stream(signal, values, generator, held)
         else:
@@ -89,11 +90,21 @@ def pixel_noise(
     return total
 
 
+def white_pixel_std(signal: torch.Tensor, values: NoiseValues) -> torch.Tensor:
+    """The std at each value of the darkened ``signal`` of the active white Gaussian pixel components together: the
+    square root of the sum of their ``white_variance`` laws (the std table of the fused 8-bit kernel)."""
+    variance = torch.zeros_like(signal)
+    for component in active_components(values, "pixel"):
+        if component.white_variance is not None:
+            variance = variance + component.white_variance(values, signal)
+    return variance.sqrt()
+
+
 def apply_output_stages(
     noisy: torch.Tensor, values: NoiseValues, *, generator: torch.Generator | None = None
 ) -> torch.Tensor:
     """Run the active output stages (compression) on a clipped noisy clip (*batch, T, C, H, W) in [0, 1]."""
-    for stage in _active(values, "output"):
+    for stage in active_components(values, "output"):
         noisy = stage.draw(noisy, values, generator)
     return noisy
 
@@ -101,7 +112,7 @@ def apply_output_stages(
 def scene_stage(clean: torch.Tensor, values: NoiseValues, *, generator: torch.Generator | None) -> torch.Tensor:
     """The clean clips (*batch, T, C, H, W) as the shutter saw them: the active ``scene`` components (motion blur
     along the flow for clips, camera shake for single frames), before darkening. Unchanged when none is active."""
-    for component in _active(values, "scene"):
+    for component in active_components(values, "scene"):
         clean = component.draw(clean, values, generator)
     return clean
 
@@ -112,7 +123,7 @@ def exposure_gains(
     """The per-frame gains (*batch, T, 1, 1, 1) of the active ``exposure`` components (flicker) on the darkened
     clips, None when none is active."""
     gains = None
-    for component in _active(values, "exposure"):
+    for component in active_components(values, "exposure"):
         drawn = component.draw(clean, values, generator)
         gains = drawn if gains is None else gains * drawn
     return gains
