@@ -85,7 +85,9 @@ def pixel_kernel_8bit(
     """
     unit, byte = normal_and_byte(frame.shape, key)
     index = frame.to(torch.int32)
-    darkened, std = darkened_table[index], std_table[index]
+    # Gathered from tables the graph computes (the inputs times 1, exactly themselves), not from the inputs: compiled
+    # for AVX2, gathers from an input cost 46 ms a 1080p frame against 34 (AVX-512: 27 against 25).
+    darkened, std = (darkened_table * 1.0)[index], (std_table * 1.0)[index]
     quantization = (byte.to(torch.float32) + 0.5) * quantization_step
     level = (darkened + std * unit + quantization) * FULL_SCALE + column_pattern
     # Rounding before clamping equals clamping before rounding here because the bounds are integers.
