@@ -2,6 +2,7 @@
 refuses bad input with one line."""
 
 import json
+import math
 from pathlib import Path
 from types import ModuleType
 
@@ -9,6 +10,7 @@ import numpy as np
 import pytest
 import torch
 
+import darksynth
 from tests.examples.drawn_images import smooth_scene, write_png
 from tests.script_modules import load_script
 
@@ -113,6 +115,32 @@ def test_the_training_exposures_are_matched_per_image_and_drawn_from_several_ref
     means = {exposures.pick(0, seed)[0]: float(low_light(0, clean_image, seed).mean()) for seed in (0, 1)}
     assert set(means) == {0, 1}, means
     assert 3.0 < means[1] / means[0] < 9.0, means
+
+
+def test_the_even_gain_draw_spreads_the_training_gains_evenly_in_log_over_the_references_range(
+    folders: tuple[Path, Path, Path], tmp_path: Path
+) -> None:
+    example = _example()
+    images = example.read_clean_images([folders[2]], 32)
+    generator = np.random.default_rng(2)
+    scene = smooth_scene(generator, 160)
+    references = []
+    for index, brightness in enumerate((0.04, 0.1, 0.3)):
+        references.append(tmp_path / f"reference{index}.png")
+        write_png(references[-1], brightness * scene + generator.normal(0, 1 / 255, scene.shape))
+    profiles = example.estimate_profiles(references, tmp_path / "profiles", "srgb", "cpu")
+    exposures = example.ProfileExposures(images, profiles, 3, seed=0, gain_draw="even")
+    low, high = exposures.log_gain_range
+    assert high - low > 0.5
+    clean = images[0].double() / 255.0
+    gains = []
+    for seed in range(200):
+        _, alpha, gamma = exposures.pick(0, seed)
+        gains.append(math.log(float(clean.mean() / darksynth.darken(clean, alpha, gamma).mean())))
+    assert low - 1e-6 <= min(gains) and max(gains) <= high + 1e-6
+    # Even in log: each half of the range holds about half the draws (200 draws: a half's share has std 0.035).
+    share = sum(gain < (low + high) / 2 for gain in gains) / len(gains)
+    assert abs(share - 0.5) < 0.12
 
 
 def test_a_low_image_without_its_normal_light_image_is_one_line_and_exit_2(

@@ -114,12 +114,13 @@ SPECTRAL = {
     [
         (SPECTRAL, True),
         (SPECTRAL | {"compression": 0.2, "banding": 0.002}, True),
-        (SPECTRAL | {"shot": 0.02}, False),  # the heteroscedastic std would add to the curve's
+        (SPECTRAL | {"shot": 0.02}, True),  # white heteroscedastic noise, by its law, in the composer's order
+        (SPECTRAL | {"shot": 0.02, "channel_gain": [1.2, 0.9]}, False),  # structured: the spectral model's own
         (SPECTRAL | {"level_curve": [0.0] * 24, "compression": 0.2}, False),  # no spectrum: an sRGB profile
         (PAPER, False),
         (SRGB, False),
     ],
-    ids=["spectral", "spectral-jpeg-columns", "spectral-shot", "no-curve", "paper", "srgb"],
+    ids=["spectral", "spectral-jpeg-columns", "spectral-shot", "spectral-structured-shot", "no-curve", "paper", "srgb"],
 )
 def test_the_spectral_path_is_taken_for_spectral_profiles_only(values: dict[str, object], taken: bool) -> None:
     parameters = ClipParameters(NoiseValues.from_values(values), None)  # type: ignore[arg-type]
@@ -136,8 +137,10 @@ def test_the_spectral_path_is_taken_for_spectral_profiles_only(values: dict[str,
         ({"banding": 0.003}, 1),
         ({"texture_gain": 0.6, "texture_scale": 0.004, "banding": 0.002}, 3),
         ({"texture_gain": 0.6, "texture_scale": 0.004, "compression": 0.2}, 3),
+        ({"shot": 0.03, "read": 0.004, "banding": 0.002}, 3),
+        ({"read": 0.003, "texture_gain": 0.6, "texture_scale": 0.004, "compression": 0.2}, 3),
     ],
-    ids=["plain", "columns", "jpeg", "temporal", "grey", "texture", "texture-jpeg"],
+    ids=["plain", "columns", "jpeg", "temporal", "grey", "texture", "texture-jpeg", "white", "white-texture-jpeg"],
 )
 def test_the_spectral_path_draws_the_general_composers_bits(extra: dict[str, object], channels: int) -> None:
     """The 8-bit tables of the darkened level and of the curve's std, read per pixel, against the composer's

@@ -5,7 +5,8 @@ inside the test, adds it to the table, and runs it through sampling, the profile
 rules), the composer, ``synthesize`` on float and 8-bit input, the level's closed form, ``apply`` on an image
 file and its manifest. Nothing else in darksynth is changed for it: if a consumer kept its own list of
 components, this test would fail there. A second one, white Gaussian noise with its variance law declared, is
-drawn by the fused 8-bit kernel as well as by the composer, again with nothing but its declaration.
+drawn by every 8-bit route (the fused kernel, the spectral paths) as well as by the composer, again with nothing
+but its declaration.
 """
 
 from __future__ import annotations
@@ -25,11 +26,13 @@ import darksynth
 from darksynth.apply import ApplyOptions, apply
 from darksynth.errors import ProfileError
 from darksynth.light.darkening import Darkening
-from darksynth.noise import components
-from darksynth.noise.component_types import FUSED_PATHS
+from darksynth.noise import components, frame_routes
+from darksynth.noise.component_types import ALL_8BIT_PATHS
 from darksynth.noise.components import NoiseComponent, Parameter
+from darksynth.noise.frame_routes import ClipState, ComposerRoute
 from darksynth.noise.level import mean_noise_variance
 from darksynth.noise.sampling import random_noise_values
+from darksynth.noise.spectral_kernel import spectral_ar_mix_kernel, spectral_mix_kernel, spectral_white_pixel_kernel
 from darksynth.noise.values import NoiseValues
 from darksynth.profile import load_profile, profile_schema, save_profile
 from darksynth.recipe import ClipParameters, ClipRecipe
@@ -184,7 +187,13 @@ WHITE_HUM = NoiseComponent(
     name="hum",
     parameters=(
         Parameter(
-            "hum", 1, "std h of N(0, (h (1 + x))^2) per pixel", 0.5, (0.0, 0.1), since_version=7, fast_paths=FUSED_PATHS
+            "hum",
+            1,
+            "std h of N(0, (h (1 + x))^2) per pixel",
+            0.5,
+            (0.0, 0.1),
+            since_version=7,
+            fast_paths=ALL_8BIT_PATHS,
         ),
     ),
     structure="pixel",
@@ -195,7 +204,7 @@ WHITE_HUM = NoiseComponent(
 )
 
 
-def test_a_white_gaussian_component_with_its_law_is_drawn_by_the_fused_8bit_kernel(
+def test_a_white_gaussian_component_with_its_law_is_drawn_by_every_8bit_route(
     monkeypatch: pytest.MonkeyPatch,
 ) -> None:
     monkeypatch.setattr(components, "NOISE_COMPONENTS", (*components.NOISE_COMPONENTS, WHITE_HUM))
@@ -215,7 +224,29 @@ def test_a_white_gaussian_component_with_its_law_is_drawn_by_the_fused_8bit_kern
         # 24k values a side: the std's relative standard error is 0.5%; rounding to 8 bits adds 1/12 level^2.
         assert abs(fused_std / math.sqrt(expected**2 + 1.0 / 12.0) - 1.0) < 0.03, (level, fused_std, expected)
         assert abs(composer_std / expected - 1.0) < 0.03, (level, composer_std, expected)
-    # The same component without its law: the fused kernel cannot draw it, and the composer does.
+    # On a spectral profile: the eager spectral path draws the composer's bits, the compiled one its law.
+    spectral = ClipParameters(
+        NoiseValues.from_values({"hum": HUM, "level_curve": [0.01] * 24, "octave_power": [1.0] * 18}),
+        Darkening(0.5, 1.0),
+    )
+    eager = ClipSynthesizer(spectral, generator=torch.Generator().manual_seed(3))
+    state = ClipState(spectral.noise.to("cpu", torch.float32), torch.device("cpu"), torch.Generator().manual_seed(3))
+    general = ComposerRoute(state, spectral.darkening)
+    assert eager.route_name == "spectral"
+    assert torch.equal(eager(frame), general(frame))
+    kernels = (spectral_mix_kernel, spectral_ar_mix_kernel, spectral_white_pixel_kernel)
+    monkeypatch.setattr(frame_routes, "compiled_spectral_kernels", lambda white=False: kernels)
+    compiled = ClipSynthesizer(spectral, generator=torch.Generator().manual_seed(4), compile=True)
+    compiled_frame = compiled(frame).double()
+    assert compiled.route_name == "compiled spectral"
+    for columns, level in ((slice(0, 64), 40), (slice(64, 128), 240)):
+        signal = 0.5 * level / 255.0
+        expected = math.sqrt((HUM * (1.0 + signal)) ** 2 + 0.01**2) * 255.0
+        measured = float((compiled_frame[..., columns] - signal * 255.0).std())
+        # The spectral unit noise is correlated: its std over one frame varies more than white noise's.
+        assert abs(measured / math.sqrt(expected**2 + 1.0 / 12.0) - 1.0) < 0.06, (level, measured, expected)
+    # The same component without its law: no 8-bit route can draw it, and the composer does.
     lawless = dataclasses.replace(WHITE_HUM, white_variance=None)
     monkeypatch.setattr(components, "NOISE_COMPONENTS", (*components.NOISE_COMPONENTS[:-1], lawless))
     assert ClipSynthesizer(parameters, generator=torch.Generator()).route_name == "composer"
+    assert ClipSynthesizer(spectral, generator=torch.Generator()).route_name == "composer"

@@ -18,6 +18,7 @@ from darksynth.noise.spectral_kernel import (
     spectral_ar_mix_kernel,
     spectral_mix_kernel,
     spectral_pixel_kernel,
+    spectral_white_pixel_kernel,
 )
 from darksynth.noise.values import NoiseValues
 from darksynth.recipe import ClipParameters
@@ -35,7 +36,11 @@ EAGER_KERNELS = (spectral_mix_kernel, spectral_ar_mix_kernel, spectral_pixel_ker
 
 def _eager_kernels(monkeypatch: pytest.MonkeyPatch) -> None:
     """The stream with the kernels run eagerly: the compiled ones' values (tested below), in a test's time."""
-    monkeypatch.setattr(frame_routes, "compiled_spectral_kernels", lambda: EAGER_KERNELS)
+    monkeypatch.setattr(
+        frame_routes,
+        "compiled_spectral_kernels",
+        lambda white=False: (*EAGER_KERNELS[:2], spectral_white_pixel_kernel if white else spectral_pixel_kernel),
+    )
 
 
 def _field(mixed: torch.Tensor, height: int, width: int) -> torch.Tensor:
@@ -75,6 +80,11 @@ def test_the_kernels_give_the_same_values_eagerly_and_compiled() -> None:
     # Float rounding may differ in the last bit, which moves a value across a .5 boundary once in a while.
     assert (eager_frame.int() - compiled_frame.int()).abs().max() <= 1
     assert (eager_frame != compiled_frame).double().mean() < 1e-3
+    white_arguments = (*pixel_arguments[:4], torch.rand(3, 256, generator=generator) * 0.02, *pixel_arguments[4:])
+    eager_frame = spectral_white_pixel_kernel(*white_arguments)
+    compiled_frame = torch.compile(spectral_white_pixel_kernel, dynamic=False)(*white_arguments)
+    assert (eager_frame.int() - compiled_frame.int()).abs().max() <= 1
+    assert (eager_frame != compiled_frame).double().mean() < 1e-3
 
 
 def test_the_unit_noise_is_normal_though_its_frequency_draws_are_triangular() -> None:
@@ -102,8 +112,13 @@ def _frames(synthesizer: ClipSynthesizer, frame: torch.Tensor, count: int) -> to
 
 @pytest.mark.parametrize(
     "extra",
-    [{}, {"temporal_correlation": [0.8, 0.7, 0.6, 0.6, 0.5, 0.5]}, {"banding": 0.004, "compression": 0.3}],
-    ids=["plain", "temporal", "columns-jpeg"],
+    [
+        {},
+        {"temporal_correlation": [0.8, 0.7, 0.6, 0.6, 0.5, 0.5]},
+        {"banding": 0.004, "compression": 0.3},
+        {"shot": 0.04, "read": 0.01},
+    ],
+    ids=["plain", "temporal", "columns-jpeg", "white"],
 )
 def test_the_compiled_path_draws_the_eager_paths_law(monkeypatch: pytest.MonkeyPatch, extra: dict[str, object]) -> None:
     """Level, band powers (brightness and colour), channel correlations and frame-to-frame correlation of the
@@ -137,10 +152,11 @@ def test_the_compiled_path_draws_the_eager_paths_law(monkeypatch: pytest.MonkeyP
 def test_the_compiled_path_is_taken_for_compiled_spectral_streams_only(monkeypatch: pytest.MonkeyPatch) -> None:
     _eager_kernels(monkeypatch)
     spectral = ClipParameters(NoiseValues.from_values(SPECTRAL), None)  # type: ignore[arg-type]
-    with_shot = ClipParameters(NoiseValues.from_values(SPECTRAL | {"shot": 0.02}), None)  # type: ignore[arg-type]
+    structured = SPECTRAL | {"shot": 0.02, "channel_gain": [1.2, 0.9]}
+    with_structure = ClipParameters(NoiseValues.from_values(structured), None)  # type: ignore[arg-type]
     assert ClipSynthesizer(spectral, compile=True).route_name == "compiled spectral"
     assert ClipSynthesizer(spectral, compile=False).route_name == "spectral"
-    assert ClipSynthesizer(with_shot, compile=True).route_name == "composer"
+    assert ClipSynthesizer(with_structure, compile=True).route_name == "composer"
     # A seed fixes the frames.
     frame = torch.full((3, 48, 64), 90, dtype=torch.uint8)
     first, second = (
@@ -156,7 +172,7 @@ def test_failing_compiled_spectral_kernels_fall_back_to_the_eager_path_with_a_lo
     def broken(*args: object) -> torch.Tensor:
         raise RuntimeError("no working C compiler")
 
-    monkeypatch.setattr(frame_routes, "compiled_spectral_kernels", lambda: (broken,) * 3)
+    monkeypatch.setattr(frame_routes, "compiled_spectral_kernels", lambda white=False: (broken,) * 3)
     parameters = ClipParameters(NoiseValues.from_values(SPECTRAL), None)  # type: ignore[arg-type]
     frame = torch.full((3, 48, 64), 90, dtype=torch.uint8)
     with caplog.at_level(logging.WARNING, logger="darksynth.synthesize"):

@@ -101,7 +101,7 @@ def _eager_kernels(monkeypatch: pytest.MonkeyPatch) -> None:
     """The compiled route with its kernels run eagerly: the compiled ones' values (tests/noise/test_spectral_kernel.py),
     in a test's time."""
     eager = (spectral_mix_kernel, spectral_ar_mix_kernel, spectral_pixel_kernel)
-    monkeypatch.setattr(frame_routes, "compiled_spectral_kernels", lambda: eager)
+    monkeypatch.setattr(frame_routes, "compiled_spectral_kernels", lambda white=False: eager)
 
 
 @pytest.mark.parametrize("compile", [True, False], ids=["compiled", "eager"])

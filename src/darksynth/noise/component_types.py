@@ -56,14 +56,15 @@ the level curve's std read from a table of the 256 input levels, then the compos
 and compression: the default path of a profile from ``estimate``, and of a translated sRGB structure."""
 
 FUSED_PATHS: frozenset[FastPath] = frozenset({"fused_8bit"})
-"""The white 8-bit kernel: the white Gaussian pixel components (by their ``white_variance`` laws: shot and read),
-quantization, which it draws itself, and the column components, which the composer draws and it adds."""
+"""The white 8-bit kernel: the white Gaussian pixel components (by their ``white_variance`` laws), quantization,
+which it draws itself, and the column components, which the composer draws and it adds."""
 
 SPECTRAL_PATHS: frozenset[FastPath] = frozenset({"spectral_8bit"})
 """The spectrum and the level curve: the spectral path only."""
 
 ALL_8BIT_PATHS: frozenset[FastPath] = FUSED_PATHS | SPECTRAL_PATHS
-"""Quantization and the column components, which every 8-bit path draws as the composer does."""
+"""Quantization, the column components and the white Gaussian components (by their laws), which every 8-bit path
+draws as the composer does."""
 
 ALL_PATHS: frozenset[FastPath] = ALL_8BIT_PATHS
 """Every fast path: what a parameter that none of them needs to draw declares (light, which runs outside them)."""
@@ -157,11 +158,12 @@ class NoiseComponent:
     draw_in_stream: StreamDrawFunction | None = None
     """How a frame-by-frame stream draws it, for a component with memory from frame to frame; None: ``draw``."""
     white_variance: WhiteVarianceFunction | None = None
-    """The law of a white Gaussian pixel component, the one every route draws it by: ``draw`` (the composer) and
-    the fused 8-bit kernel, whose std table is the square root of the sum of the active components' laws at the 256
-    darkened levels (:func:`darksynth.noise.simulate.white_pixel_std`). A component with a law whose parameters
-    declare :data:`FUSED_PATHS` is fast on 8-bit input with its module and its line in the table. None: the
-    component is not white Gaussian noise (or only with its shape parameters neutral, which the law then assumes)."""
+    """The law of a white Gaussian pixel component, the one every route draws it by: ``draw`` (the composer), the
+    fused 8-bit kernel (its std table is the square root of the active components' laws summed at the 256 darkened
+    levels, :func:`darksynth.noise.simulate.white_pixel_std`) and the spectral paths (a std table per component,
+    its normals drawn in table order). A component with a law whose parameters declare :data:`ALL_8BIT_PATHS` is
+    fast on 8-bit input with its module and its line in the table. None: the component is not white Gaussian noise
+    (or only with its shape parameters neutral, which the law then assumes)."""
 
 
 def shapes_neutral(parameters: tuple[Parameter, ...], values: Mapping[str, torch.Tensor]) -> bool:

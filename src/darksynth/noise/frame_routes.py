@@ -24,7 +24,7 @@ from typing import Any, Protocol
 import torch
 
 from darksynth.light.darkening import Darkening, darken
-from darksynth.noise.components import noise_component, noise_parameter
+from darksynth.noise.components import NoiseComponent, noise_component, noise_parameter
 from darksynth.noise.counter_rng import random_key
 from darksynth.noise.fused_8bit import (
     FAST_PATH,
@@ -36,9 +36,22 @@ from darksynth.noise.fused_8bit import (
     pixel_kernel_8bit,
     pixel_kernel_in_pieces,
 )
-from darksynth.noise.simulate import add_noise, apply_output_stages, column_components_active, column_noise
+from darksynth.noise.simulate import (
+    active_components,
+    add_noise,
+    apply_output_stages,
+    column_components_active,
+    column_noise,
+)
 from darksynth.noise.spectral import clip_grid, octave_covariances
-from darksynth.noise.spectral_8bit import SPECTRAL_PATH, SpectralPixelPass, level_tables, to_8bit
+from darksynth.noise.spectral_8bit import (
+    QUANTIZATION,
+    SPECTRAL_PATH,
+    SPECTRUM,
+    DrawOrder,
+    SpectralPixelPass,
+    to_8bit,
+)
 from darksynth.noise.spectral_kernel import SpectralKernelStream, compiled_spectral_kernels
 from darksynth.noise.values import NoiseValues, covered_by, uncovered_by
 from darksynth.tensors import to_dtype, unit_float
@@ -124,8 +137,9 @@ class FusedRoute:
 
 
 class SpectralRoute:
-    """The spectral model on an 8-bit frame: the composer's draws in the composer's order (columns, the spectral
-    unit noise, quantization, the output stages), the level and std read from 8-bit tables."""
+    """The spectral model on an 8-bit frame: the composer's draws in the composer's order (columns, the per-pixel
+    components in table order: the white Gaussian ones by their laws, the spectral unit noise, quantization; then
+    the output stages), the level and the stds read from 8-bit tables."""
 
     name = "spectral"
 
@@ -136,7 +150,7 @@ class SpectralRoute:
     def set_darkening(self, darkening: Darkening | None) -> None:
         self.darkening = darkening
         if self._pass is not None:
-            _redo_level_tables(self._pass, darkening, self.state)
+            self._pass.set_darkening(darkening, self.state.values["level_curve"])
 
     def __call__(self, frame: torch.Tensor) -> torch.Tensor:
         return self.noisy(frame, rounded=True)
@@ -148,6 +162,7 @@ class SpectralRoute:
         columns = state.columns(frame.shape) if column_components_active(values) else None
         if self._pass is None:
             channels, height, width = frame.shape
+            white, order = _pixel_draws(values)
             self._pass = SpectralPixelPass(
                 channels,
                 height,
@@ -157,6 +172,9 @@ class SpectralRoute:
                 values.scalar("quantization"),
                 device=state.device,
                 texture=_texture(values),
+                white=white,
+                values=values,
+                order=order,
             )
         grid = clip_grid(
             octave_covariances(values["octave_power"], values["octave_correlation"]),
@@ -168,7 +186,16 @@ class SpectralRoute:
         )
         generator = state.generator if state.generator is not None else torch.default_generator
         compressed = not values.is_neutral(noise_parameter("compression"))
-        noisy = self._pass.noisy(frame, grid.frame(generator), columns, generator, rounded=rounded and not compressed)
+        # The per-pixel draws in the composer's order: the spectrum's unit noise, the quantization bytes, the white
+        # components' normals.
+        unit = None
+        for item in self._pass.order:
+            if item == SPECTRUM:
+                unit = grid.frame(generator)
+            else:
+                self._pass.draw(item, generator)
+        assert unit is not None
+        noisy = self._pass.noisy(frame, unit, columns, rounded=rounded and not compressed)
         if compressed:
             noisy = apply_output_stages(noisy[None], values, generator=state.generator)[0]
             return to_8bit(noisy) if rounded else noisy
@@ -177,8 +204,8 @@ class SpectralRoute:
 
 
 class CompiledSpectralRoute:
-    """The spectral model's law through compiled kernels (counter-based draws), the texture factor included. Where
-    compiling fails, the stream goes on through :class:`SpectralRoute`."""
+    """The spectral model's law through compiled kernels (counter-based draws), the texture factor and the white
+    Gaussian components included. Where compiling fails, the stream goes on through :class:`SpectralRoute`."""
 
     def __init__(self, state: ClipState, darkening: Darkening | None) -> None:
         self.state, self.darkening = state, darkening
@@ -192,7 +219,7 @@ class CompiledSpectralRoute:
     def set_darkening(self, darkening: Darkening | None) -> None:
         self.darkening = darkening
         if self._stream is not None:
-            _redo_level_tables(self._stream, darkening, self.state)
+            self._stream.set_darkening(darkening)
         if self._eager is not None:
             self._eager.set_darkening(darkening)
 
@@ -203,7 +230,8 @@ class CompiledSpectralRoute:
         columns = state.columns(frame.shape) * FULL_SCALE if column_components_active(values) else None
         try:
             if self._stream is None:
-                mix, ar_mix, pixel = compiled_spectral_kernels()
+                white = bool(_pixel_draws(values)[0])
+                mix, ar_mix, pixel = compiled_spectral_kernels(white)
                 self._stream = SpectralKernelStream(
                     (frame.shape[0], frame.shape[1], frame.shape[2]),
                     octave_covariances(values["octave_power"], values["octave_correlation"]),
@@ -216,6 +244,7 @@ class CompiledSpectralRoute:
                     pixel=pixel,
                     device=state.device,
                     texture=_texture(values),
+                    white=values if white else None,
                 )
             out = self._stream(frame, state.generator, columns)
         except Exception as error:
@@ -229,24 +258,38 @@ class CompiledSpectralRoute:
         return to_dtype(compressed[0], frame.dtype)
 
 
-def _redo_level_tables(
-    stage: SpectralPixelPass | SpectralKernelStream, darkening: Darkening | None, state: ClipState
-) -> None:
-    """A spectral stage's 8-bit tables of the darkened level and the curve's std, redone for a frame's darkening."""
-    channels = len(stage.signal_table)
-    stage.signal_table, stage.std_table = level_tables(
-        channels, darkening, state.values["level_curve"], device=state.device
-    )
+def _pixel_draws(values: NoiseValues) -> tuple[list[NoiseComponent], DrawOrder]:
+    """The active white Gaussian components, and the per-pixel draws of the spectral paths in the composer's
+    (table) order; a component that is neither the spectrum, quantization nor white with its law is refused."""
+    white: list[NoiseComponent] = []
+    order: list[str | int] = []
+    for component in active_components(values, "pixel"):
+        if component.name == "spectral":
+            order.append(SPECTRUM)
+        elif component.name == "quantization":
+            order.append(QUANTIZATION)
+        elif component.white_variance is not None:
+            order.append(len(white))
+            white.append(component)
+        else:
+            raise ValueError(f"the spectral paths cannot draw the pixel component {component.name!r}")
+    return white, tuple(order)
 
 
 def _spectral(values: NoiseValues) -> bool:
     # A profile of the spectral model (its curve set) whose other values the spectral path draws; the paper's white
     # model never takes it, so its frames keep their bits.
-    return (
+    if not (
         bool(uncovered_by(values, FAST_PATH))
         and values.is_active(noise_component("spectral"))
         and covered_by(values, SPECTRAL_PATH)
-    )
+    ):
+        return False
+    try:
+        _pixel_draws(values)
+    except ValueError:
+        return False
+    return True
 
 
 def _texture(values: NoiseValues) -> tuple[float, float] | None:

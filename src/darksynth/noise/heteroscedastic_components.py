@@ -12,7 +12,7 @@ from collections.abc import Mapping
 
 import torch
 
-from darksynth.noise.component_types import FUSED_PATHS, NoiseComponent, Parameter, shapes_neutral
+from darksynth.noise.component_types import ALL_8BIT_PATHS, NoiseComponent, Parameter, shapes_neutral
 from darksynth.noise.heteroscedastic import heteroscedastic_noise, heteroscedastic_variance
 from darksynth.noise.spectral_components import spectral_clips
 from darksynth.noise.structure_translation import spectral_tensors
@@ -25,7 +25,7 @@ _HETEROSCEDASTIC_PARAMETERS: tuple[Parameter, ...] = (
         1.0,
         (0.0, 0.2),
         log_floor=0.002,
-        fast_paths=FUSED_PATHS,
+        fast_paths=ALL_8BIT_PATHS,
     ),
     Parameter(
         "read",
@@ -34,7 +34,7 @@ _HETEROSCEDASTIC_PARAMETERS: tuple[Parameter, ...] = (
         1.0,
         (0.0, 0.1),
         log_floor=0.001,
-        fast_paths=FUSED_PATHS,
+        fast_paths=ALL_8BIT_PATHS,
     ),
     # Measured on the real pairs (docs/srgb-noise.md): red and blue noise 1.1-1.5x green's std, Gaussian
     # lengths 0.6-0.9 px, channel correlations 0.2-0.7, different per pair of channels.

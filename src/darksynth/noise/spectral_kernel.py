@@ -30,12 +30,21 @@ from collections.abc import Callable
 import torch
 
 from darksynth.light.darkening import Darkening
-from darksynth.noise.counter_rng import byte_from_word, first_word, flat_index, random_key, triangular_from_word
+from darksynth.noise.counter_rng import (
+    byte_from_word,
+    first_word,
+    flat_index,
+    normal_from_word,
+    random_key,
+    triangular_from_word,
+)
 from darksynth.noise.fused_8bit import FULL_SCALE, compiled_function
 from darksynth.noise.quantization import QUANTIZATION_LEVELS
+from darksynth.noise.simulate import white_pixel_std
 from darksynth.noise.spectral import crop_unit, spectral_tables
 from darksynth.noise.spectral_8bit import LEVELS, level_tables, read_levels
 from darksynth.noise.texture import texture_modulation
+from darksynth.noise.values import NoiseValues
 
 
 def _white(key: torch.Tensor, channels: int, rows: int, values: int) -> torch.Tensor:
@@ -124,6 +133,31 @@ def spectral_pixel_kernel(
     return level.round().clamp(0.0, FULL_SCALE).to(torch.uint8)
 
 
+def spectral_white_pixel_kernel(
+    frame: torch.Tensor,
+    key: torch.Tensor,
+    signal_table: torch.Tensor,
+    std_table: torch.Tensor,
+    white_std_table: torch.Tensor,
+    unit: torch.Tensor,
+    quantization_step: torch.Tensor,
+    column_pattern: torch.Tensor,
+) -> torch.Tensor:
+    """:func:`spectral_pixel_kernel` with white Gaussian noise besides: ``white_std_table`` (C, 256) float32, the
+    std of the white components together at each 8-bit level, times a counter-based normal of the same word as
+    the quantization byte (the normal takes its top 24 bits, the byte its low 8: independent)."""
+    channels = frame.shape[0]
+    offsets = torch.arange(channels, dtype=torch.int32, device=frame.device).reshape(-1, 1, 1) * LEVELS
+    index = frame.to(torch.int32) + offsets
+    signal = signal_table.reshape(-1)[index]
+    std = std_table.reshape(-1)[index]
+    white_std = white_std_table.reshape(-1)[index]
+    normal, byte = normal_from_word(first_word(flat_index(frame.shape, frame.device), key))
+    quantization = (byte.to(torch.float32) + 0.5) * quantization_step
+    level = (signal + std * unit + white_std * normal + quantization) * FULL_SCALE + column_pattern
+    return level.round().clamp(0.0, FULL_SCALE).to(torch.uint8)
+
+
 Kernel = Callable[..., torch.Tensor]
 
 
@@ -142,6 +176,8 @@ class SpectralKernelStream:
             :func:`spectral_pixel_kernel`, compiled (or not, for tests).
         device: where the frames are.
         texture: (``texture_gain``, ``texture_scale``) when the noise follows texture, else None.
+        white: the clip's values when white Gaussian components are active (their laws read them; ``pixel`` is
+            then :func:`spectral_white_pixel_kernel`), else None.
     """
 
     def __init__(
@@ -158,11 +194,13 @@ class SpectralKernelStream:
         pixel: Kernel,
         device: torch.device,
         texture: tuple[float, float] | None = None,
+        white: NoiseValues | None = None,
     ) -> None:
         channels, self.height, self.width = shape
         # The eager path's cached tables: a stream of either kind builds them once.
         self.tables = spectral_tables(covariances, temporal, channels, self.height, self.width, device=device)
-        self.signal_table, self.std_table = level_tables(channels, darkening, curve, device=device)
+        self.channels, self.device, self.curve, self.white = channels, device, curve, white
+        self.set_darkening(darkening)
         # As the eager path: the step a float32, its 1/256 exact.
         self.quantization_step = torch.tensor(quantization, dtype=torch.float32) / QUANTIZATION_LEVELS
         self.quantization_step = self.quantization_step.to(device)
@@ -172,6 +210,14 @@ class SpectralKernelStream:
         self.texture = texture
         # The darkened frame the texture factor is read on (the eager pass's own signal array, reused).
         self._signal = torch.empty(shape, dtype=torch.float32, device=device) if texture is not None else None
+
+    def set_darkening(self, darkening: Darkening | None) -> None:
+        """The 8-bit tables of a darkening (the clip's, or a frame's under flicker)."""
+        self.signal_table, self.std_table = level_tables(self.channels, darkening, self.curve, device=self.device)
+        self.white_std_table = None
+        if self.white is not None:
+            levels = self.signal_table[None, :, None, :]
+            self.white_std_table = white_pixel_std(levels, self.white)[0, :, 0].contiguous()
 
     def __call__(
         self, frame: torch.Tensor, generator: torch.Generator | None, column_pattern: torch.Tensor | None
@@ -199,24 +245,28 @@ class SpectralKernelStream:
             # std * (unit * factor) is the kernel's std * unit with the factor on the std.
             darkened = read_levels(frame, self.signal_table, self._signal)
             unit = unit * texture_modulation(darkened, *self.texture)
+        white = () if self.white_std_table is None else (self.white_std_table,)
         return self._pixel(
             frame,
             random_key(generator).to(frame.device),
             self.signal_table,
             self.std_table,
+            *white,
             unit,
             self.quantization_step,
             columns,
         )
 
 
-def compiled_spectral_kernels() -> tuple[Kernel, Callable[..., tuple[torch.Tensor, torch.Tensor]], Kernel]:
+def compiled_spectral_kernels(
+    white: bool = False,
+) -> tuple[Kernel, Callable[..., tuple[torch.Tensor, torch.Tensor]], Kernel]:
     """(mix, ar_mix, pixel) through ``torch.compile``, once per process (each the eager function where
-    compilation is unavailable)."""
+    compilation is unavailable); with ``white``, the pixel kernel that also draws white Gaussian noise."""
     return (
         compiled_function(spectral_mix_kernel),
         compiled_function(spectral_ar_mix_kernel),
-        compiled_function(spectral_pixel_kernel),
+        compiled_function(spectral_white_pixel_kernel if white else spectral_pixel_kernel),
     )
 
 
@@ -226,4 +276,5 @@ __all__ = [
     "spectral_ar_mix_kernel",
     "spectral_mix_kernel",
     "spectral_pixel_kernel",
+    "spectral_white_pixel_kernel",
 ]
