@@ -157,26 +157,39 @@ class ProfileExposures:
     """For each clean image, ``exposures`` of the profiles drawn at random, each with the darkening ``LowLight``
     gives that whole image with that profile (its exposure matched to the reference's tones)."""
 
-    def __init__(self, images: list[torch.Tensor], profiles: list[Path], exposures: int, seed: int) -> None:
-        from darksynth import load_profile
+    def __init__(
+        self, images: list[torch.Tensor], profiles: list[Path], exposures: int, seed: int, gain_draw: str = "matched"
+    ) -> None:
+        from darksynth import darken, load_profile
         from darksynth.transforms import LowLight
 
         self.profiles = [load_profile(path) for path in profiles]
+        self.gain_draw = gain_draw
         draw = random.Random(seed)
-        self.choices: list[list[tuple[int, float, float]]] = []
+        self.choices: list[list[tuple[int, float, float, float]]] = []
         for image in images:
             chosen = draw.sample(range(len(self.profiles)), min(exposures, len(self.profiles)))
             row = []
             for index in chosen:
                 parameters = LowLight(self.profiles[index], seed=0).sample(image).parameters
                 assert isinstance(parameters, dict)
-                row.append((index, float(parameters["darkening"]["alpha"]), float(parameters["darkening"]["gamma"])))
+                alpha, gamma = float(parameters["darkening"]["alpha"]), float(parameters["darkening"]["gamma"])
+                unit = image.double() / 255.0
+                gain = float(unit.mean() / darken(unit, alpha, gamma).mean().clamp_min(1e-6))
+                row.append((index, alpha, gamma, gain))
             self.choices.append(row)
+        gains = np.log([choice[3] for row in self.choices for choice in row])
+        self.log_gain_range = (float(np.percentile(gains, 5)), float(np.percentile(gains, 95)))
 
     def pick(self, image: int, seed: int) -> tuple[int, float, float]:
-        """(profile index, alpha, gamma) for a sample of the image."""
-        row = self.choices[image]
-        return row[seed % len(row)]
+        """(profile index, alpha, gamma) for a sample of the image: a matched darkening of one of its references,
+        with ``--gain-draw even`` its alpha scaled to a gain drawn evenly in log over the 5th-95th percentile of
+        the matched gains (the darkening's gain is inversely proportional to alpha)."""
+        index, alpha, gamma, gain = self.choices[image][seed % len(self.choices[image])]
+        if self.gain_draw == "even":
+            target = float(np.exp(random.Random(seed).uniform(*self.log_gain_range)))
+            alpha *= gain / target
+        return index, alpha, gamma
 
 
 def profile_low_light(exposures: ProfileExposures, *, noise: bool) -> LowLightCrop:
@@ -414,7 +427,11 @@ def _low_lights(arguments: argparse.Namespace, images: list[torch.Tensor], refer
     def exposures(model: str) -> ProfileExposures:
         if model not in built:
             profiles = estimate_profiles(references, arguments.out / "profiles" / model, model, arguments.device)
-            built[model] = ProfileExposures(images, profiles, arguments.exposures, arguments.seeds[0])
+            built[model] = ProfileExposures(
+                images, profiles, arguments.exposures, arguments.seeds[0], arguments.gain_draw
+            )
+            low, high = np.exp(built[model].log_gain_range)
+            print(f"{model} profiles: matched training gains {low:.1f}-{high:.1f}x (5th-95th percentile)", flush=True)
         exposure: ProfileExposures = built[model]
         return exposure
 
@@ -461,7 +478,7 @@ def run(arguments: argparse.Namespace) -> dict[str, Any]:
         "test_pairs": [pair.name for pair in test_pairs],
         "settings": {
             key: getattr(arguments, key)
-            for key in ("steps", "batch", "crop", "width", "exposures", "learning_rate", "seeds", "device")
+            for key in ("steps", "batch", "crop", "width", "exposures", "gain_draw", "learning_rate", "seeds", "device")
         },
         "clean": [str(folder) for folder in arguments.clean],
         "results": results,
@@ -480,6 +497,7 @@ def parse(argv: list[str] | None = None) -> argparse.Namespace:
     parser.add_argument("--methods", default=",".join(METHODS))
     parser.add_argument("--exposures", type=int, default=3)
     parser.add_argument("--steps", type=int, default=800)
+    parser.add_argument("--gain-draw", choices=("matched", "even"), default="matched")
     parser.add_argument("--batch", type=int, default=4)
     parser.add_argument("--crop", type=int, default=96)
     parser.add_argument("--width", type=int, default=16)
