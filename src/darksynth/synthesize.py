@@ -21,12 +21,10 @@ import torch
 
 from darksynth.io.arrays import clips_from_numpy, clips_to_numpy
 from darksynth.light.darkening import Darkening, darken
-from darksynth.light.flicker import FlickerGains
-from darksynth.light.shutter import ShutterStage
 from darksynth.noise.codec_repeat import repeat_in_clip, repeat_in_stream
 from darksynth.noise.components import noise_parameter
 from darksynth.noise.frame_routes import ClipState, ComposerRoute, SpectralRoute, eight_bit_route
-from darksynth.noise.simulate import add_noise, exposure_gains, scene_stage
+from darksynth.noise.simulate import LightStream, add_noise, exposure_gains, scene_stage
 from darksynth.profile import Profile
 from darksynth.recipe import AUGMENTING, ClipParameters, ClipRecipe, DarkeningChoice
 from darksynth.tensors import CLIP_DIMS, eight_bit_levels, scale_channels, to_dtype, unit_float
@@ -72,10 +70,9 @@ class ClipSynthesizer:
         self._composer = ComposerRoute(self._state, parameters.darkening)
         self._frame_shape: torch.Size | None = None
         self._frames_done = 0
-        # Light (darksynth.light): the shutter (motion blur, shake), the frame's darkening times its flicker gain.
-        self._flicker = FlickerGains(values.scalar("flicker"), values.scalar("flicker_correlation"))
-        fraction, length, angle = (values.scalar(n) for n in ("exposure_fraction", "shake_length", "shake_angle"))
-        self._shutter = ShutterStage(fraction, length, angle, self.device)
+        # Light, as the table's light components build their stream stages: the shutter (motion blur, shake), the
+        # frame's darkening times its flicker gain.
+        self._light = LightStream(values, self.device)
         self._repeat_share = values.scalar("codec_repeat")
 
     @property
@@ -94,15 +91,15 @@ class ClipSynthesizer:
         """The next frame (C, H, W) of a clip in, the low-light frames finished so far out, in order. With motion
         blur (``exposure_fraction`` > 0) a frame is finished when the next one arrives: call :meth:`finish` after
         the last frame (:class:`darksynth.light.shutter.ShutterStage`)."""
-        return [self(clean) for clean in self._shutter.push(frame)]
+        return [self(clean) for clean in self._light.push(frame)]
 
     def finish(self) -> list[torch.Tensor]:
         """The clip's frames still held for their blur (none without motion blur)."""
-        return [self(clean) for clean in self._shutter.finish()]
+        return [self(clean) for clean in self._light.finish()]
 
     def image(self, frame: torch.Tensor) -> torch.Tensor:
         """A single image (C, H, W): its camera shake, if any, and no flicker (it needs a sequence)."""
-        return self._frame(self._shutter.image(frame), flicker=False)
+        return self._frame(self._light.image(frame), flicker=False)
 
     def __call__(self, frame: torch.Tensor) -> torch.Tensor:
         """Low-light version of one frame (C, H, W) of a clip whose light stage is done (as :meth:`push` gives
@@ -142,9 +139,9 @@ class ClipSynthesizer:
         self._frames_done += 1
         if self.parameters.colour_scale is not None:
             frame = scale_channels(frame, self.parameters.colour_scale)
-        if flicker and self._flicker.active:
+        if flicker and self._light.flickers:
             # The gain is drawn before the frame's noise, from the same generator.
-            self._set_gain(self._flicker.next(self.generator))
+            self._set_gain(self._light.gain(self.generator))
         route = self._route if frame.dtype == torch.uint8 else self._composer
         return route(frame)
 

@@ -32,6 +32,7 @@ from darksynth.noise.components import NoiseComponent, Parameter
 from darksynth.noise.frame_routes import ClipState, ComposerRoute
 from darksynth.noise.level import mean_noise_variance
 from darksynth.noise.sampling import random_noise_values
+from darksynth.noise.simulate import exposure_gains
 from darksynth.noise.spectral_kernel import spectral_ar_mix_kernel, spectral_mix_kernel, spectral_white_pixel_kernel
 from darksynth.noise.values import NoiseValues
 from darksynth.profile import load_profile, profile_schema, save_profile
@@ -250,3 +251,47 @@ def test_a_white_gaussian_component_with_its_law_is_drawn_by_every_8bit_route(
     monkeypatch.setattr(components, "NOISE_COMPONENTS", (*components.NOISE_COMPONENTS[:-1], lawless))
     assert ClipSynthesizer(parameters, generator=torch.Generator()).route_name == "composer"
     assert ClipSynthesizer(spectral, generator=torch.Generator()).route_name == "composer"
+
+
+class _Dimming:
+    """A light component's stream stage declared in the test: every frame's gain is 1 - dim."""
+
+    def __init__(self, dim: float) -> None:
+        self.dim = dim
+
+    @property
+    def active(self) -> bool:
+        return self.dim > 0
+
+    def next(self, generator: torch.Generator | None) -> float:
+        return 1.0 - self.dim
+
+
+def _draw_dimming(
+    clean: torch.Tensor, values: Mapping[str, torch.Tensor], generator: torch.Generator | None
+) -> torch.Tensor:
+    dim = values["dim"][..., 0].reshape(*values["dim"].shape[:-1], *([1] * 4))
+    return (1.0 - dim).expand(*clean.shape[:-3], 1, 1, 1)
+
+
+DIMMING = NoiseComponent(
+    name="dimming",
+    parameters=(Parameter("dim", 1, "share of the light a filter takes", 0.9, (0.0, 0.5), since_version=7),),
+    structure="exposure",
+    draw=_draw_dimming,
+    stream_stage=lambda values, device: _Dimming(values.scalar("dim")),
+    variance=None,
+    reference="a light component that exists only in this test",
+)
+
+
+def test_a_light_component_is_run_by_streams_from_its_record(monkeypatch: pytest.MonkeyPatch) -> None:
+    monkeypatch.setattr(components, "NOISE_COMPONENTS", (*components.NOISE_COMPONENTS, DIMMING))
+    parameters = ClipParameters(NoiseValues.from_values({"dim": 0.5}), Darkening(0.5, 1.0))
+    frame = torch.full((3, 16, 24), 200, dtype=torch.uint8)
+    # No noise: the darkened level times the component's gain, 0.5 * 0.5 * 200, in a stream and in a whole clip.
+    streamed = torch.stack(ClipSynthesizer(parameters, generator=torch.Generator()).push(frame))
+    assert streamed.unique().tolist() == [50]
+    # A whole clip: the composer's gains come from the component's draw.
+    gains = exposure_gains(frame[None].float() / 255.0, parameters.noise, generator=torch.Generator())
+    assert gains is not None and gains.flatten().tolist() == [0.5]

@@ -11,7 +11,7 @@ from __future__ import annotations
 
 from collections.abc import Callable, Mapping
 from dataclasses import dataclass
-from typing import Any, Literal
+from typing import Any, Literal, Protocol
 
 import torch
 
@@ -88,6 +88,33 @@ VarianceFunction = Callable[[Mapping[str, torch.Tensor], torch.Tensor], torch.Te
 """``variance(values, channel_means) -> (B, C)``: the component's contribution to the mean noise variance of
 clips whose channels have the mean levels ``channel_means`` (B, C), with ``values`` shaped (B, size)."""
 
+
+class SceneStream(Protocol):
+    """What a frame-by-frame stream runs for a ``scene`` component (:class:`darksynth.light.shutter.ShutterStage`):
+    a clip's clean frames in, the transformed frames out as they are done, and a single image."""
+
+    def push(self, frame: torch.Tensor) -> list[torch.Tensor]: ...
+
+    def finish(self) -> list[torch.Tensor]: ...
+
+    def image(self, frame: torch.Tensor) -> torch.Tensor: ...
+
+
+class ExposureStream(Protocol):
+    """What a frame-by-frame stream runs for an ``exposure`` component (:class:`darksynth.light.flicker.FlickerGains`):
+    each frame's gain on the darkening, drawn from the stream's generator."""
+
+    @property
+    def active(self) -> bool: ...
+
+    def next(self, generator: torch.Generator | None) -> float: ...
+
+
+StreamStageFunction = Callable[[Any, torch.device], Any]
+"""``stream_stage(values, device) -> stage`` for a light component: the :class:`SceneStream` (structure ``scene``)
+or :class:`ExposureStream` (structure ``exposure``) a frame-by-frame stream runs for it, built from the clip's
+:class:`~darksynth.noise.values.NoiseValues`."""
+
 WhiteVarianceFunction = Callable[[Mapping[str, torch.Tensor], torch.Tensor], torch.Tensor]
 """``white_variance(values, signal) -> variance``: for a component that draws independent zero-mean Gaussian noise
 at every pixel, its variance at each value of the darkened ``signal`` (*batch, T, C, H, W), shaped like it, with
@@ -157,6 +184,8 @@ class NoiseComponent:
     """True when one draw is held over all frames of a clip: a frame-by-frame stream draws it once."""
     draw_in_stream: StreamDrawFunction | None = None
     """How a frame-by-frame stream draws it, for a component with memory from frame to frame; None: ``draw``."""
+    stream_stage: StreamStageFunction | None = None
+    """How a frame-by-frame stream runs a light component (``draw`` is its whole-clip form); None for noise."""
     white_variance: WhiteVarianceFunction | None = None
     """The law of a white Gaussian pixel component, the one every route draws it by: ``draw`` (the composer), the
     fused 8-bit kernel (its std table is the square root of the active components' laws summed at the 256 darkened

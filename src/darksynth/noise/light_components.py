@@ -12,8 +12,12 @@ flow gives the motion in pixels), so the values mean the same at any size.
 
 from __future__ import annotations
 
-from darksynth.light.flicker import flicker_gains
-from darksynth.light.shutter import scene_blur
+from typing import Any
+
+import torch
+
+from darksynth.light.flicker import FlickerGains, flicker_gains
+from darksynth.light.shutter import ShutterStage, scene_blur
 from darksynth.noise.component_types import ALL_PATHS, NoiseComponent, Parameter, Role
 
 SHAKE_LENGTH_UNIT = "of the frame's longer side"
@@ -27,6 +31,16 @@ def _light_parameter(
     return Parameter(
         name, 1, unit, maximum, training_range, noise_model="spectral", since_version=5, fast_paths=ALL_PATHS, role=role
     )
+
+
+def _shutter_stage(values: Any, device: torch.device) -> ShutterStage:
+    return ShutterStage(
+        values.scalar("exposure_fraction"), values.scalar("shake_length"), values.scalar("shake_angle"), device
+    )
+
+
+def _flicker_stage(values: Any, device: torch.device) -> FlickerGains:
+    return FlickerGains(values.scalar("flicker"), values.scalar("flicker_correlation"))
 
 
 SCENE = NoiseComponent(
@@ -55,6 +69,7 @@ SCENE = NoiseComponent(
     ),
     structure="scene",
     draw=scene_blur,
+    stream_stage=_shutter_stage,
     variance=None,
     reference="darksynth, docs/motion-blur.md: the shutter's integral along the scene's flow; Brooks & Barron 2019 for "
     "averaging in linear light",
@@ -79,6 +94,7 @@ FLICKER = NoiseComponent(
     ),
     structure="exposure",
     draw=flicker_gains,
+    stream_stage=_flicker_stage,
     variance=None,
     reference="darksynth, docs/motion-blur.md: mains flicker and auto-exposure hunting as an AR(1) gain",
 )

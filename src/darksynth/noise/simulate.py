@@ -20,6 +20,7 @@ from typing import Any
 
 import torch
 
+from darksynth.noise.component_types import ExposureStream, SceneStream
 from darksynth.noise.components import NoiseComponent, noise_components
 from darksynth.noise.values import NoiseValues
 
@@ -127,6 +128,59 @@ def exposure_gains(
         drawn = component.draw(clean, values, generator)
         gains = drawn if gains is None else gains * drawn
     return gains
+
+
+class LightStream:
+    """The light components of a frame-by-frame stream, each run by the stage its table record builds
+    (``stream_stage``), in table order: the ``scene`` stages chained (a frame goes through each in turn), the
+    ``exposure`` stages' gains multiplied. A stage is built for every light component, active or not (an inactive
+    one passes frames through or gives no gain), so a stream draws exactly what :func:`scene_stage` and
+    :func:`exposure_gains` draw for a whole clip."""
+
+    def __init__(self, values: NoiseValues, device: torch.device) -> None:
+        self.scene: list[SceneStream] = []
+        self.exposure: list[ExposureStream] = []
+        for component in noise_components():
+            if component.stream_stage is None:
+                continue
+            stage = component.stream_stage(values, device)
+            if component.structure == "scene":
+                self.scene.append(stage)
+            elif component.structure == "exposure":
+                self.exposure.append(stage)
+
+    @property
+    def flickers(self) -> bool:
+        """Whether a frame's darkening changes from frame to frame (an active ``exposure`` stage)."""
+        return any(stage.active for stage in self.exposure)
+
+    def push(self, frame: torch.Tensor) -> list[torch.Tensor]:
+        """A clip's next clean frame in, the frames every scene stage is done with out."""
+        frames = [frame]
+        for stage in self.scene:
+            frames = [done for held in frames for done in stage.push(held)]
+        return frames
+
+    def finish(self) -> list[torch.Tensor]:
+        """The frames the scene stages still hold at the end of the clip."""
+        frames: list[torch.Tensor] = []
+        for stage in self.scene:
+            frames = [done for held in frames for done in stage.push(held)] + stage.finish()
+        return frames
+
+    def image(self, frame: torch.Tensor) -> torch.Tensor:
+        """A single image through every scene stage."""
+        for stage in self.scene:
+            frame = stage.image(frame)
+        return frame
+
+    def gain(self, generator: torch.Generator | None) -> float:
+        """The next frame's gain on the darkening: the active exposure stages' product."""
+        gain = 1.0
+        for stage in self.exposure:
+            if stage.active:
+                gain *= stage.next(generator)
+        return gain
 
 
 def noise_sum(signal: torch.Tensor, values: NoiseValues, *, generator: torch.Generator | None) -> torch.Tensor:
