@@ -21,10 +21,17 @@ import torch
 
 from darksynth.io.arrays import clips_from_numpy, clips_to_numpy
 from darksynth.light.darkening import Darkening, darken
-from darksynth.noise.codec_repeat import repeat_in_clip, repeat_in_stream
 from darksynth.noise.components import noise_parameter
 from darksynth.noise.frame_routes import ClipState, ComposerRoute, SpectralRoute, eight_bit_route
-from darksynth.noise.simulate import LightStream, add_noise, exposure_gains, scene_stage
+from darksynth.noise.simulate import (
+    LightStream,
+    add_noise,
+    exposure_gains,
+    finish_clip,
+    finish_frame,
+    frames_finished_across,
+    scene_stage,
+)
 from darksynth.profile import Profile
 from darksynth.recipe import AUGMENTING, ClipParameters, ClipRecipe, DarkeningChoice
 from darksynth.tensors import CLIP_DIMS, eight_bit_levels, scale_channels, to_dtype, unit_float
@@ -73,7 +80,7 @@ class ClipSynthesizer:
         # Light, as the table's light components build their stream stages: the shutter (motion blur, shake), the
         # frame's darkening times its flicker gain.
         self._light = LightStream(values, self.device)
-        self._repeat_share = values.scalar("codec_repeat")
+        self._finished_across = frames_finished_across(values)
 
     @property
     def route_name(self) -> str:
@@ -106,10 +113,10 @@ class ClipSynthesizer:
         it): uint8 in, uint8 out; uint16 and float likewise. Flicker, if any, is drawn here, and after the frame
         the codec's repeats of still cells from the previous one (:mod:`darksynth.noise.codec_repeat`)."""
         finished = self._frame(frame, flicker=True)
-        if self._repeat_share <= 0.0:
+        if not self._finished_across:
             return finished
         clean = unit_float(frame.to(self.device))
-        return repeat_in_stream(clean, finished, self._repeat_share, self.generator, self.held)
+        return finish_frame(clean, finished, self._state.values, generator=self.generator, held=self.held)
 
     def float_image_on_levels(self, image: torch.Tensor) -> torch.Tensor | None:
         """A float image (C, H, W) in [0, 1] whose values are 8-bit levels (``ToTensor`` of a PNG or JPEG) through
@@ -256,10 +263,7 @@ def _synthesize_clip(clip: torch.Tensor, parameters: ClipParameters, generator: 
     gains = exposure_gains(signal, values, generator=generator)
     if gains is not None:
         signal = signal * gains
-    noisy = add_noise(signal, values, generator=generator)
-    share = values.scalar("codec_repeat")
-    if share > 0.0 and clip.shape[0] > 1:
-        noisy = repeat_in_clip(clean, noisy, share, generator)
+    noisy = finish_clip(clean, add_noise(signal, values, generator=generator), values, generator=generator)
     return to_dtype(noisy, clip.dtype)
 
 

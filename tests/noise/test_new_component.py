@@ -295,3 +295,41 @@ def test_a_light_component_is_run_by_streams_from_its_record(monkeypatch: pytest
     # A whole clip: the composer's gains come from the component's draw.
     gains = exposure_gains(frame[None].float() / 255.0, parameters.noise, generator=torch.Generator())
     assert gains is not None and gains.flatten().tolist() == [0.5]
+
+
+def _freeze_after_frame(
+    clean: torch.Tensor,
+    finished: torch.Tensor,
+    values: NoiseValues,
+    generator: torch.Generator | None,
+    held: dict[str, torch.Tensor],
+) -> torch.Tensor:
+    # Every frame after the first is the first finished frame again: a stuck decoder.
+    return held.setdefault("freeze", finished)
+
+
+FREEZE = NoiseComponent(
+    name="freeze",
+    parameters=(Parameter("freeze", 1, "whether the decoder is stuck", 1.0, (0.0, 1.0), since_version=7),),
+    structure="output",
+    draw=lambda noisy, values, generator: noisy,
+    after_frame=_freeze_after_frame,
+    variance=None,
+    reference="an output stage across frames that exists only in this test",
+)
+
+
+def test_an_output_stage_across_frames_runs_after_each_finished_frame_from_its_record(
+    monkeypatch: pytest.MonkeyPatch,
+) -> None:
+    monkeypatch.setattr(components, "NOISE_COMPONENTS", (*components.NOISE_COMPONENTS, FREEZE))
+    parameters = ClipParameters(NoiseValues.from_values({"freeze": 1.0, "read": 0.05}), Darkening(0.5, 1.0))
+    frames = [torch.full((3, 16, 24), level, dtype=torch.uint8) for level in (100, 200, 50)]
+    stream = ClipSynthesizer(parameters, generator=torch.Generator().manual_seed(0))
+    finished = [stream(frame) for frame in frames]
+    assert all(torch.equal(frame, finished[0]) for frame in finished[1:])
+    # Without it, the frames differ (their noise and their levels).
+    plain = ClipParameters(NoiseValues.from_values({"read": 0.05}), Darkening(0.5, 1.0))
+    stream = ClipSynthesizer(plain, generator=torch.Generator().manual_seed(0))
+    unfrozen = [stream(frame) for frame in frames]
+    assert not torch.equal(unfrozen[0], unfrozen[1])

@@ -73,20 +73,17 @@ def repeat_in_stream(
     return frame
 
 
-def repeat_in_clip(
-    clean: torch.Tensor, noisy: torch.Tensor, share: float, generator: torch.Generator | None
+def _after_frame(
+    clean: torch.Tensor, finished: torch.Tensor, values: Any, generator: torch.Generator | None, held: dict[str, Any]
 ) -> torch.Tensor:
-    """A whole clip's finished frames ``noisy`` (T, C, H, W) with the codec's repeats; ``clean`` (T, C, H, W) on the
-    [0, 1] scale. Frame after frame, as a stream: a repeated cell may be repeated again."""
-    held: dict[str, Any] = {}
-    return torch.stack([repeat_in_stream(c, f, share, generator, held) for c, f in zip(clean, noisy, strict=True)])
+    return repeat_in_stream(clean, finished, values.scalar("codec_repeat"), generator, held)
 
 
 def _draw_nothing(
     noisy: torch.Tensor, values: Mapping[str, torch.Tensor], generator: torch.Generator | None
 ) -> torch.Tensor:
-    # The repeat needs the clean frames, which the output stages do not see: the synthesizer runs it
-    # (darksynth.synthesize) after them; the composer passes the image unchanged.
+    # The repeat needs the clean frames, which the output stages do not see: it runs after them, frame after frame
+    # (its after_frame, darksynth.noise.simulate.finish_frame); the composer passes the image unchanged.
     return noisy
 
 
@@ -101,13 +98,14 @@ CODEC_REPEAT = NoiseComponent(
             (0.0, 0.9),
             noise_model="spectral",
             since_version=6,
-            # Every route of a clip runs it after its frame is finished (darksynth.synthesize).
+            # Every route of a clip runs it after its frame is finished (its after_frame).
             fast_paths=ALL_PATHS,
             training_off_probability=0.5,
         ),
     ),
     structure="output",
     draw=_draw_nothing,
+    after_frame=_after_frame,
     variance=None,
     reference="darksynth, issue 39: a codec's skipped blocks (ITU-T H.264 P_Skip); docs/spectral-noise.md",
 )

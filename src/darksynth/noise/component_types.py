@@ -110,6 +110,12 @@ class ExposureStream(Protocol):
     def next(self, generator: torch.Generator | None) -> float: ...
 
 
+AfterFrameFunction = Callable[[torch.Tensor, torch.Tensor, Any, torch.Generator | None, dict[str, Any]], torch.Tensor]
+"""``after_frame(clean, finished, values, generator, held) -> finished`` for an output stage that acts across a
+clip's frames (a codec's repeats of still cells): the finished frame (C, H, W) of a clip, given its clean input on
+the [0, 1] scale, the clip's :class:`~darksynth.noise.values.NoiseValues` and the stream's ``held`` state, where it
+keeps the previous frame."""
+
 StreamStageFunction = Callable[[Any, torch.device], Any]
 """``stream_stage(values, device) -> stage`` for a light component: the :class:`SceneStream` (structure ``scene``)
 or :class:`ExposureStream` (structure ``exposure``) a frame-by-frame stream runs for it, built from the clip's
@@ -184,6 +190,9 @@ class NoiseComponent:
     """True when one draw is held over all frames of a clip: a frame-by-frame stream draws it once."""
     draw_in_stream: StreamDrawFunction | None = None
     """How a frame-by-frame stream draws it, for a component with memory from frame to frame; None: ``draw``."""
+    after_frame: AfterFrameFunction | None = None
+    """How an output stage that acts across frames runs: after each finished frame, in streams and, frame after
+    frame, on whole clips (:func:`darksynth.noise.simulate.finish_frame`); None: ``draw`` alone."""
     stream_stage: StreamStageFunction | None = None
     """How a frame-by-frame stream runs a light component (``draw`` is its whole-clip form); None for noise."""
     white_variance: WhiteVarianceFunction | None = None

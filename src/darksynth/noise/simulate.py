@@ -130,6 +130,40 @@ def exposure_gains(
     return gains
 
 
+def frames_finished_across(values: NoiseValues) -> bool:
+    """Whether an active output stage acts across a clip's frames (``after_frame``: a codec's repeats)."""
+    return any(c.after_frame is not None for c in active_components(values, "output"))
+
+
+def finish_frame(
+    clean: torch.Tensor,
+    finished: torch.Tensor,
+    values: NoiseValues,
+    *,
+    generator: torch.Generator | None,
+    held: dict[str, Any],
+) -> torch.Tensor:
+    """A clip's finished frame (C, H, W) through the active output stages that act across frames, in table order:
+    ``clean`` is its input on the [0, 1] scale, ``held`` the stream's state (the previous frame)."""
+    for component in active_components(values, "output"):
+        if component.after_frame is not None:
+            finished = component.after_frame(clean, finished, values, generator, held)
+    return finished
+
+
+def finish_clip(
+    clean: torch.Tensor, noisy: torch.Tensor, values: NoiseValues, *, generator: torch.Generator | None
+) -> torch.Tensor:
+    """A whole clip's finished frames (T, C, H, W) through :func:`finish_frame`, frame after frame as a stream runs
+    them; ``clean`` (T, C, H, W) on the [0, 1] scale. Unchanged when no such stage is active or the clip is one
+    frame."""
+    if noisy.shape[0] < 2 or not frames_finished_across(values):
+        return noisy
+    held: dict[str, Any] = {}
+    frames = [finish_frame(c, f, values, generator=generator, held=held) for c, f in zip(clean, noisy, strict=True)]
+    return torch.stack(frames)
+
+
 class LightStream:
     """The light components of a frame-by-frame stream, each run by the stage its table record builds
     (``stream_stage``), in table order: the ``scene`` stages chained (a frame goes through each in turn), the
