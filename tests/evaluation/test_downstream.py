@@ -27,8 +27,9 @@ from darksynth.evaluation.measures.downstream import (
     fit_reference_parameters,
     run_downstream,
 )
-from darksynth.evaluation.methods.catalogue import NoiseMethod, build_method
+from darksynth.evaluation.methods.catalogue import build_method
 from darksynth.evaluation.methods.classical import PoissonGaussian, add_poisson_gaussian
+from darksynth.evaluation.methods.method import NoiseMethod
 from darksynth.evaluation.pairs import Pair, list_pair_set, load_pair
 from tests.evaluation.conftest import MakeSet, smooth_clean
 

@@ -7,7 +7,7 @@ import math
 import pytest
 import torch
 
-from darksynth.evaluation.methods.catalogue import NoiseMethod
+from darksynth.evaluation.methods.method import NoiseMethod
 from darksynth.evaluation.run import runner
 from darksynth.evaluation.run.options import EvaluationOptions
 from darksynth.evaluation.run.runner import evaluate_pairs

@@ -20,7 +20,7 @@ import torch.nn.functional as F
 from torch import nn
 
 from darksynth.errors import DarksynthError
-from darksynth.evaluation.methods.catalogue import NoiseMethod
+from darksynth.evaluation.methods.method import NoiseMethod
 from darksynth.evaluation.pairs import LoadedPair
 from darksynth.seeding import derive_seed, seeded_generator
 from darksynth.training.scaffold import Report, StepPlan, run_steps

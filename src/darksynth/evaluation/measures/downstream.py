@@ -34,7 +34,8 @@ from darksynth.evaluation.measures.denoiser import (
     train_on_real_pairs,
     training_summary,
 )
-from darksynth.evaluation.methods.catalogue import NoiseMethod, build_methods
+from darksynth.evaluation.methods.catalogue import build_methods
+from darksynth.evaluation.methods.method import NoiseMethod
 from darksynth.evaluation.pairs import LoadedPair, Pair, PairSet, list_pair_sets, load_pair
 
 LPIPS_STATUS = (

@@ -8,13 +8,12 @@ of darksynth, imported when such a method is built.
 from __future__ import annotations
 
 import os
-from typing import TYPE_CHECKING, Any
+from typing import Any
 
 import numpy as np
 import torch
 
-if TYPE_CHECKING:
-    from darksynth.evaluation.methods.catalogue import NoiseMethod
+from darksynth.evaluation.methods.method import NoiseMethod
 
 ALBUMENTATIONS_METHODS: dict[str, tuple[str, ...]] = {
     "albu-gauss": ("GaussNoise",),
@@ -45,8 +44,6 @@ def albumentations_synthesize(transforms: tuple[str, ...]) -> Any:
 
 def albumentations_method(name: str) -> NoiseMethod:
     """The method ``name`` of :data:`ALBUMENTATIONS_METHODS`."""
-    from darksynth.evaluation.methods.catalogue import NoiseMethod
-
     transforms = ALBUMENTATIONS_METHODS[name]
     return NoiseMethod(
         name=name,

@@ -14,7 +14,7 @@ from collections import OrderedDict
 from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import TYPE_CHECKING, Any
+from typing import TYPE_CHECKING
 
 import torch
 
@@ -28,6 +28,7 @@ from darksynth.evaluation.methods.classical import (
     blind_poisson_gaussian,
     oracle_poisson_gaussian,
 )
+from darksynth.evaluation.methods.method import Fit, NoiseMethod, Synthesize
 from darksynth.models.den import DEN
 from darksynth.noise.simulate import add_noise
 from darksynth.noise.values import NoiseValues
@@ -44,38 +45,6 @@ polyu and nam-cc15), fixed before any metric was computed."""
 PG_FIXED = PoissonGaussian(a=(8e-4, 8e-4, 8e-4), b=((2.0 / 255.0) ** 2,) * 3)
 """Fixed law of the `pg` baseline: var = 8e-4 x + (2/255)^2, a std of 2/255 in black and 5.9/255 at mid-grey,
 the same middle of the real sets."""
-
-Fit = Callable[[torch.Tensor, torch.Tensor], Any]
-Synthesize = Callable[[torch.Tensor, Any, torch.Generator], torch.Tensor]
-
-
-@dataclass(frozen=True)
-class NoiseMethod:
-    """A named way to make synthetic noise.
-
-    Attributes:
-        fit: (noisy, clean) -> parameters; zero-shot methods must not read ``clean``.
-        synthesize: (clean, parameters, generator) -> synthetic noisy image on 8-bit levels.
-    """
-
-    name: str
-    summary: str
-    fit: Fit
-    synthesize: Synthesize
-    oracle: bool = False
-    details: dict[str, Any] = field(default_factory=dict)
-    for_set: Callable[[str], NoiseMethod] | None = None
-    """The method as it runs on the set of pairs named so, for a method that draws on the prior over real cameras:
-    its prior fitted without that set (and the sets of the same cameras), so no set judges a prior that saw it."""
-
-    read_octaves: Callable[[], Mapping[str, int] | None] | None = None
-    """For a method that reads its spectrum from the noisy image: after a fit, how many octaves of the spectral
-    model (from the finest, per component: ``brightness``, ``colour``) that image set, the rest being its prior
-    (the estimate's ``meta.spectrum.read_octaves``); None where the fit does not say."""
-
-    def on_set(self, set_name: str) -> NoiseMethod:
-        """The method to run on the set ``set_name``."""
-        return self.for_set(set_name) if self.for_set is not None else self
 
 
 class MethodUnavailableError(DarksynthError):

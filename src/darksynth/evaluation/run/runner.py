@@ -44,7 +44,8 @@ from darksynth.evaluation.measures.structure import (
     relative_to_white,
 )
 from darksynth.evaluation.measures.texture_ratio import textured_flat_ratio
-from darksynth.evaluation.methods.catalogue import NoiseMethod, build_methods
+from darksynth.evaluation.methods.catalogue import build_methods
+from darksynth.evaluation.methods.method import NoiseMethod
 from darksynth.evaluation.pairs import LoadedPair, PairSet, list_pair_sets, load_pair
 from darksynth.evaluation.report.html import ReportExample
 from darksynth.evaluation.run.options import EvaluationOptions
