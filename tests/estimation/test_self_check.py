@@ -10,6 +10,8 @@ import torch
 
 from darksynth.estimation.self_check import (
     CHECK_MEAN_RANGE,
+    FACTOR_BOUNDS,
+    BlockCheck,
     check_level,
     checked_blocks,
     checked_blocks_per_intensity,
@@ -64,6 +66,30 @@ def test_a_scene_the_denoiser_kept_rougher_than_the_reference_supports_no_factor
     scene = _scene()
     check = self_consistency(scene, _noisy(scene, 0.02, 0), _noisy(scene, 0.03, 1))
     assert math.isnan(check.supported)
+
+
+@pytest.mark.parametrize(
+    ("real", "synthetic", "scene", "up"),
+    [
+        # dicm 43.jpg's 83-130 levels: the scene's median std (1.62) above the synthetic blocks' (1.54), the
+        # synthetic noise too weak (0.73x): no variance left to scale, and a factor that went to 1/16 before.
+        (2.12, 1.54, 1.62, True),
+        (2.0, 1.2, 0.5, True),  # too weak: up
+        (2.0, 3.0, 0.5, False),  # too strong: down
+        (2.0, 3.0, 2.9, False),  # too strong, the scene alone nearly as rough as the synthetic blocks: down
+    ],
+)
+def test_a_correction_moves_the_level_the_way_the_check_asks(
+    real: float, synthetic: float, scene: float, up: bool
+) -> None:
+    check = BlockCheck(3, real / 255, synthetic / 255, (scene / 255) ** 2)
+    factor = check.correction()
+    assert factor > 1.0 if up else factor < 1.0
+    assert FACTOR_BOUNDS[0] <= factor <= FACTOR_BOUNDS[1]
+
+
+def test_a_consistent_check_corrects_nothing() -> None:
+    assert BlockCheck(3, 2.0 / 255, 2.1 / 255, (1.0 / 255) ** 2).correction() == 1.0
 
 
 def _spectral_values(level: float) -> NoiseValues:

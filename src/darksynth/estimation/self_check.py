@@ -65,6 +65,24 @@ class BlockCheck:
         """The level factor that makes the synthetic std the real one (:meth:`supported_for` 1)."""
         return self.supported_for(1.0)
 
+    def correction(self) -> float:
+        """1 where the blocks are consistent, else the level factor that brings them to the near end of
+        :data:`CORRECTION_TARGET`, within :data:`FACTOR_BOUNDS`, and never away from it: up where the synthetic
+        noise is too weak, down where it is too strong. Where :meth:`supported_for` gives no factor, a ratio
+        above 1 means the denoised scene alone is as rough as the reference supports (no noise: the lower bound);
+        a ratio below 1 means the medians of the scene and of the synthetic blocks left no noise variance to scale
+        (the scene's median above the synthetic one's), and the std ratio alone says how far to go."""
+        if self.consistent:
+            return 1.0
+        weak = self.ratio < 1.0
+        target = CORRECTION_TARGET[0] if weak else CORRECTION_TARGET[1]
+        supported = self.supported_for(target)
+        if not math.isfinite(supported):
+            supported = target / self.ratio if weak else 0.0
+        # A factor against the check's direction came from medians of different blocks: none moves that way.
+        supported = max(supported, 1.0) if weak else min(supported, 1.0)
+        return min(max(supported, FACTOR_BOUNDS[0]), FACTOR_BOUNDS[1])
+
     @property
     def ratio(self) -> float:
         """Synthetic over real std (1: the profile shows what the reference shows)."""
@@ -193,17 +211,6 @@ def _knot_factors(factors: dict[int, float]) -> torch.Tensor:
     return knots
 
 
-def _supported_factor(check: BlockCheck) -> float:
-    """1 for a consistent segment, else the level factor that brings it to the near end of
-    :data:`CORRECTION_TARGET`, within :data:`FACTOR_BOUNDS`."""
-    if check.consistent:
-        return 1.0
-    target = CORRECTION_TARGET[1] if check.ratio > 1.0 else CORRECTION_TARGET[0]
-    supported = check.supported_for(target)
-    supported = supported if math.isfinite(supported) else 0.0
-    return min(max(supported, FACTOR_BOUNDS[0]), FACTOR_BOUNDS[1])
-
-
 def _worst(checks: dict[int, BlockCheck]) -> float:
     """The largest departure from 1 over the checked segments, as a factor (1: all consistent)."""
     return max((math.exp(abs(math.log(max(c.ratio, 1e-12)))) for c in checks.values()), default=1.0)
@@ -305,7 +312,7 @@ def _corrected(
     corrected, second = curve, first
     for _ in range(CORRECTION_STEPS):
         # A segment's std follows both of its knots, and a knot serves two segments: a few steps settle them.
-        step = {s: _supported_factor(c) for s, c in second.items()}
+        step = {s: c.correction() for s, c in second.items()}
         corrected = corrected * _knot_factors(step)[None, :]
         second = window.checked(corrected)
         if _within(second, CONSISTENT_RANGE):
