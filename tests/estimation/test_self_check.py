@@ -77,6 +77,7 @@ def test_a_scene_the_denoiser_kept_rougher_than_the_reference_supports_no_factor
         (2.0, 1.2, 0.5, True),  # too weak: up
         (2.0, 3.0, 0.5, False),  # too strong: down
         (2.0, 3.0, 2.9, False),  # too strong, the scene alone nearly as rough as the synthetic blocks: down
+        (2.0, 0.0, 0.0, True),  # no synthetic noise at all (round-trip seed 70 after a first step): up, no division
     ],
 )
 def test_a_correction_moves_the_level_the_way_the_check_asks(

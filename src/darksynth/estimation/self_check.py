@@ -78,7 +78,8 @@ class BlockCheck:
         target = CORRECTION_TARGET[0] if weak else CORRECTION_TARGET[1]
         supported = self.supported_for(target)
         if not math.isfinite(supported):
-            supported = target / self.ratio if weak else 0.0
+            # No synthetic noise at all on the blocks (a level scaled to 0): the largest step up.
+            supported = (target / self.ratio if self.ratio > 0 else FACTOR_BOUNDS[1]) if weak else 0.0
         # A factor against the check's direction came from medians of different blocks: none moves that way.
         supported = max(supported, 1.0) if weak else min(supported, 1.0)
         return min(max(supported, FACTOR_BOUNDS[0]), FACTOR_BOUNDS[1])
