@@ -217,6 +217,14 @@ def _worst(checks: dict[int, BlockCheck]) -> float:
     return max((math.exp(abs(math.log(max(c.ratio, 1e-12)))) for c in checks.values()), default=1.0)
 
 
+def _worst_said(checks: dict[int, BlockCheck]) -> str:
+    """:func:`_worst` as a warning says it: a segment left with no synthetic noise at all reads as such, not as a
+    factor of a trillion."""
+    if any(c.ratio <= 0.0 for c in checks.values()):
+        return "no noise at some levels"
+    return f"{_worst(checks):.2f}x"
+
+
 def _within(checks: dict[int, BlockCheck], bounds: tuple[float, float]) -> bool:
     return all(bounds[0] <= c.ratio <= bounds[1] for c in checks.values())
 
@@ -331,21 +339,21 @@ def _corrected(
     if _within(second, FALLBACK_RANGE) and (
         not far or _within(second, CONSISTENT_RANGE) or not _far(corrected, network_curve)
     ):
-        scaled = f"; its level is scaled by {_span(factors)} to what the reference supports (now {_worst(second):.2f}x"
+        scaled = f"; its level is scaled by {_span(factors)} to what the reference supports (now {_worst_said(second)}"
         kept = {"kept": "measurement scaled to what the check supports"}
         return SelfCheck(corrected, meta | kept, [f"{said}{scaled} at worst)"])
     network = window.checked(network_curve)
     meta = meta | {"network": _describe(network)}
     if _worst(network) <= _worst(second):
         fallback = (
-            f", and scaled to what the reference supports still {_worst(second):.2f}x; the profile holds the "
-            f"network's level curve ({_worst(network):.2f}x at worst)"
+            f", and scaled to what the reference supports still {_worst_said(second)}; the profile holds the "
+            f"network's level curve ({_worst_said(network)} at worst)"
         )
         kept = {"kept": "network: the measurement failed its check"}
         return SelfCheck(network_curve.clone(), meta | kept, [said + fallback])
     uncertain = (
-        f"; scaled by {_span(factors)} it is still {_worst(second):.2f}x at worst (the network's level: "
-        f"{_worst(network):.2f}x): the level is uncertain"
+        f"; scaled by {_span(factors)} it is still {_worst_said(second)} at worst (the network's level: "
+        f"{_worst_said(network)}): the level is uncertain"
     )
     kept = {"kept": "measurement scaled to what the check supports, though it still fails"}
     return SelfCheck(corrected, meta | kept, [said + uncertain])
