@@ -38,7 +38,7 @@ from darksynth.noise.counter_rng import (
     random_key,
     triangular_from_word,
 )
-from darksynth.noise.fused_8bit import FULL_SCALE, compiled_function
+from darksynth.noise.fused_8bit import compiled_function, rounded_frame
 from darksynth.noise.quantization import QUANTIZATION_LEVELS
 from darksynth.noise.simulate import white_pixel_std
 from darksynth.noise.spectral import crop_unit, spectral_tables
@@ -121,16 +121,21 @@ def spectral_pixel_kernel(
         quantization_step: 0-dim float32, q / 256 (:data:`darksynth.noise.quantization.QUANTIZATION_LEVELS`).
         column_pattern: (C, 1, W) float32 column components in 8-bit units (zeros when none is active).
     """
-    channels = frame.shape[0]
-    offsets = torch.arange(channels, dtype=torch.int32, device=frame.device).reshape(-1, 1, 1) * LEVELS
-    index = frame.to(torch.int32) + offsets
-    signal = signal_table.reshape(-1)[index]
-    std = std_table.reshape(-1)[index]
+    index = _table_index(frame)
+    signal, std = _read(signal_table, index), _read(std_table, index)
     byte = byte_from_word(first_word(flat_index(frame.shape, frame.device), key))
     quantization = (byte.to(torch.float32) + 0.5) * quantization_step
-    level = (signal + std * unit + quantization) * FULL_SCALE + column_pattern
-    # Rounding before clamping equals clamping before rounding here because the bounds are integers.
-    return level.round().clamp(0.0, FULL_SCALE).to(torch.uint8)
+    return rounded_frame(signal + std * unit + quantization, column_pattern)
+
+
+def _table_index(frame: torch.Tensor) -> torch.Tensor:
+    """(C, H, W) int32: each value's place in a (C, 256) table read flat (its channel's row, its level's column)."""
+    offsets = torch.arange(frame.shape[0], dtype=torch.int32, device=frame.device).reshape(-1, 1, 1) * LEVELS
+    return frame.to(torch.int32) + offsets
+
+
+def _read(table: torch.Tensor, index: torch.Tensor) -> torch.Tensor:
+    return table.reshape(-1)[index]
 
 
 def spectral_white_pixel_kernel(
@@ -146,16 +151,11 @@ def spectral_white_pixel_kernel(
     """:func:`spectral_pixel_kernel` with white Gaussian noise besides: ``white_std_table`` (C, 256) float32, the
     std of the white components together at each 8-bit level, times a counter-based normal of the same word as
     the quantization byte (the normal takes its top 24 bits, the byte its low 8: independent)."""
-    channels = frame.shape[0]
-    offsets = torch.arange(channels, dtype=torch.int32, device=frame.device).reshape(-1, 1, 1) * LEVELS
-    index = frame.to(torch.int32) + offsets
-    signal = signal_table.reshape(-1)[index]
-    std = std_table.reshape(-1)[index]
-    white_std = white_std_table.reshape(-1)[index]
+    index = _table_index(frame)
+    signal, std, white_std = _read(signal_table, index), _read(std_table, index), _read(white_std_table, index)
     normal, byte = normal_from_word(first_word(flat_index(frame.shape, frame.device), key))
     quantization = (byte.to(torch.float32) + 0.5) * quantization_step
-    level = (signal + std * unit + white_std * normal + quantization) * FULL_SCALE + column_pattern
-    return level.round().clamp(0.0, FULL_SCALE).to(torch.uint8)
+    return rounded_frame(signal + std * unit + white_std * normal + quantization, column_pattern)
 
 
 Kernel = Callable[..., torch.Tensor]
