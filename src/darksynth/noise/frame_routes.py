@@ -24,7 +24,7 @@ from typing import Any, Protocol
 import torch
 
 from darksynth.light.darkening import Darkening, darken
-from darksynth.noise.components import NoiseComponent, noise_component, noise_parameter
+from darksynth.noise.components import NoiseComponent, noise_parameter
 from darksynth.noise.counter_rng import random_key
 from darksynth.noise.fused_8bit import (
     FAST_PATH,
@@ -36,6 +36,7 @@ from darksynth.noise.fused_8bit import (
     pixel_kernel_8bit,
     pixel_kernel_in_pieces,
 )
+from darksynth.noise.paper_components import QUANTIZATION
 from darksynth.noise.simulate import (
     active_components,
     add_noise,
@@ -45,13 +46,14 @@ from darksynth.noise.simulate import (
 )
 from darksynth.noise.spectral import clip_grid, octave_covariances
 from darksynth.noise.spectral_8bit import (
-    QUANTIZATION,
+    DRAW_QUANTIZATION,
+    DRAW_SPECTRUM,
     SPECTRAL_PATH,
-    SPECTRUM,
     DrawOrder,
     SpectralPixelPass,
     to_8bit,
 )
+from darksynth.noise.spectral_components import SPECTRAL
 from darksynth.noise.spectral_kernel import SpectralKernelStream, compiled_spectral_kernels
 from darksynth.noise.values import NoiseValues, covered_by, uncovered_by
 from darksynth.tensors import to_dtype, unit_float
@@ -162,7 +164,7 @@ class SpectralRoute:
         columns = state.columns(frame.shape) if column_components_active(values) else None
         if self._pass is None:
             channels, height, width = frame.shape
-            white, order = _pixel_draws(values)
+            white, order = _spectral_draws(values)
             self._pass = SpectralPixelPass(
                 channels,
                 height,
@@ -190,7 +192,7 @@ class SpectralRoute:
         # components' normals.
         unit = None
         for item in self._pass.order:
-            if item == SPECTRUM:
+            if item == DRAW_SPECTRUM:
                 unit = grid.frame(generator)
             else:
                 self._pass.draw(item, generator)
@@ -230,7 +232,7 @@ class CompiledSpectralRoute:
         columns = state.columns(frame.shape) * FULL_SCALE if column_components_active(values) else None
         try:
             if self._stream is None:
-                white = bool(_pixel_draws(values)[0])
+                white = bool(_spectral_draws(values)[0])
                 mix, ar_mix, pixel = compiled_spectral_kernels(white)
                 self._stream = SpectralKernelStream(
                     (frame.shape[0], frame.shape[1], frame.shape[2]),
@@ -258,38 +260,41 @@ class CompiledSpectralRoute:
         return to_dtype(compressed[0], frame.dtype)
 
 
-def _pixel_draws(values: NoiseValues) -> tuple[list[NoiseComponent], DrawOrder]:
+def _pixel_draws(values: NoiseValues) -> tuple[list[NoiseComponent], DrawOrder] | None:
     """The active white Gaussian components, and the per-pixel draws of the spectral paths in the composer's
-    (table) order; a component that is neither the spectrum, quantization nor white with its law is refused."""
+    (table) order; None when an active pixel component is neither the spectrum, quantization nor white with its law
+    (the spectral paths cannot draw it)."""
     white: list[NoiseComponent] = []
     order: list[str | int] = []
     for component in active_components(values, "pixel"):
-        if component.name == "spectral":
-            order.append(SPECTRUM)
-        elif component.name == "quantization":
-            order.append(QUANTIZATION)
+        if component is SPECTRAL:
+            order.append(DRAW_SPECTRUM)
+        elif component is QUANTIZATION:
+            order.append(DRAW_QUANTIZATION)
         elif component.white_variance is not None:
             order.append(len(white))
             white.append(component)
         else:
-            raise ValueError(f"the spectral paths cannot draw the pixel component {component.name!r}")
+            return None
     return white, tuple(order)
+
+
+def _spectral_draws(values: NoiseValues) -> tuple[list[NoiseComponent], DrawOrder]:
+    """:func:`_pixel_draws` of values a spectral route took (:func:`_spectral`)."""
+    draws = _pixel_draws(values)
+    assert draws is not None, "a spectral route was made for values it cannot draw"
+    return draws
 
 
 def _spectral(values: NoiseValues) -> bool:
     # A profile of the spectral model (its curve set) whose other values the spectral path draws; the paper's white
     # model never takes it, so its frames keep their bits.
-    if not (
+    return (
         bool(uncovered_by(values, FAST_PATH))
-        and values.is_active(noise_component("spectral"))
+        and values.is_active(SPECTRAL)
         and covered_by(values, SPECTRAL_PATH)
-    ):
-        return False
-    try:
-        _pixel_draws(values)
-    except ValueError:
-        return False
-    return True
+        and _pixel_draws(values) is not None
+    )
 
 
 def _texture(values: NoiseValues) -> tuple[float, float] | None:

@@ -51,11 +51,11 @@ def level_tables(
     return signal[0, :, 0].contiguous(), std[0, :, 0].contiguous()
 
 
-SPECTRUM = "spectrum"
-QUANTIZATION = "quantization"
+DRAW_SPECTRUM = "spectrum"
+DRAW_QUANTIZATION = "quantization"
 DrawOrder = tuple[str | int, ...]
-"""The per-pixel draws of a clip in the composer's (table) order: :data:`SPECTRUM`, :data:`QUANTIZATION`, or the
-index of a white Gaussian component among the pass's ``white`` ones."""
+"""The per-pixel draws of a clip in the composer's (table) order: :data:`DRAW_SPECTRUM`, :data:`DRAW_QUANTIZATION`,
+or the index of a white Gaussian component among the pass's ``white`` ones."""
 
 
 def white_std_tables(
@@ -117,7 +117,7 @@ class SpectralPixelPass:
         self.texture = texture
         # The white Gaussian components (their laws read ``values``), drawn and summed in ``order``.
         self.white, self.values = tuple(white), values
-        self.order: DrawOrder = order if order is not None else (SPECTRUM, QUANTIZATION)
+        self.order: DrawOrder = order if order is not None else (DRAW_SPECTRUM, DRAW_QUANTIZATION)
         self.signal_table, self.std_table = level_tables(channels, darkening, curve, device=device)
         self.white_tables = white_std_tables(self.signal_table, values or {}, self.white)
         self.signal = torch.empty(self.shape, dtype=torch.float32, device=device)
@@ -141,7 +141,7 @@ class SpectralPixelPass:
     def draw(self, item: str | int, generator: torch.Generator | None) -> None:
         """Draw the quantization bytes or a white component's normals (``item`` of :data:`DrawOrder`) of the next
         frame, as the composer draws them (one draw over the whole frame, in memory order)."""
-        if item == QUANTIZATION:
+        if item == DRAW_QUANTIZATION:
             if self.quantization_step is not None:
                 self.quantization_levels.random_(generator=generator)
         elif isinstance(item, int):
@@ -197,7 +197,7 @@ class SpectralPixelPass:
         """The block's per-pixel terms summed in :attr:`order`, as the composer sums its components (``spectral``,
         the spectrum's term, is overwritten)."""
         step = self.quantization_step
-        if self.order == (SPECTRUM, QUANTIZATION) or self.order == (SPECTRUM,):
+        if self.order == (DRAW_SPECTRUM, DRAW_QUANTIZATION) or self.order == (DRAW_SPECTRUM,):
             if step is not None:
                 # (level + 0.5) * step / 256, the composer's uniform_levels_to_noise, added to the spectral
                 # noise before the signal as the composer sums its per-pixel components.
@@ -205,9 +205,9 @@ class SpectralPixelPass:
             return spectral
         total: torch.Tensor | None = None
         for item in self.order:
-            if item == SPECTRUM:
+            if item == DRAW_SPECTRUM:
                 term = spectral
-            elif item == QUANTIZATION:
+            elif item == DRAW_QUANTIZATION:
                 if step is None:
                     continue
                 term = torch.add(self.quantization_levels[channel, rows], 0.5).mul_(step)
@@ -226,9 +226,9 @@ def to_8bit(noisy: torch.Tensor) -> torch.Tensor:
 
 
 __all__ = [
-    "QUANTIZATION",
+    "DRAW_QUANTIZATION",
+    "DRAW_SPECTRUM",
     "SPECTRAL_PATH",
-    "SPECTRUM",
     "DrawOrder",
     "SpectralPixelPass",
     "level_tables",
