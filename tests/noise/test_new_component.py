@@ -33,7 +33,7 @@ from darksynth.noise.frame_routes import ClipState, ComposerRoute
 from darksynth.noise.level import mean_noise_variance
 from darksynth.noise.sampling import random_noise_values
 from darksynth.noise.simulate import exposure_gains
-from darksynth.noise.spectral_kernel import spectral_ar_mix_kernel, spectral_mix_kernel, spectral_white_pixel_kernel
+from darksynth.noise.spectral_kernel import spectral_kernels
 from darksynth.noise.values import NoiseValues
 from darksynth.profile import load_profile, profile_schema, save_profile
 from darksynth.recipe import ClipParameters, ClipRecipe
@@ -235,8 +235,7 @@ def test_a_white_gaussian_component_with_its_law_is_drawn_by_every_8bit_route(
     general = ComposerRoute(state, spectral.darkening)
     assert eager.route_name == "spectral"
     assert torch.equal(eager(frame), general(frame))
-    kernels = (spectral_mix_kernel, spectral_ar_mix_kernel, spectral_white_pixel_kernel)
-    monkeypatch.setattr(frame_routes, "compiled_spectral_kernels", lambda white=False: kernels)
+    monkeypatch.setattr(frame_routes, "compiled_spectral_kernels", spectral_kernels)
     compiled = ClipSynthesizer(spectral, generator=torch.Generator().manual_seed(4), compile=True)
     compiled_frame = compiled(frame).double()
     assert compiled.route_name == "compiled spectral"

@@ -16,6 +16,7 @@ from darksynth.noise.spectral import OCTAVES, crop_unit, octave_covariances, spe
 from darksynth.noise.spectral_8bit import level_tables
 from darksynth.noise.spectral_kernel import (
     spectral_ar_mix_kernel,
+    spectral_kernels,
     spectral_mix_kernel,
     spectral_pixel_kernel,
     spectral_white_pixel_kernel,
@@ -31,16 +32,10 @@ SPECTRAL = {
     "quantization": 0.002,
 }
 
-EAGER_KERNELS = (spectral_mix_kernel, spectral_ar_mix_kernel, spectral_pixel_kernel)
-
 
 def _eager_kernels(monkeypatch: pytest.MonkeyPatch) -> None:
     """The stream with the kernels run eagerly: the compiled ones' values (tested below), in a test's time."""
-    monkeypatch.setattr(
-        frame_routes,
-        "compiled_spectral_kernels",
-        lambda white=False: (*EAGER_KERNELS[:2], spectral_white_pixel_kernel if white else spectral_pixel_kernel),
-    )
+    monkeypatch.setattr(frame_routes, "compiled_spectral_kernels", spectral_kernels)
 
 
 def _field(mixed: torch.Tensor, height: int, width: int) -> torch.Tensor:

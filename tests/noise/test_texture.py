@@ -18,7 +18,7 @@ from darksynth.models.statistics import model_statistics
 from darksynth.noise import frame_routes
 from darksynth.noise.components import model_parameters, noise_parameter, profile_version
 from darksynth.noise.spectral_components import spectral_clips
-from darksynth.noise.spectral_kernel import spectral_ar_mix_kernel, spectral_mix_kernel, spectral_pixel_kernel
+from darksynth.noise.spectral_kernel import spectral_kernels
 from darksynth.noise.texture import (
     DETAIL_BLUR_SIGMA,
     DETAIL_WINDOW_SIGMA,
@@ -97,18 +97,13 @@ def test_a_texture_scale_alone_changes_nothing_and_a_gain_does() -> None:
     assert all(textured[case] != plain[case] for case in plain)
 
 
-def _eager_kernels(monkeypatch: pytest.MonkeyPatch) -> None:
-    """The compiled route with its kernels run eagerly: the compiled ones' values (tests/noise/test_spectral_kernel.py),
-    in a test's time."""
-    eager = (spectral_mix_kernel, spectral_ar_mix_kernel, spectral_pixel_kernel)
-    monkeypatch.setattr(frame_routes, "compiled_spectral_kernels", lambda white=False: eager)
-
-
 @pytest.mark.parametrize("compile", [True, False], ids=["compiled", "eager"])
 def test_a_texture_gain_draws_stronger_noise_on_texture_through_either_spectral_route(
     monkeypatch: pytest.MonkeyPatch, compile: bool
 ) -> None:
-    _eager_kernels(monkeypatch)
+    # The compiled route with its kernels run eagerly: the compiled ones' values (test_spectral_kernel.py), in a
+    # test's time.
+    monkeypatch.setattr(frame_routes, "compiled_spectral_kernels", spectral_kernels)
     plain = NoiseValues.from_values(SPECTRAL_VALUES)  # type: ignore[arg-type]
     textured = ClipParameters(plain.replace(texture_gain=1.0, texture_scale=0.003), Darkening(0.3, 1.0))
     stream = ClipSynthesizer(textured, generator=torch.Generator().manual_seed(2), compile=compile)

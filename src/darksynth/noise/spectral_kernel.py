@@ -258,22 +258,26 @@ class SpectralKernelStream:
         )
 
 
+def spectral_kernels(white: bool = False) -> tuple[Kernel, Callable[..., tuple[torch.Tensor, torch.Tensor]], Kernel]:
+    """(mix, ar_mix, pixel), eager: :func:`spectral_mix_kernel`, :func:`spectral_ar_mix_kernel` and
+    :func:`spectral_pixel_kernel` (with ``white``, :func:`spectral_white_pixel_kernel`)."""
+    return spectral_mix_kernel, spectral_ar_mix_kernel, spectral_white_pixel_kernel if white else spectral_pixel_kernel
+
+
 def compiled_spectral_kernels(
     white: bool = False,
 ) -> tuple[Kernel, Callable[..., tuple[torch.Tensor, torch.Tensor]], Kernel]:
-    """(mix, ar_mix, pixel) through ``torch.compile``, once per process (each the eager function where
-    compilation is unavailable); with ``white``, the pixel kernel that also draws white Gaussian noise."""
-    return (
-        compiled_function(spectral_mix_kernel),
-        compiled_function(spectral_ar_mix_kernel),
-        compiled_function(spectral_white_pixel_kernel if white else spectral_pixel_kernel),
-    )
+    """:func:`spectral_kernels` through ``torch.compile``, once per process (each the eager function where
+    compilation is unavailable)."""
+    mix, ar_mix, pixel = spectral_kernels(white)
+    return compiled_function(mix), compiled_function(ar_mix), compiled_function(pixel)
 
 
 __all__ = [
     "SpectralKernelStream",
     "compiled_spectral_kernels",
     "spectral_ar_mix_kernel",
+    "spectral_kernels",
     "spectral_mix_kernel",
     "spectral_pixel_kernel",
     "spectral_white_pixel_kernel",
