@@ -146,7 +146,7 @@ class SpectralPixelPass:
                 self.quantization_levels.random_(generator=generator)
         elif isinstance(item, int):
             normals = self.white_normals[item]
-            normals.copy_(torch.randn(normals.shape, generator=generator, device=normals.device))
+            torch.randn(normals.shape, generator=generator, out=normals)
 
     def noisy(
         self,
