@@ -53,19 +53,21 @@ compressed night video shows. So:
   :data:`CODEC_SKIPPED_SHARE` were repeated the lag-one reading stands alone;
 * where neither statistic reads the finest octave, the coefficients are the video prior :data:`VIDEO_PRIOR`
   (what this read gives on the shared real night clips), stated in ``meta.persistence_prior`` and the warning, not
-  independent frames. A single image keeps 0 (``estimation.spectrum``): a photo's noise is a still camera's, whose
+  independent frames. A single image keeps 0 (:func:`read_persistence`): a photo's noise is a still camera's, whose
   exposures are independent; it says nothing about a codec.
 """
 
 from __future__ import annotations
 
-from collections.abc import Callable
+from collections.abc import Callable, Mapping
 from dataclasses import dataclass
 
 import torch
 import torch.nn.functional as F
 
+from darksynth.estimation.findings import Findings
 from darksynth.estimation.flat_blocks import FLAT_BLOCK
+from darksynth.estimation.resynthesis import FittedReference, MeasuredValues
 from darksynth.estimation.spectral_fit import SpectralParameters, quantised, uncensored_signal
 from darksynth.estimation.spectral_statistics import band_masks
 from darksynth.noise.simulate import add_noise
@@ -386,3 +388,38 @@ def _coded(pooled: torch.Tensor, codec_repeat: float) -> torch.Tensor:
     coded = ((pooled - codec_repeat) / max(1.0 - codec_repeat, 1e-6)).clamp(0.0, MAX_COEFFICIENT)
     unread = pooled < codec_repeat - UNDER_REPEATED
     return torch.where(unread, torch.full_like(coded, min(codec_repeat, MAX_COEFFICIENT)), coded)
+
+
+def read_persistence(reference: FittedReference, values: Mapping[str, torch.Tensor]) -> MeasuredValues:
+    """The reading after the fit of the frame-to-frame correlation per octave (``temporal_correlation``) and the
+    share of still cells a codec repeats (``codec_repeat``): read on a clip's still blocks over 3 or more frames
+    (:func:`fit_persistence`, in place of the residual's correlation the fit moved; where that cannot be read, the
+    video prior with a warning), the fit's own on 2, the video prior for a clip with no still block, 0 for a single
+    image; the share repeated is read with the persistence, else 0."""
+    resynthesis, name = reference.resynthesis, reference.name
+    if reference.still and resynthesis.analysed.shape[0] >= 3:
+        persistence = fit_persistence(
+            resynthesis.analysed,
+            resynthesis.denoised,
+            resynthesis.mask,
+            reference.fitted,
+            reference.compression,
+            resynthesis.seed,
+        )
+        findings = Findings(persistence.record, [f"{name}: {note}" for note in persistence.notes])
+        return _persistence_values(persistence.coefficient, persistence.codec_repeat, findings)
+    if reference.still:
+        return _persistence_values(reference.fitted.temporal, 0.0, Findings())
+    if reference.clip:
+        # A clip whose blocks all move shows nothing of its noise's persistence; a video's is not independent frames.
+        prior = Findings(video_prior_record("video prior: no flat block stays still"))
+        return _persistence_values(torch.tensor(VIDEO_PRIOR, dtype=torch.float64), 0.0, prior)
+    return _persistence_values(torch.zeros(OCTAVES, dtype=torch.float64), 0.0, Findings())
+
+
+def _persistence_values(coefficient: torch.Tensor, codec_repeat: float, findings: Findings) -> MeasuredValues:
+    values = {
+        "temporal_correlation": coefficient.clamp(0.0, MAX_COEFFICIENT),
+        "codec_repeat": torch.tensor([codec_repeat], dtype=torch.float64),
+    }
+    return MeasuredValues(values, findings)

@@ -32,10 +32,10 @@ from typing import Any
 
 import torch
 
+from darksynth.estimation import readings
 from darksynth.estimation.camera_conditional import (
     TEXTURE_NAMES,
     CameraPriorUse,
-    expected_texture,
     prior_first_octave,
     prior_octaves,
 )
@@ -50,7 +50,7 @@ from darksynth.estimation.flat_blocks import (
     flat_mask,
 )
 from darksynth.estimation.nonlocal_means import nlm_denoise
-from darksynth.estimation.persistence_fit import VIDEO_PRIOR, fit_persistence, video_prior_record
+from darksynth.estimation.resynthesis import FittedReference, Resynthesis
 from darksynth.estimation.spectral_fit import (
     COMPRESSION_CANDIDATES,
     SpectralParameters,
@@ -59,16 +59,8 @@ from darksynth.estimation.spectral_fit import (
     fit_by_resynthesis,
     initial_parameters,
     mismatch,
-    quantised,
-    uncensored_signal,
 )
-from darksynth.estimation.spectral_statistics import (
-    KnotBinning,
-    SpectralStatistics,
-    knot_binning,
-    measure,
-    measure_weight,
-)
+from darksynth.estimation.spectral_statistics import SpectralStatistics, measure
 from darksynth.estimation.spectrum_checks import (
     fitted_noise_8bit,
     level_checks,
@@ -76,9 +68,7 @@ from darksynth.estimation.spectrum_checks import (
     readability_warnings,
 )
 from darksynth.estimation.still_blocks import still_flat_mask
-from darksynth.noise.simulate import add_noise
-from darksynth.noise.spectral import OCTAVES, level_std
-from darksynth.noise.values import NoiseValues
+from darksynth.noise.spectral import OCTAVES
 
 TEXTURED_GRADIENT = 4.0 / 255
 """A reference whose flat blocks still have a mean gradient magnitude of the denoised image above this (in the
@@ -202,8 +192,8 @@ def estimate_spectrum(
             f"{name}: no flat region (its flattest blocks still have a gradient of {flat_gradient * 255:.1f} 8-bit "
             "levels per pixel): fine texture may be read as noise, the level may be too high"
         )
-    resynthesis, still = _analysed(frames, denoised, mask, strength, seed, name)
-    findings.include(still)
+    resynthesis, analysed = _analysed(frames, denoised, mask, strength, seed, name)
+    findings.include(analysed)
     target = measure(resynthesis.analysed - resynthesis.denoised, resynthesis.denoised, resynthesis.mask)
     fitted, measured_knots, fit = _fit(resynthesis, target, prior_curve, camera_prior)
     findings.include(fit)
@@ -214,111 +204,30 @@ def estimate_spectrum(
     findings.meta["strength_over_fitted_noise"] = round(
         strength / fitted_noise_8bit(fitted.curve, denoised[0], mask), 3
     )
-    compression = fit.meta["compression_chosen"]
-    fitted.temporal, repeat, temporal = _temporal(
-        resynthesis, fitted, compression, still=target.temporal is not None, clip=clip, name=name
-    )
-    findings.include(temporal)
-    values = _values(fitted, compression, camera_prior) | {"codec_repeat": torch.tensor([repeat], dtype=torch.float64)}
-    return SpectrumEstimate(values=values, meta=findings.meta, warnings=findings.warnings)
+    compression, still = fit.meta["compression_chosen"], target.temporal is not None
+    fitted_reference = FittedReference(resynthesis, fitted, compression, still, clip, name, camera_prior)
+    after = readings.read_after_fit(fitted_reference)
+    findings.include(after.findings)
+    return SpectrumEstimate(values=after.values, meta=findings.meta, warnings=findings.warnings)
 
 
 def _analysed(
     frames: torch.Tensor, denoised: torch.Tensor, mask: torch.Tensor, strength: float, seed: int, name: str
-) -> tuple[_Resynthesis, Findings]:
+) -> tuple[Resynthesis, Findings]:
     """What the fit reads: a clip's frames on the flat blocks that stay still through them (moving pixels carry the
     scene's change, not the noise's persistence), else the first frame on its flat blocks."""
     if frames.shape[0] == 1:
         single = Findings(
             {"temporal_prior": "single image: frame-to-frame correlation of the noise not measurable; prior 0"}
         )
-        return _Resynthesis(frames, denoised, mask, strength, seed), single
+        return Resynthesis(frames, denoised, mask, strength, seed), single
     still_mask, findings = still_flat_mask(frames, denoised, mask, strength, seed, name)
     if still_mask is None:
-        return _Resynthesis(frames[:1], denoised[:1], mask, strength, seed), findings
-    return _Resynthesis(frames, denoised, still_mask, strength, seed), findings
+        return Resynthesis(frames[:1], denoised[:1], mask, strength, seed), findings
+    return Resynthesis(frames, denoised, still_mask, strength, seed), findings
 
 
-def _values(fitted: SpectralParameters, compression: float, camera_prior: CameraPriorUse | None) -> dict[str, Any]:
-    """The table's values of a fit: its spectrum, the JPEG strength it chose and the texture dependence the camera
-    prior expects."""
-    values = fitted.as_values() | {"compression": torch.tensor([compression], dtype=torch.float64)}
-    if camera_prior is not None:
-        values |= expected_texture(values, camera_prior.prior)
-    return values
-
-
-def _temporal(
-    resynthesis: _Resynthesis, fitted: SpectralParameters, compression: float, *, still: bool, clip: bool, name: str
-) -> tuple[torch.Tensor, float, Findings]:
-    """The frame-to-frame correlation per octave: read on a clip's ``still`` blocks over 3 or more frames (from
-    frame differences, :mod:`darksynth.estimation.persistence_fit`, in place of the residual's correlation the fit
-    moved; where that cannot be read, the video prior with a warning), the fit's on 2, the video prior for a clip
-    with no still block, 0 for a single image; and the share of still cells a codec repeats (read with the
-    persistence, else 0)."""
-    if still and resynthesis.analysed.shape[0] >= 3:
-        analysed, denoised, mask, seed = resynthesis.analysed, resynthesis.denoised, resynthesis.mask, resynthesis.seed
-        persistence = fit_persistence(analysed, denoised, mask, fitted, compression, seed)
-        notes = [f"{name}: {note}" for note in persistence.notes]
-        return persistence.coefficient, persistence.codec_repeat, Findings(persistence.record, notes)
-    if still:
-        return fitted.temporal, 0.0, Findings()
-    if clip:
-        # A clip whose blocks all move shows nothing of its noise's persistence; a video's is not independent frames.
-        prior = Findings(video_prior_record("video prior: no flat block stays still"))
-        return torch.tensor(VIDEO_PRIOR, dtype=torch.float64), 0.0, prior
-    return torch.zeros(OCTAVES, dtype=torch.float64), 0.0, Findings()
-
-
-@dataclass
-class _Resynthesis:
-    """What every simulation of the fit shares: the analysed frames (T, 3, H, W), their denoised version, the
-    measured pixels, the denoiser's strength and the seed; the knot binning of each frame count, found once."""
-
-    analysed: torch.Tensor
-    denoised: torch.Tensor
-    mask: torch.Tensor
-    strength: float
-    seed: int
-    binnings: dict[int, KnotBinning] = field(default_factory=dict)
-    _signal: tuple[tuple[bytes, int], torch.Tensor] | None = None
-
-    def signal(self, curve: torch.Tensor, count: int) -> torch.Tensor:
-        """The signal under the first ``count`` denoised frames for the level ``curve`` (3, 8): the camera clipped
-        its noise about the signal, not about the denoised (clipped) mean. Kept for the next call: the draws of a
-        step share it."""
-        key = (curve.detach().to("cpu", torch.float64).numpy().tobytes(), count)
-        if self._signal is None or self._signal[0] != key:
-            denoised = self.denoised[:count]
-            std = level_std(denoised, curve.reshape(-1).to(denoised))
-            self._signal = (key, uncensored_signal(denoised, std))
-        return self._signal[1]
-
-    def simulator(
-        self, compression: float, frame_count: int | None = None
-    ) -> Callable[[SpectralParameters, int], SpectralStatistics]:
-        """Simulate and measure on the first ``frame_count`` frames (all by default) with JPEG ``compression``."""
-        count = self.analysed.shape[0] if frame_count is None else frame_count
-        denoised = self.denoised[:count]
-        if count not in self.binnings:
-            # Every simulation is measured on the same denoised frames and mask: their knots are found once.
-            height, width = denoised.shape[-2:]
-            weight = measure_weight(count, height, width, self.mask, denoised.device)
-            self.binnings[count] = knot_binning(denoised, weight)
-        binning = self.binnings[count]
-
-        def simulate_and_measure(parameters: SpectralParameters, draw: int) -> SpectralStatistics:
-            values = NoiseValues.from_values(parameters.as_values() | {"compression": compression}, dtype=torch.float32)
-            generator = torch.Generator(device=denoised.device).manual_seed(self.seed * 1009 + draw)
-            signal = self.signal(parameters.curve, count)
-            synthetic = quantised(add_noise(signal[None], values, generator=generator)[0])
-            again = nlm_denoise(synthetic, self.strength)
-            return measure(synthetic - again, denoised, self.mask, binning=binning)
-
-        return simulate_and_measure
-
-
-def _first_unmeasured_octave(resynthesis: _Resynthesis, start: SpectralParameters) -> tuple[int, dict[str, Any]]:
+def _first_unmeasured_octave(resynthesis: Resynthesis, start: SpectralParameters) -> tuple[int, dict[str, Any]]:
     """The finest octave the reference cannot show (:data:`OCTAVES` when it shows them all), probed on its first
     frame, with the responses and the prior's note for ``meta``."""
     responses = octave_responses(resynthesis.simulator(0.0, 1), start)
@@ -358,7 +267,7 @@ def read_octaves(first_unmeasured: int, *, colour_anchored: bool) -> dict[str, i
 
 
 def _anchored_fit(
-    resynthesis: _Resynthesis,
+    resynthesis: Resynthesis,
     target: SpectralStatistics,
     start: SpectralParameters,
     compression: float,
@@ -389,7 +298,7 @@ def _anchored_fit(
 
 
 def _compression_search(
-    resynthesis: _Resynthesis,
+    resynthesis: Resynthesis,
     target: SpectralStatistics,
     start: SpectralParameters,
     constrain: Callable[[SpectralParameters], SpectralParameters],
@@ -437,7 +346,7 @@ def _prior_note(camera_prior: CameraPriorUse, first_prior: int) -> dict[str, Any
 
 
 def _fit(
-    resynthesis: _Resynthesis,
+    resynthesis: Resynthesis,
     target: SpectralStatistics,
     prior_curve: torch.Tensor | None,
     camera_prior: CameraPriorUse | None,
