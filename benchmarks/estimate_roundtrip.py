@@ -43,7 +43,7 @@ import torch
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 from darksynth.estimation.assemble import estimate
-from darksynth.estimation.spectral_fit import quantised
+from darksynth.estimation.noise.spectral_fit import quantised
 from darksynth.evaluation.measures.structure import band_powers, band_ratios
 from darksynth.io.arrays import hwc_to_chw
 from darksynth.io.images import read_image

@@ -13,7 +13,7 @@ its profile is then applied as ``apply --no-darken`` applies it.
    noise level per channel, the channel correlations (synthetic and real), the octave-band power ratios of brightness
    and colour (5 bands each, fine to coarse, medians over pairs), their RMS log error, NAFlow KLD and AKLD.
 2. **Photos** (``real-lowlight/images/{lime,lol,dicm}``): the self-consistency ratio
-   (``darksynth.estimation.self_check.self_consistency``): the reference's first frame denoised by non-local means
+   (``darksynth.estimation.noise.self_check.self_consistency``): the reference's first frame denoised by non-local means
    with the estimate's strength, the profile applied to that 8-bit denoised image by the library call ``apply
    --no-darken`` makes (``darksynth.apply.synthesize_image``), synthetic over real std on the 10% flattest 32-px
    blocks with means 8-247. Per folder the median ratio, the share within 0.8-1.25 and the photos beyond 0.5-2; per
@@ -84,10 +84,10 @@ import torch
 from darksynth.apply import ApplyOptions, synthesize_image
 from darksynth.errors import DarksynthError
 from darksynth.estimation.assemble import estimate
-from darksynth.estimation.flat_blocks import denoiser_strength
-from darksynth.estimation.nonlocal_means import nlm_denoise
+from darksynth.estimation.noise.flat_blocks import denoiser_strength
+from darksynth.estimation.noise.nonlocal_means import nlm_denoise
+from darksynth.estimation.noise.self_check import CONSISTENT_RANGE, self_consistency
 from darksynth.estimation.reference import load_reference
-from darksynth.estimation.self_check import CONSISTENT_RANGE, self_consistency
 from darksynth.evaluation.measures.structure import BAND_LABELS, COMPONENTS
 from darksynth.evaluation.pairs import list_pair_set
 from darksynth.evaluation.run.options import EvaluationOptions

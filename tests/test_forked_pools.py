@@ -10,7 +10,7 @@ import numpy as np
 import pytest
 import torch
 
-from darksynth.estimation import nonlocal_means
+from darksynth.estimation.noise import nonlocal_means
 from darksynth.light.linear_light import LEVEL_OF_LINEAR16, levels_of_linear16
 
 

@@ -104,7 +104,7 @@ ESTIMATION_STAGES: dict[str, int] = {
     "network_reading": 1,
     "darkening_reading": 1,
     "noise_estimate": 7,
-    "light": 3,
+    "light_reading": 3,
     "flicker_reading": 0,
     "cross_spectra": 0,
     "shutter_confidence": 0,
@@ -155,6 +155,7 @@ def _imported_parts(path: Path, package: str) -> set[str]:
     """The modules (or subpackages) of a darksynth package a source file imports, in any of the three forms:
     ``from darksynth.<package> import x``, ``from darksynth.<package>.x import ...``,
     ``import darksynth.<package>.x``."""
+    prefix = ["darksynth", *package.split(".")]
     parts_seen = set()
     for node in ast.walk(ast.parse(path.read_text(encoding="utf-8"))):
         if isinstance(node, ast.ImportFrom) and node.module == f"darksynth.{package}" and node.level == 0:
@@ -168,18 +169,25 @@ def _imported_parts(path: Path, package: str) -> set[str]:
             continue
         for name in names:
             parts = name.split(".")
-            if parts[:2] == ["darksynth", package] and len(parts) > 2:
-                parts_seen.add(parts[2])
+            if parts[: len(prefix)] == prefix and len(parts) > len(prefix):
+                parts_seen.add(parts[len(prefix)])
     return parts_seen
 
 
+ESTIMATION_PARTS = ("noise", "light")
+"""The subpackages of ``estimation`` (split by what is measured): their modules are stages like the package's own."""
+
+
 def _imported_stages(path: Path) -> set[str]:
-    """The modules of the ``estimation`` package a source file imports."""
-    return _imported_parts(path, "estimation")
+    """The modules of the ``estimation`` package and its subpackages a source file imports."""
+    stages = _imported_parts(path, "estimation") - set(ESTIMATION_PARTS)
+    for part in ESTIMATION_PARTS:
+        stages |= _imported_parts(path, f"estimation.{part}")
+    return stages
 
 
 SOURCES = sorted(p for p in SOURCE.rglob("*.py"))
-STAGES = sorted((SOURCE / "estimation").glob("*.py"))
+STAGES = sorted((SOURCE / "estimation").rglob("*.py"))
 
 
 def test_every_module_has_a_layer() -> None:
@@ -208,7 +216,7 @@ def test_every_estimation_module_has_a_stage_layer() -> None:
     assert stages == set(ESTIMATION_STAGES), f"stages without a layer: {sorted(stages - set(ESTIMATION_STAGES))}"
 
 
-@pytest.mark.parametrize("path", STAGES, ids=lambda p: p.name)
+@pytest.mark.parametrize("path", STAGES, ids=lambda p: str(p.relative_to(SOURCE / "estimation")))
 def test_estimation_stages_import_only_lower_stages(path: Path) -> None:
     wrong = [
         f"{stage} (stage {ESTIMATION_STAGES[stage]})"
@@ -301,8 +309,8 @@ def test_the_stage_check_sees_a_stage_import(tmp_path: Path) -> None:
     module = tmp_path / "bad.py"
     module.write_text(
         "from darksynth.estimation.assemble import estimate\n"
-        "import darksynth.estimation.network_reading\n"
-        "from darksynth.estimation import columns\n",
+        "import darksynth.estimation.noise.network_reading\n"
+        "from darksynth.estimation.noise import columns\n",
         encoding="utf-8",
     )
     assert _imported_stages(module) == {"assemble", "network_reading", "columns"}

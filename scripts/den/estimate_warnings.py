@@ -38,7 +38,7 @@ import torch
 from darksynth.errors import DarksynthError
 from darksynth.estimation.assemble import EstimateOptions, estimate_file
 from darksynth.estimation.darkening_reading import estimate_darkening
-from darksynth.estimation.noise_estimate import NOISE_FREE_STD
+from darksynth.estimation.noise.noise_estimate import NOISE_FREE_STD
 from darksynth.estimation.reference import load_reference
 from darksynth.light.darkening import ALPHA_RANGE, GAMMA_RANGE, Darkening, darken
 from darksynth.noise.level import mean_noise_variance

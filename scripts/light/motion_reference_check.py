@@ -11,7 +11,7 @@ Run from the repo root::
 Options: ``[--data ../shared/data] [--out FILE.json]``.
 
 For every video under ``real-lowlight/videos`` (its first 16 frames) and every frame folder under
-``real-lowlight/clips`` (read as a clip): :func:`darksynth.estimation.motion.estimate_motion`, printed as one row
+``real-lowlight/clips`` (read as a clip): :func:`darksynth.estimation.light.motion.estimate_motion`, printed as one row
 each (exposure fraction and whether it was measured, the median speed of the blocks used in px/frame, the moving
 share of the frame, the flicker and its lag-1 correlation, the notes, and the seconds the estimate took, reading
 excluded); ``--out`` writes the same rows as JSON.
@@ -25,7 +25,7 @@ import time
 from pathlib import Path
 from typing import Any
 
-from darksynth.estimation.motion import estimate_motion
+from darksynth.estimation.light.motion import estimate_motion
 from darksynth.estimation.reference import load_reference
 
 

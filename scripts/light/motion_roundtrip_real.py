@@ -9,7 +9,7 @@ Run from the repo root::
 
 Options: ``[--data ../shared/data] [--profile P] [--only NAME ...] [--out FILE.json]``.
 
-No real low-light clip comes with its shutter, so the estimator (``estimation.motion``) is checked here on the
+No real low-light clip comes with its shutter, so the estimator (``estimation.light.motion``) is checked here on the
 shared clean videos, which are real footage: their motion is a real camera's and real objects' (parallax, several
 movers, occlusions), their texture is real, and they come with a short shutter of their own (daylight: a GoPro or a
 camcorder in sun exposes for a small share of the frame interval). For each video:
@@ -37,7 +37,7 @@ import tempfile
 from pathlib import Path
 from typing import Any
 
-from darksynth.estimation.motion import estimate_motion
+from darksynth.estimation.light.motion import estimate_motion
 from darksynth.estimation.reference import load_reference
 
 FRACTIONS = (0.25, 0.5, 1.0)

@@ -44,7 +44,7 @@ import cv2
 import numpy as np
 import torch
 
-from darksynth.estimation.motion import estimate_motion
+from darksynth.estimation.light.motion import estimate_motion
 
 PARTS = {
     "develop": ("clean/images/kodak24", "clean/images/cbsd68"),

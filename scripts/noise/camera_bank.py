@@ -2,7 +2,7 @@
 
 Makes: src/darksynth/data/camera_bank.json, the records the camera prior (src/darksynth/cameras/prior.py) is fitted
 on, and through it docs/camera-prior.md's figures. Each record is one pair's clean-aided fit
-(:func:`darksynth.estimation.spectral_fit.oracle_spectral_fit`, seed 0) with its set, camera and ISO: fitted
+(:func:`darksynth.estimation.noise.spectral_fit.oracle_spectral_fit`, seed 0) with its set, camera and ISO: fitted
 numbers, not the pairs' pixels (the pairs' licences keep their images out of the repository).
 
 Run from the repo root (about 4 s a pair, 173 pairs, 12 minutes on one core)::
@@ -23,7 +23,7 @@ from pathlib import Path
 import torch
 
 from darksynth.cameras.bank import BANK_FORMAT, BANK_PATH, BANK_VERSION
-from darksynth.estimation.spectral_fit import oracle_spectral_fit
+from darksynth.estimation.noise.spectral_fit import oracle_spectral_fit
 from darksynth.evaluation.pairs import list_pair_set, load_pair
 from darksynth.io.atomic import write_text_atomic
 
@@ -80,7 +80,8 @@ def main() -> None:
     bank = {
         "format": BANK_FORMAT,
         "version": BANK_VERSION,
-        "fit": "darksynth.estimation.spectral_fit.oracle_spectral_fit, seed 0, on each pair's noisy and clean image",
+        "fit": "darksynth.estimation.noise.spectral_fit.oracle_spectral_fit, seed 0, on each pair's noisy and "
+        "clean image",
         "source": "../shared/data/real-pairs (sidd, nam-cc15, nam-cc60, polyu): fitted numbers only",
         "records": records,
     }

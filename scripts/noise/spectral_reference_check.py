@@ -36,10 +36,10 @@ import torch.nn.functional as F
 from PIL import Image, ImageDraw
 
 from darksynth.estimation.assemble import estimate
-from darksynth.estimation.flat_blocks import FLAT_BLOCK, STRENGTH_CLIPPED_SHARE, clipped_share, denoiser_strength
-from darksynth.estimation.nonlocal_means import nlm_denoise
+from darksynth.estimation.noise.flat_blocks import FLAT_BLOCK, STRENGTH_CLIPPED_SHARE, clipped_share, denoiser_strength
+from darksynth.estimation.noise.nonlocal_means import nlm_denoise
+from darksynth.estimation.noise.spectral_fit import quantised
 from darksynth.estimation.reference import load_reference
-from darksynth.estimation.spectral_fit import quantised
 from darksynth.noise.simulate import add_noise
 from darksynth.training.weights import default_weights_path, load_weights
 

@@ -12,7 +12,7 @@ Options: ``[--data ../shared/data] [--images 8] [--brightness 0.3]``.
 For each of the first ``--images`` Kodak images (scaled by ``--brightness``, as a dark scene, on 8-bit levels):
 the spectral parameters (``level_curve``, ``octave_power``, ``octave_correlation``) drawn uniformly within their
 training ranges (``noise.sampling.random_noise_values``, the spectral model), that noise added, the spectrum
-estimated from the noisy image alone (``estimation.spectrum.estimate_spectrum``), and new noise of the estimate
+estimated from the noisy image alone (``estimation.noise.spectrum.estimate_spectrum``), and new noise of the estimate
 drawn on the same clean image. Printed: per image and band (fine to coarse, the evaluation's band measure) the
 power of the estimate's noise over the truth's, for brightness and colour, and the std ratio per channel; then
 the median over images and the share of bands within 0.8-1.25.
@@ -26,8 +26,8 @@ from pathlib import Path
 import numpy as np
 import torch
 
-from darksynth.estimation.spectral_fit import quantised
-from darksynth.estimation.spectrum import estimate_spectrum
+from darksynth.estimation.noise.spectral_fit import quantised
+from darksynth.estimation.noise.spectrum import estimate_spectrum
 from darksynth.evaluation.measures.structure import band_powers, band_ratios
 from darksynth.io.arrays import hwc_to_chw
 from darksynth.io.images import read_image

@@ -2,7 +2,7 @@
 the profile estimated from it.
 
 Makes: docs/spectral-noise.md, "Measured" (the bullet "Frame to frame": the table of real, synthetic (gap), AR
-coefficients and floor per reference); src/darksynth/estimation/persistence_fit.py quotes it.
+coefficients and floor per reference); src/darksynth/estimation/noise/persistence_fit.py quotes it.
 
 Run from the repo root::
 
@@ -20,9 +20,9 @@ persistence. Printed per reference: real, synthetic, gap, independent-frames flo
 estimate read, its AR coefficients per octave, its noise std, how the persistence was found (``meta.spectrum.
 persistence_source``: read, frames repeated or the video prior) and the share of still blocks a codec repeated.
 
-Then the video prior (``estimation.persistence_fit.VIDEO_PRIOR``) judged leave-one-out: per octave the median of the
-coefficients read on every other reference whose persistence was read (not a prior), and each reference's synthetic
-with that in place of its own coefficients (``prior (loo)``), against its real; the medians over all the read
+Then the video prior (``estimation.noise.persistence_fit.VIDEO_PRIOR``) judged leave-one-out: per octave the median
+of the coefficients read on every other reference whose persistence was read (not a prior), and each reference's
+synthetic with that in place of its own coefficients (``prior (loo)``), against its real; the medians over all the read
 references are printed too (what ``VIDEO_PRIOR`` should be, rounded to 0.05).
 ``--references clip101 clip11 ...`` runs only those (names as printed); ``--profiles DIR`` keeps each estimated
 profile there and reuses it on the next run (several runs on parts of the references, then one on all for the

@@ -16,7 +16,7 @@ the round trip darkens, made into a 4-frame clip of a still scene; in half the c
 the width) moves by 2-6 px per frame (a moving part the estimate must leave out). Noise of the spectral model: a
 camera-like spectrum (``benchmarks/estimate_roundtrip.py``), a level of 1-12 8-bit levels, per octave an AR(1)
 coefficient in [0, 0.9] (a straight line in the octave from a drawn fine to a drawn coarse value), JPEG quality 80
-or 60 in a third of the cases. The clip is estimated (``estimation.spectrum.estimate_spectrum``, what ``estimate``
+or 60 in a third of the cases. The clip is estimated (``estimation.noise.spectrum.estimate_spectrum``, what ``estimate``
 runs for the spectrum) and compared:
 
 * the estimated coefficient per octave against the truth (the three finest octaves, 2-16 px, carry most of what a
@@ -38,8 +38,8 @@ import numpy as np
 import torch
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[2] / "benchmarks"))
-from darksynth.estimation.spectral_fit import quantised
-from darksynth.estimation.spectrum import estimate_spectrum
+from darksynth.estimation.noise.spectral_fit import quantised
+from darksynth.estimation.noise.spectrum import estimate_spectrum
 from darksynth.evaluation.measures.structure import temporal_lag_correlation
 from darksynth.io.arrays import hwc_to_chw
 from darksynth.io.images import read_image

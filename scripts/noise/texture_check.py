@@ -33,8 +33,8 @@ from typing import Any
 
 import torch
 
-from darksynth.estimation.flat_blocks import denoiser_strength
-from darksynth.estimation.nonlocal_means import nlm_denoise
+from darksynth.estimation.noise.flat_blocks import denoiser_strength
+from darksynth.estimation.noise.nonlocal_means import nlm_denoise
 from darksynth.evaluation.measures.texture_ratio import flat_and_textured_std, textured_flat_ratio
 from darksynth.evaluation.methods.catalogue import build_methods
 from darksynth.evaluation.pairs import list_pair_set, load_pair

@@ -388,7 +388,7 @@ def test_a_clean_daylight_photo_warns_that_its_texture_is_read_as_noise() -> Non
 
 
 def test_only_the_srgb_model_is_refined_and_only_when_asked() -> None:
-    from darksynth.estimation.noise_estimate import refines
+    from darksynth.estimation.noise.noise_estimate import refines
 
     assert refines("srgb") and refines("srgb", True)
     assert not refines("srgb", False) and not refines("paper") and not refines("paper", True)
@@ -397,7 +397,7 @@ def test_only_the_srgb_model_is_refined_and_only_when_asked() -> None:
 def test_the_light_goes_into_the_profile_with_its_priors_stated(tiny_model: Callable[..., DEN]) -> None:
     """A single image: the exposure-fraction prior, stated in meta, no warning. A still clip: the prior too, with a
     warning naming it. A clip whose brightness steps frame to frame: flicker measured, written in ``light``."""
-    from darksynth.estimation.motion import EXPOSURE_FRACTION_PRIOR
+    from darksynth.estimation.light.motion import EXPOSURE_FRACTION_PRIOR
     from darksynth.profile import profile_to_dict
 
     single = estimate(_dark_scene(1, [0.15]), tiny_model(), source="photo.png")

@@ -6,8 +6,8 @@ import torch
 
 from darksynth.cameras.bank import CameraRecord
 from darksynth.cameras.prior import fit_prior
-from darksynth.estimation.camera_conditional import prior_first_octave, prior_octaves
-from darksynth.estimation.spectral_fit import SpectralParameters
+from darksynth.estimation.noise.camera_conditional import prior_first_octave, prior_octaves
+from darksynth.estimation.noise.spectral_fit import SpectralParameters
 from darksynth.noise.spectral import LEVEL_KNOTS, OCTAVES, covariance_parameters, octave_covariances
 
 

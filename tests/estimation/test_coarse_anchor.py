@@ -4,9 +4,9 @@ what it says it read."""
 import torch
 import torch.nn.functional as F
 
-from darksynth.estimation.coarse_anchor import CoarseAnchor, anchor_pool, coarse_odds
-from darksynth.estimation.flat_blocks import FLAT_BLOCK
-from darksynth.estimation.spectrum import anchor_outcome
+from darksynth.estimation.noise.coarse_anchor import CoarseAnchor, anchor_pool, coarse_odds
+from darksynth.estimation.noise.flat_blocks import FLAT_BLOCK
+from darksynth.estimation.noise.spectrum import anchor_outcome
 
 
 def _flat_noise(side: int, std: float, seed: int, blur: float = 0.0) -> torch.Tensor:

@@ -15,7 +15,7 @@ import pytest
 import torch
 
 from darksynth.estimation.assemble import estimate
-from darksynth.estimation.columns import COLUMN_RATIO, column_presence
+from darksynth.estimation.noise.columns import COLUMN_RATIO, column_presence
 from darksynth.estimation.reference import load_reference
 from darksynth.light.darkening import darken
 from darksynth.models.den import DEN

@@ -1,11 +1,11 @@
-"""The blocks the noise is measured on (estimation/flat_blocks.py): the denoiser's strength read on them must follow
-noise that grows with the level to where it is strongest."""
+"""The blocks the noise is measured on (estimation/noise/flat_blocks.py): the denoiser's strength read on them must
+follow noise that grows with the level to where it is strongest."""
 
 from __future__ import annotations
 
 import torch
 
-from darksynth.estimation.flat_blocks import FLAT_BLOCK, flat_block_std
+from darksynth.estimation.noise.flat_blocks import FLAT_BLOCK, flat_block_std
 
 
 def _frame(levels: list[float], stds: list[float], textured: list[bool], seed: int = 0) -> torch.Tensor:

@@ -15,10 +15,9 @@ import torch
 from PIL import Image
 
 import darksynth
-from darksynth.estimation.cross_spectra import phase_ramp
-from darksynth.estimation.motion import EXPOSURE_FRACTION_PRIOR, MIN_SPEED, MotionEstimate, estimate_motion
-from darksynth.estimation.reference import load_reference
-from darksynth.estimation.shutter_confidence import (
+from darksynth.estimation.light.cross_spectra import phase_ramp
+from darksynth.estimation.light.motion import EXPOSURE_FRACTION_PRIOR, MIN_SPEED, MotionEstimate, estimate_motion
+from darksynth.estimation.light.shutter_confidence import (
     AMBIGUOUS_PEAK,
     BLOCKY,
     MIN_CONFIDENCE,
@@ -28,6 +27,7 @@ from darksynth.estimation.shutter_confidence import (
     reading_confidence,
     resampled_readings,
 )
+from darksynth.estimation.reference import load_reference
 from darksynth.light.darkening import Darkening, darken
 from darksynth.profile import default_profile_path
 from tests.script_modules import load_script

@@ -1,6 +1,6 @@
 """A measured quantity declared once (docs/architecture.md, "How to add an option, a component, a measurement"): a
-reading after the spectral fit, declared inside the test and put in ``estimation.readings.AFTER_FIT`` with no other
-change to darksynth, sets its parameter in the profile, written and read back, and its record in ``meta``."""
+reading after the spectral fit, declared inside the test and put in ``estimation.noise.readings.AFTER_FIT`` with no
+other change to darksynth, sets its parameter in the profile, written and read back, and its record in ``meta``."""
 
 from __future__ import annotations
 
@@ -10,10 +10,10 @@ from pathlib import Path
 import pytest
 import torch
 
-from darksynth.estimation import readings
 from darksynth.estimation.assemble import estimate
 from darksynth.estimation.findings import Findings
-from darksynth.estimation.resynthesis import FittedReference, MeasuredValues
+from darksynth.estimation.noise import readings
+from darksynth.estimation.noise.resynthesis import FittedReference, MeasuredValues
 from darksynth.models.den import DEN
 from darksynth.profile import load_profile, save_profile
 

@@ -1,4 +1,4 @@
-"""The frame-to-frame correlation fitted on frame differences (estimation/persistence_fit.py): the statistic holds
+"""The frame-to-frame correlation fitted on frame differences (estimation/noise/persistence_fit.py): the statistic holds
 no still scene, the search takes the first crossing, drawn clips of known AR(1) coefficient come back, a codec's
 skipped blocks and frame types are read as the persistence they give, and what cannot be read gets the video
 prior, stated."""
@@ -10,8 +10,8 @@ import math
 import pytest
 import torch
 
-from darksynth.estimation import persistence_fit
-from darksynth.estimation.persistence_fit import (
+from darksynth.estimation.noise import persistence_fit
+from darksynth.estimation.noise.persistence_fit import (
     MAX_COEFFICIENT,
     SEARCH_GRID,
     VIDEO_PRIOR,
@@ -20,8 +20,8 @@ from darksynth.estimation.persistence_fit import (
     skipped_shares,
     solve_coefficients,
 )
-from darksynth.estimation.spectral_fit import quantised
-from darksynth.estimation.spectrum import estimate_spectrum
+from darksynth.estimation.noise.spectral_fit import quantised
+from darksynth.estimation.noise.spectrum import estimate_spectrum
 from darksynth.noise.simulate import add_noise
 from darksynth.noise.spectral import OCTAVES
 from darksynth.noise.values import NoiseValues

@@ -67,7 +67,7 @@ def test_the_shipped_srgb_network_estimates_every_parameter(model: DEN) -> None:
 def test_the_noise_level_is_recovered_under_structure(model: DEN) -> None:
     # The default estimate (the spectrum measured after the network) against the truth, both as the std their
     # values add on the reference (the level is what the profile carries; its split into shot and read is not).
-    from darksynth.estimation.noise_estimate import profile_noise_std
+    from darksynth.estimation.noise.noise_estimate import profile_noise_std
 
     structure = {"correlation_length": (0.9,), "channel_correlation": (0.4, 0.4, 0.5), "channel_gain": (1.2, 1.2)}
     ratios = []

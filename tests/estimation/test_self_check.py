@@ -1,4 +1,4 @@
-"""estimation/self_check.py: the flattest in-range blocks, and the ratio and supported level factor of a profile's
+"""estimation/noise/self_check.py: the flattest in-range blocks, and the ratio and supported level factor of a profile's
 noise put back on a denoised reference."""
 
 from __future__ import annotations
@@ -8,7 +8,7 @@ import math
 import pytest
 import torch
 
-from darksynth.estimation.self_check import (
+from darksynth.estimation.noise.self_check import (
     CHECK_MEAN_RANGE,
     FACTOR_BOUNDS,
     BlockCheck,
@@ -17,7 +17,7 @@ from darksynth.estimation.self_check import (
     checked_blocks_per_intensity,
     self_consistency,
 )
-from darksynth.estimation.spectral_fit import quantised
+from darksynth.estimation.noise.spectral_fit import quantised
 from darksynth.noise.simulate import add_noise
 from darksynth.noise.values import NoiseValues
 

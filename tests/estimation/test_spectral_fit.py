@@ -1,4 +1,4 @@
-"""estimation/spectral_fit.py: the spectral model's parameters fitted by re-synthesis, and the priors for what a
+"""estimation/noise/spectral_fit.py: the spectral model's parameters fitted by re-synthesis, and the priors for what a
 reference cannot show."""
 
 from __future__ import annotations
@@ -8,8 +8,8 @@ import math
 import pytest
 import torch
 
-from darksynth.estimation.spectral_fit import fit_by_resynthesis, oracle_spectral_fit, quantised
-from darksynth.estimation.spectral_statistics import SpectralStatistics, measure
+from darksynth.estimation.noise.spectral_fit import fit_by_resynthesis, oracle_spectral_fit, quantised
+from darksynth.estimation.noise.spectral_statistics import SpectralStatistics, measure
 from darksynth.noise.simulate import add_noise
 from darksynth.noise.spectral import OCTAVES
 from darksynth.noise.values import NoiseValues
@@ -57,7 +57,7 @@ def test_the_fit_converges_on_its_own_simulator() -> None:
 
 
 def test_unmeasured_octaves_continue_the_colour_roll_off_of_a_gaussian_low_pass() -> None:
-    from darksynth.estimation.spectral_fit import SpectralParameters, continue_octaves
+    from darksynth.estimation.noise.spectral_fit import SpectralParameters, continue_octaves
     from darksynth.noise.spectral import OCTAVE_FREQUENCIES
 
     # Octaves 0-2 measured: white noise through a Gaussian low-pass of f0 = 0.1 cycles/px in colour 1, a falling
@@ -85,7 +85,7 @@ def test_unmeasured_octaves_continue_the_colour_roll_off_of_a_gaussian_low_pass(
 
 
 def test_unmeasured_knots_follow_the_prior_curve_through_the_measured_ones() -> None:
-    from darksynth.estimation.spectral_fit import fill_knots_along
+    from darksynth.estimation.noise.spectral_fit import fill_knots_along
 
     prior = torch.linspace(1.0, 8.0, 8, dtype=torch.float64).expand(3, 8).clone()
     curve = 2.0 * prior
@@ -108,7 +108,7 @@ def test_unmeasured_knots_follow_the_prior_curve_through_the_measured_ones() -> 
 
 @pytest.mark.parametrize("signal", [-0.05, -0.01, 0.0, 0.02, 0.1, 0.97, 1.01])
 def test_the_uncensored_signal_is_the_mean_before_the_clip(signal: float) -> None:
-    from darksynth.estimation.spectral_fit import uncensored_signal
+    from darksynth.estimation.noise.spectral_fit import uncensored_signal
 
     std = 0.03
     clipped = (signal + std * torch.randn(400_000, generator=torch.Generator().manual_seed(1))).clamp(0.0, 1.0)
@@ -119,7 +119,7 @@ def test_the_uncensored_signal_is_the_mean_before_the_clip(signal: float) -> Non
 def test_uncensored_signal_searches_only_where_the_cut_reaches() -> None:
     """The signal under a clipped mean: far from 0 it is the mean itself, near 0 the table's inversion, as a full
     search of every pixel gives."""
-    from darksynth.estimation.spectral_fit import _CENSORED_MEAN, _CENSORED_T, uncensored_signal
+    from darksynth.estimation.noise.spectral_fit import _CENSORED_MEAN, _CENSORED_T, uncensored_signal
 
     generator = torch.Generator().manual_seed(0)
     observed = torch.rand(3, 40, 40, generator=generator) ** 3

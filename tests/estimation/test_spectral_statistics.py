@@ -1,10 +1,16 @@
-"""estimation/spectral_statistics.py: the statistics of a noise map against their definitions."""
+"""estimation/noise/spectral_statistics.py: the statistics of a noise map against their definitions."""
 
 from __future__ import annotations
 
 import torch
 
-from darksynth.estimation.spectral_statistics import band_fields, knot_binning, knot_variances, measure, measure_weight
+from darksynth.estimation.noise.spectral_statistics import (
+    band_fields,
+    knot_binning,
+    knot_variances,
+    measure,
+    measure_weight,
+)
 from darksynth.noise.spectral import LEVEL_KNOTS
 
 

@@ -1,4 +1,4 @@
-"""The blind spectral estimate (estimation/spectrum.py): round trips of known spectra on drawn scenes, the
+"""The blind spectral estimate (estimation/noise/spectrum.py): round trips of known spectra on drawn scenes, the
 frame-to-frame correlation of clips, and the references that cannot show what is asked (warnings and priors)."""
 
 from __future__ import annotations
@@ -9,11 +9,11 @@ import numpy as np
 import pytest
 import torch
 
-from darksynth.estimation.coarse_anchor import anchor_pool
-from darksynth.estimation.persistence_fit import VIDEO_PRIOR
-from darksynth.estimation.spectral_fit import quantised
-from darksynth.estimation.spectrum import estimate_spectrum
-from darksynth.estimation.spectrum_checks import compression_ambiguity
+from darksynth.estimation.noise.coarse_anchor import anchor_pool
+from darksynth.estimation.noise.persistence_fit import VIDEO_PRIOR
+from darksynth.estimation.noise.spectral_fit import quantised
+from darksynth.estimation.noise.spectrum import estimate_spectrum
+from darksynth.estimation.noise.spectrum_checks import compression_ambiguity
 from darksynth.evaluation.measures.structure import band_powers, band_ratios
 from darksynth.noise.simulate import add_noise
 from darksynth.noise.spectral import OCTAVES
@@ -203,7 +203,7 @@ def test_small_references_are_measured_without_error(side: int) -> None:
 def test_non_local_means_in_bands_of_rows_gives_the_whole_frames_result(height: int, width: int, threads: int) -> None:
     import cv2
 
-    from darksynth.estimation import nonlocal_means
+    from darksynth.estimation.noise import nonlocal_means
 
     generator = torch.Generator().manual_seed(height)
     frames = (torch.rand(2, 3, height, width, generator=generator) * 0.4 + 0.3).clamp(0, 1)

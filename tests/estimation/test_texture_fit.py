@@ -1,4 +1,4 @@
-"""estimation/texture_fit.py through the clean-aided fit: a known texture_gain and texture_scale applied to clean
+"""estimation/noise/texture_fit.py through the clean-aided fit: a known texture_gain and texture_scale applied to clean
 photographs is fitted back, and the fitted model's textured-to-flat ratio is the truth's."""
 
 from __future__ import annotations
@@ -10,8 +10,8 @@ import pytest
 import torch
 from PIL import Image
 
-from darksynth.estimation.spectral_fit import oracle_spectral_fit, quantised
-from darksynth.estimation.texture_fit import TEXTURE_GAINS, interpolated_gain
+from darksynth.estimation.noise.spectral_fit import oracle_spectral_fit, quantised
+from darksynth.estimation.noise.texture_fit import TEXTURE_GAINS, interpolated_gain
 from darksynth.evaluation.measures.texture_ratio import textured_flat_ratio
 from darksynth.noise.simulate import add_noise
 from darksynth.noise.values import NoiseValues

@@ -5,7 +5,7 @@ from __future__ import annotations
 import pytest
 import torch
 
-from darksynth.estimation.spectral_statistics import measure
+from darksynth.estimation.noise.spectral_statistics import measure
 from darksynth.noise.simulate import add_noise
 from darksynth.noise.spectral import (
     LEVEL_KNOTS,

@@ -8,7 +8,7 @@ import pytest
 import scipy.stats
 import torch
 
-from darksynth.estimation.spectral_statistics import measure
+from darksynth.estimation.noise.spectral_statistics import measure
 from darksynth.light.darkening import Darkening
 from darksynth.noise import frame_routes
 from darksynth.noise.counter_rng import random_key

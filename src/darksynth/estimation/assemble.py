@@ -1,10 +1,10 @@
 """Reference -> one record -> independent measurements (noise, darkening, light) -> noise profile.
 
 The reference is read once into a :class:`~darksynth.estimation.reference.Reference` (its frames, the frames to
-measure, the uniform frames, the scene cuts); the noise (:mod:`~darksynth.estimation.noise_estimate`: the network,
+measure, the uniform frames, the scene cuts); the noise (:mod:`~darksynth.estimation.noise.noise_estimate`: the network,
 the columns, the spectrum), the darkening (:mod:`~darksynth.estimation.darkening_reading`) and the light
-(:mod:`~darksynth.estimation.light`) are each read off it without looking at the others' results; the profile
-assembles them, with everything each measurement found in ``meta`` and everything it could not read in the
+(:mod:`~darksynth.estimation.light.light_reading`) are each read off it without looking at the others' results; the
+profile assembles them, with everything each measurement found in ``meta`` and everything it could not read in the
 warnings.
 """
 
@@ -17,12 +17,12 @@ from typing import Any
 import torch
 
 from darksynth.cameras.prior import shipped_prior
-from darksynth.estimation.camera_conditional import CameraPriorUse
 from darksynth.estimation.darkening_reading import estimate_profile_darkening
-from darksynth.estimation.light import estimate_light
-from darksynth.estimation.noise_estimate import estimate_noise
+from darksynth.estimation.light.light_reading import estimate_light
+from darksynth.estimation.noise.camera_conditional import CameraPriorUse
+from darksynth.estimation.noise.noise_estimate import estimate_noise
+from darksynth.estimation.noise.spectrum import TEMPORAL_FRAMES
 from darksynth.estimation.reference import MAX_FRAMES, describe_reference, load_reference, reference_warnings
-from darksynth.estimation.spectrum import TEMPORAL_FRAMES
 from darksynth.models.den import DEN
 from darksynth.noise.values import NoiseValues
 from darksynth.profile import Profile
@@ -53,7 +53,7 @@ class EstimateOptions:
     prior_octaves: bool = False
     """With ``camera_prior``, also take the coarse octaves the reference cannot show from the prior
     (``--prior-octaves``), not continue the finer ones
-    (:class:`~darksynth.estimation.camera_conditional.CameraPriorUse`)."""
+    (:class:`~darksynth.estimation.noise.camera_conditional.CameraPriorUse`)."""
 
 
 def estimate_file(path: Path, network: DEN, options: EstimateOptions) -> Estimate:
@@ -95,12 +95,12 @@ def estimate(
 
     Args:
         refine: for a network of the sRGB vocabulary, measure the spectral model on the reference
-            (:func:`darksynth.estimation.spectrum.estimate_spectrum`): the network's heteroscedastic values and
+            (:func:`darksynth.estimation.noise.spectrum.estimate_spectrum`): the network's heteroscedastic values and
             compression are replaced by the spectrum's, its column components kept; skipped, with a warning, on a
-            reference smaller than :data:`~darksynth.estimation.noise_estimate.REFINE_MIN_SIDE`. The paper's model
+            reference smaller than :data:`~darksynth.estimation.noise.noise_estimate.REFINE_MIN_SIDE`. The paper's model
             keeps the network's values.
         camera_prior: what the reference cannot show, taken from a prior over real cameras
-            (:func:`darksynth.estimation.spectrum.estimate_spectrum`); None (the default) leaves it out.
+            (:func:`darksynth.estimation.noise.spectrum.estimate_spectrum`); None (the default) leaves it out.
     """
     record = describe_reference(reference, source)
     # Each measurement returns its record (values, meta, warnings); the profile is their composition.

@@ -10,7 +10,7 @@ The table's ``codec_repeat`` p is the share of still cells repeated: after a cli
 clipping, rounding, compression), each :data:`CELL`-px cell whose clean input did not change since the previous
 frame (:data:`STILL_CHANGE`) takes the previous finished frame's values with probability p, drawn per cell and
 frame. A cell where the scene moves is always coded afresh. A single image has no previous frame: nothing repeats.
-``estimate`` reads p on a codec clip (``estimation.persistence_fit``: the share of still flat cells repeated
+``estimate`` reads p on a codec clip (``estimation.noise.persistence_fit``: the share of still flat cells repeated
 bit-identically), and sets it only where a codec, not chance, repeats them.
 """
 

@@ -29,7 +29,7 @@ model as v3 and as its v2 ablation (encoder and head only). docs/den.md gives th
 
 NETWORK_MODELS: Final[tuple[NoiseModel, ...]] = ("paper", "srgb")
 """The noise models a DEN predicts (and ``train`` trains): the ``spectral`` model's parameters are measured on the
-reference instead (:mod:`darksynth.estimation.spectrum`), on top of the ``srgb`` network's estimate."""
+reference instead (:mod:`darksynth.estimation.noise.spectrum`), on top of the ``srgb`` network's estimate."""
 
 LOG_LEVELS: Final[Mapping[NoiseModel, bool]] = {"srgb": True, "paper": False}
 """Whether a noise model's DEN predicts the noise levels on a log scale: the sRGB model does (docs/den.md); the

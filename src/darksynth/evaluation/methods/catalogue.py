@@ -128,8 +128,8 @@ def _den_method(
     name: str, weights: Path, device: str, *, refine: bool = True, prior: bool = False, octaves: bool = False
 ) -> NoiseMethod:
     from darksynth.estimation.assemble import estimate
-    from darksynth.estimation.camera_conditional import CameraPriorUse, expected_texture
-    from darksynth.estimation.noise_estimate import refines
+    from darksynth.estimation.noise.camera_conditional import CameraPriorUse, expected_texture
+    from darksynth.estimation.noise.noise_estimate import refines
 
     model = load_den_weights(name, weights, device)
     refined = refines(model.noise_model, refine)
@@ -254,7 +254,7 @@ def _starlight_method(device: str) -> NoiseMethod:
 
 
 def _spectral_oracle_method() -> NoiseMethod:
-    from darksynth.estimation.spectral_fit import oracle_spectral_fit
+    from darksynth.estimation.noise.spectral_fit import oracle_spectral_fit
 
     def fit(noisy: torch.Tensor, clean: torch.Tensor) -> NoiseValues:
         return NoiseValues.from_values(oracle_spectral_fit(noisy.to(torch.float32), clean.to(torch.float32)))

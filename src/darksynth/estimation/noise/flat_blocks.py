@@ -1,8 +1,9 @@
 """The 32-px blocks a reference's noise is measured on: their flatness, their clipping, the analysis window, and
 their variance about a plane.
 
-Pure functions on (3, H, W) frames in [0, 1]; the blind spectral measurement (:mod:`darksynth.estimation.spectrum`)
-and the coarse anchor (:mod:`darksynth.estimation.coarse_anchor`) choose and read blocks through them.
+Pure functions on (3, H, W) frames in [0, 1]; the blind spectral measurement
+(:mod:`darksynth.estimation.noise.spectrum`) and the coarse anchor (:mod:`darksynth.estimation.noise.coarse_anchor`)
+choose and read blocks through them.
 """
 
 from __future__ import annotations
@@ -27,7 +28,7 @@ CLIPPED_SHARE = 0.5
 """A block with more than this share of clipped pixels does not measure the level: its noise was mostly cut off
 at 0 or at full scale (crushed blacks, a lamp) and its residual hardly moves with the noise's strength. Blocks
 clipped less are measured, and the re-synthesis clips as the camera did (on the signal the clipped mean came
-from: :func:`darksynth.estimation.spectral_fit.uncensored_signal`)."""
+from: :func:`darksynth.estimation.noise.spectral_fit.uncensored_signal`)."""
 
 STRENGTH_CLIPPED_SHARE = 0.01
 """The denoiser's strength is read on blocks clipped at most this much when there are :data:`MIN_LEVEL_BLOCKS`

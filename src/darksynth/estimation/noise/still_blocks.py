@@ -7,10 +7,10 @@ import torch
 import torch.nn.functional as F
 
 from darksynth.estimation.findings import Findings
-from darksynth.estimation.flat_blocks import FLAT_BLOCK, blocks_to_mask
-from darksynth.estimation.nonlocal_means import nlm_denoise
-from darksynth.estimation.spectral_fit import initial_parameters, quantised
-from darksynth.estimation.spectral_statistics import measure
+from darksynth.estimation.noise.flat_blocks import FLAT_BLOCK, blocks_to_mask
+from darksynth.estimation.noise.nonlocal_means import nlm_denoise
+from darksynth.estimation.noise.spectral_fit import initial_parameters, quantised
+from darksynth.estimation.noise.spectral_statistics import measure
 from darksynth.noise.simulate import add_noise
 from darksynth.noise.values import NoiseValues
 

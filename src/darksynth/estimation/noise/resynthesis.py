@@ -1,8 +1,8 @@
 """What every simulation of the blind spectral fit shares, and what the readings after the fit are given.
 
-The fit (:mod:`darksynth.estimation.spectrum`) simulates noise of candidate parameters on the reference's denoised
+The fit (:mod:`darksynth.estimation.noise.spectrum`) simulates noise of candidate parameters on the reference's denoised
 frames, denoises the result again and measures it as it measured the reference (indirect inference). The readings
-that follow the fit (:mod:`darksynth.estimation.readings`) read the same frames with the fitted parameters.
+that follow the fit (:mod:`darksynth.estimation.noise.readings`) read the same frames with the fitted parameters.
 """
 
 from __future__ import annotations
@@ -12,11 +12,11 @@ from dataclasses import dataclass, field
 
 import torch
 
-from darksynth.estimation.camera_conditional import CameraPriorUse
 from darksynth.estimation.findings import Findings
-from darksynth.estimation.nonlocal_means import nlm_denoise
-from darksynth.estimation.spectral_fit import SpectralParameters, quantised, uncensored_signal
-from darksynth.estimation.spectral_statistics import (
+from darksynth.estimation.noise.camera_conditional import CameraPriorUse
+from darksynth.estimation.noise.nonlocal_means import nlm_denoise
+from darksynth.estimation.noise.spectral_fit import SpectralParameters, quantised, uncensored_signal
+from darksynth.estimation.noise.spectral_statistics import (
     KnotBinning,
     SpectralStatistics,
     knot_binning,

@@ -1,4 +1,4 @@
-"""How far a clip's blocks can support a reading of its shutter: what :mod:`darksynth.estimation.motion` checks.
+"""How far a clip's blocks can support a reading of its shutter: what :mod:`darksynth.estimation.light.motion` checks.
 
 The blur's transfer along the motion is ``sinc^2(pi s k.d)``: shutters in [0, 1] differ only at frequencies whose
 projection on the displacement ``k.d`` is a sizeable fraction of a cycle, and only where the scene has power there

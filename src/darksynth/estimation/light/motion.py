@@ -28,11 +28,11 @@ Exposure fraction, the steps:
    optimum but does not move it. A pooled score rather than a median of per-block fits: one block's 64x64
    periodogram is too noisy to fit alone, and pooling weights each block by how much its rings say.
 4. Not identifiable -> :data:`EXPOSURE_FRACTION_PRIOR` with a note: one frame, no usable pair, fewer than
-   :data:`~darksynth.estimation.shutter_fit.MIN_BLOCKS` moving textured blocks (blocks whose texture matches itself
-   at another shift, a periodic pattern whose motion can alias, are left out), or a reading the blocks do not
+   :data:`~darksynth.estimation.light.shutter_fit.MIN_BLOCKS` moving textured blocks (blocks whose texture matches
+   itself at another shift, a periodic pattern whose motion can alias, are left out), or a reading the blocks do not
    support: its confidence, the share of readings within 0.15 of it when the scene's blocks are resampled (a
-   cluster bootstrap, :mod:`darksynth.estimation.shutter_confidence`), under one half, or under 0.98 when the frames
-   show JPEG's 8-px blocks (its quantization moves every block's reading alike, which resampling cannot see). The
+   cluster bootstrap, :mod:`darksynth.estimation.light.shutter_confidence`), under one half, or under 0.98 when the
+   frames show JPEG's 8-px blocks (its quantization moves every block's reading alike, which resampling cannot see). The
    note names the reading, the resampled spread, and what explains it (texture contrast against the noise on the
    frequencies that tell shutters apart, the share of noise that stays in place, periodic blocks, JPEG's blocks).
 
@@ -40,9 +40,9 @@ What it assumes: texture that is, over the pooled blocks, isotropic (a scene of 
 motion reads as a shorter shutter, across it as a longer one; a periodic pattern can read as 0); and that the
 camera added nothing that blurs along the motion (a phone's temporal denoising smears moving content and reads as
 a longer shutter, up to 2 here, held at 1 in the profile). Noise that persists from frame to frame (temporal noise
-reduction, codecs) is modelled (:func:`~darksynth.estimation.cross_spectra.align_along`,
-:func:`~darksynth.estimation.cross_spectra.without_persistent_noise`); a fit whose alternate
-halves of blocks disagree by more than :data:`~darksynth.estimation.shutter_fit.HALVES_DISAGREE` is refused.
+reduction, codecs) is modelled (:func:`~darksynth.estimation.light.cross_spectra.align_along`,
+:func:`~darksynth.estimation.light.cross_spectra.without_persistent_noise`); a fit whose alternate
+halves of blocks disagree by more than :data:`~darksynth.estimation.light.shutter_fit.HALVES_DISAGREE` is refused.
 
 Flicker: on the pixels that stay still (flow below :data:`STILL_SPEED`, away from moving ones) through a stretch of
 frames between scene cuts (a cut, a uniform frame or a pair whose flow does not invert ends a stretch). The still
@@ -74,16 +74,15 @@ import cv2
 import numpy as np
 import torch
 
-from darksynth.estimation.cross_spectra import align_along, align_phase, phase_ramp, without_persistent_noise
-from darksynth.estimation.flicker_reading import (
+from darksynth.estimation.light.cross_spectra import align_along, align_phase, phase_ramp, without_persistent_noise
+from darksynth.estimation.light.flicker_reading import (
     FLICKER_CORRELATION_PRIOR,
     FLICKER_PRIOR,
     PairFlow,
     measure_flicker,
 )
-from darksynth.estimation.reference import scene_cuts, uniform_frames
-from darksynth.estimation.shutter_confidence import compression_blockiness
-from darksynth.estimation.shutter_fit import (
+from darksynth.estimation.light.shutter_confidence import compression_blockiness
+from darksynth.estimation.light.shutter_fit import (
     MIN_BLOCKS,
     MIN_SPEED,
     MOTION_BLOCK,
@@ -92,6 +91,7 @@ from darksynth.estimation.shutter_fit import (
     ExposureFit,
     fit_exposure,
 )
+from darksynth.estimation.reference import scene_cuts, uniform_frames
 from darksynth.light.motion_blur import dense_flow, pixel_grid
 
 EXPOSURE_FRACTION_PRIOR = 0.5
@@ -161,7 +161,7 @@ class MotionEstimate:
     @property
     def exposure_confidence(self) -> float:
         """In [0, 1]: the share of readings, with the scene's blocks resampled, within
-        :data:`~darksynth.estimation.shutter_confidence.TOLERANCE` of the reading; 0 when nothing was read."""
+        :data:`~darksynth.estimation.light.shutter_confidence.TOLERANCE` of the reading; 0 when nothing was read."""
         fit = self.exposure_fit
         return 0.0 if fit is None or fit.confidence is None else round(fit.confidence, 3)
 
@@ -294,7 +294,7 @@ BLOCKINESS_FRAMES, BLOCKINESS_SIZE = 8, 512
 
 
 def _blockiness(reference: torch.Tensor) -> float:
-    """The frames' :func:`~darksynth.estimation.shutter_confidence.compression_blockiness`, on their luminance."""
+    """The frames' :func:`~darksynth.estimation.light.shutter_confidence.compression_blockiness`, on their luminance."""
     corner = reference[:BLOCKINESS_FRAMES, :, :BLOCKINESS_SIZE, :BLOCKINESS_SIZE]
     return compression_blockiness(_luminance(corner))
 

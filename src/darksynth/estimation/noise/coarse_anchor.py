@@ -9,8 +9,8 @@ from dataclasses import dataclass, field
 import torch
 import torch.nn.functional as F
 
-from darksynth.estimation.flat_blocks import FLAT_BLOCK, block_planes, detrended_blocks
-from darksynth.estimation.spectral_fit import SpectralParameters, quantised, uncensored_signal
+from darksynth.estimation.noise.flat_blocks import FLAT_BLOCK, block_planes, detrended_blocks
+from darksynth.estimation.noise.spectral_fit import SpectralParameters, quantised, uncensored_signal
 from darksynth.noise.simulate import add_noise
 from darksynth.noise.spectral import level_std
 from darksynth.noise.values import NoiseValues

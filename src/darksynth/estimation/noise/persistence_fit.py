@@ -66,10 +66,10 @@ import torch
 import torch.nn.functional as F
 
 from darksynth.estimation.findings import Findings
-from darksynth.estimation.flat_blocks import FLAT_BLOCK
-from darksynth.estimation.resynthesis import FittedReference, MeasuredValues
-from darksynth.estimation.spectral_fit import SpectralParameters, quantised, uncensored_signal
-from darksynth.estimation.spectral_statistics import band_masks
+from darksynth.estimation.noise.flat_blocks import FLAT_BLOCK
+from darksynth.estimation.noise.resynthesis import FittedReference, MeasuredValues
+from darksynth.estimation.noise.spectral_fit import SpectralParameters, quantised, uncensored_signal
+from darksynth.estimation.noise.spectral_statistics import band_masks
 from darksynth.noise.simulate import add_noise
 from darksynth.noise.spectral import OCTAVES, level_std
 from darksynth.noise.values import NoiseValues
@@ -132,7 +132,7 @@ VIDEO_PRIOR_SOURCE = "median of this read on the shared real night clips (docs/s
 
 def _band_weights(height: int, width: int, device: torch.device) -> torch.Tensor:
     """(OCTAVES, H, W // 2 + 1) which half-plane frequencies of an ``rfft2`` fall in each band of
-    :data:`~darksynth.estimation.spectral_statistics.BANDS`, counted twice where the half-plane stands for two."""
+    :data:`~darksynth.estimation.noise.spectral_statistics.BANDS`, counted twice where the half-plane stands for two."""
     twice = torch.full((height, width // 2 + 1), 2.0, dtype=torch.float64, device=device)
     twice[:, 0] = 1.0
     if width % 2 == 0:

@@ -10,10 +10,10 @@ from typing import Any
 import torch
 import torch.nn.functional as F
 
-from darksynth.estimation.coarse_anchor import ANCHOR_SCALE_RANGE
 from darksynth.estimation.findings import Findings
-from darksynth.estimation.flat_blocks import FLAT_BLOCK
-from darksynth.estimation.self_check import far_from_network, over_network
+from darksynth.estimation.noise.coarse_anchor import ANCHOR_SCALE_RANGE
+from darksynth.estimation.noise.flat_blocks import FLAT_BLOCK
+from darksynth.estimation.noise.self_check import far_from_network, over_network
 from darksynth.noise.spectral import level_std
 
 JPEG_AMBIGUOUS = 1.5
@@ -32,7 +32,7 @@ def level_checks(
 ) -> tuple[torch.Tensor, Findings]:
     """The fitted level curve (3, 8) std, or the network's where the reference showed no unclipped block, with
     findings that compare the two and warn where they disagree by more than
-    :data:`~darksynth.estimation.self_check.NETWORK_DISAGREEMENT` (at the measured knots)."""
+    :data:`~darksynth.estimation.noise.self_check.NETWORK_DISAGREEMENT` (at the measured knots)."""
     findings = Findings({"measured_knots": [[bool(k) for k in channel] for channel in measured.tolist()]})
     if prior_curve is None:
         return curve, findings

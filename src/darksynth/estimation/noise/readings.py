@@ -1,8 +1,8 @@
 """The readings the blind measurement makes once the spectrum is fitted: one line each in :data:`AFTER_FIT`.
 
-A reading is a function of the analysed reference with its fit (:class:`~darksynth.estimation.resynthesis.
+A reading is a function of the analysed reference with its fit (:class:`~darksynth.estimation.noise.resynthesis.
 FittedReference`) and the table's values found so far; it returns the parameters it sets, by name, and its findings
-(:class:`~darksynth.estimation.resynthesis.MeasuredValues`). The measurement runs them in order and the profile
+(:class:`~darksynth.estimation.noise.resynthesis.MeasuredValues`). The measurement runs them in order and the profile
 takes their values by name, so a new measured parameter is its reading's module, its line here and, for a parameter
 the table does not have yet, its ``Parameter`` in its component's module (docs/architecture.md).
 """
@@ -13,16 +13,16 @@ from collections.abc import Callable, Mapping
 
 import torch
 
-from darksynth.estimation.camera_conditional import expected_texture
-from darksynth.estimation.persistence_fit import read_persistence
-from darksynth.estimation.resynthesis import FittedReference, MeasuredValues
+from darksynth.estimation.noise.camera_conditional import expected_texture
+from darksynth.estimation.noise.persistence_fit import read_persistence
+from darksynth.estimation.noise.resynthesis import FittedReference, MeasuredValues
 
 Reading = Callable[[FittedReference, Mapping[str, torch.Tensor]], MeasuredValues]
 
 
 def prior_texture(reference: FittedReference, values: Mapping[str, torch.Tensor]) -> MeasuredValues:
     """The noise's dependence on texture (``texture_gain``, ``texture_scale``), which no reference shows, as the
-    camera prior expects it given what was measured (:func:`~darksynth.estimation.camera_conditional.
+    camera prior expects it given what was measured (:func:`~darksynth.estimation.noise.camera_conditional.
     expected_texture`); nothing without a camera prior."""
     if reference.camera_prior is None:
         return MeasuredValues()

@@ -10,12 +10,12 @@ from the scene) and what it takes of the scene. The steps:
 2. ``D``: OpenCV's non-local means, its strength from the fine-scale noise of the window's flattest blocks.
 3. The flat blocks: the :data:`FLAT_SHARE` of 32x32 blocks of ``D(y)`` with the least gradient energy (texture
    is read as noise elsewhere), for a clip those that also stay still between the frames.
-4. The statistics (:func:`~darksynth.estimation.spectral_statistics.measure`): the residual band-passed as a whole,
-   then its band cross-powers averaged over the flat blocks (a masked spectrum would leak mid frequencies into the
-   coarse bands), the variance per channel and intensity knot, and for a clip the frame-to-frame correlation per
+4. The statistics (:func:`~darksynth.estimation.noise.spectral_statistics.measure`): the residual band-passed as a
+   whole, then its band cross-powers averaged over the flat blocks (a masked spectrum would leak mid frequencies into
+   the coarse bands), the variance per channel and intensity knot, and for a clip the frame-to-frame correlation per
    band.
-5. The fit by re-synthesis for each JPEG strength of :data:`~darksynth.estimation.spectral_fit.COMPRESSION_CANDIDATES`;
-   the best match is refined further.
+5. The fit by re-synthesis for each JPEG strength of
+   :data:`~darksynth.estimation.noise.spectral_fit.COMPRESSION_CANDIDATES`; the best match is refined further.
 
 A reference that cannot show something gets the prior for it, with a warning: a single image has no temporal
 correlation to read (0, independent frames); a clip whose every block moves the same; a reference without flat
@@ -32,16 +32,16 @@ from typing import Any
 
 import torch
 
-from darksynth.estimation import readings
-from darksynth.estimation.camera_conditional import (
+from darksynth.estimation.findings import Findings
+from darksynth.estimation.noise import readings
+from darksynth.estimation.noise.camera_conditional import (
     TEXTURE_NAMES,
     CameraPriorUse,
     prior_first_octave,
     prior_octaves,
 )
-from darksynth.estimation.coarse_anchor import ANCHOR_WARM_STEPS, COMPONENT_NAMES, CoarseAnchor
-from darksynth.estimation.findings import Findings
-from darksynth.estimation.flat_blocks import (
+from darksynth.estimation.noise.coarse_anchor import ANCHOR_WARM_STEPS, COMPONENT_NAMES, CoarseAnchor
+from darksynth.estimation.noise.flat_blocks import (
     CLIPPED_SHARE,
     MIN_LEVEL_BLOCKS,
     analysis_window,
@@ -49,9 +49,9 @@ from darksynth.estimation.flat_blocks import (
     denoiser_strength,
     flat_mask,
 )
-from darksynth.estimation.nonlocal_means import nlm_denoise
-from darksynth.estimation.resynthesis import FittedReference, Resynthesis
-from darksynth.estimation.spectral_fit import (
+from darksynth.estimation.noise.nonlocal_means import nlm_denoise
+from darksynth.estimation.noise.resynthesis import FittedReference, Resynthesis
+from darksynth.estimation.noise.spectral_fit import (
     COMPRESSION_CANDIDATES,
     SpectralParameters,
     continue_octaves,
@@ -60,14 +60,14 @@ from darksynth.estimation.spectral_fit import (
     initial_parameters,
     mismatch,
 )
-from darksynth.estimation.spectral_statistics import SpectralStatistics, measure
-from darksynth.estimation.spectrum_checks import (
+from darksynth.estimation.noise.spectral_statistics import SpectralStatistics, measure
+from darksynth.estimation.noise.spectrum_checks import (
     fitted_noise_8bit,
     level_checks,
     mean_level,
     readability_warnings,
 )
-from darksynth.estimation.still_blocks import still_flat_mask
+from darksynth.estimation.noise.still_blocks import still_flat_mask
 from darksynth.noise.spectral import OCTAVES
 
 TEXTURED_GRADIENT = 4.0 / 255
@@ -159,7 +159,7 @@ def estimate_spectrum(
         prior_curve: (3, 8) noise std per channel at the level knots from another source (the network): the knots
             the reference cannot show (no unclipped flat block at that intensity) follow its shape through the
             measured ones, and it stands alone when no block is unclipped.
-        camera_prior: supplies what one reference cannot show (:mod:`darksynth.estimation.camera_conditional`);
+        camera_prior: supplies what one reference cannot show (:mod:`darksynth.estimation.noise.camera_conditional`);
             without it the coarse octaves continue the finer ones.
 
     Returns:
@@ -276,7 +276,7 @@ def _anchored_fit(
 ) -> tuple[SpectralParameters, float]:
     """The last fit, on all analysed frames with the chosen JPEG ``compression``; with an ``anchor``, each step also
     simulates about its planes, so that ``constrain`` moves the coarse colour octaves with the rest. Returns the
-    parameters and what was left over (:func:`~darksynth.estimation.spectral_fit.fit_by_resynthesis`)."""
+    parameters and what was left over (:func:`~darksynth.estimation.noise.spectral_fit.fit_by_resynthesis`)."""
     simulate = resynthesis.simulator(compression)
 
     def simulate_with_anchor(parameters: SpectralParameters, draw: int) -> SpectralStatistics:

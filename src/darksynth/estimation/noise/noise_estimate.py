@@ -5,9 +5,9 @@ The network's estimate of every crop is a full v; the profile holds their median
 clipping or a light source misleads the network) and, as ``ranges``, the 10th to 90th percentile across crops, so
 that ``apply`` can reproduce the spread the reference shows. Two things are measured on the reference rather than
 taken from the network: whether it shows column patterns at all
-(:func:`darksynth.estimation.columns.column_presence`; without them the column components are set absent, since the
-network never predicts exactly zero), and, for the network of the sRGB vocabulary, the spectral model's level curve,
-octaves and compression (:func:`darksynth.estimation.spectrum.estimate_spectrum`), which replace the network's
+(:func:`darksynth.estimation.noise.columns.column_presence`; without them the column components are set absent, since
+the network never predicts exactly zero), and, for the network of the sRGB vocabulary, the spectral model's level curve,
+octaves and compression (:func:`darksynth.estimation.noise.spectrum.estimate_spectrum`), which replace the network's
 heteroscedastic values. Last, how much noise the profile adds on the reference (the "nearly noise-free" warning).
 """
 
@@ -19,13 +19,13 @@ from typing import Any
 
 import torch
 
-from darksynth.estimation.camera_conditional import CameraPriorUse
-from darksynth.estimation.columns import decide_columns
 from darksynth.estimation.findings import Findings
-from darksynth.estimation.network_reading import run_network
+from darksynth.estimation.noise.camera_conditional import CameraPriorUse
+from darksynth.estimation.noise.columns import decide_columns
+from darksynth.estimation.noise.network_reading import run_network
+from darksynth.estimation.noise.self_check import check_level
+from darksynth.estimation.noise.spectrum import estimate_spectrum
 from darksynth.estimation.reference import Reference
-from darksynth.estimation.self_check import check_level
-from darksynth.estimation.spectrum import estimate_spectrum
 from darksynth.models.den import DEN
 from darksynth.noise.components import NoiseModel, noise_component, noise_parameter
 from darksynth.noise.level import channel_noise_std, mean_noise_variance

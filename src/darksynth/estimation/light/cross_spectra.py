@@ -1,4 +1,4 @@
-"""The cross spectra of moving block pairs, aligned: what :mod:`darksynth.estimation.motion` reads a shutter from.
+"""The cross spectra of moving block pairs, aligned: what :mod:`darksynth.estimation.light.motion` reads a shutter from.
 
 A block of frame t and the block of frame t+1 the flow takes it to give a cross spectrum ``F_t conj(F_t+1)`` (N,
 B, B//2+1), blocks of B px: the scene's power, times the blur's transfer, with the phase of whatever shift the flow

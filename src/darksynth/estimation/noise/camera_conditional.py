@@ -15,7 +15,7 @@ from dataclasses import dataclass
 import torch
 
 from darksynth.cameras.prior import CameraPrior, measured_entries, on_measured_scale
-from darksynth.estimation.spectral_fit import SpectralParameters
+from darksynth.estimation.noise.spectral_fit import SpectralParameters
 from darksynth.noise.spectral import OCTAVES, covariance_parameters, octave_covariances
 
 TEXTURE_NAMES = ("texture_gain", "texture_scale")
@@ -39,7 +39,7 @@ class CameraPriorUse:
 
 def prior_first_octave(first_unmeasured: int) -> int:
     """The finest octave the prior supplies: the first the reference's probe found it cannot show
-    (:func:`~darksynth.estimation.spectrum.octave_responses`); :data:`~darksynth.noise.spectral.OCTAVES` when it
+    (:func:`~darksynth.estimation.noise.spectrum.octave_responses`); :data:`~darksynth.noise.spectral.OCTAVES` when it
     shows them all. What a reference shows is read, not replaced: a smooth reference shows its coarse noise (white
     noise there read 22 % too loud when the prior's mottle replaced it), a textured scene does not (on the LOL
     references the probe finds octaves 4-6 unmeasurable)."""

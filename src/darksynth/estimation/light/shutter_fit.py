@@ -1,8 +1,8 @@
 """The exposure fraction fitted to the cross spectra of moving block pairs, and whether the blocks support it.
 
-:mod:`darksynth.estimation.motion` pairs the blocks and aligns their cross spectra; here the scene's power in each
+:mod:`darksynth.estimation.light.motion` pairs the blocks and aligns their cross spectra; here the scene's power in each
 frequency ring is compared with the box's transfer ``sinc^2(pi s k.d)`` (the fit, in :func:`fit_exposure`) and the
-reading is given only where the blocks can support it (:mod:`darksynth.estimation.shutter_confidence`): else the
+reading is given only where the blocks can support it (:mod:`darksynth.estimation.light.shutter_confidence`): else the
 prior, with one line naming what could not be read and why.
 """
 
@@ -13,8 +13,8 @@ from typing import NamedTuple
 
 import numpy as np
 
-from darksynth.estimation.cross_spectra import box_transfer, frequencies, ring_membership
-from darksynth.estimation.shutter_confidence import (
+from darksynth.estimation.light.cross_spectra import box_transfer, frequencies, ring_membership
+from darksynth.estimation.light.shutter_confidence import (
     AMBIGUOUS_PEAK,
     BLOCKY,
     MIN_CONFIDENCE,
@@ -49,7 +49,7 @@ exactly 1, not as what it is (the profile holds the value at 1, with a warning t
 
 COARSE_GRID = np.linspace(0.0, 2.5, 51)
 """The first pass of the fit, also where the halves and the resampled readings are found: steps of 0.05, a third
-of :data:`~darksynth.estimation.shutter_confidence.TOLERANCE`, so that the resampled readings resolve it. It runs
+of :data:`~darksynth.estimation.light.shutter_confidence.TOLERANCE`, so that the resampled readings resolve it. It runs
 past the end of :data:`S_GRID`: a best fit held at 2 hides how far beyond it the data would go (texture or
 processing that smears more along the motion than frame blending does); its resampled readings, beyond 2, then
 give it a low confidence."""
@@ -99,9 +99,9 @@ class ExposureFit:
         contrast: the scene's power against the noise's on the frequencies that tell shutters apart.
         ambiguous: blocks left out because their texture matches itself at another shift.
         persistent_share: share of the cross power, on those frequencies, that was noise staying in place.
-        blockiness: the frames' :func:`~darksynth.estimation.shutter_confidence.compression_blockiness` (above
-            :data:`~darksynth.estimation.shutter_confidence.BLOCKY`: JPEG's blocks show, and the reading needs a
-            confidence of :data:`~darksynth.estimation.shutter_confidence.MIN_CONFIDENCE_COMPRESSED`).
+        blockiness: the frames' :func:`~darksynth.estimation.light.shutter_confidence.compression_blockiness` (above
+            :data:`~darksynth.estimation.light.shutter_confidence.BLOCKY`: JPEG's blocks show, and the reading needs a
+            confidence of :data:`~darksynth.estimation.light.shutter_confidence.MIN_CONFIDENCE_COMPRESSED`).
     """
 
     reading: float | None
@@ -209,7 +209,7 @@ def _select(rings: _Rings, keep: np.ndarray) -> _Rings:
 
 def fit_exposure(spectra: BlockSpectra, blockiness: float = 1.0) -> ExposureFit:
     """The exposure fraction that best explains the blocks' cross spectra, and whether the blocks support it;
-    ``blockiness``, the frames' :func:`~darksynth.estimation.shutter_confidence.compression_blockiness`, sets the
+    ``blockiness``, the frames' :func:`~darksynth.estimation.light.shutter_confidence.compression_blockiness`, sets the
     confidence asked."""
     rings = _rings(spectra)
     usable, ambiguous = _usable(spectra, rings)

@@ -1,5 +1,5 @@
 """The light a profile keeps, read off a reference clip: the shutter's exposure fraction and the flicker
-(:func:`darksynth.estimation.motion.estimate_motion`), held within the table's bounds, with what was measured and
+(:func:`darksynth.estimation.light.motion.estimate_motion`), held within the table's bounds, with what was measured and
 which prior stands where nothing could be."""
 
 from __future__ import annotations
@@ -7,7 +7,7 @@ from __future__ import annotations
 from dataclasses import dataclass
 from typing import Any
 
-from darksynth.estimation.motion import SHUTTER_LIMIT, estimate_motion
+from darksynth.estimation.light.motion import SHUTTER_LIMIT, estimate_motion
 from darksynth.estimation.reference import Reference
 from darksynth.noise.components import noise_parameter
 from darksynth.noise.values import NoiseValues

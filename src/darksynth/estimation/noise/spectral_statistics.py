@@ -11,8 +11,8 @@ The statistics of a noise map (or of a residual, noisy minus denoised) are:
   denoised image's);
 * for clips, per band the correlation of each frame's band with the next frame's.
 
-Pure functions on tensors; the clean-aided fit and the blind estimate (:mod:`darksynth.estimation.spectral_fit`,
-:mod:`darksynth.estimation.spectrum`) measure through them.
+Pure functions on tensors; the clean-aided fit and the blind estimate (:mod:`darksynth.estimation.noise.spectral_fit`,
+:mod:`darksynth.estimation.noise.spectrum`) measure through them.
 """
 
 from __future__ import annotations

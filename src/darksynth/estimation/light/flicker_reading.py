@@ -1,7 +1,7 @@
 """The exposure flicker of a reference clip: the per-frame gain of its still parts, with the noise cancelled.
 
 Only pixels that stay still through a run of frames are read (the flows of the frame pairs, measured by
-:mod:`darksynth.estimation.motion`, say which), split into two halves by alternating bands of columns. Per frame a
+:mod:`darksynth.estimation.light.motion`, say which), split into two halves by alternating bands of columns. Per frame a
 gain times the level plus an offset is fitted across groups of pixels of different brightness (the offset takes a
 frame-wide noise term that would otherwise read as flicker), and the covariance of the two halves' gain series
 gives the flicker's variance with the noise, independent between the halves, cancelled. A camera's auto-exposure

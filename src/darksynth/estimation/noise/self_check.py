@@ -22,9 +22,9 @@ from typing import Any
 import torch
 import torch.nn.functional as F
 
-from darksynth.estimation.flat_blocks import FLAT_BLOCK, analysis_window, block_gradient, level_stratum
-from darksynth.estimation.nonlocal_means import nlm_denoise
-from darksynth.estimation.spectral_fit import quantised
+from darksynth.estimation.noise.flat_blocks import FLAT_BLOCK, analysis_window, block_gradient, level_stratum
+from darksynth.estimation.noise.nonlocal_means import nlm_denoise
+from darksynth.estimation.noise.spectral_fit import quantised
 from darksynth.noise.simulate import add_noise
 from darksynth.noise.spectral import LEVEL_KNOTS
 from darksynth.noise.values import NoiseValues
@@ -131,7 +131,7 @@ def checked_blocks(denoised: torch.Tensor) -> torch.Tensor:
 
 
 def checked_blocks_per_intensity(denoised: torch.Tensor) -> dict[int, torch.Tensor]:
-    """Per segment of the level curve (:func:`~darksynth.estimation.flat_blocks.level_stratum`) that holds
+    """Per segment of the level curve (:func:`~darksynth.estimation.noise.flat_blocks.level_stratum`) that holds
     :data:`MIN_CHECK_BLOCKS` blocks in :data:`CHECK_MEAN_RANGE`, the flattest :data:`CHECK_SHARE` of them (at least
     :data:`MIN_CHECK_BLOCKS`): flat for the noise at that intensity."""
     gradient, means, inside = _in_range_blocks(denoised)

@@ -1,10 +1,10 @@
 """Fitting the spectral model's parameters by re-synthesis of its statistics
-(:mod:`darksynth.estimation.spectral_statistics`).
+(:mod:`darksynth.estimation.noise.spectral_statistics`).
 
 Pure functions on tensors; the clean-aided fit (:func:`oracle_spectral_fit`) and the blind estimate
-(:mod:`darksynth.estimation.spectrum`) share them. The fit moves the parameters until a simulation measured through
-the same operator shows the measured statistics (indirect inference): each octave's covariance by the matrix that
-maps the simulated band cross-power onto the measured one, each knot's std by the ratio of the stds, each octave's
+(:mod:`darksynth.estimation.noise.spectrum`) share them. The fit moves the parameters until a simulation measured
+through the same operator shows the measured statistics (indirect inference): each octave's covariance by the matrix
+that maps the simulated band cross-power onto the measured one, each knot's std by the ratio of the stds, each octave's
 AR(1) coefficient by the gap of the correlations.
 """
 
@@ -16,8 +16,8 @@ from dataclasses import dataclass
 
 import torch
 
-from darksynth.estimation.spectral_statistics import SpectralStatistics, measure
-from darksynth.estimation.texture_fit import (
+from darksynth.estimation.noise.spectral_statistics import SpectralStatistics, measure
+from darksynth.estimation.noise.texture_fit import (
     TEXTURE_GAINS,
     TextureFit,
     block_power,
@@ -346,9 +346,9 @@ def oracle_texture_fit(
     noisy: torch.Tensor, clean: torch.Tensor, values: dict[str, torch.Tensor], *, seed: int = 0
 ) -> tuple[dict[str, torch.Tensor], TextureFit]:
     """``values`` (a texture-free fit on the clips ``noisy``, ``clean`` (T, C, H, W)) with ``texture_gain`` and
-    ``texture_scale`` fitted (:func:`darksynth.estimation.texture_fit.fit_texture`) and the level curve divided, knot
-    by knot, by the std the texture adds to it, so that it describes flat regions and the whole map keeps its level.
-    :data:`TEXTURE_PASSES` passes, each on the previous one's curve."""
+    ``texture_scale`` fitted (:func:`darksynth.estimation.noise.texture_fit.fit_texture`) and the level curve
+    divided, knot by knot, by the std the texture adds to it, so that it describes flat regions and the whole map
+    keeps its level. :data:`TEXTURE_PASSES` passes, each on the previous one's curve."""
     pooled = values["level_curve"].to(torch.float64)
     curve = pooled
     for _ in range(TEXTURE_PASSES):
