@@ -1,0 +1,128 @@
+"""How much of the noise the denoiser's residual holds, on real pairs and on the estimate's re-synthesis, per band,
+on flat blocks: where the blind fit's correction by re-synthesis holds and where it does not.
+
+Makes: docs/spectral-noise.md, "What falls short, and what was tried", its bullet on polyu's colour on flat blocks.
+
+Run from the repo root::
+
+    .venv/bin/python scripts/noise/residual_capture_check.py --pairs ../shared/data/real-pairs/polyu --every 7
+
+Options: ``--pairs DIR [--every K]``.
+
+For each K-th pair in name order: the default ``estimate`` on the noisy image ``y``, its non-local means ``D(y)`` at
+the estimate's strength, and on the 30% flattest 32-px blocks of the clean image ``x``
+(``darksynth.noise.texture.block_detail``) the power of the three finest octave bands (1.4-4, 4-8, 8-16 px) of
+brightness and colour (``evaluation.measures.structure``'s components and bands, each band-passed over the whole
+image and averaged over the blocks) of:
+
+* the real noise ``y - x`` and the real residual ``y - D(y)``: their ratio is how much of the real noise the
+  residual holds (the capture of the real);
+* the profile's noise on ``D(y)`` as the fit simulates it (``s = D(y) + n``, quantised) and its residual
+  ``s - D(s)``: their ratio is the capture the fit assumes (the capture of the re-synthesis);
+* the profile applied to ``x`` by ``apply --no-darken``, over the real noise (what ``benchmarks/real_data.py``
+  judges, here on flat blocks).
+
+The fit makes the re-synthesis's residual match the real one, so where the re-synthesis captures more than the real,
+the profile's noise comes out weaker than the real by about that factor. Printed: one line per pair (colour), then
+the medians over pairs.
+"""
+
+from __future__ import annotations
+
+import argparse
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+import torch
+
+from darksynth.apply import ApplyOptions, synthesize_image
+from darksynth.estimation.assemble import estimate
+from darksynth.estimation.noise.nonlocal_means import nlm_denoise
+from darksynth.estimation.noise.spectral_fit import quantised
+from darksynth.estimation.reference import load_reference
+from darksynth.evaluation.measures.structure import BANDS, COMPONENTS
+from darksynth.io.arrays import chw_to_hwc, hwc_to_chw
+from darksynth.noise.simulate import add_noise
+from darksynth.noise.texture import TEXTURE_BLOCK, block_detail, textured_and_flat
+from darksynth.recipe import ClipRecipe
+from darksynth.training.weights import default_weights_path, load_weights
+
+FINE_BANDS = 3
+
+
+def _band_index(height: int, width: int) -> np.ndarray[Any, Any]:
+    radius = np.hypot(np.fft.fftfreq(height)[:, None], np.fft.fftfreq(width)[None, :])
+    index = np.full(radius.shape, -1)
+    for band, (low, high) in enumerate(BANDS[:FINE_BANDS]):
+        index[(radius >= low) & (radius < high)] = band
+    return index
+
+
+def flat_band_powers(noise: torch.Tensor, mask: np.ndarray[Any, Any]) -> np.ndarray[Any, Any]:
+    """(2, FINE_BANDS): brightness and colour (the mean of the two colour components) power per band of ``noise``
+    (3, H, W), band-passed over the whole image and averaged over ``mask``."""
+    red, green, blue = noise.double().numpy()
+    components = [(red + green + blue) / np.sqrt(3), (red - blue) / np.sqrt(2), (red - 2 * green + blue) / np.sqrt(6)]
+    index = _band_index(*mask.shape)
+    powers = np.zeros((len(COMPONENTS), FINE_BANDS))
+    for number, component in enumerate(components):
+        spectrum = np.fft.fft2(component - component.mean())
+        for band in range(FINE_BANDS):
+            passed = np.real(np.fft.ifft2(spectrum * (index == band)))
+            powers[min(number, 1), band] += np.mean(passed[mask] ** 2) / (1 if number == 0 else 2)
+    return powers
+
+
+def _flat_mask(clean: torch.Tensor) -> np.ndarray[Any, Any]:
+    _, flat = textured_and_flat(block_detail(clean[None].double())[0])
+    pixels = flat.repeat_interleave(TEXTURE_BLOCK, 0).repeat_interleave(TEXTURE_BLOCK, 1).numpy()
+    mask = np.zeros(clean.shape[-2:], dtype=bool)
+    mask[: pixels.shape[0], : pixels.shape[1]] = pixels
+    return mask
+
+
+def pair_ratios(noisy_path: Path, clean_path: Path, network: Any) -> np.ndarray[Any, Any]:
+    """(3, 2, FINE_BANDS): the real capture, the re-synthesis's capture, the applied profile over the real."""
+    noisy, clean = load_reference(noisy_path)[0], load_reference(clean_path)[0]
+    found = estimate(noisy[None], network, source=noisy_path.name)
+    strength = found.profile.meta["spectrum"]["denoiser_strength_8bit"]
+    denoised = nlm_denoise(noisy[None], strength)[0]
+    mask = _flat_mask(clean)
+    real = flat_band_powers(noisy - clean, mask)
+    real_residual = flat_band_powers(noisy - denoised, mask)
+    values = found.profile.noise.to(dtype=torch.float32)
+    generator = torch.Generator().manual_seed(3)
+    resynthesised = quantised(add_noise(denoised[None, None], values, generator=generator)[0, 0])
+    resynthesis = flat_band_powers(resynthesised - denoised, mask)
+    resynthesis_residual = flat_band_powers(resynthesised - nlm_denoise(resynthesised[None], strength)[0], mask)
+    pixels = (clean * 255).round().clamp(0, 255).to(torch.uint8)
+    options = ApplyOptions(recipe=ClipRecipe(found.profile, darkening=None), seed=0)
+    applied = hwc_to_chw(synthesize_image(chw_to_hwc(pixels), clean_path.name, options)[0]).float() / 255
+    synthetic = flat_band_powers(applied - clean, mask)
+    return np.stack([real_residual / real, resynthesis_residual / resynthesis, synthetic / real])
+
+
+def main() -> None:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--pairs", type=Path, required=True)
+    parser.add_argument("--every", type=int, default=1)
+    arguments = parser.parse_args()
+    torch.set_num_threads(1)
+    network = load_weights(default_weights_path())
+    rows = []
+    for noisy_path in sorted((arguments.pairs / "noisy").iterdir())[:: arguments.every]:
+        ratios = pair_ratios(noisy_path, arguments.pairs / "clean" / noisy_path.name, network)
+        rows.append(ratios)
+        print(
+            f"{noisy_path.name[:36]:36s} colour: capture real {np.round(ratios[0, 1], 2)}, re-synthesis "
+            f"{np.round(ratios[1, 1], 2)}; applied over real {np.round(ratios[2, 1], 2)}",
+            flush=True,
+        )
+    median = np.median(np.stack(rows), axis=0)
+    for number, what in enumerate(("capture of the real", "capture of the re-synthesis", "applied over real")):
+        print(f"median {what:28s} brightness {np.round(median[number, 0], 2)} colour {np.round(median[number, 1], 2)}")
+
+
+if __name__ == "__main__":
+    main()
