@@ -174,7 +174,7 @@ def _imported_parts(path: Path, package: str) -> set[str]:
     return parts_seen
 
 
-ESTIMATION_PARTS = ("noise", "light")
+ESTIMATION_PARTS = tuple(sorted(p.parent.name for p in (SOURCE / "estimation").glob("*/__init__.py")))
 """The subpackages of ``estimation`` (split by what is measured): their modules are stages like the package's own."""
 
 

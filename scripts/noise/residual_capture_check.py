@@ -41,7 +41,7 @@ from darksynth.estimation.assemble import estimate
 from darksynth.estimation.noise.nonlocal_means import nlm_denoise
 from darksynth.estimation.noise.spectral_fit import quantised
 from darksynth.estimation.reference import load_reference
-from darksynth.evaluation.measures.structure import BANDS, COMPONENTS
+from darksynth.evaluation.measures.structure import COMPONENTS, band_index, brightness_colour_components
 from darksynth.io.arrays import chw_to_hwc, hwc_to_chw
 from darksynth.noise.simulate import add_noise
 from darksynth.noise.texture import TEXTURE_BLOCK, block_detail, textured_and_flat
@@ -51,23 +51,14 @@ from darksynth.training.weights import default_weights_path, load_weights
 FINE_BANDS = 3
 
 
-def _band_index(height: int, width: int) -> np.ndarray[Any, Any]:
-    radius = np.hypot(np.fft.fftfreq(height)[:, None], np.fft.fftfreq(width)[None, :])
-    index = np.full(radius.shape, -1)
-    for band, (low, high) in enumerate(BANDS[:FINE_BANDS]):
-        index[(radius >= low) & (radius < high)] = band
-    return index
-
-
 def flat_band_powers(noise: torch.Tensor, mask: np.ndarray[Any, Any]) -> np.ndarray[Any, Any]:
     """(2, FINE_BANDS): brightness and colour (the mean of the two colour components) power per band of ``noise``
     (3, H, W), band-passed over the whole image and averaged over ``mask``."""
-    red, green, blue = noise.double().numpy()
-    components = [(red + green + blue) / np.sqrt(3), (red - blue) / np.sqrt(2), (red - 2 * green + blue) / np.sqrt(6)]
-    index = _band_index(*mask.shape)
+    components = brightness_colour_components(noise.permute(1, 2, 0).double().numpy())
+    index = band_index(*mask.shape)
     powers = np.zeros((len(COMPONENTS), FINE_BANDS))
     for number, component in enumerate(components):
-        spectrum = np.fft.fft2(component - component.mean())
+        spectrum = np.fft.fft2(component)
         for band in range(FINE_BANDS):
             passed = np.real(np.fft.ifft2(spectrum * (index == band)))
             powers[min(number, 1), band] += np.mean(passed[mask] ** 2) / (1 if number == 0 else 2)

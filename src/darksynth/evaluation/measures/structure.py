@@ -67,7 +67,7 @@ def _rgb_noise(noise: np.ndarray, name: str = "noise") -> _Array:
     return array
 
 
-def _components(noise: _Array) -> tuple[_Array, _Array, _Array]:
+def brightness_colour_components(noise: _Array) -> tuple[_Array, _Array, _Array]:
     """Brightness (R+G+B)/sqrt3 and the two colour components (R-B)/sqrt2, (R-2G+B)/sqrt6, each zero-mean.
 
     The three are an orthonormal basis of RGB: white noise of variance v per channel gives each of them variance v.
@@ -79,7 +79,7 @@ def _components(noise: _Array) -> tuple[_Array, _Array, _Array]:
     return brightness - brightness.mean(), colour_a - colour_a.mean(), colour_b - colour_b.mean()
 
 
-def _band_index(height: int, width: int) -> np.ndarray[Any, np.dtype[np.intp]]:
+def band_index(height: int, width: int) -> np.ndarray[Any, np.dtype[np.intp]]:
     """Per FFT coefficient, its band's index in :data:`BANDS` (0 fine ... 4 coarse), or -1 outside every band."""
     radius = np.hypot(np.fft.fftfreq(height)[:, None], np.fft.fftfreq(width)[None, :])
     index = np.full(radius.shape, -1, dtype=np.intp)
@@ -120,8 +120,8 @@ def band_powers(noise: np.ndarray) -> dict[str, Any]:
         ValueError: ``noise`` is not ``(H, W, 3)``.
     """
     array = _rgb_noise(noise)
-    brightness, colour_a, colour_b = _components(array)
-    index = _band_index(*array.shape[:2])
+    brightness, colour_a, colour_b = brightness_colour_components(array)
+    index = band_index(*array.shape[:2])
     return {
         "brightness": _component_band_powers(brightness, index),
         "colour": (_component_band_powers(colour_a, index) + _component_band_powers(colour_b, index)) / 2.0,
