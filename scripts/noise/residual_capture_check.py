@@ -7,7 +7,7 @@ Run from the repo root::
 
     .venv/bin/python scripts/noise/residual_capture_check.py --pairs ../shared/data/real-pairs/polyu --every 7
 
-Options: ``--pairs DIR [--every K]``.
+Options: ``--pairs DIR [--every K] [--strengths F,F,...]``.
 
 For each K-th pair in name order: the default ``estimate`` on the noisy image ``y``, its non-local means ``D(y)`` at
 the estimate's strength, and on the 30% flattest 32-px blocks of the clean image ``x``
@@ -21,6 +21,10 @@ image and averaged over the blocks) of:
   ``s - D(s)``: their ratio is the capture the fit assumes (the capture of the re-synthesis);
 * the profile applied to ``x`` by ``apply --no-darken``, over the real noise (what ``benchmarks/real_data.py``
   judges, here on flat blocks).
+
+With ``--strengths``, also the real residual over the re-synthesis's at the denoiser's strength times each factor:
+whether a second denoiser would show the real noise behaving unlike the model's where the fit cannot (it does not:
+docs/spectral-noise.md).
 
 The fit makes the re-synthesis's residual match the real one, so where the re-synthesis captures more than the real,
 the profile's noise comes out weaker than the real by about that factor. Printed: one line per pair (colour), then
@@ -73,8 +77,11 @@ def _flat_mask(clean: torch.Tensor) -> np.ndarray[Any, Any]:
     return mask
 
 
-def pair_ratios(noisy_path: Path, clean_path: Path, network: Any) -> np.ndarray[Any, Any]:
-    """(3, 2, FINE_BANDS): the real capture, the re-synthesis's capture, the applied profile over the real."""
+def pair_ratios(
+    noisy_path: Path, clean_path: Path, network: Any, strengths: tuple[float, ...] = ()
+) -> np.ndarray[Any, Any]:
+    """(3 + len(strengths), 2, FINE_BANDS): the real capture, the re-synthesis's capture, the applied profile over
+    the real, then the real residual over the re-synthesis's at each factor of the denoiser's strength."""
     noisy, clean = load_reference(noisy_path)[0], load_reference(clean_path)[0]
     found = estimate(noisy[None], network, source=noisy_path.name)
     strength = found.profile.meta["spectrum"]["denoiser_strength_8bit"]
@@ -91,19 +98,25 @@ def pair_ratios(noisy_path: Path, clean_path: Path, network: Any) -> np.ndarray[
     options = ApplyOptions(recipe=ClipRecipe(found.profile, darkening=None), seed=0)
     applied = hwc_to_chw(synthesize_image(chw_to_hwc(pixels), clean_path.name, options)[0]).float() / 255
     synthetic = flat_band_powers(applied - clean, mask)
-    return np.stack([real_residual / real, resynthesis_residual / resynthesis, synthetic / real])
+    at_strengths = [
+        flat_band_powers(noisy - nlm_denoise(noisy[None], strength * factor)[0], mask)
+        / flat_band_powers(resynthesised - nlm_denoise(resynthesised[None], strength * factor)[0], mask)
+        for factor in strengths
+    ]
+    return np.stack([real_residual / real, resynthesis_residual / resynthesis, synthetic / real, *at_strengths])
 
 
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--pairs", type=Path, required=True)
     parser.add_argument("--every", type=int, default=1)
+    parser.add_argument("--strengths", type=lambda text: tuple(float(part) for part in text.split(",")), default=())
     arguments = parser.parse_args()
     torch.set_num_threads(1)
     network = load_weights(default_weights_path())
     rows = []
     for noisy_path in sorted((arguments.pairs / "noisy").iterdir())[:: arguments.every]:
-        ratios = pair_ratios(noisy_path, arguments.pairs / "clean" / noisy_path.name, network)
+        ratios = pair_ratios(noisy_path, arguments.pairs / "clean" / noisy_path.name, network, arguments.strengths)
         rows.append(ratios)
         print(
             f"{noisy_path.name[:36]:36s} colour: capture real {np.round(ratios[0, 1], 2)}, re-synthesis "
@@ -111,7 +124,9 @@ def main() -> None:
             flush=True,
         )
     median = np.median(np.stack(rows), axis=0)
-    for number, what in enumerate(("capture of the real", "capture of the re-synthesis", "applied over real")):
+    whats = ["capture of the real", "capture of the re-synthesis", "applied over real"]
+    whats += [f"real/re-synthesis residual x{factor:g}" for factor in arguments.strengths]
+    for number, what in enumerate(whats):
         print(f"median {what:28s} brightness {np.round(median[number, 0], 2)} colour {np.round(median[number, 1], 2)}")
 
 
