@@ -40,6 +40,7 @@ import torch
 from PIL import Image
 
 from darksynth.estimation.assemble import estimate
+from darksynth.estimation.noise.noise_estimate import NoiseEstimateOptions
 from darksynth.estimation.reference import load_reference
 from darksynth.light.darkening import Darkening
 from darksynth.noise.components import noise_component
@@ -75,7 +76,9 @@ def demo_profile(*, measured: bool) -> Profile:
     """The profile ``estimate`` writes for the demo reference: ``measured``, the default (the spectral model),
     else the network's values alone (``estimate --no-refine``)."""
     reference = load_reference(DEMO_REFERENCE, clip=False, max_frames=1)
-    return estimate(reference, load_weights(default_weights_path()), refine=measured).profile
+    return estimate(
+        reference, load_weights(default_weights_path()), options=NoiseEstimateOptions(refine=measured)
+    ).profile
 
 
 def demo_parameters(profile: Profile) -> ClipParameters:

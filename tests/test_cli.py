@@ -24,6 +24,7 @@ from darksynth.cli import app, synthesis
 from darksynth.datasets import ConversionReport, ConvertOptions, Shard
 from darksynth.errors import DarksynthError
 from darksynth.estimation.assemble import EstimateOptions
+from darksynth.estimation.noise.noise_estimate import NoiseEstimateOptions
 from darksynth.evaluation.run.job import EvaluationRun
 from darksynth.evaluation.run.options import EvaluationOptions
 from darksynth.io.video_encoding import VideoEncoding
@@ -71,7 +72,7 @@ def _flag_defaults(command: str) -> dict[str, Any]:
                 "variant": DENChoice().variant,
                 "model": DENChoice().noise_model,
                 "clip": EstimateOptions().clip,
-                "device": EstimateOptions().device,
+                "device": NoiseEstimateOptions().device,
             },
         ),
         (

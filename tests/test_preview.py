@@ -12,6 +12,7 @@ import pytest
 from PIL import Image
 
 from darksynth.estimation.assemble import estimate
+from darksynth.estimation.noise.noise_estimate import NoiseEstimateOptions
 from darksynth.estimation.reference import load_reference
 from darksynth.io.video import VideoEncoding, VideoWriter
 from darksynth.light.darkening import Darkening
@@ -307,7 +308,9 @@ def test_a_profile_written_by_estimate_brings_its_reference(
 ) -> None:
     """What ``estimate`` records in the profile's meta is what the preview reads: no hand-written provenance."""
     reference = _dark_reference(tmp_path / "night.png", size=(64, 64))
-    result = estimate(load_reference(reference), tiny_model(), source=str(reference), refine=False)
+    result = estimate(
+        load_reference(reference), tiny_model(), source=str(reference), options=NoiseEstimateOptions(refine=False)
+    )
     profile = tmp_path / "estimated.json"
     save_profile(profile, result.profile)
     code, _, err = run_cli("preview", rgb_image, "-p", profile, "--out", tmp_path / "p.png", "--crop", "32x24")

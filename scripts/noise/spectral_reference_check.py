@@ -37,6 +37,7 @@ from PIL import Image, ImageDraw
 
 from darksynth.estimation.assemble import estimate
 from darksynth.estimation.noise.flat_blocks import FLAT_BLOCK, STRENGTH_CLIPPED_SHARE, clipped_share, denoiser_strength
+from darksynth.estimation.noise.noise_estimate import NoiseEstimateOptions
 from darksynth.estimation.noise.nonlocal_means import nlm_denoise
 from darksynth.estimation.noise.spectral_fit import quantised
 from darksynth.estimation.reference import load_reference
@@ -112,7 +113,7 @@ def main() -> None:
         gain = 0.9 / max(float(real_crop.quantile(0.99)), 1e-3)
         row.append(real_crop)
         for measured in (True, False):
-            profile = estimate(frames, network, source=str(path), refine=measured).profile
+            profile = estimate(frames, network, source=str(path), options=NoiseEstimateOptions(refine=measured)).profile
             values = profile.noise.to(dtype=torch.float32)
             synthetic = quantised(add_noise(denoised[None], values, generator=torch.Generator().manual_seed(0))[0])
             ratio = real_std / max(flattest_block_std(synthetic[0], usable), 1e-6)

@@ -9,6 +9,7 @@ import pytest
 import torch
 
 from darksynth.estimation.assemble import estimate
+from darksynth.estimation.noise.noise_estimate import NoiseEstimateOptions
 from darksynth.light.darkening import darken
 from darksynth.light.tones import luminance_quantiles, tone_quantiles
 from darksynth.models.den import DEN
@@ -150,7 +151,9 @@ def test_srgb_model_outputs_land_in_their_profile_entries(tiny_model: Callable[.
     # banding, temporal banding, periodic (3), compression.
     fractions = torch.linspace(0.05, 0.95, 16)
     result = estimate(
-        _reference(1, 64, 64, banding=0.1), _rigged(tiny_model(log_levels=False), fractions), refine=False
+        _reference(1, 64, 64, banding=0.1),
+        _rigged(tiny_model(log_levels=False), fractions),
+        options=NoiseEstimateOptions(refine=False),
     )
     noise = result.profile.noise
     assert noise["shot"] == pytest.approx((0.05 * 0.2,), rel=1e-5)
@@ -169,7 +172,9 @@ def test_srgb_model_outputs_land_in_their_profile_entries(tiny_model: Callable[.
 
 def test_nearly_noise_free_estimate_warns(tiny_model: Callable[..., DEN]) -> None:
     quiet_network = _rigged(tiny_model(), torch.full((vector_size(),), 0.001))
-    quiet = estimate(_reference(1, 64, 64), quiet_network, source="quiet.png", refine=False)
+    quiet = estimate(
+        _reference(1, 64, 64), quiet_network, source="quiet.png", options=NoiseEstimateOptions(refine=False)
+    )
     assert any(w.startswith("quiet.png: nearly noise-free") for w in quiet.warnings)
     noisy = estimate(
         _reference(1, 64, 64), _rigged(tiny_model(), torch.full((vector_size(),), 0.5)), source="noisy.png"
@@ -185,7 +190,9 @@ def test_the_measured_spectrum_overrules_a_network_that_calls_a_noisy_reference_
     noise = 0.03 * torch.randn(1, 3, 128, 128, generator=torch.Generator().manual_seed(0))
     result = estimate((0.2 + noise).clamp(0, 1), network, source="dim.png")
     assert not any("noise-free" in w for w in result.warnings), result.warnings
-    network_only = estimate((0.2 + noise).clamp(0, 1), network, source="dim.png", refine=False)
+    network_only = estimate(
+        (0.2 + noise).clamp(0, 1), network, source="dim.png", options=NoiseEstimateOptions(refine=False)
+    )
     assert network_only.profile.meta["noise_std_8bit"] < 1.0
     assert "network_values" in result.profile.meta["spectrum"]
     assert 0.8 < result.profile.meta["noise_std_8bit"] / 7.65 < 1.2
@@ -198,7 +205,7 @@ def test_a_clean_reference_stays_nearly_noise_free_after_the_measured_spectrum(
     ramp = torch.linspace(0.05, 0.25, 128)
     clean = (ramp[:, None].expand(128, 128)[None, None].expand(1, 3, 128, 128) * 255).round() / 255
     network = _rigged(tiny_model(), torch.full((vector_size(),), 0.001))
-    result = estimate(clean, network, source="clean.png", refine=False)
+    result = estimate(clean, network, source="clean.png", options=NoiseEstimateOptions(refine=False))
     assert any(w.startswith("clean.png: nearly noise-free") for w in result.warnings), result.warnings
     # The measured spectrum reads the ramp's 8-bit steps, which the denoiser's 8-bit output keeps, as about half
     # a level of noise: invisible, and far below any camera's.
@@ -225,7 +232,7 @@ def test_a_reference_too_small_to_measure_keeps_the_network_values_and_says_so(
     network = _rigged(tiny_model(), torch.full((vector_size(),), 0.3))
     reference = _reference(1, 48, 48)
     refined = estimate(reference, network, source="small.png")
-    plain = estimate(reference, network, source="small.png", refine=False)
+    plain = estimate(reference, network, source="small.png", options=NoiseEstimateOptions(refine=False))
     assert refined.profile.noise == plain.profile.noise
     assert any(w.startswith("small.png: 48x48 is too small to measure") for w in refined.warnings)
 
@@ -346,8 +353,8 @@ def test_column_components_are_set_absent_without_a_column_pattern(tiny_model: C
 def test_batch_size_does_not_change_the_estimate(tiny_model: Callable[..., DEN]) -> None:
     model = tiny_model()
     reference = _reference(1, 48, 240)
-    whole = estimate(reference, model, batch=16)
-    one_by_one = estimate(reference, model, batch=1)
+    whole = estimate(reference, model, options=NoiseEstimateOptions(batch=16))
+    one_by_one = estimate(reference, model, options=NoiseEstimateOptions(batch=1))
     np.testing.assert_allclose(model_vector(one_by_one.per_crop), model_vector(whole.per_crop), rtol=1e-5, atol=1e-7)
 
 

@@ -15,6 +15,7 @@ import pytest
 import torch
 
 from darksynth.estimation.assemble import estimate
+from darksynth.estimation.noise.noise_estimate import NoiseEstimateOptions
 from darksynth.light.darkening import Darkening
 from darksynth.models.den import DEN
 from darksynth.noise.components import model_parameters, noise_parameter
@@ -42,7 +43,9 @@ def model() -> DEN:
 def _estimated(model: DEN, noise: dict[str, tuple[float, ...]], seed: int, frames: int = 1) -> dict[str, list[float]]:
     return {
         name: values.tolist()
-        for name, values in estimate(_reference(noise, frames, seed), model, refine=False).profile.noise.items()
+        for name, values in estimate(
+            _reference(noise, frames, seed), model, options=NoiseEstimateOptions(refine=False)
+        ).profile.noise.items()
     }
 
 
@@ -52,7 +55,9 @@ def test_the_shipped_srgb_network_estimates_every_parameter(model: DEN) -> None:
     # only for what the network predicts, can.
     assert model.noise_model == "srgb"
     # Banding so that the column components are measured present (without it they are set absent).
-    result = estimate(_reference({"read": (0.02,), "banding": (0.01,)}, 1, 0), model, refine=False)
+    result = estimate(
+        _reference({"read": (0.02,), "banding": (0.01,)}, 1, 0), model, options=NoiseEstimateOptions(refine=False)
+    )
     predicted = model_parameters("srgb", model.config.profile_version)
     assert set(result.profile.ranges) == {p.name for p in predicted}
     # Newer parameters than the network's table stay neutral, without a range.
@@ -102,6 +107,10 @@ def test_the_network_alone_does_not_recover_channel_gains(model: DEN) -> None:
     # and the test must then say so.
     base, on = {"read": (0.03,)}, {"channel_gain": (1.8, 1.8)}
     low, high = noise_parameter("channel_gain").training_range
-    off = estimate(_reference(base, 1, 21), model, refine=False).profile.noise["channel_gain"]
-    with_it = estimate(_reference(base | on, 1, 21), model, refine=False).profile.noise["channel_gain"]
+    off = estimate(_reference(base, 1, 21), model, options=NoiseEstimateOptions(refine=False)).profile.noise[
+        "channel_gain"
+    ]
+    with_it = estimate(_reference(base | on, 1, 21), model, options=NoiseEstimateOptions(refine=False)).profile.noise[
+        "channel_gain"
+    ]
     assert float((with_it - off).mean()) / (high - low) < 0.3

@@ -12,6 +12,8 @@ from darksynth.cli.common import QUIET_HELP, VARIANTS, checked_choice, console, 
 from darksynth.console_progress import progress_display
 from darksynth.errors import DarksynthError, error_reason
 from darksynth.estimation.assemble import EstimateOptions
+from darksynth.estimation.noise.camera_conditional import CameraPriorUse
+from darksynth.estimation.noise.noise_estimate import NoiseEstimateOptions
 from darksynth.models.den import DENConfig, Variant
 from darksynth.noise.components import NoiseModel
 from darksynth.training.loop import TrainConfig
@@ -140,7 +142,7 @@ def estimate_command(
             "default) or paper (the paper's five components, white noise).",
         ),
     ] = default_of(DENChoice, "noise_model"),
-    device: Annotated[str, typer.Option(help="torch device.")] = default_of(EstimateOptions, "device"),
+    device: Annotated[str, typer.Option(help="torch device.")] = default_of(NoiseEstimateOptions, "device"),
     refine: Annotated[
         bool,
         typer.Option(
@@ -149,7 +151,7 @@ def estimate_command(
             "brightness and colour, per intensity, frame to frame; default, docs/spectral-noise.md); --no-refine "
             "keeps the network's values.",
         ),
-    ] = default_of(EstimateOptions, "refine"),
+    ] = default_of(NoiseEstimateOptions, "refine"),
     camera_prior: Annotated[
         bool,
         typer.Option(
@@ -158,7 +160,7 @@ def estimate_command(
             "over real cameras, given what the reference shows (docs/camera-prior.md). Off by default: judged on "
             "real cameras it had not seen, the prior's expectation was further from the truth than none.",
         ),
-    ] = default_of(EstimateOptions, "camera_prior"),
+    ] = default_of(NoiseEstimateOptions, "camera_prior") is not None,
     prior_octaves: Annotated[
         bool,
         typer.Option(
@@ -166,11 +168,12 @@ def estimate_command(
             help="With --camera-prior, also take the coarse octaves the reference cannot show from the prior instead "
             "of continuing the finer ones (docs/camera-prior.md).",
         ),
-    ] = default_of(EstimateOptions, "prior_octaves"),
+    ] = default_of(CameraPriorUse, "octaves"),
     quiet: Annotated[bool, typer.Option("--quiet", "-q", help=QUIET_HELP)] = False,
 ) -> None:
     import json
 
+    from darksynth.cameras.prior import shipped_prior
     from darksynth.estimation.assemble import estimate_file
     from darksynth.profile import profile_to_dict, save_profile
     from darksynth.training.weights import load_weights
@@ -183,10 +186,10 @@ def estimate_command(
         )
         if prior_octaves and not camera_prior:
             raise fail("--prior-octaves needs --camera-prior")
-        options = EstimateOptions(
-            clip=clip, device=device, refine=refine, camera_prior=camera_prior, prior_octaves=prior_octaves
-        )
-        network = load_weights(choice.path(), device=options.device)
+        prior = CameraPriorUse(shipped_prior(), octaves=prior_octaves) if camera_prior else None
+        noise = NoiseEstimateOptions(device=device, refine=refine, camera_prior=prior)
+        options = EstimateOptions(clip=clip, noise=noise)
+        network = load_weights(choice.path(), device=device)
         result = estimate_file(reference, network, options)
     except DarksynthError as error:
         raise fail(str(error)) from None

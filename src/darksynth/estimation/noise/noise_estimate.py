@@ -48,6 +48,27 @@ and one or two of them decide each channel's level (a 96-px crop read green 1.33
 stands, with a warning that it is uncertain."""
 
 
+@dataclass(frozen=True)
+class NoiseEstimateOptions:
+    """How the noise is read off a reference: the one record of the choices that reach the measurements
+    (``estimate``'s and the command line's; the darkening and the light take none).
+
+    Attributes:
+        batch: crops per forward pass of the network.
+        device: torch device the network runs on.
+        refine: after the sRGB network, measure the noise's spectrum on the reference itself
+            (docs/spectral-noise.md); False keeps the network's values (the ablation).
+        camera_prior: what the reference cannot show, taken from a prior over real cameras
+            (docs/camera-prior.md); None (the default) leaves it out: leave-one-set-out on the real pairs the
+            prior's expectation was further from the real than none.
+    """
+
+    batch: int = 16
+    device: torch.device | str = "cpu"
+    refine: bool = True
+    camera_prior: CameraPriorUse | None = None
+
+
 @dataclass
 class NoiseEstimate:
     """The noise values a profile takes, their ranges, the network's values per crop (N,), what was read (the
@@ -66,19 +87,11 @@ def refines(noise_model: NoiseModel, refine: bool = True) -> bool:
     return refine and noise_model == "srgb"
 
 
-def estimate_noise(
-    reference: Reference,
-    network: DEN,
-    *,
-    batch: int = 16,
-    device: torch.device | str = "cpu",
-    refine: bool = True,
-    camera_prior: CameraPriorUse | None = None,
-) -> NoiseEstimate:
-    """The network on the reference's crop grid, the columns decided, and with ``refine`` the spectrum measured;
-    what was read is the record's ``meta``, what could not be its ``warnings``."""
+def estimate_noise(reference: Reference, network: DEN, options: NoiseEstimateOptions) -> NoiseEstimate:
+    """The network on the reference's crop grid, the columns decided, and with ``options.refine`` the spectrum
+    measured; what was read is the record's ``meta``, what could not be its ``warnings``."""
     frames = reference.frames
-    found = run_network(frames, network, batch=batch, device=device)
+    found = run_network(frames, network, batch=options.batch, device=options.device)
     noise = found.noise
     findings = Findings(
         {
@@ -94,8 +107,8 @@ def estimate_noise(
     # A parameter the estimate set itself (a column component found absent, a measured one) loses the network's
     # range: ``apply --jitter`` would otherwise draw the network's values back.
     replaced = list(columns.get("set_absent", []))
-    if refines(network.noise_model, refine) and not reference.all_uniform:
-        noise, measured_names, spectrum = _measure_spectrum(frames, noise, reference.name, camera_prior)
+    if refines(network.noise_model, options.refine) and not reference.all_uniform:
+        noise, measured_names, spectrum = _measure_spectrum(frames, noise, reference.name, options.camera_prior)
         findings.include(spectrum)
         replaced += measured_names
     noise_std = profile_noise_std(noise, frames, reference.measured)

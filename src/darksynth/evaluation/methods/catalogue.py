@@ -129,12 +129,13 @@ def _den_method(
 ) -> NoiseMethod:
     from darksynth.estimation.assemble import estimate
     from darksynth.estimation.noise.camera_conditional import CameraPriorUse, expected_texture
-    from darksynth.estimation.noise.noise_estimate import refines
+    from darksynth.estimation.noise.noise_estimate import NoiseEstimateOptions, refines
 
     model = load_den_weights(name, weights, device)
     refined = refines(model.noise_model, refine)
     with_prior = prior and refined
     estimates = _ESTIMATES.setdefault((str(weights), device, refine), _Estimates())
+    options = NoiseEstimateOptions(device=device, refine=refine)
 
     latest = _LatestReading()
 
@@ -143,10 +144,10 @@ def _den_method(
             reference = noisy.to(torch.float32)[None]
             if camera_prior is not None and octaves:
                 use = CameraPriorUse(camera_prior, octaves=True)
-                found = estimate(reference, model, device=device, refine=refine, camera_prior=use)
+                found = estimate(reference, model, options=dataclasses.replace(options, camera_prior=use))
                 latest.octaves = _read_octaves(found)
                 return found.profile.noise
-            found = estimates.get(noisy, lambda: estimate(reference, model, device=device, refine=refine))
+            found = estimates.get(noisy, lambda: estimate(reference, model, options=options))
             latest.octaves = _read_octaves(found)
             values = found.profile.noise
             # The texture dependence does not enter the fit (it reads flat blocks): added to the shared estimate,
