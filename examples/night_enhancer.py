@@ -67,6 +67,8 @@ REAL_PAIRS = "real-pairs"
 """The ceiling, run only when ``--methods`` names it: trained on the camera's real pairs of the other fold (the
 pairs alternate between two folds in name order), tested on those of its own; two trainings per seed."""
 IMAGE_SUFFIXES = (".png", ".jpg", ".jpeg", ".tif", ".tiff", ".bmp")
+NORMALISED_MEAN = 0.5
+"""The mean an input is scaled to with ``--normalise-exposure`` (about that of a normal-light photo)."""
 
 LowLightCrop = Callable[[int, torch.Tensor, int], torch.Tensor]
 """A way to make training inputs: (the clean image's index, its clean crop (3, H, W) float in [0, 1], the sample's
@@ -294,24 +296,36 @@ def _block(inputs: int, outputs: int) -> nn.Sequential:
 
 class Enhancer(nn.Module):
     """A small U-Net (three scales) whose coarsest features also see their mean over the whole input: how bright
-    the image is overall sets the gain everywhere. Any input size (padded to a multiple of 4)."""
+    the image is overall sets the gain everywhere. Any input size (padded to a multiple of 4).
 
-    def __init__(self, width: int = 16, *, seed: int = 0) -> None:
+    With ``normalise_exposure`` the net sees its input scaled to a mean of :data:`NORMALISED_MEAN` and, beside the
+    coarsest features, the log of the input's own mean: the brightness of the output need not be reached by
+    scaling the input through the layers (a 16x gain and a 3.5x gain start from the same level), and how dark the
+    input was, which sets how much noise it holds, is still known."""
+
+    def __init__(self, width: int = 16, *, seed: int = 0, normalise_exposure: bool = False) -> None:
         super().__init__()
         torch.manual_seed(seed)  # the same initial weights for every method of a seed
+        self.normalise_exposure = normalise_exposure
         self.encode1, self.encode2 = _block(3, width), _block(width, 2 * width)
         self.encode3 = _block(2 * width, 4 * width)
-        self.decode2 = _block(4 * width + 4 * width + 2 * width, 2 * width)
+        overall = 4 * width + (1 if normalise_exposure else 0)
+        self.decode2 = _block(4 * width + overall + 2 * width, 2 * width)
         self.decode1 = _block(2 * width + width, width)
         self.out = nn.Conv2d(width, 3, 1)
 
     def forward(self, low: torch.Tensor) -> torch.Tensor:
         height, width = low.shape[-2:]
+        level = low.mean(dim=(-3, -2, -1), keepdim=True).clamp_min(1.0 / 255.0)
+        if self.normalise_exposure:
+            low = low * (NORMALISED_MEAN / level)
         padded = nn.functional.pad(low, (0, -width % 4, 0, -height % 4), mode="reflect")
         first = self.encode1(padded)
         second = self.encode2(nn.functional.avg_pool2d(first, 2))
         third = self.encode3(nn.functional.avg_pool2d(second, 2))
         overall = third.mean(dim=(-2, -1), keepdim=True).expand_as(third)
+        if self.normalise_exposure:
+            overall = torch.cat([overall, level.log().expand(-1, 1, *third.shape[-2:])], 1)
         up = nn.functional.interpolate(torch.cat([third, overall], 1), scale_factor=2.0, mode="bilinear")
         decoded = self.decode2(torch.cat([up, second], 1))
         up = nn.functional.interpolate(decoded, scale_factor=2.0, mode="bilinear")
@@ -326,7 +340,7 @@ def train(
     ``--batch``."""
     from rich.progress import Progress
 
-    model = Enhancer(arguments.width, seed=seed).to(arguments.device)
+    model = Enhancer(arguments.width, seed=seed, normalise_exposure=arguments.normalise_exposure).to(arguments.device)
     optimiser = torch.optim.Adam(model.parameters(), lr=arguments.learning_rate)
     schedule = torch.optim.lr_scheduler.CosineAnnealingLR(optimiser, arguments.steps)
     loader = DataLoader(dataset, batch_size=arguments.batch, num_workers=arguments.workers, shuffle=False)
@@ -478,7 +492,18 @@ def run(arguments: argparse.Namespace) -> dict[str, Any]:
         "test_pairs": [pair.name for pair in test_pairs],
         "settings": {
             key: getattr(arguments, key)
-            for key in ("steps", "batch", "crop", "width", "exposures", "gain_draw", "learning_rate", "seeds", "device")
+            for key in (
+                "steps",
+                "batch",
+                "crop",
+                "width",
+                "normalise_exposure",
+                "exposures",
+                "gain_draw",
+                "learning_rate",
+                "seeds",
+                "device",
+            )
         },
         "clean": [str(folder) for folder in arguments.clean],
         "results": results,
@@ -501,6 +526,7 @@ def parse(argv: list[str] | None = None) -> argparse.Namespace:
     parser.add_argument("--batch", type=int, default=4)
     parser.add_argument("--crop", type=int, default=96)
     parser.add_argument("--width", type=int, default=16)
+    parser.add_argument("--normalise-exposure", action="store_true")
     parser.add_argument("--learning-rate", type=float, default=2e-3)
     parser.add_argument("--workers", type=int, default=2)
     parser.add_argument("--seeds", default="0")
