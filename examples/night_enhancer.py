@@ -18,6 +18,8 @@ The enhancement counterpart of ``examples/night_denoiser.py`` and the paper's ow
    (``albu-gamma-iso``);
 4. with ``--methods ...,real-pairs``, the ceiling: the same enhancer trained on the camera's real pairs of the other
    fold (two folds alternating in name order), tested on its own fold's (not run by default: two trainings a seed);
+   with ``albu-gamma`` (albumentations' darkening, no noise) and ``albu-gamma-darksynth`` (that darkening, then the
+   noise of a darksynth profile on it), which tell the darkening's share from the noise's (not run by default);
 5. every enhancer tested on the real low -> normal-light pairs (``--pairs DIR``: ``low/NAME``, ``high/NAME``): PSNR,
    SSIM and GT-mean PSNR (the output scaled to the normal-light image's mean first, which leaves out the global
    brightness the pair's two exposures do not fix), per pair and averaged, for each of ``--seeds``; written to
@@ -66,6 +68,8 @@ METHODS = ("darksynth", "darkening-only", "darksynth-paper", "albu-gamma-gauss",
 REAL_PAIRS = "real-pairs"
 """The ceiling, run only when ``--methods`` names it: trained on the camera's real pairs of the other fold (the
 pairs alternate between two folds in name order), tested on those of its own; two trainings per seed."""
+DIAGNOSTIC_METHODS = ("albu-gamma", "albu-gamma-darksynth")
+"""Run only when ``--methods`` names them: albumentations' darkening alone, and with darksynth's noise on it."""
 IMAGE_SUFFIXES = (".png", ".jpg", ".jpeg", ".tif", ".tiff", ".bmp")
 NORMALISED_MEAN = 0.5
 """The mean an input is scaled to with ``--normalise-exposure`` (about that of a normal-light photo)."""
@@ -157,41 +161,59 @@ def read_clean_images(folders: list[Path], crop: int) -> list[torch.Tensor]:
 
 class ProfileExposures:
     """For each clean image, ``exposures`` of the profiles drawn at random, each with the darkening ``LowLight``
-    gives that whole image with that profile (its exposure matched to the reference's tones)."""
+    gives that whole image with that profile (its exposure matched to the reference's tones) and, with
+    ``match_colour``, the reference's colour cast on that image (``apply --match-colour``: per-channel factors on
+    the clean image, alpha taking the rest)."""
 
     def __init__(
-        self, images: list[torch.Tensor], profiles: list[Path], exposures: int, seed: int, gain_draw: str = "matched"
+        self,
+        images: list[torch.Tensor],
+        profiles: list[Path],
+        exposures: int,
+        seed: int,
+        gain_draw: str = "matched",
+        match_colour: bool = False,
     ) -> None:
-        from darksynth import darken, load_profile
+        from darksynth import Darkening, darken, load_profile
+        from darksynth.exposure import matched_colour
         from darksynth.transforms import LowLight
 
         self.profiles = [load_profile(path) for path in profiles]
         self.gain_draw = gain_draw
         draw = random.Random(seed)
         self.choices: list[list[tuple[int, float, float, float]]] = []
+        self.colour_scales: list[list[tuple[float, float, float] | None]] = []
         for image in images:
             chosen = draw.sample(range(len(self.profiles)), min(exposures, len(self.profiles)))
-            row = []
+            row, scales = [], []
             for index in chosen:
                 parameters = LowLight(self.profiles[index], seed=0).sample(image).parameters
                 assert isinstance(parameters, dict)
                 alpha, gamma = float(parameters["darkening"]["alpha"]), float(parameters["darkening"]["gamma"])
+                colour = (
+                    matched_colour(image, self.profiles[index].tone, Darkening(alpha, gamma)) if match_colour else None
+                )
+                if colour is not None:
+                    alpha = colour[1].alpha
+                scales.append(None if colour is None else colour[0])
                 unit = image.double() / 255.0
                 gain = float(unit.mean() / darken(unit, alpha, gamma).mean().clamp_min(1e-6))
                 row.append((index, alpha, gamma, gain))
             self.choices.append(row)
+            self.colour_scales.append(scales)
         gains = np.log([choice[3] for row in self.choices for choice in row])
         self.log_gain_range = (float(np.percentile(gains, 5)), float(np.percentile(gains, 95)))
 
-    def pick(self, image: int, seed: int) -> tuple[int, float, float]:
-        """(profile index, alpha, gamma) for a sample of the image: a matched darkening of one of its references,
-        with ``--gain-draw even`` its alpha scaled to a gain drawn evenly in log over the 5th-95th percentile of
-        the matched gains (the darkening's gain is inversely proportional to alpha)."""
-        index, alpha, gamma, gain = self.choices[image][seed % len(self.choices[image])]
+    def pick(self, image: int, seed: int) -> tuple[int, float, float, tuple[float, float, float] | None]:
+        """(profile index, alpha, gamma, colour scale or None) for a sample of the image: a matched darkening of
+        one of its references, with ``--gain-draw even`` its alpha scaled to a gain drawn evenly in log over the
+        5th-95th percentile of the matched gains (the darkening's gain is inversely proportional to alpha)."""
+        choice = seed % len(self.choices[image])
+        index, alpha, gamma, gain = self.choices[image][choice]
         if self.gain_draw == "even":
             target = float(np.exp(random.Random(seed).uniform(*self.log_gain_range)))
             alpha *= gain / target
-        return index, alpha, gamma
+        return index, alpha, gamma, self.colour_scales[image][choice]
 
 
 def profile_low_light(exposures: ProfileExposures, *, noise: bool) -> LowLightCrop:
@@ -201,7 +223,9 @@ def profile_low_light(exposures: ProfileExposures, *, noise: bool) -> LowLightCr
     from darksynth.transforms import LowLight
 
     def low_light(image: int, clean: torch.Tensor, seed: int) -> torch.Tensor:
-        index, alpha, gamma = exposures.pick(image, seed)
+        index, alpha, gamma, colour_scale = exposures.pick(image, seed)
+        if colour_scale is not None:
+            clean = clean * torch.tensor(colour_scale, dtype=clean.dtype)[:, None, None]
         if not noise:
             return (darken(clean, alpha, gamma) * 255.0).round() / 255.0
         transform = LowLight(exposures.profiles[index], darkening=Darkening(alpha, gamma))
@@ -210,20 +234,27 @@ def profile_low_light(exposures: ProfileExposures, *, noise: bool) -> LowLightCr
     return low_light
 
 
-def albumentations_low_light(noise: str) -> LowLightCrop:
-    """albumentations: brightness x U(0.05, 0.3), gamma U(1, 2.5), then ``noise`` (module docstring)."""
+def albumentations_low_light(noise: str, exposures: ProfileExposures | None = None) -> LowLightCrop:
+    """albumentations: brightness x U(0.05, 0.3), gamma U(1, 2.5), then ``noise``: ``"gauss"``, ``"iso"`` (module
+    docstring), ``"none"``, or ``"darksynth"`` (the noise of one of the ``exposures``' profiles, drawn on the
+    darkened image as ``LowLight(profile, darkening=None)`` draws it)."""
     os.environ.setdefault("NO_ALBUMENTATIONS_UPDATE", "1")  # albumentations asks the network for updates otherwise
     import albumentations as A
 
-    noise_transform = A.GaussNoise(std_range=(0.01, 0.05), p=1.0) if noise == "gauss" else A.ISONoise(p=1.0)
+    from darksynth.transforms import LowLight
+
     darkening = [A.MultiplicativeNoise(multiplier=(0.05, 0.3), p=1.0), A.RandomGamma(gamma_limit=(100, 250), p=1.0)]
-    compose = A.Compose([*darkening, noise_transform])
+    albumentations_noise = {"gauss": [A.GaussNoise(std_range=(0.01, 0.05), p=1.0)], "iso": [A.ISONoise(p=1.0)]}
+    compose = A.Compose([*darkening, *albumentations_noise.get(noise, [])])
 
     def low_light(image: int, clean: torch.Tensor, seed: int) -> torch.Tensor:
         compose.set_random_seed(seed)
         pixels = (clean.permute(1, 2, 0).clamp(0.0, 1.0).numpy() * 255.0).round().astype(np.uint8)
-        low = compose(image=pixels)["image"]
-        return torch.from_numpy(np.ascontiguousarray(low)).permute(2, 0, 1).float() / 255.0
+        low = torch.from_numpy(np.ascontiguousarray(compose(image=pixels)["image"])).permute(2, 0, 1).float() / 255.0
+        if noise == "darksynth" and exposures is not None:
+            profile = exposures.profiles[exposures.pick(image, seed)[0]]
+            low = LowLight(profile, darkening=None)(low, seed=seed)
+        return low
 
     return low_light
 
@@ -442,7 +473,7 @@ def _low_lights(arguments: argparse.Namespace, images: list[torch.Tensor], refer
         if model not in built:
             profiles = estimate_profiles(references, arguments.out / "profiles" / model, model, arguments.device)
             built[model] = ProfileExposures(
-                images, profiles, arguments.exposures, arguments.seeds[0], arguments.gain_draw
+                images, profiles, arguments.exposures, arguments.seeds[0], arguments.gain_draw, arguments.match_colour
             )
             low, high = np.exp(built[model].log_gain_range)
             print(f"{model} profiles: matched training gains {low:.1f}-{high:.1f}x (5th-95th percentile)", flush=True)
@@ -456,7 +487,9 @@ def _low_lights(arguments: argparse.Namespace, images: list[torch.Tensor], refer
             return profile_low_light(exposures("srgb"), noise=False)
         if method == "darksynth-paper":
             return profile_low_light(exposures("paper"), noise=True)
-        return albumentations_low_light("gauss" if method == "albu-gamma-gauss" else "iso")
+        if method == "albu-gamma-darksynth":
+            return albumentations_low_light("darksynth", exposures("srgb"))
+        return albumentations_low_light({"albu-gamma-gauss": "gauss", "albu-gamma-iso": "iso"}.get(method, "none"))
 
     return low_light
 
@@ -498,6 +531,7 @@ def run(arguments: argparse.Namespace) -> dict[str, Any]:
                 "crop",
                 "width",
                 "normalise_exposure",
+                "match_colour",
                 "exposures",
                 "gain_draw",
                 "learning_rate",
@@ -527,6 +561,7 @@ def parse(argv: list[str] | None = None) -> argparse.Namespace:
     parser.add_argument("--crop", type=int, default=96)
     parser.add_argument("--width", type=int, default=16)
     parser.add_argument("--normalise-exposure", action="store_true")
+    parser.add_argument("--match-colour", action="store_true")
     parser.add_argument("--learning-rate", type=float, default=2e-3)
     parser.add_argument("--workers", type=int, default=2)
     parser.add_argument("--seeds", default="0")
@@ -539,9 +574,10 @@ def parse(argv: list[str] | None = None) -> argparse.Namespace:
         arguments.seeds = [int(seed) for seed in arguments.seeds.split(",") if seed]
     except ValueError:
         parser.error(f"--seeds: integers separated by commas, got {arguments.seeds!r}")
-    unknown = [name for name in arguments.methods if name not in (*METHODS, REAL_PAIRS)]
+    unknown = [name for name in arguments.methods if name not in (*METHODS, REAL_PAIRS, *DIAGNOSTIC_METHODS)]
     if unknown or min(arguments.steps, arguments.batch, arguments.exposures, len(arguments.seeds)) < 1:
-        parser.error(f"methods are {', '.join((*METHODS, REAL_PAIRS))}; steps, batch, exposures and seeds at least 1")
+        known = ", ".join((*METHODS, REAL_PAIRS, *DIAGNOSTIC_METHODS))
+        parser.error(f"methods are {known}; steps, batch, exposures and seeds at least 1")
     if arguments.crop < 8 or arguments.crop % 4:
         parser.error("--crop must be a multiple of 4 of at least 8")
     return arguments

@@ -135,7 +135,7 @@ def test_the_even_gain_draw_spreads_the_training_gains_evenly_in_log_over_the_re
     clean = images[0].double() / 255.0
     gains = []
     for seed in range(200):
-        _, alpha, gamma = exposures.pick(0, seed)
+        _, alpha, gamma, _ = exposures.pick(0, seed)
         gains.append(math.log(float(clean.mean() / darksynth.darken(clean, alpha, gamma).mean())))
     assert low - 1e-6 <= min(gains) and max(gains) <= high + 1e-6
     # Even in log: each half of the range holds about half the draws (200 draws: a half's share has std 0.035).
@@ -152,3 +152,64 @@ def test_a_low_image_without_its_normal_light_image_is_one_line_and_exit_2(
     assert _example().main([*arguments, "--out", str(tmp_path / "out")]) == 2
     error = capsys.readouterr().err.strip()
     assert error.count("\n") == 0 and "1.png" in error and "no normal-light image" in error, error
+
+
+def test_the_exposure_normalised_enhancer_sees_a_brighter_input_as_the_same_one_but_for_its_level() -> None:
+    example = _example()
+    model = example.Enhancer(8, seed=0, normalise_exposure=True).eval()
+    low = torch.rand(1, 3, 24, 24, generator=torch.Generator().manual_seed(3)) * 0.05
+    with torch.no_grad():
+        # The level feature is the one input channel of decode2 beyond the features and the skip: zeroed, the
+        # output of a 4x brighter input is the same; with it, the net still tells the two exposures apart.
+        same_level = example.Enhancer(8, seed=0, normalise_exposure=True).eval()
+        same_level.decode2[0].weight[:, 2 * 4 * 8] = 0.0
+        assert torch.allclose(same_level(low), same_level(4.0 * low), atol=1e-6)
+        assert float((model(low) - model(4.0 * low)).abs().max()) > 1e-4
+    plain = example.Enhancer(8, seed=0).eval()
+    with torch.no_grad():
+        assert float((plain(low) - plain(4.0 * low)).abs().max()) > 1e-5
+
+
+def test_matched_colour_gives_the_training_inputs_the_references_colour_cast(
+    folders: tuple[Path, Path, Path], tmp_path: Path
+) -> None:
+    example = _example()
+    images = example.read_clean_images([folders[2]], 32)
+    generator = np.random.default_rng(4)
+    scene = smooth_scene(generator, 160)
+    reference = tmp_path / "green.png"
+    write_png(reference, 0.1 * scene * np.array([0.8, 1.2, 0.9]) + generator.normal(0, 1 / 255, scene.shape))
+    profiles = example.estimate_profiles([reference], tmp_path / "profiles", "srgb", "cpu")
+    target = np.array(darksynth.load_profile(profiles[0]).tone.colour)
+    cast = example.ProfileExposures(images, profiles, 1, seed=0, match_colour=True)
+    plain = example.ProfileExposures(images, profiles, 1, seed=0)
+    clean = images[0].float() / 255.0
+    shares = {}
+    for name, exposures in (("cast", cast), ("plain", plain)):
+        low = example.profile_low_light(exposures, noise=False)(0, clean, 0).double()
+        means = low.mean(dim=(1, 2)).numpy()
+        shares[name] = means / means.mean()
+    assert cast.pick(0, 0)[3] is not None and plain.pick(0, 0)[3] is None
+    assert np.abs(shares["cast"] - target).max() < 0.03, (shares, target)
+    assert np.abs(shares["plain"] - target).max() > 0.1, (shares, target)
+
+
+def test_the_diagnostic_methods_train_on_albumentations_darkening_with_and_without_darksynth_noise(
+    folders: tuple[Path, Path, Path], tmp_path: Path
+) -> None:
+    pairs, references, clean = folders
+    out = tmp_path / "out"
+    arguments = ["--pairs", str(pairs), "--references", str(references), "--clean", str(clean), "--steps", "2"]
+    arguments += ["--batch", "2", "--crop", "32", "--workers", "0", "--out", str(out), "--normalise-exposure"]
+    assert _example().main([*arguments, "--methods", "albu-gamma,albu-gamma-darksynth"]) == 0
+    record = json.loads((out / "results.json").read_text())
+    assert set(record["results"]) == {"low input", "albu-gamma", "albu-gamma-darksynth"}
+    assert record["settings"]["normalise_exposure"] is True
+    example = _example()
+    exposures = example.ProfileExposures(
+        example.read_clean_images([clean], 32), [out / "profiles" / "srgb" / "2.json"], 1, seed=0
+    )
+    crop = example.read_clean_images([clean], 32)[0][:, :32, :32].float() / 255.0
+    quiet = example.albumentations_low_light("none")(0, crop, 5)
+    noisy = example.albumentations_low_light("darksynth", exposures)(0, crop, 5)
+    assert quiet.shape == noisy.shape and not torch.equal(quiet, noisy)
