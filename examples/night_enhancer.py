@@ -33,6 +33,9 @@ With a GPU, a wider net and a longer training::
 
     .venv/bin/python examples/night_enhancer.py --device cuda --width 32 --steps 20000 --batch 16 --out enhancer-gpu
 
+``--normalise-exposure`` gives the enhancer its input scaled to one mean and the log of the input's own mean;
+``--match-colour`` gives each training input its reference's colour cast (docs/tutorial.md has what both do).
+
 albumentations' defaults do not darken (``RandomGamma``: gamma 0.8-1.2) and its default ``GaussNoise`` (20-44 % of
 full scale) would bury a dark image, so the albumentations methods take the paper's darkening ranges (the exposure
 and gamma a user of the paper's recipe would draw) and Gaussian noise of 1-5 % of full scale (2.5-13 levels); ISONoise
