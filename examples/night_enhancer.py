@@ -241,6 +241,10 @@ def albumentations_low_light(noise: str, exposures: ProfileExposures | None = No
     """albumentations: brightness x U(0.05, 0.3), gamma U(1, 2.5), then ``noise``: ``"gauss"``, ``"iso"`` (module
     docstring), ``"none"``, or ``"darksynth"`` (the noise of one of the ``exposures``' profiles, drawn on the
     darkened image as ``LowLight(profile, darkening=None)`` draws it)."""
+    if noise not in ("gauss", "iso", "none", "darksynth"):
+        raise ValueError(f'noise must be "gauss", "iso", "none" or "darksynth", got {noise!r}')
+    if noise == "darksynth" and exposures is None:
+        raise ValueError('noise "darksynth" needs the exposures whose profiles it draws')
     os.environ.setdefault("NO_ALBUMENTATIONS_UPDATE", "1")  # albumentations asks the network for updates otherwise
     import albumentations as A
 
@@ -254,7 +258,7 @@ def albumentations_low_light(noise: str, exposures: ProfileExposures | None = No
         compose.set_random_seed(seed)
         pixels = (clean.permute(1, 2, 0).clamp(0.0, 1.0).numpy() * 255.0).round().astype(np.uint8)
         low = torch.from_numpy(np.ascontiguousarray(compose(image=pixels)["image"])).permute(2, 0, 1).float() / 255.0
-        if noise == "darksynth" and exposures is not None:
+        if exposures is not None and noise == "darksynth":
             profile = exposures.profiles[exposures.pick(image, seed)[0]]
             low = LowLight(profile, darkening=None)(low, seed=seed)
         return low
@@ -350,15 +354,15 @@ class Enhancer(nn.Module):
 
     def forward(self, low: torch.Tensor) -> torch.Tensor:
         height, width = low.shape[-2:]
-        level = low.mean(dim=(-3, -2, -1), keepdim=True).clamp_min(1.0 / 255.0)
-        if self.normalise_exposure:
+        level = low.mean(dim=(-3, -2, -1), keepdim=True).clamp_min(1.0 / 255.0) if self.normalise_exposure else None
+        if level is not None:
             low = low * (NORMALISED_MEAN / level)
         padded = nn.functional.pad(low, (0, -width % 4, 0, -height % 4), mode="reflect")
         first = self.encode1(padded)
         second = self.encode2(nn.functional.avg_pool2d(first, 2))
         third = self.encode3(nn.functional.avg_pool2d(second, 2))
         overall = third.mean(dim=(-2, -1), keepdim=True).expand_as(third)
-        if self.normalise_exposure:
+        if level is not None:
             overall = torch.cat([overall, level.log().expand(-1, 1, *third.shape[-2:])], 1)
         up = nn.functional.interpolate(torch.cat([third, overall], 1), scale_factor=2.0, mode="bilinear")
         decoded = self.decode2(torch.cat([up, second], 1))

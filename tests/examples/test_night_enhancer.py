@@ -5,6 +5,7 @@ import json
 import math
 from pathlib import Path
 from types import ModuleType
+from typing import Any
 
 import numpy as np
 import pytest
@@ -39,14 +40,30 @@ def folders(tmp_path: Path) -> tuple[Path, Path, Path]:
     return pairs, references, tmp_path / "clean"
 
 
+def _reference_profiles(tmp_path: Path, seed: int, exposures: dict[str, Any]) -> list[Path]:
+    """Profiles (srgb) of dark photos of one smooth scene, each at its exposure (a factor, or one per channel),
+    with 1-level noise, written in order from one generator of ``seed``."""
+    generator = np.random.default_rng(seed)
+    scene = smooth_scene(generator, 160)
+    references = []
+    for name, exposure in exposures.items():
+        references.append(tmp_path / f"{name}.png")
+        write_png(references[-1], exposure * scene + generator.normal(0, 1 / 255, scene.shape))
+    return list(_example().estimate_profiles(references, tmp_path / "profiles", "srgb", "cpu"))
+
+
+def _two_step_run(folders: tuple[Path, Path, Path], out: Path) -> list[str]:
+    """The example's arguments for a run of two steps on 32-px crops of the test folders, written to ``out``."""
+    pairs, references, clean = folders
+    arguments = ["--pairs", str(pairs), "--references", str(references), "--clean", str(clean), "--steps", "2"]
+    return [*arguments, "--batch", "2", "--crop", "32", "--workers", "0", "--out", str(out)]
+
+
 def test_the_example_trains_each_method_on_the_other_photos_and_writes_its_comparison(
     folders: tuple[Path, Path, Path], tmp_path: Path
 ) -> None:
-    pairs, references, clean = folders
     out = tmp_path / "out"
-    arguments = ["--pairs", str(pairs), "--references", str(references), "--clean", str(clean), "--steps", "2"]
-    arguments += ["--batch", "2", "--crop", "32", "--workers", "0", "--seeds", "0,1", "--out", str(out)]
-    assert _example().main(arguments) == 0
+    assert _example().main([*_two_step_run(folders, out), "--seeds", "0,1"]) == 0
     record = json.loads((out / "results.json").read_text())
     # The profiles come from the one photo that is not a test image, with both noise models.
     assert [Path(path).name for path in record["references"]] == ["2.png"]
@@ -65,7 +82,6 @@ def test_the_example_trains_each_method_on_the_other_photos_and_writes_its_compa
 def test_the_real_pair_ceiling_tests_each_pair_on_an_enhancer_trained_on_the_other_fold(
     folders: tuple[Path, Path, Path], tmp_path: Path, monkeypatch: pytest.MonkeyPatch
 ) -> None:
-    pairs, references, clean = folders
     example = _example()
     trained_on: list[list[str]] = []
     original = example.RealPairCrops.__init__
@@ -76,9 +92,7 @@ def test_the_real_pair_ceiling_tests_each_pair_on_an_enhancer_trained_on_the_oth
 
     monkeypatch.setattr(example.RealPairCrops, "__init__", recording)
     out = tmp_path / "out"
-    arguments = ["--pairs", str(pairs), "--references", str(references), "--clean", str(clean), "--steps", "2"]
-    arguments += ["--batch", "2", "--crop", "32", "--workers", "0", "--methods", "real-pairs", "--out", str(out)]
-    assert example.main(arguments) == 0
+    assert example.main([*_two_step_run(folders, out), "--methods", "real-pairs"]) == 0
     # Fold 1 (0.png) is tested on a net trained on fold 2 (1.png), and the other way round; no profile is needed.
     assert trained_on == [["1.png"], ["0.png"]]
     assert not (out / "profiles").exists()
@@ -103,12 +117,7 @@ def test_the_training_exposures_are_matched_per_image_and_drawn_from_several_ref
     example = _example()
     clean = folders[2]
     images = example.read_clean_images([clean], 32)
-    generator = np.random.default_rng(1)
-    dark, less_dark = tmp_path / "dark.png", tmp_path / "less_dark.png"
-    scene = smooth_scene(generator, 160)
-    write_png(dark, 0.05 * scene + generator.normal(0, 1 / 255, scene.shape))
-    write_png(less_dark, 0.3 * scene + generator.normal(0, 1 / 255, scene.shape))
-    profiles = example.estimate_profiles([dark, less_dark], tmp_path / "profiles", "srgb", "cpu")
+    profiles = _reference_profiles(tmp_path, 1, {"dark": 0.05, "less_dark": 0.3})
     exposures = example.ProfileExposures(images, profiles, 2, seed=0)
     low_light = example.profile_low_light(exposures, noise=False)
     clean_image = images[0].float() / 255.0
@@ -122,13 +131,7 @@ def test_the_even_gain_draw_spreads_the_training_gains_evenly_in_log_over_the_re
 ) -> None:
     example = _example()
     images = example.read_clean_images([folders[2]], 32)
-    generator = np.random.default_rng(2)
-    scene = smooth_scene(generator, 160)
-    references = []
-    for index, brightness in enumerate((0.04, 0.1, 0.3)):
-        references.append(tmp_path / f"reference{index}.png")
-        write_png(references[-1], brightness * scene + generator.normal(0, 1 / 255, scene.shape))
-    profiles = example.estimate_profiles(references, tmp_path / "profiles", "srgb", "cpu")
+    profiles = _reference_profiles(tmp_path, 2, {"reference0": 0.04, "reference1": 0.1, "reference2": 0.3})
     exposures = example.ProfileExposures(images, profiles, 3, seed=0, gain_draw="even")
     low, high = exposures.log_gain_range
     assert high - low > 0.5
@@ -175,12 +178,10 @@ def test_matched_colour_gives_the_training_inputs_the_references_colour_cast(
 ) -> None:
     example = _example()
     images = example.read_clean_images([folders[2]], 32)
-    generator = np.random.default_rng(4)
-    scene = smooth_scene(generator, 160)
-    reference = tmp_path / "green.png"
-    write_png(reference, 0.1 * scene * np.array([0.8, 1.2, 0.9]) + generator.normal(0, 1 / 255, scene.shape))
-    profiles = example.estimate_profiles([reference], tmp_path / "profiles", "srgb", "cpu")
-    target = np.array(darksynth.load_profile(profiles[0]).tone.colour)
+    profiles = _reference_profiles(tmp_path, 4, {"green": 0.1 * np.array([0.8, 1.2, 0.9])})
+    tone = darksynth.load_profile(profiles[0]).tone
+    assert tone is not None and tone.colour is not None
+    target = np.array(tone.colour)
     cast = example.ProfileExposures(images, profiles, 1, seed=0, match_colour=True)
     plain = example.ProfileExposures(images, profiles, 1, seed=0)
     clean = images[0].float() / 255.0
@@ -197,19 +198,21 @@ def test_matched_colour_gives_the_training_inputs_the_references_colour_cast(
 def test_the_diagnostic_methods_train_on_albumentations_darkening_with_and_without_darksynth_noise(
     folders: tuple[Path, Path, Path], tmp_path: Path
 ) -> None:
-    pairs, references, clean = folders
+    clean = folders[2]
     out = tmp_path / "out"
-    arguments = ["--pairs", str(pairs), "--references", str(references), "--clean", str(clean), "--steps", "2"]
-    arguments += ["--batch", "2", "--crop", "32", "--workers", "0", "--out", str(out), "--normalise-exposure"]
-    assert _example().main([*arguments, "--methods", "albu-gamma,albu-gamma-darksynth"]) == 0
+    arguments = [*_two_step_run(folders, out), "--normalise-exposure", "--methods", "albu-gamma,albu-gamma-darksynth"]
+    assert _example().main(arguments) == 0
     record = json.loads((out / "results.json").read_text())
     assert set(record["results"]) == {"low input", "albu-gamma", "albu-gamma-darksynth"}
     assert record["settings"]["normalise_exposure"] is True
     example = _example()
-    exposures = example.ProfileExposures(
-        example.read_clean_images([clean], 32), [out / "profiles" / "srgb" / "2.json"], 1, seed=0
-    )
-    crop = example.read_clean_images([clean], 32)[0][:, :32, :32].float() / 255.0
+    images = example.read_clean_images([clean], 32)
+    exposures = example.ProfileExposures(images, [out / "profiles" / "srgb" / "2.json"], 1, seed=0)
+    crop = images[0][:, :32, :32].float() / 255.0
     quiet = example.albumentations_low_light("none")(0, crop, 5)
     noisy = example.albumentations_low_light("darksynth", exposures)(0, crop, 5)
     assert quiet.shape == noisy.shape and not torch.equal(quiet, noisy)
+    with pytest.raises(ValueError, match="needs the exposures"):
+        example.albumentations_low_light("darksynth")
+    with pytest.raises(ValueError, match="noise must be"):
+        example.albumentations_low_light("poisson")
