@@ -1,7 +1,8 @@
 """How much of the noise the denoiser's residual holds, on real pairs and on the estimate's re-synthesis, per band,
 on flat blocks: where the blind fit's correction by re-synthesis holds and where it does not.
 
-Makes: docs/spectral-noise.md, "What falls short, and what was tried", its bullet on polyu's colour on flat blocks.
+Makes: docs/spectral-noise.md, "What falls short, and what was tried", its bullets on polyu's colour on flat blocks
+and on the JPEG stage's base.
 
 Run from the repo root::
 
@@ -20,7 +21,9 @@ image and averaged over the blocks) of:
 * the profile's noise on ``D(y)`` as the fit simulates it (``s = D(y) + n``, quantised) and its residual
   ``s - D(s)``: their ratio is the capture the fit assumes (the capture of the re-synthesis);
 * the profile applied to ``x`` by ``apply --no-darken``, over the real noise (what ``benchmarks/real_data.py``
-  judges, here on flat blocks).
+  judges, here on flat blocks);
+* the re-synthesis's noise ``s - D(y)`` and the same draw put on ``x`` (``add_noise``, quantised), over the real
+  noise: whether the simulated noise depends on the base it is put on (the JPEG stage's does: docs/spectral-noise.md).
 
 With ``--strengths``, also the real residual over the re-synthesis's at the denoiser's strength times each factor:
 whether a second denoiser would show the real noise behaving unlike the model's where the fit cannot (it does not:
@@ -80,8 +83,9 @@ def _flat_mask(clean: torch.Tensor) -> np.ndarray[Any, Any]:
 def pair_ratios(
     noisy_path: Path, clean_path: Path, network: Any, strengths: tuple[float, ...] = ()
 ) -> np.ndarray[Any, Any]:
-    """(3 + len(strengths), 2, FINE_BANDS): the real capture, the re-synthesis's capture, the applied profile over
-    the real, then the real residual over the re-synthesis's at each factor of the denoiser's strength."""
+    """(5 + len(strengths), 2, FINE_BANDS): the real capture, the re-synthesis's capture, the applied profile over
+    the real, the same draw of the profile's noise on ``D(y)`` and on ``x`` over the real, then the real residual
+    over the re-synthesis's at each factor of the denoiser's strength."""
     noisy, clean = load_reference(noisy_path)[0], load_reference(clean_path)[0]
     found = estimate(noisy[None], network, source=noisy_path.name)
     strength = found.profile.meta["spectrum"]["denoiser_strength_8bit"]
@@ -94,6 +98,10 @@ def pair_ratios(
     resynthesised = quantised(add_noise(denoised[None, None], values, generator=generator)[0, 0])
     resynthesis = flat_band_powers(resynthesised - denoised, mask)
     resynthesis_residual = flat_band_powers(resynthesised - nlm_denoise(resynthesised[None], strength)[0], mask)
+    generator = torch.Generator().manual_seed(3)
+    on_clean = flat_band_powers(
+        quantised(add_noise(clean[None, None], values, generator=generator)[0, 0]) - clean, mask
+    )
     pixels = (clean * 255).round().clamp(0, 255).to(torch.uint8)
     options = ApplyOptions(recipe=ClipRecipe(found.profile, darkening=None), seed=0)
     applied = hwc_to_chw(synthesize_image(chw_to_hwc(pixels), clean_path.name, options)[0]).float() / 255
@@ -103,7 +111,16 @@ def pair_ratios(
         / flat_band_powers(resynthesised - nlm_denoise(resynthesised[None], strength * factor)[0], mask)
         for factor in strengths
     ]
-    return np.stack([real_residual / real, resynthesis_residual / resynthesis, synthetic / real, *at_strengths])
+    return np.stack(
+        [
+            real_residual / real,
+            resynthesis_residual / resynthesis,
+            synthetic / real,
+            resynthesis / real,
+            on_clean / real,
+            *at_strengths,
+        ]
+    )
 
 
 def main() -> None:
@@ -125,6 +142,7 @@ def main() -> None:
         )
     median = np.median(np.stack(rows), axis=0)
     whats = ["capture of the real", "capture of the re-synthesis", "applied over real"]
+    whats += ["noise on D(y) over real", "same draw on x over real"]
     whats += [f"real/re-synthesis residual x{factor:g}" for factor in arguments.strengths]
     for number, what in enumerate(whats):
         print(f"median {what:28s} brightness {np.round(median[number, 0], 2)} colour {np.round(median[number, 1], 2)}")

@@ -276,6 +276,11 @@ class ClipRecipe:
         return parameters
 
 
+def recipe_choices(recipe: ClipRecipe) -> dict[str, Any]:
+    """The recipe's choices by field name, its profile left out (what a transform's arguments and repr show)."""
+    return {field.name: getattr(recipe, field.name) for field in dataclasses.fields(recipe) if field.name != "profile"}
+
+
 def _unseeded_generator() -> torch.Generator:
     """A generator of its own for a caller that gave none, seeded from the system's entropy: never the global one."""
     generator = torch.Generator()

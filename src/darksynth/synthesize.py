@@ -34,7 +34,7 @@ from darksynth.noise.simulate import (
 )
 from darksynth.profile import Profile
 from darksynth.recipe import AUGMENTING, ClipParameters, ClipRecipe, DarkeningChoice
-from darksynth.tensors import CLIP_DIMS, eight_bit_levels, scale_channels, to_dtype, unit_float
+from darksynth.tensors import CLIP_DIMS, eight_bit_levels, scale_channels, to_8bit_levels, to_dtype, unit_float
 
 logger = logging.getLogger(__name__)
 
@@ -188,9 +188,13 @@ def synthesize(
     *,
     generator: torch.Generator | None = None,
     darkening: DarkeningChoice = "profile",
+    jitter: bool = AUGMENTING,
+    blur: bool = True,
+    flicker: bool = True,
+    match_colour: bool = False,
+    camera: str | None = None,
     device: torch.device | str | None = None,
     parameters: ClipParameters | None = None,
-    camera: str | None = None,
 ) -> LowLightResult:
     """Make a low-light version of a clean image or clip with a noise profile.
 
@@ -201,13 +205,12 @@ def synthesize(
             run through the vectorised composer.
         profile: the noise profile (see :func:`darksynth.profile.load_profile`).
         generator: source of randomness; pass a seeded one for reproducible output.
-        darkening: see :data:`darksynth.recipe.DarkeningChoice`.
+        darkening, jitter, blur, flicker, match_colour, camera: how each clip's parameters are chosen, the fields
+            of :class:`darksynth.recipe.ClipRecipe` (one meaning and one default each; ``jitter`` is
+            :data:`~darksynth.recipe.AUGMENTING` here, as this makes training data).
         device: where to compute; the input's device by default.
         parameters: the parameters every clip takes, chosen before (a transform's replay); None chooses each clip's
-            by the recipe of ``profile``, ``darkening`` and ``camera`` (:meth:`darksynth.recipe.ClipRecipe.choose`).
-        camera: draw each clip's camera from real ones, one of :data:`darksynth.cameras.presets.CAMERA_CHOICES`
-            (``"prior"`` or a preset): given the profile's measured level, JPEG and finer octaves when it has them,
-            whole otherwise; None keeps the profile's noise. Each record then says where it came from.
+            by the recipe (:meth:`darksynth.recipe.ClipRecipe.choose`).
 
     Returns:
         The low-light result in the input's layout and dtype, with the parameters used.
@@ -215,6 +218,28 @@ def synthesize(
     Raises:
         DarksynthError: ``camera`` names no camera.
     """
+    recipe = ClipRecipe(
+        profile,
+        darkening=darkening,
+        jitter=jitter,
+        blur=blur,
+        flicker=flicker,
+        match_colour=match_colour,
+        camera=camera,
+    )
+    return synthesize_by_recipe(clean, recipe, generator=generator, device=device, parameters=parameters)
+
+
+def synthesize_by_recipe(
+    clean: torch.Tensor | np.ndarray,
+    recipe: ClipRecipe,
+    *,
+    generator: torch.Generator | None = None,
+    device: torch.device | str | None = None,
+    parameters: ClipParameters | None = None,
+) -> LowLightResult:
+    """:func:`synthesize` with its choices made before, as a :class:`~darksynth.recipe.ClipRecipe` (a transform
+    holds one)."""
     as_numpy = isinstance(clean, np.ndarray)
     if isinstance(clean, np.ndarray):
         clips, layout = clips_from_numpy(clean)
@@ -228,7 +253,6 @@ def synthesize(
     flat = clips.reshape(-1, *clips.shape[-CLIP_DIMS:])
     outputs = []
     records = []
-    recipe = ClipRecipe(profile, darkening=darkening, jitter=AUGMENTING, camera=camera)
     for clip in flat:
         chosen = parameters if parameters is not None else recipe.choose(generator, clip[0])
         records.append(chosen.to_json())
@@ -250,6 +274,8 @@ def synthesize(
 
 def _synthesize_clip(clip: torch.Tensor, parameters: ClipParameters, generator: torch.Generator | None) -> torch.Tensor:
     values = parameters.noise
+    if parameters.colour_scale is not None:
+        clip = _colour_cast(clip, parameters.colour_scale)
     if clip.shape[0] == 1 and clip.dtype.is_floating_point and values.is_neutral(noise_parameter("shake_length")):
         # A float image of 8-bit levels (``ToTensor`` of a PNG or JPEG, as training loops pass them) has the
         # 8-bit path's tables: the composer's draws in the composer's order, so the same result.
@@ -267,8 +293,17 @@ def _synthesize_clip(clip: torch.Tensor, parameters: ClipParameters, generator: 
     return to_dtype(noisy, clip.dtype)
 
 
+def _colour_cast(clip: torch.Tensor, colour_scale: tuple[float, ...]) -> torch.Tensor:
+    """The clip (T, C, H, W) with the reference's colour cast, as :class:`ClipSynthesizer` gives each 8-bit frame:
+    a float clip of 8-bit levels stays on levels (rounded, clipped), so it keeps the 8-bit route's result."""
+    scaled = torch.stack([scale_channels(frame, colour_scale) for frame in clip])
+    on_levels = clip.dtype.is_floating_point and eight_bit_levels(clip) is not None
+    return to_8bit_levels(scaled).to(clip.dtype) if on_levels else scaled
+
+
 __all__ = [
     "ClipSynthesizer",
     "LowLightResult",
     "synthesize",
+    "synthesize_by_recipe",
 ]

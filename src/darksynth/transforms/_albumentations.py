@@ -27,15 +27,14 @@ from darksynth.io.arrays import numpy_to_tensor, tensor_to_numpy
 from darksynth.light.darkening import Darkening
 from darksynth.noise.values import NoiseValues
 from darksynth.profile import Profile, profile_to_dict
-from darksynth.recipe import AUGMENTING, ClipParameters, ClipRecipe, DarkeningChoice
+from darksynth.recipe import AUGMENTING, ClipParameters, DarkeningChoice, recipe_choices
 from darksynth.transforms.low_light import (
-    as_profile,
-    check_camera_name,
     check_darkening,
     check_image,
     dataloader_worker_seed,
     low_light,
     mix_seed,
+    transform_recipe,
 )
 
 # Importing albumentations otherwise asks the network for a newer version (and warns when offline).
@@ -97,10 +96,10 @@ class AlbumentationsLowLight(ImageOnlyTransform):  # type: ignore[misc]  # album
         darkening: ``"profile"``, None (noise only), a :class:`Darkening` or {"alpha": a, "gamma": g}.
         round_to_8bit: round float output to 8-bit levels, as a camera file stores it.
         p: probability of applying the transform (albumentations' convention, 0.5 by default).
-        camera: draw each call's camera from real ones: ``"prior"`` or a preset
-            (:data:`darksynth.cameras.presets.CAMERA_CHOICES`), given the profile's measured level, JPEG and finer
-            octaves when it has them; None keeps the profile's noise. A replay shows the drawn values and where the
-            camera came from (``camera``).
+        jitter, blur, flicker, match_colour, camera: the other choices of :class:`darksynth.recipe.ClipRecipe`,
+            with its defaults (``jitter`` is :data:`~darksynth.recipe.AUGMENTING`), as ``LowLight`` takes them. A
+            replay shows the drawn values, the colour cast (``colour_scale``) and where a drawn camera came from
+            (``camera``).
     """
 
     def __init__(
@@ -109,20 +108,32 @@ class AlbumentationsLowLight(ImageOnlyTransform):  # type: ignore[misc]  # album
         darkening: DarkeningChoice | Mapping[str, float] = "profile",
         round_to_8bit: bool = True,
         p: float = 0.5,
+        jitter: bool = AUGMENTING,
+        blur: bool = True,
+        flicker: bool = True,
+        match_colour: bool = False,
         camera: str | None = None,
     ) -> None:
         if isinstance(p, bool) or not isinstance(p, int | float) or not 0.0 <= p <= 1.0:
             raise ValueError(f"p must be a probability in [0, 1], got {p!r}")
         super().__init__(p=p)
-        self.profile = profile_to_dict(as_profile(profile))
-        self.darkening = _serializable_darkening(darkening)
+        self.recipe = transform_recipe(
+            profile,
+            darkening=_darkening_choice(_serializable_darkening(darkening)),
+            jitter=jitter,
+            blur=blur,
+            flicker=flicker,
+            match_colour=match_colour,
+            camera=camera,
+        )
+        # albumentations serialises the attributes its init arguments name: the recipe's choices as JSON values.
+        self.profile = profile_to_dict(self.recipe.profile)
         self.round_to_8bit = bool(round_to_8bit)
-        self.camera = check_camera_name(camera)
-        self._profile = as_profile(self.profile)
-        self._darkening_choice = _darkening_choice(self.darkening)
+        for name, value in recipe_choices(self.recipe).items():
+            setattr(self, name, _serializable_darkening(value) if name == "darkening" else value)
 
     def get_transform_init_args_names(self) -> tuple[str, ...]:
-        return ("profile", "darkening", "round_to_8bit", "camera")
+        return ("profile", "round_to_8bit", *recipe_choices(self.recipe))
 
     def get_params(self) -> dict[str, Any]:
         """The seed of this call, from albumentations' generator (and the DataLoader worker's seed)."""
@@ -140,8 +151,7 @@ class AlbumentationsLowLight(ImageOnlyTransform):  # type: ignore[misc]  # album
         clean = check_image(_target_tensor(data))
         generator = torch.Generator().manual_seed(mix_seed("parameters", seed))
         first = clean if clean.dim() == 3 else clean[0]
-        recipe = ClipRecipe(self._profile, darkening=self._darkening_choice, jitter=AUGMENTING, camera=self.camera)
-        drawn = recipe.choose(generator, first)
+        drawn = self.recipe.choose(generator, first)
         darkening = drawn.darkening
         return {
             "seed": seed,
@@ -149,18 +159,21 @@ class AlbumentationsLowLight(ImageOnlyTransform):  # type: ignore[misc]  # album
             "gamma": None if darkening is None else darkening.gamma,
             "noise": drawn.noise.to_json("noise"),
             "light": drawn.noise.to_json("light"),
+            "colour_scale": None if drawn.colour_scale is None else list(drawn.colour_scale),
             "camera": None if drawn.camera is None else drawn.camera.to_json(),
         }
 
     def _low_light(self, clean: torch.Tensor, drawn: Mapping[str, Any]) -> torch.Tensor:
         alpha, gamma = drawn["alpha"], drawn["gamma"]
+        colour_scale = drawn.get("colour_scale")
         parameters = ClipParameters(
             noise=NoiseValues.from_json({**drawn["noise"], **drawn["light"]}),
             darkening=None if alpha is None or gamma is None else Darkening(alpha=alpha, gamma=gamma),
+            colour_scale=None if colour_scale is None else tuple(colour_scale),
         )
         result = low_light(
             check_image(clean),
-            self._profile,
+            self.recipe,
             generator=torch.Generator().manual_seed(mix_seed("noise", int(drawn["seed"]))),
             round_to_8bit=self.round_to_8bit,
             parameters=parameters,

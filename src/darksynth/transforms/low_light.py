@@ -35,9 +35,9 @@ import torch.utils.data
 from darksynth.cameras.presets import CAMERA_CHOICES
 from darksynth.light.darkening import Darkening
 from darksynth.profile import Profile, load_profile, parse_profile, validate_profile
-from darksynth.recipe import ClipParameters, DarkeningChoice
+from darksynth.recipe import AUGMENTING, ClipParameters, ClipRecipe, DarkeningChoice, recipe_choices
 from darksynth.seeding import derive_seed
-from darksynth.synthesize import LowLightResult, synthesize
+from darksynth.synthesize import LowLightResult, synthesize_by_recipe
 from darksynth.tensors import to_8bit_levels
 
 FLOAT_RANGE_TOLERANCE = 0.25
@@ -124,24 +124,42 @@ def check_image(image: object) -> torch.Tensor:
 
 def low_light(
     image: torch.Tensor,
-    profile: Profile,
+    recipe: ClipRecipe,
     *,
     generator: torch.Generator,
-    darkening: DarkeningChoice = "profile",
     round_to_8bit: bool = True,
     device: torch.device | str | None = None,
     parameters: ClipParameters | None = None,
-    camera: str | None = None,
 ) -> LowLightResult:
-    """The low-light version of a checked image (C, H, W) or clip (T, C, H, W) and the parameters drawn for it
-    (or ``parameters``, chosen before): :func:`darksynth.synthesize.synthesize`, then float output rounded to 8-bit
-    levels if asked."""
-    result = synthesize(
-        image, profile, generator=generator, darkening=darkening, device=device, parameters=parameters, camera=camera
-    )
+    """The low-light version of a checked image (C, H, W) or clip (T, C, H, W) and the parameters drawn for it by
+    ``recipe`` (or ``parameters``, chosen before): :func:`darksynth.synthesize.synthesize_by_recipe`, then float
+    output rounded to 8-bit levels if asked."""
+    result = synthesize_by_recipe(image, recipe, generator=generator, device=device, parameters=parameters)
     assert isinstance(result.image, torch.Tensor)  # a tensor input gives a tensor result
     output = round_float_to_8bit(result.image) if round_to_8bit else result.image
     return LowLightResult(image=output, parameters=result.parameters)
+
+
+def transform_recipe(
+    profile: Profile | str | Path | dict[str, Any],
+    *,
+    darkening: object,
+    jitter: bool,
+    blur: bool,
+    flicker: bool,
+    match_colour: bool,
+    camera: object,
+) -> ClipRecipe:
+    """The recipe a transform holds, its arguments checked (a ValueError names the wrong one)."""
+    return ClipRecipe(
+        as_profile(profile),
+        darkening=check_darkening(darkening),
+        jitter=bool(jitter),
+        blur=bool(blur),
+        flicker=bool(flicker),
+        match_colour=bool(match_colour),
+        camera=check_camera_name(camera),
+    )
 
 
 class LowLight:
@@ -158,9 +176,12 @@ class LowLight:
             None to add noise only (see :data:`darksynth.recipe.DarkeningChoice`).
         round_to_8bit: round float output to 8-bit levels (k / 255), as a camera file stores it.
         device: where to compute and return the result; the device of the first input when None.
-        camera: draw each call's camera from real ones: ``"prior"`` or a preset
-            (:data:`darksynth.cameras.presets.CAMERA_CHOICES`), given the profile's measured level, JPEG and finer
-            octaves when it has them; None keeps the profile's noise. :meth:`sample` shows the drawn values.
+        jitter, blur, flicker, match_colour, camera: the other choices of :class:`darksynth.recipe.ClipRecipe`,
+            with its defaults (``jitter`` is :data:`~darksynth.recipe.AUGMENTING`: each call draws within the
+            profile's ranges). ``camera`` draws each call's camera from real ones (``"prior"`` or a preset of
+            :data:`darksynth.cameras.presets.CAMERA_CHOICES`); :meth:`sample` shows the drawn values.
+
+    The recipe built from these is :attr:`recipe`.
 
     Example::
 
@@ -177,16 +198,26 @@ class LowLight:
         darkening: DarkeningChoice = "profile",
         round_to_8bit: bool = True,
         device: torch.device | str | None = None,
+        jitter: bool = AUGMENTING,
+        blur: bool = True,
+        flicker: bool = True,
+        match_colour: bool = False,
         camera: str | None = None,
     ) -> None:
         if seed is not None and (isinstance(seed, bool) or not isinstance(seed, int | np.integer)):
             raise ValueError(f"seed must be an integer or None, got {seed!r}")
-        self.profile = as_profile(profile)
+        self.recipe = transform_recipe(
+            profile,
+            darkening=darkening,
+            jitter=jitter,
+            blur=blur,
+            flicker=flicker,
+            match_colour=match_colour,
+            camera=camera,
+        )
         self.seed = None if seed is None else int(seed)
-        self.darkening = check_darkening(darkening)
         self.round_to_8bit = bool(round_to_8bit)
         self.device = None if device is None else torch.device(device)
-        self.camera = check_camera_name(camera)
         self._generator: torch.Generator | None = None
         self._owner: tuple[int, int | None] | None = None
 
@@ -203,15 +234,7 @@ class LowLight:
         image = check_image(image)
         device = self.device if self.device is not None else image.device
         generator = self._stream_generator(device) if seed is None else self._sample_generator(seed, device)
-        return low_light(
-            image,
-            self.profile,
-            generator=generator,
-            darkening=self.darkening,
-            round_to_8bit=self.round_to_8bit,
-            device=device,
-            camera=self.camera,
-        )
+        return low_light(image, self.recipe, generator=generator, round_to_8bit=self.round_to_8bit, device=device)
 
     def _sample_generator(self, seed: int, device: torch.device) -> torch.Generator:
         if isinstance(seed, bool) or not isinstance(seed, int | np.integer):
@@ -243,7 +266,5 @@ class LowLight:
         return state
 
     def __repr__(self) -> str:
-        return (
-            f"LowLight(seed={self.seed}, darkening={self.darkening!r}, round_to_8bit={self.round_to_8bit}, "
-            f"device={self.device}, camera={self.camera!r})"
-        )
+        choices = ", ".join(f"{name}={value!r}" for name, value in recipe_choices(self.recipe).items())
+        return f"LowLight(seed={self.seed}, round_to_8bit={self.round_to_8bit}, device={self.device}, {choices})"
