@@ -6,8 +6,9 @@ ranges are drawn per clip (``--jitter``), whether its blur and flicker stay on, 
 is matched, and whether each clip gets a whole camera drawn from the prior over real cameras (``--camera``). It is
 the one declaration of these choices: ``apply``'s and ``convert``'s options hold one, the command line's options
 take their defaults from its fields (``tests/test_cli.py`` checks every field has its option), and ``synthesize``
-and the transforms build one. A new choice is a field here, the code that acts on it in :meth:`ClipRecipe.choose`
-or the synthesizer, and its option.
+and the transforms build one from their keywords (:class:`RecipeChoices`, :func:`augmenting_recipe`). A new choice is
+a field here (and its keyword in :class:`RecipeChoices`), the code that acts on it in :meth:`ClipRecipe.choose` or
+the synthesizer, and its option.
 :meth:`ClipRecipe.choose` turns it, a generator and the clip's first frame into the clip's :class:`ClipParameters`,
 in one fixed order of draws, so that a seed gives the same parameters from the library, the command line and a
 transform.
@@ -17,7 +18,7 @@ from __future__ import annotations
 
 import dataclasses
 from dataclasses import dataclass
-from typing import Any, Literal
+from typing import Any, Literal, TypedDict, cast
 
 import torch
 
@@ -276,9 +277,40 @@ class ClipRecipe:
         return parameters
 
 
-def recipe_choices(recipe: ClipRecipe) -> dict[str, Any]:
-    """The recipe's choices by field name, its profile left out (what a transform's arguments and repr show)."""
-    return {field.name: getattr(recipe, field.name) for field in dataclasses.fields(recipe) if field.name != "profile"}
+class RecipeChoices(TypedDict, total=False):
+    """The choices of :class:`ClipRecipe` but its profile, as keywords of the library's calls (``synthesize``,
+    ``LowLight``, ``AlbumentationsLowLight``): one meaning each, the field's; an omitted one takes the field's
+    default (:func:`augmenting_recipe`). ``tests/transforms/test_recipe_choices.py`` holds its keys to the fields."""
+
+    darkening: DarkeningChoice
+    jitter: bool
+    blur: bool
+    flicker: bool
+    match_colour: bool
+    camera: str | None
+
+
+def augmenting_recipe(profile: Profile, choices: RecipeChoices) -> ClipRecipe:
+    """The recipe of a library call, which makes training data: the ``choices`` given, the recipe's defaults for
+    the others, but ``jitter`` :data:`AUGMENTING` unless chosen.
+
+    Raises:
+        TypeError: a choice the recipe does not have (as Python does for an unknown keyword).
+    """
+    names = tuple(RecipeChoices.__annotations__)
+    unknown = sorted(set(choices) - set(names))
+    if unknown:
+        raise TypeError(f"unexpected keyword argument {unknown[0]!r}: the recipe's choices are {', '.join(names)}")
+    return ClipRecipe(profile, **({"jitter": AUGMENTING} | choices))
+
+
+def recipe_choices(recipe: ClipRecipe) -> RecipeChoices:
+    """The recipe's choices by field name, its profile left out: the keywords that build it again
+    (:func:`augmenting_recipe`), what a transform's repr and serialisation show."""
+    return cast(
+        RecipeChoices,
+        {field.name: getattr(recipe, field.name) for field in dataclasses.fields(recipe) if field.name != "profile"},
+    )
 
 
 def _unseeded_generator() -> torch.Generator:

@@ -14,7 +14,7 @@ from __future__ import annotations
 
 import logging
 from dataclasses import dataclass
-from typing import Any
+from typing import Any, Unpack
 
 import numpy as np
 import torch
@@ -33,7 +33,7 @@ from darksynth.noise.simulate import (
     scene_stage,
 )
 from darksynth.profile import Profile
-from darksynth.recipe import AUGMENTING, ClipParameters, ClipRecipe, DarkeningChoice
+from darksynth.recipe import ClipParameters, RecipeChoices, augmenting_recipe
 from darksynth.tensors import CLIP_DIMS, eight_bit_levels, scale_channels, to_8bit_levels, to_dtype, unit_float
 
 logger = logging.getLogger(__name__)
@@ -187,14 +187,9 @@ def synthesize(
     profile: Profile,
     *,
     generator: torch.Generator | None = None,
-    darkening: DarkeningChoice = "profile",
-    jitter: bool = AUGMENTING,
-    blur: bool = True,
-    flicker: bool = True,
-    match_colour: bool = False,
-    camera: str | None = None,
     device: torch.device | str | None = None,
     parameters: ClipParameters | None = None,
+    **choices: Unpack[RecipeChoices],
 ) -> LowLightResult:
     """Make a low-light version of a clean image or clip with a noise profile.
 
@@ -205,41 +200,23 @@ def synthesize(
             run through the vectorised composer.
         profile: the noise profile (see :func:`darksynth.profile.load_profile`).
         generator: source of randomness; pass a seeded one for reproducible output.
-        darkening, jitter, blur, flicker, match_colour, camera: how each clip's parameters are chosen, the fields
-            of :class:`darksynth.recipe.ClipRecipe` (one meaning and one default each; ``jitter`` is
-            :data:`~darksynth.recipe.AUGMENTING` here, as this makes training data).
         device: where to compute; the input's device by default.
         parameters: the parameters every clip takes, chosen before (a transform's replay); None chooses each clip's
             by the recipe (:meth:`darksynth.recipe.ClipRecipe.choose`).
+        choices: how each clip's parameters are chosen (:class:`darksynth.recipe.RecipeChoices`): ``darkening``,
+            ``jitter``, ``blur``, ``flicker``, ``match_colour``, ``camera``, with the meaning and default of
+            :class:`~darksynth.recipe.ClipRecipe`'s fields, but ``jitter`` :data:`~darksynth.recipe.AUGMENTING`
+            (this makes training data). ``camera`` draws each clip's camera from real ones (``"prior"`` or a
+            preset): given the profile's measured level, JPEG and finer octaves when it has them, whole otherwise.
 
     Returns:
         The low-light result in the input's layout and dtype, with the parameters used.
 
     Raises:
         DarksynthError: ``camera`` names no camera.
+        TypeError: a keyword that is no choice of the recipe.
     """
-    recipe = ClipRecipe(
-        profile,
-        darkening=darkening,
-        jitter=jitter,
-        blur=blur,
-        flicker=flicker,
-        match_colour=match_colour,
-        camera=camera,
-    )
-    return synthesize_by_recipe(clean, recipe, generator=generator, device=device, parameters=parameters)
-
-
-def synthesize_by_recipe(
-    clean: torch.Tensor | np.ndarray,
-    recipe: ClipRecipe,
-    *,
-    generator: torch.Generator | None = None,
-    device: torch.device | str | None = None,
-    parameters: ClipParameters | None = None,
-) -> LowLightResult:
-    """:func:`synthesize` with its choices made before, as a :class:`~darksynth.recipe.ClipRecipe` (a transform
-    holds one)."""
+    recipe = augmenting_recipe(profile, choices)
     as_numpy = isinstance(clean, np.ndarray)
     if isinstance(clean, np.ndarray):
         clips, layout = clips_from_numpy(clean)
@@ -305,5 +282,4 @@ __all__ = [
     "ClipSynthesizer",
     "LowLightResult",
     "synthesize",
-    "synthesize_by_recipe",
 ]

@@ -14,7 +14,7 @@ import torch.utils.data
 from darksynth.light.darkening import Darkening
 from darksynth.noise.values import NoiseValues
 from darksynth.profile import Profile
-from darksynth.recipe import ClipParameters
+from darksynth.recipe import ClipParameters, ClipRecipe
 from darksynth.transforms.low_light import low_light, mix_seed
 from tests.conftest import build_profile
 from tests.transforms.test_low_light import _everything_profile
@@ -62,7 +62,7 @@ def test_albumentations_transform_is_the_torch_transform_with_the_parameters_it_
     )
     expected = low_light(
         torch.from_numpy(image).permute(2, 0, 1),
-        _everything_profile(),
+        ClipRecipe(_everything_profile()),
         generator=torch.Generator().manual_seed(mix_seed("noise", 42)),
         parameters=parameters,
     ).image

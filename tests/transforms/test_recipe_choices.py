@@ -4,7 +4,6 @@
 from __future__ import annotations
 
 import dataclasses
-import inspect
 from collections.abc import Callable
 from typing import Any
 
@@ -17,7 +16,7 @@ from darksynth.light.darkening import Darkening, darken
 from darksynth.light.tones import ToneTarget, colour_cast, median_noise, tone_quantiles
 from darksynth.noise.values import NoiseValues
 from darksynth.profile import Profile
-from darksynth.recipe import AUGMENTING, ClipRecipe
+from darksynth.recipe import AUGMENTING, ClipRecipe, RecipeChoices
 from darksynth.transforms import LowLight
 
 SODIUM = (1.45, 0.95, 0.60)
@@ -31,24 +30,31 @@ def _albumentations_transform() -> Callable[..., Any]:
     return AlbumentationsLowLight  # type: ignore[no-any-return]
 
 
-def _recipe_defaults() -> dict[str, Any]:
-    defaults = {f.name: f.default for f in dataclasses.fields(ClipRecipe) if f.name != "profile"}
-    # The library's calls make training data: each clip drawn within the profile's ranges.
-    return defaults | {"jitter": AUGMENTING}
+def test_the_library_s_keywords_are_the_recipe_s_fields() -> None:
+    # A field added to the recipe without its keyword fails here (and mypy checks the calls against the keywords).
+    fields = {f.name for f in dataclasses.fields(ClipRecipe)} - {"profile"}
+    assert set(RecipeChoices.__annotations__) == fields
+
+
+@pytest.mark.parametrize("call", ["LowLight", "AlbumentationsLowLight"])
+def test_a_transform_takes_the_recipe_s_defaults_but_draws(call: str) -> None:
+    profile = _lit_profile()
+    transform_class = LowLight if call == "LowLight" else _albumentations_transform()
+    assert transform_class(profile).recipe == ClipRecipe(profile, jitter=AUGMENTING)
+    chosen = transform_class(profile, jitter=False, blur=False, match_colour=True, camera="phone", darkening=None)
+    assert chosen.recipe == ClipRecipe(profile, darkening=None, blur=False, match_colour=True, camera="phone")
 
 
 @pytest.mark.parametrize("call", ["synthesize", "LowLight", "AlbumentationsLowLight"])
-def test_every_recipe_choice_is_an_argument_with_the_recipe_s_default(call: str) -> None:
-    # A field added to the recipe without its argument in a library call fails here.
-    target = {
-        "synthesize": lambda: darksynth.synthesize,
-        "LowLight": lambda: LowLight.__init__,
-        "AlbumentationsLowLight": lambda: _albumentations_transform().__init__,
-    }[call]()
-    parameters = inspect.signature(target).parameters
-    for name, default in _recipe_defaults().items():
-        assert name in parameters, f"{call} has no {name}"
-        assert parameters[name].default == default, (call, name, parameters[name].default, default)
+def test_a_keyword_that_is_no_choice_of_the_recipe_is_refused(call: str) -> None:
+    profile = _lit_profile()
+    make: Callable[[], Any] = {
+        "synthesize": lambda: darksynth.synthesize(_scene(0), profile, flickr=False),  # type: ignore[call-arg]
+        "LowLight": lambda: LowLight(profile, flickr=False),  # type: ignore[call-arg]
+        "AlbumentationsLowLight": lambda: _albumentations_transform()(profile, flickr=False),
+    }[call]
+    with pytest.raises(TypeError, match="unexpected keyword argument 'flickr'"):
+        make()
 
 
 def _lit_profile(tone: ToneTarget | None = None) -> Profile:

@@ -18,7 +18,7 @@ from __future__ import annotations
 import os
 from collections.abc import Mapping
 from pathlib import Path
-from typing import Any
+from typing import Any, Unpack
 
 import numpy as np
 import torch
@@ -27,7 +27,7 @@ from darksynth.io.arrays import numpy_to_tensor, tensor_to_numpy
 from darksynth.light.darkening import Darkening
 from darksynth.noise.values import NoiseValues
 from darksynth.profile import Profile, profile_to_dict
-from darksynth.recipe import AUGMENTING, ClipParameters, DarkeningChoice, recipe_choices
+from darksynth.recipe import ClipParameters, DarkeningChoice, RecipeChoices, recipe_choices
 from darksynth.transforms.low_light import (
     check_darkening,
     check_image,
@@ -93,44 +93,32 @@ class AlbumentationsLowLight(ImageOnlyTransform):  # type: ignore[misc]  # album
     Args:
         profile: the noise profile, a path to one, or a decoded profile document (stored as the document, so
             ``A.to_dict`` / ``A.from_dict`` round-trip the transform).
-        darkening: ``"profile"``, None (noise only), a :class:`Darkening` or {"alpha": a, "gamma": g}.
         round_to_8bit: round float output to 8-bit levels, as a camera file stores it.
         p: probability of applying the transform (albumentations' convention, 0.5 by default).
-        jitter, blur, flicker, match_colour, camera: the other choices of :class:`darksynth.recipe.ClipRecipe`,
-            with its defaults (``jitter`` is :data:`~darksynth.recipe.AUGMENTING`), as ``LowLight`` takes them. A
-            replay shows the drawn values, the colour cast (``colour_scale``) and where a drawn camera came from
-            (``camera``).
+        choices: the recipe's choices (:class:`darksynth.recipe.RecipeChoices`), as ``LowLight`` takes them;
+            ``darkening`` also as {"alpha": a, "gamma": g}, the form it is serialised in. A replay shows the drawn
+            values, the colour cast (``colour_scale``) and where a drawn camera came from (``camera``).
     """
 
     def __init__(
         self,
         profile: Profile | str | Path | dict[str, Any],
-        darkening: DarkeningChoice | Mapping[str, float] = "profile",
         round_to_8bit: bool = True,
         p: float = 0.5,
-        jitter: bool = AUGMENTING,
-        blur: bool = True,
-        flicker: bool = True,
-        match_colour: bool = False,
-        camera: str | None = None,
+        **choices: Unpack[RecipeChoices],
     ) -> None:
         if isinstance(p, bool) or not isinstance(p, int | float) or not 0.0 <= p <= 1.0:
             raise ValueError(f"p must be a probability in [0, 1], got {p!r}")
         super().__init__(p=p)
-        self.recipe = transform_recipe(
-            profile,
-            darkening=_darkening_choice(_serializable_darkening(darkening)),
-            jitter=jitter,
-            blur=blur,
-            flicker=flicker,
-            match_colour=match_colour,
-            camera=camera,
-        )
+        if "darkening" in choices:
+            choices["darkening"] = _darkening_choice(_serializable_darkening(choices["darkening"]))
+        self.recipe = transform_recipe(profile, choices)
         # albumentations serialises the attributes its init arguments name: the recipe's choices as JSON values.
         self.profile = profile_to_dict(self.recipe.profile)
         self.round_to_8bit = bool(round_to_8bit)
         for name, value in recipe_choices(self.recipe).items():
-            setattr(self, name, _serializable_darkening(value) if name == "darkening" else value)
+            setattr(self, name, value)
+        self.darkening = _serializable_darkening(self.recipe.darkening)
 
     def get_transform_init_args_names(self) -> tuple[str, ...]:
         return ("profile", "round_to_8bit", *recipe_choices(self.recipe))

@@ -26,7 +26,7 @@ from __future__ import annotations
 
 import os
 from pathlib import Path
-from typing import Any
+from typing import Any, Unpack, cast
 
 import numpy as np
 import torch
@@ -35,9 +35,16 @@ import torch.utils.data
 from darksynth.cameras.presets import CAMERA_CHOICES
 from darksynth.light.darkening import Darkening
 from darksynth.profile import Profile, load_profile, parse_profile, validate_profile
-from darksynth.recipe import AUGMENTING, ClipParameters, ClipRecipe, DarkeningChoice, recipe_choices
+from darksynth.recipe import (
+    ClipParameters,
+    ClipRecipe,
+    DarkeningChoice,
+    RecipeChoices,
+    augmenting_recipe,
+    recipe_choices,
+)
 from darksynth.seeding import derive_seed
-from darksynth.synthesize import LowLightResult, synthesize_by_recipe
+from darksynth.synthesize import LowLightResult, synthesize
 from darksynth.tensors import to_8bit_levels
 
 FLOAT_RANGE_TOLERANCE = 0.25
@@ -132,34 +139,24 @@ def low_light(
     parameters: ClipParameters | None = None,
 ) -> LowLightResult:
     """The low-light version of a checked image (C, H, W) or clip (T, C, H, W) and the parameters drawn for it by
-    ``recipe`` (or ``parameters``, chosen before): :func:`darksynth.synthesize.synthesize_by_recipe`, then float
-    output rounded to 8-bit levels if asked."""
-    result = synthesize_by_recipe(image, recipe, generator=generator, device=device, parameters=parameters)
+    ``recipe`` (or ``parameters``, chosen before): :func:`darksynth.synthesize.synthesize`, then float output
+    rounded to 8-bit levels if asked."""
+    choices = recipe_choices(recipe)
+    result = synthesize(image, recipe.profile, generator=generator, device=device, parameters=parameters, **choices)
     assert isinstance(result.image, torch.Tensor)  # a tensor input gives a tensor result
     output = round_float_to_8bit(result.image) if round_to_8bit else result.image
     return LowLightResult(image=output, parameters=result.parameters)
 
 
-def transform_recipe(
-    profile: Profile | str | Path | dict[str, Any],
-    *,
-    darkening: object,
-    jitter: bool,
-    blur: bool,
-    flicker: bool,
-    match_colour: bool,
-    camera: object,
-) -> ClipRecipe:
-    """The recipe a transform holds, its arguments checked (a ValueError names the wrong one)."""
-    return ClipRecipe(
-        as_profile(profile),
-        darkening=check_darkening(darkening),
-        jitter=bool(jitter),
-        blur=bool(blur),
-        flicker=bool(flicker),
-        match_colour=bool(match_colour),
-        camera=check_camera_name(camera),
-    )
+def transform_recipe(profile: Profile | str | Path | dict[str, Any], choices: RecipeChoices) -> ClipRecipe:
+    """The recipe a transform holds (:func:`darksynth.recipe.augmenting_recipe`), its profile read and its
+    darkening and camera checked (a ValueError names the wrong one)."""
+    checked = dict(choices)
+    if "darkening" in checked:
+        checked["darkening"] = check_darkening(checked["darkening"])
+    if "camera" in checked:
+        checked["camera"] = check_camera_name(checked["camera"])
+    return augmenting_recipe(as_profile(profile), cast(RecipeChoices, checked))
 
 
 class LowLight:
@@ -172,13 +169,13 @@ class LowLight:
     Args:
         profile: the noise profile, a path to one, or a decoded profile document.
         seed: the stream's seed (see the module docstring); None follows torch's global seed.
-        darkening: ``"profile"`` (the profile's darkening or its ranges), a :class:`Darkening` to fix it, or
-            None to add noise only (see :data:`darksynth.recipe.DarkeningChoice`).
         round_to_8bit: round float output to 8-bit levels (k / 255), as a camera file stores it.
         device: where to compute and return the result; the device of the first input when None.
-        jitter, blur, flicker, match_colour, camera: the other choices of :class:`darksynth.recipe.ClipRecipe`,
-            with its defaults (``jitter`` is :data:`~darksynth.recipe.AUGMENTING`: each call draws within the
-            profile's ranges). ``camera`` draws each call's camera from real ones (``"prior"`` or a preset of
+        choices: the recipe's choices (:class:`darksynth.recipe.RecipeChoices`), with the meaning and default of
+            :class:`~darksynth.recipe.ClipRecipe`'s fields, but ``jitter`` :data:`~darksynth.recipe.AUGMENTING`
+            (each call draws within the profile's ranges). ``darkening``: ``"profile"`` (the profile's darkening
+            or its ranges, matched to each input's tones), a :class:`Darkening` to fix it, or None to add noise
+            only. ``camera``: draw each call's camera from real ones (``"prior"`` or a preset of
             :data:`darksynth.cameras.presets.CAMERA_CHOICES`); :meth:`sample` shows the drawn values.
 
     The recipe built from these is :attr:`recipe`.
@@ -195,26 +192,13 @@ class LowLight:
         profile: Profile | str | Path | dict[str, Any],
         *,
         seed: int | None = None,
-        darkening: DarkeningChoice = "profile",
         round_to_8bit: bool = True,
         device: torch.device | str | None = None,
-        jitter: bool = AUGMENTING,
-        blur: bool = True,
-        flicker: bool = True,
-        match_colour: bool = False,
-        camera: str | None = None,
+        **choices: Unpack[RecipeChoices],
     ) -> None:
         if seed is not None and (isinstance(seed, bool) or not isinstance(seed, int | np.integer)):
             raise ValueError(f"seed must be an integer or None, got {seed!r}")
-        self.recipe = transform_recipe(
-            profile,
-            darkening=darkening,
-            jitter=jitter,
-            blur=blur,
-            flicker=flicker,
-            match_colour=match_colour,
-            camera=camera,
-        )
+        self.recipe = transform_recipe(profile, choices)
         self.seed = None if seed is None else int(seed)
         self.round_to_8bit = bool(round_to_8bit)
         self.device = None if device is None else torch.device(device)
