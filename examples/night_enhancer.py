@@ -34,7 +34,9 @@ With a GPU, a wider net and a longer training::
     .venv/bin/python examples/night_enhancer.py --device cuda --width 32 --steps 20000 --batch 16 --out enhancer-gpu
 
 ``--normalise-exposure`` gives the enhancer its input scaled to one mean and the log of the input's own mean;
-``--match-colour`` gives each training input its reference's colour cast (docs/tutorial.md has what both do).
+``--match-colour`` gives each training input its reference's colour cast; ``--gain-draw`` chooses how the training
+darkenings are drawn; ``--noise-scale F`` multiplies darksynth's noise by F about the darkened image, to see how much
+its strength matters (docs/tutorial.md has what each does).
 
 albumentations' defaults do not darken (``RandomGamma``: gamma 0.8-1.2) and its default ``GaussNoise`` (20-44 % of
 full scale) would bury a dark image, so the albumentations methods take the paper's darkening ranges (the exposure
@@ -210,7 +212,14 @@ class ProfileExposures:
     def pick(self, image: int, seed: int) -> tuple[int, float, float, tuple[float, float, float] | None]:
         """(profile index, alpha, gamma, colour scale or None) for a sample of the image: a matched darkening of
         one of its references, with ``--gain-draw even`` its alpha scaled to a gain drawn evenly in log over the
-        5th-95th percentile of the matched gains (the darkening's gain is inversely proportional to alpha)."""
+        5th-95th percentile of the matched gains (the darkening's gain is inversely proportional to alpha), with
+        ``--gain-draw pooled`` the darkening matched on another clean image drawn at random (the references'
+        exposures, independent of this scene, as a camera's exposure does not look at the scene; no colour cast)."""
+        if self.gain_draw == "pooled":
+            draw = random.Random(seed)
+            row = self.choices[draw.randrange(len(self.choices))]
+            index, alpha, gamma, _ = row[draw.randrange(len(row))]
+            return index, alpha, gamma, None
         choice = seed % len(self.choices[image])
         index, alpha, gamma, gain = self.choices[image][choice]
         if self.gain_draw == "even":
@@ -219,9 +228,17 @@ class ProfileExposures:
         return index, alpha, gamma, self.colour_scales[image][choice]
 
 
-def profile_low_light(exposures: ProfileExposures, *, noise: bool) -> LowLightCrop:
-    """darksynth's transform with the darkening matched on the crop's whole image, with its profile's noise (or
-    without noise: darkening only, rounded to 8-bit levels as a camera file is)."""
+def scaled_noise(noisy: torch.Tensor, darkened: torch.Tensor, scale: float) -> torch.Tensor:
+    """``noisy`` with its noise about ``darkened`` (the same image without noise) times ``scale``, on 8-bit levels
+    (``--noise-scale``: how much the training noise's strength matters); ``noisy`` itself for a scale of 1."""
+    if scale == 1.0:
+        return noisy
+    return ((darkened + scale * (noisy - darkened)).clamp(0.0, 1.0) * 255.0).round() / 255.0
+
+
+def profile_low_light(exposures: ProfileExposures, *, noise: bool, noise_scale: float = 1.0) -> LowLightCrop:
+    """darksynth's transform with the darkening matched on the crop's whole image, with its profile's noise (times
+    ``noise_scale``), or without noise: darkening only, rounded to 8-bit levels as a camera file is."""
     from darksynth import Darkening, darken
     from darksynth.transforms import LowLight
 
@@ -229,18 +246,21 @@ def profile_low_light(exposures: ProfileExposures, *, noise: bool) -> LowLightCr
         index, alpha, gamma, colour_scale = exposures.pick(image, seed)
         if colour_scale is not None:
             clean = clean * torch.tensor(colour_scale, dtype=clean.dtype)[:, None, None]
+        darkened = (darken(clean, alpha, gamma) * 255.0).round() / 255.0
         if not noise:
-            return (darken(clean, alpha, gamma) * 255.0).round() / 255.0
+            return darkened
         transform = LowLight(exposures.profiles[index], darkening=Darkening(alpha, gamma))
-        return transform(clean, seed=seed)
+        return scaled_noise(transform(clean, seed=seed), darkened, noise_scale)
 
     return low_light
 
 
-def albumentations_low_light(noise: str, exposures: ProfileExposures | None = None) -> LowLightCrop:
+def albumentations_low_light(
+    noise: str, exposures: ProfileExposures | None = None, noise_scale: float = 1.0
+) -> LowLightCrop:
     """albumentations: brightness x U(0.05, 0.3), gamma U(1, 2.5), then ``noise``: ``"gauss"``, ``"iso"`` (module
     docstring), ``"none"``, or ``"darksynth"`` (the noise of one of the ``exposures``' profiles, drawn on the
-    darkened image as ``LowLight(profile, darkening=None)`` draws it)."""
+    darkened image as ``LowLight(profile, darkening=None)`` draws it, times ``noise_scale``)."""
     if noise not in ("gauss", "iso", "none", "darksynth"):
         raise ValueError(f'noise must be "gauss", "iso", "none" or "darksynth", got {noise!r}')
     if noise == "darksynth" and exposures is None:
@@ -260,7 +280,7 @@ def albumentations_low_light(noise: str, exposures: ProfileExposures | None = No
         low = torch.from_numpy(np.ascontiguousarray(compose(image=pixels)["image"])).permute(2, 0, 1).float() / 255.0
         if exposures is not None and noise == "darksynth":
             profile = exposures.profiles[exposures.pick(image, seed)[0]]
-            low = LowLight(profile, darkening=None)(low, seed=seed)
+            low = scaled_noise(LowLight(profile, darkening=None)(low, seed=seed), low, noise_scale)
         return low
 
     return low_light
@@ -489,13 +509,13 @@ def _low_lights(arguments: argparse.Namespace, images: list[torch.Tensor], refer
 
     def low_light(method: str) -> LowLightCrop:
         if method == "darksynth":
-            return profile_low_light(exposures("srgb"), noise=True)
+            return profile_low_light(exposures("srgb"), noise=True, noise_scale=arguments.noise_scale)
         if method == "darkening-only":
             return profile_low_light(exposures("srgb"), noise=False)
         if method == "darksynth-paper":
-            return profile_low_light(exposures("paper"), noise=True)
+            return profile_low_light(exposures("paper"), noise=True, noise_scale=arguments.noise_scale)
         if method == "albu-gamma-darksynth":
-            return albumentations_low_light("darksynth", exposures("srgb"))
+            return albumentations_low_light("darksynth", exposures("srgb"), arguments.noise_scale)
         return albumentations_low_light({"albu-gamma-gauss": "gauss", "albu-gamma-iso": "iso"}.get(method, "none"))
 
     return low_light
@@ -539,6 +559,7 @@ def run(arguments: argparse.Namespace) -> dict[str, Any]:
                 "width",
                 "normalise_exposure",
                 "match_colour",
+                "noise_scale",
                 "exposures",
                 "gain_draw",
                 "learning_rate",
@@ -563,12 +584,13 @@ def parse(argv: list[str] | None = None) -> argparse.Namespace:
     parser.add_argument("--methods", default=",".join(METHODS))
     parser.add_argument("--exposures", type=int, default=3)
     parser.add_argument("--steps", type=int, default=800)
-    parser.add_argument("--gain-draw", choices=("matched", "even"), default="matched")
+    parser.add_argument("--gain-draw", choices=("matched", "even", "pooled"), default="matched")
     parser.add_argument("--batch", type=int, default=4)
     parser.add_argument("--crop", type=int, default=96)
     parser.add_argument("--width", type=int, default=16)
     parser.add_argument("--normalise-exposure", action="store_true")
     parser.add_argument("--match-colour", action="store_true")
+    parser.add_argument("--noise-scale", type=float, default=1.0)
     parser.add_argument("--learning-rate", type=float, default=2e-3)
     parser.add_argument("--workers", type=int, default=2)
     parser.add_argument("--seeds", default="0")

@@ -146,6 +146,24 @@ def test_the_even_gain_draw_spreads_the_training_gains_evenly_in_log_over_the_re
     assert abs(share - 0.5) < 0.12
 
 
+def test_the_pooled_draw_gives_each_image_the_darkenings_matched_on_every_image(
+    folders: tuple[Path, Path, Path], tmp_path: Path
+) -> None:
+    example = _example()
+    images = example.read_clean_images([folders[2]], 32)
+    assert len(images) >= 2
+    profiles = _reference_profiles(tmp_path, 2, {"reference0": 0.04, "reference1": 0.1, "reference2": 0.3})
+    exposures = example.ProfileExposures(images, profiles, 3, seed=0, gain_draw="pooled")
+    matched = {(index, alpha, gamma) for row in exposures.choices for index, alpha, gamma, _ in row}
+    own = {(index, alpha, gamma) for index, alpha, gamma, _ in exposures.choices[0]}
+    drawn = {exposures.pick(0, seed)[:3] for seed in range(200)}
+    # Every draw is a darkening matched on some image; most of them on other images than this one.
+    assert drawn <= matched and len(drawn - own) > 0 and len(drawn) > len(own)
+    assert all(exposures.pick(0, seed)[3] is None for seed in range(10))
+    # A sample's draw does not depend on the image it darkens.
+    assert [exposures.pick(0, seed) for seed in range(20)] == [exposures.pick(1, seed) for seed in range(20)]
+
+
 def test_a_low_image_without_its_normal_light_image_is_one_line_and_exit_2(
     folders: tuple[Path, Path, Path], tmp_path: Path, capsys: pytest.CaptureFixture[str]
 ) -> None:
@@ -216,3 +234,17 @@ def test_the_diagnostic_methods_train_on_albumentations_darkening_with_and_witho
         example.albumentations_low_light("darksynth")
     with pytest.raises(ValueError, match="noise must be"):
         example.albumentations_low_light("poisson")
+
+
+def test_the_noise_scale_multiplies_the_noise_about_the_darkened_image() -> None:
+    example = _example()
+    generator = torch.Generator().manual_seed(0)
+    darkened = (torch.full((3, 64, 64), 0.2) * 255.0).round() / 255.0
+    noisy = ((darkened + 0.03 * torch.randn(3, 64, 64, generator=generator)).clamp(0.0, 1.0) * 255.0).round() / 255.0
+    assert example.scaled_noise(noisy, darkened, 1.0) is noisy
+    assert torch.equal(example.scaled_noise(noisy, darkened, 0.0), darkened)
+    half = example.scaled_noise(noisy, darkened, 0.5)
+    # On 8-bit levels, with half the std (7.65 levels -> 3.8; rounding adds 1/12 level^2 of variance).
+    assert torch.equal((half * 255.0).round() / 255.0, half)
+    ratio = float((half - darkened).std() / (noisy - darkened).std())
+    assert 0.47 < ratio < 0.53, ratio
