@@ -110,23 +110,62 @@ class SpectrumEstimate:
     warnings: list[str] = field(default_factory=list)
 
 
+COLOUR_COMPONENTS = slice(1, 3)
+"""The two colour components of the statistics' brightness-colour basis (the first is brightness)."""
+
+
 def octave_responses(
-    simulate_and_measure: Callable[[SpectralParameters, int], SpectralStatistics], start: SpectralParameters
+    simulate_and_measure: Callable[[SpectralParameters, int], SpectralStatistics],
+    start: SpectralParameters,
+    *,
+    octaves: range = PROBED_OCTAVES,
+    components: slice = slice(None),
+    white: bool = True,
 ) -> torch.Tensor:
     """How much each octave's band statistic follows that octave's power on this reference: white noise at the
-    measured level, then each probed octave's power times :data:`PROBE_BOOST`, through the same simulation; the
-    exponent ``log(band ratio) / log(boost)`` per octave (1 for the unprobed fine ones)."""
+    level of ``start`` (or, not ``white``, its own spectrum), then each probed octave's power times
+    :data:`PROBE_BOOST`, through the same simulation; the exponent ``log(band ratio) / log(boost)`` per octave (1
+    for the unprobed ones), the band's power summed over ``components`` (all three by default)."""
     identity = torch.eye(3, dtype=torch.float64).expand(OCTAVES, 3, 3)
-    white = SpectralParameters(covariances=identity.clone(), curve=start.curve, temporal=start.temporal)
-    base = simulate_and_measure(white, 0).cross_power.diagonal(dim1=-2, dim2=-1).sum(-1)
+    spectrum = identity if white else start.covariances
+    base_parameters = SpectralParameters(covariances=spectrum.clone(), curve=start.curve, temporal=start.temporal)
+    base = simulate_and_measure(base_parameters, 0).cross_power.diagonal(dim1=-2, dim2=-1)[..., components].sum(-1)
     responses = torch.ones(OCTAVES, dtype=torch.float64)
-    for octave in PROBED_OCTAVES:
-        covariances = identity.clone()
+    for octave in octaves:
+        covariances = spectrum.clone()
         covariances[octave] = covariances[octave] * PROBE_BOOST
         boosted = SpectralParameters(covariances=covariances, curve=start.curve, temporal=start.temporal)
-        power = simulate_and_measure(boosted, 0).cross_power.diagonal(dim1=-2, dim2=-1).sum(-1)
+        power = simulate_and_measure(boosted, 0).cross_power.diagonal(dim1=-2, dim2=-1)[..., components].sum(-1)
         responses[octave] = torch.log(power[octave] / base[octave].clamp_min(1e-30)) / math.log(PROBE_BOOST)
     return responses
+
+
+def colour_through_compression(
+    resynthesis: Resynthesis, fitted: SpectralParameters, compression: float
+) -> tuple[int, dict[str, Any]]:
+    """How many colour octaves, from the finest, still move the reference's statistics through its JPEG stage, and
+    the responses for ``meta``; all of them without one.
+
+    The octaves are probed without the JPEG stage (:func:`_first_unmeasured_octave`), before its strength is chosen.
+    A 4:2:0 JPEG rounds away colour noise a few levels strong, so through it the colour statistics may follow none
+    of the colour octaves' power: the fit's colour there is what the search left, not what the reference shows
+    (polyu's quality-75 files, docs/spectral-noise.md). Probed about the fitted spectrum (how far the JPEG rounds
+    depends on how strong the colour is), from the 5.7-px octave on (the 2.8-px one is never probed: the denoiser's
+    residual holds it whole)."""
+    if compression <= 0.0:
+        return OCTAVES, {}
+    probed = range(1, OCTAVES)
+    simulate = resynthesis.simulator(compression, 1)
+    responses = octave_responses(simulate, fitted, octaves=probed, components=COLOUR_COMPONENTS, white=False)
+    read = next((k for k in probed if responses[k] < MIN_RESPONSE), OCTAVES)
+    meta: dict[str, Any] = {"colour_response_through_compression": [round(float(r), 3) for r in responses]}
+    if read < OCTAVES:
+        meta["colour_prior"] = (
+            f"colour octaves {read + 1}-{OCTAVES} (wavelengths from {2 ** (read + 1.5):.0f} px) barely move this "
+            f"reference's statistics through its JPEG stage (strength {compression:g}): not read, their values "
+            "are the fit's"
+        )
+    return read, meta
 
 
 def knot_responses(
@@ -401,7 +440,9 @@ def _fit(
     unmatched, outcome = anchor_outcome(anchor, anchored, first_unmeasured)
     if unmatched:
         fitted = constrain(fitted)  # the released components continue the finer octaves again
-    meta |= outcome
+    colour_read, through = colour_through_compression(resynthesis, fits[chosen], chosen)
+    outcome["read_octaves"]["colour"] = min(outcome["read_octaves"]["colour"], colour_read)
+    meta |= outcome | through
     meta["compression_scores"] = {str(c): round(v, 4) for c, v in scores.items()}
     meta["level_by_compression_8bit"] = {str(c): round(mean_level(fits[c].curve, measured_knots), 3) for c in fits}
     meta["compression_chosen"] = chosen
