@@ -73,8 +73,10 @@ METHODS = ("darksynth", "darkening-only", "darksynth-paper", "albu-gamma-gauss",
 REAL_PAIRS = "real-pairs"
 """The ceiling, run only when ``--methods`` names it: trained on the camera's real pairs of the other fold (the
 pairs alternate between two folds in name order), tested on those of its own; two trainings per seed."""
-DIAGNOSTIC_METHODS = ("albu-gamma", "albu-gamma-darksynth")
-"""Run only when ``--methods`` names them: albumentations' darkening alone, and with darksynth's noise on it."""
+DIAGNOSTIC_METHODS = ("albu-gamma", "albu-gamma-darksynth", "paper-range-float")
+"""Run only when ``--methods`` names them: albumentations' darkening alone, and with darksynth's noise on it; the
+same ranges (brightness x U(0.05, 0.3), gamma U(1, 2.5)) computed in float and rounded to 8-bit levels once, at the
+end (albumentations rounds the brightened image before its gamma, which posterises the darkest inputs)."""
 IMAGE_SUFFIXES = (".png", ".jpg", ".jpeg", ".tif", ".tiff", ".bmp")
 NORMALISED_MEAN = 0.5
 """The mean an input is scaled to with ``--normalise-exposure`` (about that of a normal-light photo)."""
@@ -284,6 +286,14 @@ def albumentations_low_light(
         return low
 
     return low_light
+
+
+def float_paper_range_low_light(image: int, clean: torch.Tensor, seed: int) -> torch.Tensor:
+    """``(k * clean) ** g`` with k ~ U(0.05, 0.3) and g ~ U(1, 2.5) drawn from ``seed``, rounded to 8-bit levels
+    once (the ``paper-range-float`` diagnostic)."""
+    draw = random.Random(seed)
+    brightness, gamma = draw.uniform(0.05, 0.3), draw.uniform(1.0, 2.5)
+    return ((brightness * clean.clamp(0.0, 1.0)) ** gamma * 255.0).round() / 255.0
 
 
 class LowLightCrops(Dataset[tuple[torch.Tensor, torch.Tensor]]):
@@ -514,6 +524,8 @@ def _low_lights(arguments: argparse.Namespace, images: list[torch.Tensor], refer
             return profile_low_light(exposures("srgb"), noise=False)
         if method == "darksynth-paper":
             return profile_low_light(exposures("paper"), noise=True, noise_scale=arguments.noise_scale)
+        if method == "paper-range-float":
+            return float_paper_range_low_light
         if method == "albu-gamma-darksynth":
             return albumentations_low_light("darksynth", exposures("srgb"), arguments.noise_scale)
         return albumentations_low_light({"albu-gamma-gauss": "gauss", "albu-gamma-iso": "iso"}.get(method, "none"))

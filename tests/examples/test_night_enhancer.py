@@ -248,3 +248,14 @@ def test_the_noise_scale_multiplies_the_noise_about_the_darkened_image() -> None
     assert torch.equal((half * 255.0).round() / 255.0, half)
     ratio = float((half - darkened).std() / (noisy - darkened).std())
     assert 0.47 < ratio < 0.53, ratio
+
+
+def test_the_float_paper_range_darkens_within_its_ranges_and_rounds_once() -> None:
+    example = _example()
+    clean = torch.linspace(0.0, 1.0, 3 * 32 * 32).reshape(3, 32, 32)
+    for seed in range(20):
+        low = example.float_paper_range_low_light(0, clean, seed)
+        assert torch.equal(low, example.float_paper_range_low_light(5, clean, seed))  # the seed alone draws
+        assert torch.equal((low * 255.0).round() / 255.0, low)
+        # Full white comes out at brightness ** gamma: within 0.05 ** 2.5 and 0.3.
+        assert 0.05**2.5 - 1 / 255 <= float(low[2, -1, -1]) <= 0.3 + 1 / 255
