@@ -280,9 +280,12 @@ def _first_unmeasured_octave(resynthesis: Resynthesis, start: SpectralParameters
     return first_unmeasured, meta
 
 
-def anchor_outcome(anchor: CoarseAnchor, anchored: bool, first_unmeasured: int) -> tuple[list[int], dict[str, Any]]:
+def anchor_outcome(
+    anchor: CoarseAnchor, anchored: bool, first_unmeasured: int, colour_limit: int = OCTAVES
+) -> tuple[list[int], dict[str, Any]]:
     """The colour components released to the prior (:meth:`CoarseAnchor.unmatched`) and what ``meta`` says of the
-    anchor: their scales before the release (one at a bound warns), an anchor that read nothing, the octaves read."""
+    anchor: their scales before the release (one at a bound warns), an anchor that read nothing, the octaves read
+    (colour no further than ``colour_limit``, :func:`colour_through_compression`)."""
     unmatched = anchor.unmatched() if anchored else []
     meta: dict[str, Any] = {}
     if unmatched:
@@ -292,17 +295,18 @@ def anchor_outcome(anchor: CoarseAnchor, anchored: bool, first_unmeasured: int) 
     if anchored and not anchor.observed:
         meta["coarse_anchor"] = "not read: no simulation left a colour statistic to match; the prior stands"
     colour_read = anchored and anchor.observed and not unmatched
-    meta["read_octaves"] = read_octaves(first_unmeasured, colour_anchored=colour_read)
+    meta["read_octaves"] = read_octaves(first_unmeasured, colour_anchored=colour_read, colour_limit=colour_limit)
     return unmatched, meta
 
 
-def read_octaves(first_unmeasured: int, *, colour_anchored: bool) -> dict[str, int]:
+def read_octaves(first_unmeasured: int, *, colour_anchored: bool, colour_limit: int = OCTAVES) -> dict[str, int]:
     """How many octaves of the spectral model, from the finest, the reference's own statistics set, per component
     (``brightness``, ``colour``); the coarser ones are the prior (the finer octaves' spectrum continued). Brightness
     is read up to the first octave the probe finds the reference cannot show; colour one octave further where the
-    coarse anchor read that one (its scale carries on to the coarser octaves, with the finer ones' shape)."""
+    coarse anchor read that one (its scale carries on to the coarser octaves, with the finer ones' shape), and no
+    further than ``colour_limit`` (the first colour octave the reference's JPEG stage leaves unread)."""
     colour = first_unmeasured + 1 if colour_anchored else first_unmeasured
-    return {"brightness": min(first_unmeasured, OCTAVES), "colour": min(colour, OCTAVES)}
+    return {"brightness": min(first_unmeasured, OCTAVES), "colour": min(colour, colour_limit, OCTAVES)}
 
 
 def _anchored_fit(
@@ -437,11 +441,10 @@ def _fit(
     fitted, left_over = _anchored_fit(
         resynthesis, target, fits[chosen], chosen, anchor if anchored else None, constrain
     )
-    unmatched, outcome = anchor_outcome(anchor, anchored, first_unmeasured)
+    colour_read, through = colour_through_compression(resynthesis, fits[chosen], chosen)
+    unmatched, outcome = anchor_outcome(anchor, anchored, first_unmeasured, colour_read)
     if unmatched:
         fitted = constrain(fitted)  # the released components continue the finer octaves again
-    colour_read, through = colour_through_compression(resynthesis, fits[chosen], chosen)
-    outcome["read_octaves"]["colour"] = min(outcome["read_octaves"]["colour"], colour_read)
     meta |= outcome | through
     meta["compression_scores"] = {str(c): round(v, 4) for c, v in scores.items()}
     meta["level_by_compression_8bit"] = {str(c): round(mean_level(fits[c].curve, measured_knots), 3) for c in fits}
