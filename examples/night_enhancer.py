@@ -77,6 +77,10 @@ DIAGNOSTIC_METHODS = ("albu-gamma", "albu-gamma-darksynth", "paper-range-float")
 """Run only when ``--methods`` names them: albumentations' darkening alone, and with darksynth's noise on it; the
 same ranges (brightness x U(0.05, 0.3), gamma U(1, 2.5)) computed in float and rounded to 8-bit levels once, at the
 end (albumentations rounds the brightened image before its gamma, which posterises the darkest inputs)."""
+TRAINING_BRIGHTNESS = (0.05, 0.3)
+"""The brightness factor the albumentations methods and ``paper-range-float`` draw (the paper's alpha range)."""
+TRAINING_GAMMA = (1.0, 2.5)
+"""The exponent they draw after it (``RandomGamma``'s ``gamma_limit`` in percent: 100-250)."""
 IMAGE_SUFFIXES = (".png", ".jpg", ".jpeg", ".tif", ".tiff", ".bmp")
 NORMALISED_MEAN = 0.5
 """The mean an input is scaled to with ``--normalise-exposure`` (about that of a normal-light photo)."""
@@ -248,11 +252,15 @@ def profile_low_light(exposures: ProfileExposures, *, noise: bool, noise_scale: 
         index, alpha, gamma, colour_scale = exposures.pick(image, seed)
         if colour_scale is not None:
             clean = clean * torch.tensor(colour_scale, dtype=clean.dtype)[:, None, None]
-        darkened = (darken(clean, alpha, gamma) * 255.0).round() / 255.0
+
+        def darkened() -> torch.Tensor:
+            return (darken(clean, alpha, gamma) * 255.0).round() / 255.0
+
         if not noise:
-            return darkened
-        transform = LowLight(exposures.profiles[index], darkening=Darkening(alpha, gamma))
-        return scaled_noise(transform(clean, seed=seed), darkened, noise_scale)
+            return darkened()
+        noisy = LowLight(exposures.profiles[index], darkening=Darkening(alpha, gamma))(clean, seed=seed)
+        # The darkened image without noise is needed only to scale the noise about it.
+        return noisy if noise_scale == 1.0 else scaled_noise(noisy, darkened(), noise_scale)
 
     return low_light
 
@@ -272,7 +280,10 @@ def albumentations_low_light(
 
     from darksynth.transforms import LowLight
 
-    darkening = [A.MultiplicativeNoise(multiplier=(0.05, 0.3), p=1.0), A.RandomGamma(gamma_limit=(100, 250), p=1.0)]
+    darkening = [
+        A.MultiplicativeNoise(multiplier=TRAINING_BRIGHTNESS, p=1.0),
+        A.RandomGamma(gamma_limit=tuple(round(100 * g) for g in TRAINING_GAMMA), p=1.0),  # in percent
+    ]
     albumentations_noise = {"gauss": [A.GaussNoise(std_range=(0.01, 0.05), p=1.0)], "iso": [A.ISONoise(p=1.0)]}
     compose = A.Compose([*darkening, *albumentations_noise.get(noise, [])])
 
@@ -289,10 +300,10 @@ def albumentations_low_light(
 
 
 def float_paper_range_low_light(image: int, clean: torch.Tensor, seed: int) -> torch.Tensor:
-    """``(k * clean) ** g`` with k ~ U(0.05, 0.3) and g ~ U(1, 2.5) drawn from ``seed``, rounded to 8-bit levels
-    once (the ``paper-range-float`` diagnostic)."""
+    """``(k * clean) ** g`` with k ~ U(:data:`TRAINING_BRIGHTNESS`) and g ~ U(:data:`TRAINING_GAMMA`) drawn from
+    ``seed``, rounded to 8-bit levels once (the ``paper-range-float`` diagnostic)."""
     draw = random.Random(seed)
-    brightness, gamma = draw.uniform(0.05, 0.3), draw.uniform(1.0, 2.5)
+    brightness, gamma = draw.uniform(*TRAINING_BRIGHTNESS), draw.uniform(*TRAINING_GAMMA)
     return ((brightness * clean.clamp(0.0, 1.0)) ** gamma * 255.0).round() / 255.0
 
 
