@@ -183,3 +183,18 @@ def test_targets_accept_a_clip_that_took_the_video_prior(real_data: ModuleType) 
     assert [miss for miss in real_data.target_misses(record) if miss.startswith("clips/")] == [
         "clips/clip1: lag-1 gap -0.30"
     ]
+
+
+def test_a_clip_whose_lag1_cannot_show_persistence_is_neither_compared_nor_a_miss(real_data: ModuleType) -> None:
+    before = _record()
+    before["clips"]["clip142"] = {"real": -0.03, "synthetic": 0.10, "gap": 0.13}
+    after = copy.deepcopy(before)
+    after["clips"]["clip142"] = {"real": -0.03, "synthetic": 0.85, "gap": 0.88, "lag1_response": 0.03}
+    after["clips"]["clip101"].update(gap=-0.5, lag1_response=0.8)
+    assert _names(real_data.regressions(before, after)) == {("clips/clip101", "lag-1 gap (synthetic - real)")}
+    misses = [miss for miss in real_data.target_misses(after) if miss.startswith("clips/")]
+    assert misses == ["clips/clip101: lag-1 gap -0.50"]
+    assert [line.split(":")[0] for line in real_data.unmeasurable_clips(after)] == ["clips/clip142"]
+    # At the bound a clip is compared.
+    after["clips"]["clip142"]["lag1_response"] = real_data.MIN_LAG1_RESPONSE
+    assert ("clips/clip142", "lag-1 gap (synthetic - real)") in _names(real_data.regressions(before, after))
