@@ -35,8 +35,9 @@ With a GPU, a wider net and a longer training::
 
 ``--normalise-exposure`` gives the enhancer its input scaled to one mean and the log of the input's own mean;
 ``--match-colour`` gives each training input its reference's colour cast; ``--gain-draw`` chooses how the training
-darkenings are drawn; ``--noise-scale F`` multiplies darksynth's noise by F about the darkened image, to see how much
-its strength matters (docs/tutorial.md has what each does).
+darkenings are drawn (``matched`` per image, ``even`` in log gain, ``pooled`` from other images, ``profile``: the
+references' own readings, ``profile-range``: between them); ``--noise-scale F`` multiplies darksynth's noise by F
+about the darkened image, to see how much its strength matters (docs/tutorial.md has what each does).
 
 albumentations' defaults do not darken (``RandomGamma``: gamma 0.8-1.2) and its default ``GaussNoise`` (20-44 % of
 full scale) would bury a dark image, so the albumentations methods take the paper's darkening ranges (the exposure
@@ -220,7 +221,23 @@ class ProfileExposures:
         one of its references, with ``--gain-draw even`` its alpha scaled to a gain drawn evenly in log over the
         5th-95th percentile of the matched gains (the darkening's gain is inversely proportional to alpha), with
         ``--gain-draw pooled`` the darkening matched on another clean image drawn at random (the references'
-        exposures, independent of this scene, as a camera's exposure does not look at the scene; no colour cast)."""
+        exposures, independent of this scene, as a camera's exposure does not look at the scene; no colour cast),
+        with ``--gain-draw profile`` the darkening a reference drawn at random was read to have (its profile's
+        ``darkening``, the network's reading of the reference alone: independent of the scene and of any clean
+        image's tones; no colour cast), with ``--gain-draw profile-range`` alpha and gamma each drawn evenly
+        between the smallest and the largest the references were read to have (their spread, not only their eight
+        values)."""
+        if self.gain_draw in ("profile", "profile-range"):
+            draw = random.Random(seed)
+            index = draw.randrange(len(self.profiles))
+            darkenings = [profile.darkening for profile in self.profiles]
+            if any(darkening is None for darkening in darkenings):
+                raise ValueError(f"--gain-draw {self.gain_draw}: a profile holds no darkening")
+            alphas = [darkening.alpha for darkening in darkenings if darkening is not None]
+            gammas = [darkening.gamma for darkening in darkenings if darkening is not None]
+            if self.gain_draw == "profile":
+                return index, alphas[index], gammas[index], None
+            return index, draw.uniform(min(alphas), max(alphas)), draw.uniform(min(gammas), max(gammas)), None
         if self.gain_draw == "pooled":
             draw = random.Random(seed)
             row = self.choices[draw.randrange(len(self.choices))]
@@ -607,7 +624,9 @@ def parse(argv: list[str] | None = None) -> argparse.Namespace:
     parser.add_argument("--methods", default=",".join(METHODS))
     parser.add_argument("--exposures", type=int, default=3)
     parser.add_argument("--steps", type=int, default=800)
-    parser.add_argument("--gain-draw", choices=("matched", "even", "pooled"), default="matched")
+    parser.add_argument(
+        "--gain-draw", choices=("matched", "even", "pooled", "profile", "profile-range"), default="matched"
+    )
     parser.add_argument("--batch", type=int, default=4)
     parser.add_argument("--crop", type=int, default=96)
     parser.add_argument("--width", type=int, default=16)

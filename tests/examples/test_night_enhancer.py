@@ -259,3 +259,39 @@ def test_the_float_paper_range_darkens_within_its_ranges_and_rounds_once() -> No
         assert torch.equal((low * 255.0).round() / 255.0, low)
         # Full white comes out at brightness ** gamma: within 0.05 ** 2.5 and 0.3.
         assert 0.05**2.5 - 1 / 255 <= float(low[2, -1, -1]) <= 0.3 + 1 / 255
+
+
+def test_the_profile_draw_gives_every_image_the_darkenings_the_references_were_read_to_have(
+    folders: tuple[Path, Path, Path], tmp_path: Path
+) -> None:
+    example = _example()
+    images = example.read_clean_images([folders[2]], 32)
+    profiles = _reference_profiles(tmp_path, 2, {"reference0": 0.04, "reference1": 0.3})
+    exposures = example.ProfileExposures(images, profiles, 2, seed=0, gain_draw="profile")
+    read = [
+        (index, profile.darkening.alpha, profile.darkening.gamma) for index, profile in enumerate(exposures.profiles)
+    ]
+    drawn = [exposures.pick(0, seed) for seed in range(40)]
+    # Each draw is one reference's own darkening, both references are drawn, no colour cast, whatever the image.
+    assert {pick[:3] for pick in drawn} == set(read)
+    assert all(pick[3] is None for pick in drawn)
+    assert drawn == [exposures.pick(1, seed) for seed in range(40)]
+
+
+def test_the_profile_range_draw_spreads_alpha_and_gamma_between_the_references_readings(
+    folders: tuple[Path, Path, Path], tmp_path: Path
+) -> None:
+    example = _example()
+    images = example.read_clean_images([folders[2]], 32)
+    profiles = _reference_profiles(tmp_path, 2, {"reference0": 0.04, "reference1": 0.3})
+    exposures = example.ProfileExposures(images, profiles, 2, seed=0, gain_draw="profile-range")
+    alphas = [profile.darkening.alpha for profile in exposures.profiles]
+    gammas = [profile.darkening.gamma for profile in exposures.profiles]
+    drawn = [exposures.pick(0, seed) for seed in range(200)]
+    assert all(
+        min(alphas) <= alpha <= max(alphas) and min(gammas) <= gamma <= max(gammas) for _, alpha, gamma, _ in drawn
+    )
+    # Evenly between the two readings: each half of alpha's range holds about half the draws.
+    middle = (min(alphas) + max(alphas)) / 2
+    assert max(alphas) > min(alphas) and abs(sum(alpha < middle for _, alpha, _, _ in drawn) / 200 - 0.5) < 0.12
+    assert drawn == [exposures.pick(1, seed) for seed in range(200)]
