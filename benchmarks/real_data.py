@@ -25,8 +25,9 @@ its profile is then applied as ``apply --no-darken`` applies it.
    denoised frames with the profile's noise rises from independent frames to a coefficient of 0.9 (the same draw),
    is at least :data:`MIN_LAG1_RESPONSE` (0.3). On a clip that pans under weak noise no pixel stays still for the
    measure, and on a letterbox crushed to black the profile's noise rounds to nothing: there the real lag-1 reads
-   the same whatever the noise does (clip142 and clip159 move 1-4 px a frame and respond 0.03 and 0.02; the letterboxes
-   clip450, clip474 and clip512 respond 0), and a static synthetic clip is compared with nothing.
+   the same whatever the noise does (clip142 and clip159 pan, up to 9 and 1.3 px a frame, and respond 0.03 and
+   0.02; the letterboxes clip450, clip474 and clip512 respond 0), and a static synthetic clip is compared with
+   nothing.
 
 Targets (:func:`target_misses`, printed after the record as ``OFF TARGET`` lines and their count; the bar of issue
 39): a set's median band ratio within 0.8-1.25, under 0.8 only in a band most of its estimates took from their prior
