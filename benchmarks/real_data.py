@@ -515,8 +515,7 @@ def measure_clip(
     real = temporal.lag1_correlation(frames)
     profile, warnings = _estimate(frames, network, path)
     synthetic = temporal.static_clip_correlation(profile, profile.noise, scene, STATIC_FRAMES, seed=seed)
-    strength = profile.meta.get("spectrum", {}).get("denoiser_strength_8bit") or denoiser_strength(frames[:1])
-    response = temporal.lag1_response(frames, profile.noise, strength, seed=seed)
+    response = temporal.lag1_response(frames, profile.noise, temporal.estimate_strength(profile, frames), seed=seed)
     return {
         "real": _rounded(real),
         "synthetic": _rounded(synthetic),

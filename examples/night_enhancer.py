@@ -215,6 +215,15 @@ class ProfileExposures:
             self.colour_scales.append(scales)
         gains = np.log([choice[3] for row in self.choices for choice in row])
         self.log_gain_range = (float(np.percentile(gains, 5)), float(np.percentile(gains, 95)))
+        self.read_darkenings: list[tuple[float, float]] = []
+        if gain_draw in ("profile", "profile-range"):
+            if any(profile.darkening is None for profile in self.profiles):
+                raise ValueError(f"--gain-draw {gain_draw}: a profile holds no darkening")
+            self.read_darkenings = [
+                (profile.darkening.alpha, profile.darkening.gamma)
+                for profile in self.profiles
+                if profile.darkening is not None
+            ]
 
     def pick(self, image: int, seed: int) -> tuple[int, float, float, tuple[float, float, float] | None]:
         """(profile index, alpha, gamma, colour scale or None) for a sample of the image: a matched darkening of
@@ -230,13 +239,9 @@ class ProfileExposures:
         if self.gain_draw in ("profile", "profile-range"):
             draw = random.Random(seed)
             index = draw.randrange(len(self.profiles))
-            darkenings = [profile.darkening for profile in self.profiles]
-            if any(darkening is None for darkening in darkenings):
-                raise ValueError(f"--gain-draw {self.gain_draw}: a profile holds no darkening")
-            alphas = [darkening.alpha for darkening in darkenings if darkening is not None]
-            gammas = [darkening.gamma for darkening in darkenings if darkening is not None]
             if self.gain_draw == "profile":
-                return index, alphas[index], gammas[index], None
+                return index, *self.read_darkenings[index], None
+            alphas, gammas = zip(*self.read_darkenings, strict=True)
             return index, draw.uniform(min(alphas), max(alphas)), draw.uniform(min(gammas), max(gammas)), None
         if self.gain_draw == "pooled":
             draw = random.Random(seed)

@@ -261,13 +261,18 @@ def test_the_float_paper_range_darkens_within_its_ranges_and_rounds_once() -> No
         assert 0.05**2.5 - 1 / 255 <= float(low[2, -1, -1]) <= 0.3 + 1 / 255
 
 
+def _two_reference_exposures(clean: Path, tmp_path: Path, gain_draw: str) -> Any:
+    """The example's exposures of the clean images' 32-px crops, from two references 7.5x apart, with ``gain_draw``."""
+    example = _example()
+    images = example.read_clean_images([clean], 32)
+    profiles = _reference_profiles(tmp_path, 2, {"reference0": 0.04, "reference1": 0.3})
+    return example.ProfileExposures(images, profiles, 2, seed=0, gain_draw=gain_draw)
+
+
 def test_the_profile_draw_gives_every_image_the_darkenings_the_references_were_read_to_have(
     folders: tuple[Path, Path, Path], tmp_path: Path
 ) -> None:
-    example = _example()
-    images = example.read_clean_images([folders[2]], 32)
-    profiles = _reference_profiles(tmp_path, 2, {"reference0": 0.04, "reference1": 0.3})
-    exposures = example.ProfileExposures(images, profiles, 2, seed=0, gain_draw="profile")
+    exposures = _two_reference_exposures(folders[2], tmp_path, "profile")
     read = [
         (index, profile.darkening.alpha, profile.darkening.gamma) for index, profile in enumerate(exposures.profiles)
     ]
@@ -281,10 +286,7 @@ def test_the_profile_draw_gives_every_image_the_darkenings_the_references_were_r
 def test_the_profile_range_draw_spreads_alpha_and_gamma_between_the_references_readings(
     folders: tuple[Path, Path, Path], tmp_path: Path
 ) -> None:
-    example = _example()
-    images = example.read_clean_images([folders[2]], 32)
-    profiles = _reference_profiles(tmp_path, 2, {"reference0": 0.04, "reference1": 0.3})
-    exposures = example.ProfileExposures(images, profiles, 2, seed=0, gain_draw="profile-range")
+    exposures = _two_reference_exposures(folders[2], tmp_path, "profile-range")
     alphas = [profile.darkening.alpha for profile in exposures.profiles]
     gammas = [profile.darkening.gamma for profile in exposures.profiles]
     drawn = [exposures.pick(0, seed) for seed in range(200)]
