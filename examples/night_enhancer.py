@@ -37,7 +37,9 @@ With a GPU, a wider net and a longer training::
 ``--match-colour`` gives each training input its reference's colour cast; ``--gain-draw`` chooses how the training
 darkenings are drawn (``matched`` per image, ``even`` in log gain, ``pooled`` from other images, ``profile``: the
 references' own readings, ``profile-range``: between them); ``--noise-scale F`` multiplies darksynth's noise by F
-about the darkened image, to see how much its strength matters (docs/tutorial.md has what each does).
+about the darkened image, to see how much its strength matters; ``--target-exponent E`` (a diagnostic) trains toward
+the clean crops raised to E, targets flatter than the clean images for E under 1 (docs/tutorial.md has what each
+does).
 
 albumentations' defaults do not darken (``RandomGamma``: gamma 0.8-1.2) and its default ``GaussNoise`` (20-44 % of
 full scale) would bury a dark image, so the albumentations methods take the paper's darkening ranges (the exposure
@@ -331,10 +333,22 @@ def float_paper_range_low_light(image: int, clean: torch.Tensor, seed: int) -> t
 
 class LowLightCrops(Dataset[tuple[torch.Tensor, torch.Tensor]]):
     """``length`` random crops of the clean images with their low-light versions; sample ``i`` is the same in every
-    worker and run of a seed (its crop and its draws come from ``seed`` and ``i`` alone)."""
+    worker and run of a seed (its crop and its draws come from ``seed`` and ``i`` alone). The target is the clean
+    crop, raised to ``target_exponent`` (``--target-exponent``, a diagnostic: below 1 the targets are rendered
+    flatter and brighter than the clean images, as LOL's normal-light images are; the input is made from the clean
+    crop as it is)."""
 
-    def __init__(self, images: list[torch.Tensor], low_light: LowLightCrop, crop: int, length: int, seed: int) -> None:
+    def __init__(
+        self,
+        images: list[torch.Tensor],
+        low_light: LowLightCrop,
+        crop: int,
+        length: int,
+        seed: int,
+        target_exponent: float = 1.0,
+    ) -> None:
         self.images, self.low_light, self.crop, self.length, self.seed = images, low_light, crop, length, seed
+        self.target_exponent = target_exponent
 
     def __len__(self) -> int:
         return self.length
@@ -349,7 +363,8 @@ class LowLightCrops(Dataset[tuple[torch.Tensor, torch.Tensor]]):
         clean = image[:, top : top + self.crop, left : left + self.crop].float() / 255.0
         if draw.random() < 0.5:
             clean = clean.flip(-1)
-        return self.low_light(image_index, clean, sample_seed).float(), clean
+        target = clean if self.target_exponent == 1.0 else clean.pow(self.target_exponent)
+        return self.low_light(image_index, clean, sample_seed).float(), target
 
 
 class RealPairCrops(Dataset[tuple[torch.Tensor, torch.Tensor]]):
@@ -581,7 +596,14 @@ def run(arguments: argparse.Namespace) -> dict[str, Any]:
                 per_seed.append(real_pair_scores(test_pairs, arguments, seed))
                 continue
             torch.manual_seed(seed)
-            dataset = LowLightCrops(images, low_light(method), arguments.crop, arguments.steps * arguments.batch, seed)
+            dataset = LowLightCrops(
+                images,
+                low_light(method),
+                arguments.crop,
+                arguments.steps * arguments.batch,
+                seed,
+                arguments.target_exponent,
+            )
             model = train(dataset, arguments, seed, f"{method}, seed {seed}")
             per_seed.append(test(model, test_pairs, arguments.device))
         results[method] = summary(per_seed)
@@ -607,6 +629,7 @@ def run(arguments: argparse.Namespace) -> dict[str, Any]:
                 "noise_scale",
                 "exposures",
                 "gain_draw",
+                "target_exponent",
                 "learning_rate",
                 "seeds",
                 "device",
@@ -638,6 +661,7 @@ def parse(argv: list[str] | None = None) -> argparse.Namespace:
     parser.add_argument("--normalise-exposure", action="store_true")
     parser.add_argument("--match-colour", action="store_true")
     parser.add_argument("--noise-scale", type=float, default=1.0)
+    parser.add_argument("--target-exponent", type=float, default=1.0)
     parser.add_argument("--learning-rate", type=float, default=2e-3)
     parser.add_argument("--workers", type=int, default=2)
     parser.add_argument("--seeds", default="0")
@@ -654,6 +678,8 @@ def parse(argv: list[str] | None = None) -> argparse.Namespace:
     if unknown or min(arguments.steps, arguments.batch, arguments.exposures, len(arguments.seeds)) < 1:
         known = ", ".join((*METHODS, REAL_PAIRS, *DIAGNOSTIC_METHODS))
         parser.error(f"methods are {known}; steps, batch, exposures and seeds at least 1")
+    if not 0.0 < arguments.target_exponent <= 4.0:
+        parser.error("--target-exponent must be in (0, 4]")
     if arguments.crop < 8 or arguments.crop % 4:
         parser.error("--crop must be a multiple of 4 of at least 8")
     return arguments
