@@ -94,7 +94,7 @@ import torch
 from darksynth.apply import ApplyOptions, synthesize_image
 from darksynth.errors import DarksynthError
 from darksynth.estimation.assemble import estimate
-from darksynth.estimation.noise.flat_blocks import denoiser_strength
+from darksynth.estimation.noise.flat_blocks import stated_denoiser_strength
 from darksynth.estimation.noise.nonlocal_means import nlm_denoise
 from darksynth.estimation.noise.self_check import CONSISTENT_RANGE, self_consistency
 from darksynth.estimation.reference import load_reference
@@ -442,11 +442,8 @@ def measure_photo(path: Path, network: DEN, seed: int) -> dict[str, Any]:
     the photo's denoised version, against the photo, on the flattest in-range blocks."""
     frames = load_reference(path)
     profile, warnings = _estimate(frames, network, path)
-    strength = profile.meta.get("spectrum", {}).get("denoiser_strength_8bit")
-    if strength is None:
-        # The profile does not state the strength the estimate used: the estimate's rule on the first frame.
-        strength = denoiser_strength(frames[:1])
-    denoised = (nlm_denoise(frames[:1], strength)[0] * 255.0).round().clamp(0, 255).to(torch.uint8)
+    denoised_frame = nlm_denoise(frames[:1], stated_denoiser_strength(profile.meta, frames))[0]
+    denoised = (denoised_frame * 255.0).round().clamp(0, 255).to(torch.uint8)
     options = ApplyOptions(recipe=ClipRecipe(profile, darkening=None), seed=seed)
     synthetic, _ = synthesize_image(chw_to_hwc(denoised), path.name, options)
     check = self_consistency(frames[0], denoised.float() / 255.0, hwc_to_chw(synthetic).float() / 255.0)
@@ -515,7 +512,7 @@ def measure_clip(
     real = temporal.lag1_correlation(frames)
     profile, warnings = _estimate(frames, network, path)
     synthetic = temporal.static_clip_correlation(profile, profile.noise, scene, STATIC_FRAMES, seed=seed)
-    response = temporal.lag1_response(frames, profile.noise, temporal.estimate_strength(profile, frames), seed=seed)
+    response = temporal.lag1_response(frames, profile.noise, stated_denoiser_strength(profile.meta, frames), seed=seed)
     return {
         "real": _rounded(real),
         "synthetic": _rounded(synthetic),

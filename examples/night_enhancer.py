@@ -37,8 +37,8 @@ With a GPU, a wider net and a longer training::
 ``--match-colour`` gives each training input its reference's colour cast; ``--gain-draw`` chooses how the training
 darkenings are drawn (``matched`` per image, ``even`` in log gain, ``pooled`` from other images, ``profile``: the
 references' own readings, ``profile-range``: between them); ``--noise-scale F`` multiplies darksynth's noise by F
-about the darkened image, to see how much its strength matters; ``--target-exponent E`` (a diagnostic) trains toward
-the clean crops raised to E, targets flatter than the clean images for E under 1 (docs/tutorial.md has what each
+about the darkened image, to see how much its strength matters; ``--target-tone A,E`` (a diagnostic) trains toward
+``A * clean ** E``, targets flatter and brighter than the clean images for E under 1 (docs/tutorial.md has what each
 does).
 
 albumentations' defaults do not darken (``RandomGamma``: gamma 0.8-1.2) and its default ``GaussNoise`` (20-44 % of
@@ -334,8 +334,8 @@ def float_paper_range_low_light(image: int, clean: torch.Tensor, seed: int) -> t
 class LowLightCrops(Dataset[tuple[torch.Tensor, torch.Tensor]]):
     """``length`` random crops of the clean images with their low-light versions; sample ``i`` is the same in every
     worker and run of a seed (its crop and its draws come from ``seed`` and ``i`` alone). The target is the clean
-    crop, raised to ``target_exponent`` (``--target-exponent``, a diagnostic: below 1 the targets are rendered
-    flatter and brighter than the clean images, as LOL's normal-light images are; the input is made from the clean
+    crop rendered by ``target_tone`` (a, e): ``a * clean ** e`` (``--target-tone``, a diagnostic: for e under 1 the
+    targets are flatter than the clean images, as LOL's normal-light images are; the input is made from the clean
     crop as it is)."""
 
     def __init__(
@@ -345,10 +345,10 @@ class LowLightCrops(Dataset[tuple[torch.Tensor, torch.Tensor]]):
         crop: int,
         length: int,
         seed: int,
-        target_exponent: float = 1.0,
+        target_tone: tuple[float, float] = (1.0, 1.0),
     ) -> None:
         self.images, self.low_light, self.crop, self.length, self.seed = images, low_light, crop, length, seed
-        self.target_exponent = target_exponent
+        self.target_tone = target_tone
 
     def __len__(self) -> int:
         return self.length
@@ -363,7 +363,8 @@ class LowLightCrops(Dataset[tuple[torch.Tensor, torch.Tensor]]):
         clean = image[:, top : top + self.crop, left : left + self.crop].float() / 255.0
         if draw.random() < 0.5:
             clean = clean.flip(-1)
-        target = clean if self.target_exponent == 1.0 else clean.pow(self.target_exponent)
+        scale, exponent = self.target_tone
+        target = clean if self.target_tone == (1.0, 1.0) else (scale * clean.pow(exponent)).clamp(0.0, 1.0)
         return self.low_light(image_index, clean, sample_seed).float(), target
 
 
@@ -602,7 +603,7 @@ def run(arguments: argparse.Namespace) -> dict[str, Any]:
                 arguments.crop,
                 arguments.steps * arguments.batch,
                 seed,
-                arguments.target_exponent,
+                arguments.target_tone,
             )
             model = train(dataset, arguments, seed, f"{method}, seed {seed}")
             per_seed.append(test(model, test_pairs, arguments.device))
@@ -629,7 +630,7 @@ def run(arguments: argparse.Namespace) -> dict[str, Any]:
                 "noise_scale",
                 "exposures",
                 "gain_draw",
-                "target_exponent",
+                "target_tone",
                 "learning_rate",
                 "seeds",
                 "device",
@@ -661,7 +662,7 @@ def parse(argv: list[str] | None = None) -> argparse.Namespace:
     parser.add_argument("--normalise-exposure", action="store_true")
     parser.add_argument("--match-colour", action="store_true")
     parser.add_argument("--noise-scale", type=float, default=1.0)
-    parser.add_argument("--target-exponent", type=float, default=1.0)
+    parser.add_argument("--target-tone", default="1,1")
     parser.add_argument("--learning-rate", type=float, default=2e-3)
     parser.add_argument("--workers", type=int, default=2)
     parser.add_argument("--seeds", default="0")
@@ -678,8 +679,13 @@ def parse(argv: list[str] | None = None) -> argparse.Namespace:
     if unknown or min(arguments.steps, arguments.batch, arguments.exposures, len(arguments.seeds)) < 1:
         known = ", ".join((*METHODS, REAL_PAIRS, *DIAGNOSTIC_METHODS))
         parser.error(f"methods are {known}; steps, batch, exposures and seeds at least 1")
-    if not 0.0 < arguments.target_exponent <= 4.0:
-        parser.error("--target-exponent must be in (0, 4]")
+    try:
+        scale, exponent = (float(value) for value in arguments.target_tone.split(","))
+    except ValueError:
+        parser.error(f"--target-tone: two numbers A,E separated by a comma, got {arguments.target_tone!r}")
+    if not (0.0 < scale <= 1.0 and 0.0 < exponent <= 4.0):
+        parser.error("--target-tone: A in (0, 1] and E in (0, 4]")
+    arguments.target_tone = (scale, exponent)
     if arguments.crop < 8 or arguments.crop % 4:
         parser.error("--crop must be a multiple of 4 of at least 8")
     return arguments

@@ -45,7 +45,7 @@ import numpy as np
 import torch
 
 from darksynth.estimation.assemble import estimate
-from darksynth.estimation.noise.flat_blocks import denoiser_strength
+from darksynth.estimation.noise.flat_blocks import stated_denoiser_strength
 from darksynth.estimation.noise.nonlocal_means import nlm_denoise
 from darksynth.estimation.noise.spectral_fit import quantised
 from darksynth.estimation.reference import load_reference
@@ -88,13 +88,6 @@ def aligned_lag1_correlation(frames: torch.Tensor) -> float:
         frame[:, top : top + height, left : left + width] for frame, top, left in zip(frames, tops, lefts, strict=True)
     ]
     return lag1_correlation(torch.stack(aligned))
-
-
-def estimate_strength(profile: Profile, frames: torch.Tensor) -> float:
-    """The non-local-means strength (8-bit levels) the estimate denoised ``frames`` with: as its profile states it,
-    else the estimate's rule on the first frame."""
-    stated = profile.meta.get("spectrum", {}).get("denoiser_strength_8bit")
-    return float(stated) if stated is not None else denoiser_strength(frames[:1])
 
 
 PERSISTENCE_PROBE = 0.9
@@ -165,7 +158,7 @@ def main() -> None:
         spectrum = profile.meta.get("spectrum", {})
         source = str(spectrum.get("persistence_source", "none (no still blocks)"))
         skipped = spectrum.get("persistence_skipped_share")
-        response = lag1_response(frames, profile.noise, estimate_strength(profile, frames))
+        response = lag1_response(frames, profile.noise, stated_denoiser_strength(profile.meta, frames))
         print(
             f"{path.name:28s} real {real:6.3f} synthetic {synthetic:6.3f} gap {synthetic - real:+.3f} "
             f"real aligned to the scene's motion {aligned_lag1_correlation(frames):6.3f} response {response:.2f} "

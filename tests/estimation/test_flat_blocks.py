@@ -5,7 +5,12 @@ from __future__ import annotations
 
 import torch
 
-from darksynth.estimation.noise.flat_blocks import FLAT_BLOCK, flat_block_std
+from darksynth.estimation.noise.flat_blocks import (
+    FLAT_BLOCK,
+    denoiser_strength,
+    flat_block_std,
+    stated_denoiser_strength,
+)
 
 
 def _frame(levels: list[float], stds: list[float], textured: list[bool], seed: int = 0) -> torch.Tensor:
@@ -29,3 +34,13 @@ def test_noise_that_grows_with_the_level_sets_the_strength_where_it_is_strongest
     frame = _frame([0.05, 0.05, 0.05, 0.22], [2.0, 2.0, 2.0, 4.2], [False] * 4)
     strength = flat_block_std(frame)
     assert 3.6 < strength < 4.8, strength
+
+
+def test_the_stated_strength_is_the_profile_s_and_else_the_rule_on_the_first_frame() -> None:
+    generator = torch.Generator().manual_seed(4)
+    frames = (0.3 + 0.02 * torch.randn(2, 3, 96, 96, generator=generator)).clamp(0.0, 1.0)
+    frames[1] += 0.1  # a second frame the rule must not read
+    assert stated_denoiser_strength({"spectrum": {"denoiser_strength_8bit": 7.5}}, frames) == 7.5
+    rule = denoiser_strength(frames[:1])
+    assert stated_denoiser_strength({}, frames) == rule
+    assert stated_denoiser_strength({"spectrum": {}}, frames) == rule

@@ -299,7 +299,7 @@ def test_the_profile_range_draw_spreads_alpha_and_gamma_between_the_references_r
     assert drawn == [exposures.pick(1, seed) for seed in range(200)]
 
 
-def test_the_target_exponent_renders_the_targets_and_leaves_the_inputs_as_they_are() -> None:
+def test_the_target_tone_renders_the_targets_and_leaves_the_inputs_as_they_are() -> None:
     example = _example()
     image = (torch.linspace(0.0, 1.0, 3 * 48 * 48).reshape(3, 48, 48) * 255.0).round().to(torch.uint8)
     seen: list[torch.Tensor] = []
@@ -309,10 +309,16 @@ def test_the_target_exponent_renders_the_targets_and_leaves_the_inputs_as_they_a
         return 0.1 * clean
 
     plain = example.LowLightCrops([image], low_light, 16, 2, seed=5)
-    flat = example.LowLightCrops([image], low_light, 16, 2, seed=5, target_exponent=0.6)
+    flat = example.LowLightCrops([image], low_light, 16, 2, seed=5, target_tone=(0.9, 0.6))
     low, target = plain[1]
     flat_low, flat_target = flat[1]
     assert torch.equal(seen[0], seen[1]) and torch.equal(target, seen[0])
     assert torch.equal(low, flat_low)
-    assert torch.allclose(flat_target, target.pow(0.6))
-    assert float(flat_target.mean()) > float(target.mean()) + 0.05
+    assert torch.allclose(flat_target, 0.9 * target.pow(0.6))
+    assert float(flat_target.mean()) > float(target.mean()) + 0.03
+
+
+@pytest.mark.parametrize("tone", ["0.9", "0.9,x", "0,0.6", "0.9,5"])
+def test_a_bad_target_tone_is_refused(tone: str, tmp_path: Path) -> None:
+    with pytest.raises(SystemExit):
+        _example().parse(["--target-tone", tone, "--out", str(tmp_path)])

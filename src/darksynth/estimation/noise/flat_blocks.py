@@ -9,6 +9,7 @@ choose and read blocks through them.
 from __future__ import annotations
 
 import math
+from typing import Any
 
 import torch
 import torch.nn.functional as F
@@ -161,6 +162,14 @@ def denoiser_strength(frames: torch.Tensor) -> float:
     :data:`NLM_STRENGTH` times their :func:`flat_block_std`, within :data:`DENOISER_STRENGTH_RANGE`."""
     low, high = DENOISER_STRENGTH_RANGE
     return min(max(NLM_STRENGTH * flat_block_std(frames), low), high)
+
+
+def stated_denoiser_strength(meta: dict[str, Any], frames: torch.Tensor) -> float:
+    """The strength (8-bit levels) an estimate denoised ``frames`` (T, 3, H, W) with, as its profile's ``meta``
+    states it, else :func:`denoiser_strength` on the first frame (profiles written before the strength was stated):
+    what a check that denoises the reference again must use."""
+    stated = meta.get("spectrum", {}).get("denoiser_strength_8bit")
+    return float(stated) if stated is not None else denoiser_strength(frames[:1])
 
 
 def detrended_blocks(frame: torch.Tensor, blocks: torch.Tensor) -> torch.Tensor:
