@@ -37,9 +37,12 @@ With a GPU, a wider net and a longer training::
 ``--match-colour`` gives each training input its reference's colour cast; ``--gain-draw`` chooses how the training
 darkenings are drawn (``matched`` per image, ``even`` in log gain, ``pooled`` from other images, ``profile``: the
 references' own readings, ``profile-range``: between them); ``--noise-scale F`` multiplies darksynth's noise by F
-about the darkened image, to see how much its strength matters; ``--target-tone A,E`` (a diagnostic) trains toward
-``A * clean ** E``, targets flatter and brighter than the clean images for E under 1 (docs/tutorial.md has what each
-does).
+about the darkened image, to see how much its strength matters. ``--target-tone A,E`` trains toward ``A * clean ** E``
+(targets flatter and brighter than the clean images for E under 1, as LOL's normal-light images are);
+``--target-tone folds`` reads A and E from the normal-light images the enhancer is to imitate, none of them tested:
+each fold of the test pairs (two, alternating in name order, as the ceiling's) is tested on enhancers trained toward
+the tone of the other fold's normal-light images (the median of their tones against average clean scenes), two
+trainings a seed (docs/tutorial.md has what each does).
 
 albumentations' defaults do not darken (``RandomGamma``: gamma 0.8-1.2) and its default ``GaussNoise`` (20-44 % of
 full scale) would bury a dark image, so the albumentations methods take the paper's darkening ranges (the exposure
@@ -387,14 +390,36 @@ class RealPairCrops(Dataset[tuple[torch.Tensor, torch.Tensor]]):
         return (low.flip(-1), high.flip(-1)) if draw.random() < 0.5 else (low, high)
 
 
+def target_tone_of(images: list[torch.Tensor]) -> tuple[float, float]:
+    """(A, E): the median over ``images`` (3, H, W) in [0, 1] of each one's tone against average clean scenes,
+    ``image ~ A * scene ** E`` (the darkening's fit without the paper's prior, :func:`fit_darkening`): the rendering
+    an enhancer trained toward ``A * clean ** E`` imitates."""
+    from darksynth.light.tone_fit import fit_darkening
+    from darksynth.light.tones import tone_quantiles
+
+    readings = [fit_darkening(tone_quantiles(image.float()), use_prior=False).darkening for image in images]
+    scale = float(np.median([reading.alpha for reading in readings]))
+    exponent = float(np.median([1.0 / reading.gamma for reading in readings]))
+    return min(scale, 1.0), exponent
+
+
+def folds(pairs: list[TestPair]) -> list[tuple[list[TestPair], list[TestPair]]]:
+    """(the other fold's pairs, this fold's) for the two folds, alternating in name order."""
+    return [
+        (
+            [pair for index, pair in enumerate(pairs) if index % 2 != fold],
+            [pair for index, pair in enumerate(pairs) if index % 2 == fold],
+        )
+        for fold in (0, 1)
+    ]
+
+
 def real_pair_scores(pairs: list[TestPair], arguments: argparse.Namespace, seed: int) -> dict[str, dict[str, float]]:
     """The ceiling's scores for one seed: each fold's pairs tested on an enhancer trained on the other fold's."""
     if len(pairs) < 2:
         raise ExampleError(f"{arguments.pairs}: {REAL_PAIRS} needs at least 2 pairs (one to train on, one to test)")
     scores: dict[str, dict[str, float]] = {}
-    for fold in (0, 1):
-        training = [pair for index, pair in enumerate(pairs) if index % 2 != fold]
-        tested = [pair for index, pair in enumerate(pairs) if index % 2 == fold]
+    for fold, (training, tested) in enumerate(folds(pairs)):
         torch.manual_seed(seed)
         dataset = RealPairCrops(training, arguments.crop, arguments.steps * arguments.batch, seed)
         model = train(dataset, arguments, seed, f"{REAL_PAIRS} (fold {fold + 1} of 2), seed {seed}")
@@ -582,6 +607,31 @@ def _low_lights(arguments: argparse.Namespace, images: list[torch.Tensor], refer
     return low_light
 
 
+def synthetic_scores(
+    pairs: list[TestPair],
+    images: list[torch.Tensor],
+    low_light: LowLightCrop,
+    arguments: argparse.Namespace,
+    seed: int,
+    method: str,
+) -> dict[str, dict[str, float]]:
+    """One seed's scores of an enhancer trained on ``low_light``'s inputs of the clean ``images``: one training
+    toward the ``--target-tone`` given, or with ``folds`` one per fold toward the other fold's tone."""
+    length = arguments.steps * arguments.batch
+    if arguments.target_tone != "folds":
+        torch.manual_seed(seed)
+        dataset = LowLightCrops(images, low_light, arguments.crop, length, seed, arguments.target_tone)
+        return test(train(dataset, arguments, seed, f"{method}, seed {seed}"), pairs, arguments.device)
+    scores: dict[str, dict[str, float]] = {}
+    for fold, (other, tested) in enumerate(folds(pairs)):
+        tone = target_tone_of([pair.high for pair in other])
+        torch.manual_seed(seed)
+        dataset = LowLightCrops(images, low_light, arguments.crop, length, seed, tone)
+        label = f"{method} toward {tone[0]:.2f} * clean ** {tone[1]:.2f} (fold {fold + 1} of 2), seed {seed}"
+        scores |= test(train(dataset, arguments, seed, label), tested, arguments.device)
+    return {pair.name: scores[pair.name] for pair in pairs}
+
+
 def run(arguments: argparse.Namespace) -> dict[str, Any]:
     test_pairs = read_test_pairs(arguments.pairs)
     references = reference_photos(arguments.references, test_pairs)
@@ -596,17 +646,7 @@ def run(arguments: argparse.Namespace) -> dict[str, Any]:
             if method == REAL_PAIRS:
                 per_seed.append(real_pair_scores(test_pairs, arguments, seed))
                 continue
-            torch.manual_seed(seed)
-            dataset = LowLightCrops(
-                images,
-                low_light(method),
-                arguments.crop,
-                arguments.steps * arguments.batch,
-                seed,
-                arguments.target_tone,
-            )
-            model = train(dataset, arguments, seed, f"{method}, seed {seed}")
-            per_seed.append(test(model, test_pairs, arguments.device))
+            per_seed.append(synthetic_scores(test_pairs, images, low_light(method), arguments, seed, method))
         results[method] = summary(per_seed)
         entry = results[method]
         print(
@@ -679,13 +719,14 @@ def parse(argv: list[str] | None = None) -> argparse.Namespace:
     if unknown or min(arguments.steps, arguments.batch, arguments.exposures, len(arguments.seeds)) < 1:
         known = ", ".join((*METHODS, REAL_PAIRS, *DIAGNOSTIC_METHODS))
         parser.error(f"methods are {known}; steps, batch, exposures and seeds at least 1")
-    try:
-        scale, exponent = (float(value) for value in arguments.target_tone.split(","))
-    except ValueError:
-        parser.error(f"--target-tone: two numbers A,E separated by a comma, got {arguments.target_tone!r}")
-    if not (0.0 < scale <= 1.0 and 0.0 < exponent <= 4.0):
-        parser.error("--target-tone: A in (0, 1] and E in (0, 4]")
-    arguments.target_tone = (scale, exponent)
+    if arguments.target_tone != "folds":
+        try:
+            scale, exponent = (float(value) for value in arguments.target_tone.split(","))
+        except ValueError:
+            parser.error(f"--target-tone: 'folds' or two numbers A,E, got {arguments.target_tone!r}")
+        if not (0.0 < scale <= 1.0 and 0.0 < exponent <= 4.0):
+            parser.error("--target-tone: A in (0, 1] and E in (0, 4]")
+        arguments.target_tone = (scale, exponent)
     if arguments.crop < 8 or arguments.crop % 4:
         parser.error("--crop must be a multiple of 4 of at least 8")
     return arguments

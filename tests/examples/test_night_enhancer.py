@@ -322,3 +322,32 @@ def test_the_target_tone_renders_the_targets_and_leaves_the_inputs_as_they_are()
 def test_a_bad_target_tone_is_refused(tone: str, tmp_path: Path) -> None:
     with pytest.raises(SystemExit):
         _example().parse(["--target-tone", tone, "--out", str(tmp_path)])
+
+
+def test_a_target_s_tone_is_read_against_average_scenes() -> None:
+    from tests.tone_scenes import prior_scene
+
+    example = _example()
+    scenes = [prior_scene(seed, size=192) for seed in range(3)]
+    assert example.target_tone_of(scenes) == pytest.approx((1.0, 1.0), rel=0.1)
+    flattened = [0.8 * scene.pow(0.6) for scene in scenes]
+    assert example.target_tone_of(flattened) == pytest.approx((0.8, 0.6), rel=0.1)
+
+
+def test_the_folds_alternate_in_name_order_and_each_leaves_out_what_it_tests() -> None:
+    example = _example()
+    pairs = [example.TestPair(name, torch.zeros(3, 8, 8), torch.zeros(3, 8, 8)) for name in "abcde"]
+    (other0, tested0), (other1, tested1) = example.folds(pairs)
+    assert [pair.name for pair in tested0] == ["a", "c", "e"] and other0 == tested1
+    assert [pair.name for pair in tested1] == ["b", "d"] and other1 == tested0
+
+
+def test_the_folds_target_tone_trains_once_per_fold_and_scores_every_pair(
+    folders: tuple[Path, Path, Path], tmp_path: Path
+) -> None:
+    out = tmp_path / "out"
+    arguments = [*_two_step_run(folders, out), "--methods", "darkening-only", "--target-tone", "folds"]
+    assert _example().main(arguments) == 0
+    record = json.loads((out / "results.json").read_text())
+    assert record["settings"]["target_tone"] == "folds"
+    assert set(record["results"]["darkening-only"]["per_pair"]) == {"0.png", "1.png"}
