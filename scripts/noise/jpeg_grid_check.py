@@ -26,41 +26,16 @@ from pathlib import Path
 
 import torch
 
+from darksynth.estimation.noise.jpeg_grid import jpeg_grid
 from darksynth.estimation.reference import load_reference
 from darksynth.evaluation.pairs import list_pair_set
 from darksynth.io.discover import IMAGE_SUFFIXES
 from darksynth.noise.compression import jpeg_compress
 
-CAP = 6.0
-"""A neighbour difference counts at most this many 8-bit levels."""
-
-GRID_SCORE = 1.3
-"""An axis shows the JPEG grid when its largest phase is at least this many times the others' median..."""
-
-FOUR_PX_RISE = 0.5
-"""...and the phase 4 away from it rises less than this share of the largest's rise above that median (not a 4-px
-period)."""
-
-
-def axis_scores(frame: torch.Tensor) -> list[tuple[float, float]]:
-    """(score, 4-px share) of the columns' and the rows' phases of a frame (3, H, W) in [0, 1]."""
-    grey = frame.double().mean(0) * 255.0
-    scores = []
-    for difference in ((grey[:, 1:] - grey[:, :-1]).abs(), (grey[1:, :] - grey[:-1, :]).abs().T):
-        usable = difference.shape[1] // 8 * 8
-        phases = torch.stack([difference[:, phase:usable:8].clamp(max=CAP).mean() for phase in range(8)])
-        peak = int(phases.argmax())
-        others = torch.stack([phases[p] for p in range(8) if p not in (peak, (peak + 4) % 8)])
-        floor = max(float(others.median()), 1e-6)
-        scores.append((float(phases[peak]) / floor, float(phases[(peak + 4) % 8]) / floor))
-    return scores
-
-
 def shows_grid(frame: torch.Tensor) -> tuple[bool, float]:
-    """(both axes show the JPEG grid, the smaller axis score)."""
-    scores = axis_scores(frame)
-    grid = all(score >= GRID_SCORE and share - 1.0 < FOUR_PX_RISE * (score - 1.0) for score, share in scores)
-    return grid, min(score for score, _ in scores)
+    """(both axes show the JPEG grid, the smaller axis score): :func:`~darksynth.estimation.noise.jpeg_grid.jpeg_grid`."""
+    found = jpeg_grid(frame)
+    return found.shown, found.score
 
 
 def _summary(name: str, readings: list[tuple[bool, float]]) -> str:

@@ -121,7 +121,7 @@ def _read_octaves(found: Estimate) -> Mapping[str, int] | None:
     return spectrum.get("read_octaves") if isinstance(spectrum, dict) else None
 
 
-_ESTIMATES: dict[tuple[str, str, bool], _Estimates] = {}
+_ESTIMATES: dict[tuple[str, str, bool, frozenset[str]], _Estimates] = {}
 
 
 def _den_method(
@@ -134,20 +134,25 @@ def _den_method(
     model = load_den_weights(name, weights, device)
     refined = refines(model.noise_model, refine)
     with_prior = prior and refined
-    estimates = _ESTIMATES.setdefault((str(weights), device, refine), _Estimates())
     options = NoiseEstimateOptions(device=device, refine=refine)
 
     latest = _LatestReading()
 
-    def fitted_with(camera_prior: CameraPrior | None) -> Fit:
+    def fitted_with(camera_prior: CameraPrior | None, held_out: frozenset[str] = frozenset()) -> Fit:
+        # The texture dependence a camera JPEG takes from the prior (NoiseEstimateOptions.jpeg_texture) comes from
+        # the prior fitted without the set judged; the estimates are shared per such prior.
+        texture_prior = shipped_prior(held_out)
+        estimates = _ESTIMATES.setdefault((str(weights), device, refine, held_out), _Estimates())
+        judged = dataclasses.replace(options, jpeg_texture_prior=texture_prior)
+
         def fit(noisy: torch.Tensor, clean: torch.Tensor) -> NoiseValues:
             reference = noisy.to(torch.float32)[None]
             if camera_prior is not None and octaves:
                 use = CameraPriorUse(camera_prior, octaves=True)
-                found = estimate(reference, model, options=dataclasses.replace(options, camera_prior=use))
+                found = estimate(reference, model, options=dataclasses.replace(judged, camera_prior=use))
                 latest.octaves = _read_octaves(found)
                 return found.profile.noise
-            found = estimates.get(noisy, lambda: estimate(reference, model, options=options))
+            found = estimates.get(noisy, lambda: estimate(reference, model, options=judged))
             latest.octaves = _read_octaves(found)
             values = found.profile.noise
             # The texture dependence does not enter the fit (it reads flat blocks): added to the shared estimate,
@@ -157,9 +162,11 @@ def _den_method(
         return fit
 
     def on_set(set_name: str) -> NoiseMethod:
-        camera_prior = shipped_prior(held_out_sets(set_name))
-        details = method.details | {"prior_sets": camera_prior.sets}
-        return dataclasses.replace(method, fit=fitted_with(camera_prior), for_set=None, details=details)
+        held_out = held_out_sets(set_name)
+        camera_prior = shipped_prior(held_out) if with_prior else None
+        details = method.details | {"jpeg_texture_prior_sets": shipped_prior(held_out).sets}
+        details |= {"prior_sets": camera_prior.sets} if camera_prior is not None else {}
+        return dataclasses.replace(method, fit=fitted_with(camera_prior, held_out), for_set=None, details=details)
 
     method = NoiseMethod(
         name=name,
@@ -171,7 +178,7 @@ def _den_method(
         fit=fitted_with(shipped_prior() if with_prior else None),
         synthesize=synthesize_image,
         details={"weights": str(weights)},
-        for_set=on_set if with_prior else None,
+        for_set=on_set if refined else None,
         read_octaves=lambda: latest.octaves,
     )
     return method
