@@ -32,6 +32,7 @@ from darksynth.evaluation.pairs import list_pair_set
 from darksynth.io.discover import IMAGE_SUFFIXES
 from darksynth.noise.compression import jpeg_compress
 
+
 def shows_grid(frame: torch.Tensor) -> tuple[bool, float]:
     """(both axes show the JPEG grid, the smaller axis score): :func:`~darksynth.estimation.noise.jpeg_grid.jpeg_grid`."""
     found = jpeg_grid(frame)
