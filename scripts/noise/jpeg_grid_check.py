@@ -34,7 +34,8 @@ from darksynth.noise.compression import jpeg_compress
 
 
 def shows_grid(frame: torch.Tensor) -> tuple[bool, float]:
-    """(both axes show the JPEG grid, the smaller axis score): :func:`~darksynth.estimation.noise.jpeg_grid.jpeg_grid`."""
+    """(both axes show the JPEG grid, the smaller axis score), as :func:`darksynth.estimation.noise.jpeg_grid.jpeg_grid`
+    reads them."""
     found = jpeg_grid(frame)
     return found.shown, found.score
 
