@@ -77,3 +77,14 @@ def test_the_texture_comes_from_the_prior_it_is_given(network: DEN) -> None:
     found = estimate(compressed, network, source="photo.jpg", options=options)
     assert "polyu" not in found.profile.meta["jpeg_grid"]["texture_from"]
     assert "polyu" in estimate(compressed, network, source="photo.jpg").profile.meta["jpeg_grid"]["texture_from"]
+
+
+def test_the_texture_rise_is_one_on_a_flat_scene_and_grows_with_its_detail() -> None:
+    from darksynth.estimation.noise.readings import texture_rise
+
+    flat = torch.full((1, 3, 96, 96), 0.2)
+    assert texture_rise(flat, 0.5, 0.003) == pytest.approx(1.0)
+    generator = torch.Generator().manual_seed(0)
+    detail = flat + 0.02 * torch.randn(1, 3, 96, 96, generator=generator)
+    assert texture_rise(detail, 0.5, 0.003) > 2.0
+    assert texture_rise(detail, 0.0, 0.003) == pytest.approx(1.0)
