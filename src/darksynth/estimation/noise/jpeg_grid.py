@@ -1,5 +1,5 @@
-"""Whether a reference shows the 8-px block grid of a camera's JPEG, and the texture dependence it then takes from the
-camera prior.
+"""Whether a reference shows the 8-px block grid of a camera's JPEG (where it does, the noise measurement takes the
+camera prior's texture dependence: ``NoiseEstimateOptions.jpeg_texture``).
 
 A decoded JPEG steps at its blocks' boundaries, one pixel phase in 8. Per axis: the mean absolute difference of
 neighbouring pixels (the channels' mean, 8-bit levels, each capped at :data:`CAP` so that edges do not decide it)

@@ -65,8 +65,8 @@ class NoiseEstimateOptions:
             prior's expectation was further from the real than none.
         jpeg_texture: without ``camera_prior``, a single image that shows a camera JPEG's block grid
             (:mod:`~darksynth.estimation.noise.jpeg_grid`) takes its texture dependence from the prior, which it
-            otherwise cannot show (on polyu, leave-one-set-out, it brought the level from 0.82-0.90 to 1.01-1.14);
-            the sets without that grid keep none.
+            otherwise cannot show (on polyu's 100 pairs, leave-one-set-out, it brought the level from 0.82 / 0.86 /
+            0.81 to 1.07 / 1.13 / 1.03 of the real); the sets without that grid keep none.
         jpeg_texture_prior: the prior it takes it from; None: the shipped one (an evaluation gives the prior fitted
             without the set it judges).
     """

@@ -121,7 +121,7 @@ def _read_octaves(found: Estimate) -> Mapping[str, int] | None:
     return spectrum.get("read_octaves") if isinstance(spectrum, dict) else None
 
 
-_ESTIMATES: dict[tuple[str, str, bool, frozenset[str]], _Estimates] = {}
+_ESTIMATES: dict[tuple[str, str, bool, tuple[str, ...]], _Estimates] = {}
 
 
 def _den_method(
@@ -138,11 +138,10 @@ def _den_method(
 
     latest = _LatestReading()
 
-    def fitted_with(camera_prior: CameraPrior | None, held_out: frozenset[str] = frozenset()) -> Fit:
+    def fitted_with(camera_prior: CameraPrior | None, texture_prior: CameraPrior) -> Fit:
         # The texture dependence a camera JPEG takes from the prior (NoiseEstimateOptions.jpeg_texture) comes from
-        # the prior fitted without the set judged; the estimates are shared per such prior.
-        texture_prior = shipped_prior(held_out)
-        estimates = _ESTIMATES.setdefault((str(weights), device, refine, held_out), _Estimates())
+        # the prior fitted without the set judged; the estimates are shared per such prior (named by its sets).
+        estimates = _ESTIMATES.setdefault((str(weights), device, refine, texture_prior.sets), _Estimates())
         judged = dataclasses.replace(options, jpeg_texture_prior=texture_prior)
 
         def fit(noisy: torch.Tensor, clean: torch.Tensor) -> NoiseValues:
@@ -162,11 +161,11 @@ def _den_method(
         return fit
 
     def on_set(set_name: str) -> NoiseMethod:
-        held_out = held_out_sets(set_name)
-        camera_prior = shipped_prior(held_out) if with_prior else None
-        details = method.details | {"jpeg_texture_prior_sets": shipped_prior(held_out).sets}
-        details |= {"prior_sets": camera_prior.sets} if camera_prior is not None else {}
-        return dataclasses.replace(method, fit=fitted_with(camera_prior, held_out), for_set=None, details=details)
+        without_set = shipped_prior(held_out_sets(set_name))
+        camera_prior = without_set if with_prior else None
+        details = method.details | {"jpeg_texture_prior_sets": without_set.sets}
+        details |= {"prior_sets": without_set.sets} if with_prior else {}
+        return dataclasses.replace(method, fit=fitted_with(camera_prior, without_set), for_set=None, details=details)
 
     method = NoiseMethod(
         name=name,
@@ -175,7 +174,7 @@ def _den_method(
         + (", the texture dependence from the camera prior fitted without the set" if with_prior else "")
         + (" (and the coarse octaves)" if with_prior and octaves else "")
         + ", f(v) added to the clean",
-        fit=fitted_with(shipped_prior() if with_prior else None),
+        fit=fitted_with(shipped_prior() if with_prior else None, shipped_prior()),
         synthesize=synthesize_image,
         details={"weights": str(weights)},
         for_set=on_set if refined else None,
