@@ -42,7 +42,8 @@ set, photos of each folder and clips (the video too), in name order, for a quick
 summarise other pairs or photos than the record's and are left out of the comparison; each photo's and clip's own
 figures are still compared.
 
-``--seed`` seeds the noise draws (each pair's synthesis, ``apply``'s draw, the static clip), not the estimate.
+``--sets nam-cc15,dicm --out FILE`` runs some pair sets and photo folders only (a look while developing; the committed
+record holds them all). ``--seed`` seeds the noise draws (each pair's synthesis, ``apply``'s draw, the static clip), not the estimate.
 Record: ``benchmarks/records/real_data.json`` (``--out``), with the commit measured, the tracked files that differed
 from it, the CPU, torch's threads and the run time (wall and processor seconds). It is compared with ``git show
 HEAD:benchmarks/records/real_data.json`` and every figure that moved further from its target by more than the
@@ -583,6 +584,12 @@ def _arguments() -> argparse.Namespace:
     parser.add_argument("--seed", type=int, default=0, help="seed of the noise draws (not of the estimate)")
     parser.add_argument("--out", type=Path, default=ROOT / RECORD_IN_REPOSITORY)
     parser.add_argument("--no-compare", action="store_true", help="do not compare with the committed record")
+    parser.add_argument(
+        "--sets",
+        default=None,
+        help="comma-separated pair sets and photo folders to run (default all): a quick look while developing; the "
+        "record that is committed holds them all",
+    )
     arguments = parser.parse_args()
     parts = [part for part in arguments.only.split(",") if part]
     unknown = set(parts) - set(PARTS)
@@ -591,6 +598,12 @@ def _arguments() -> argparse.Namespace:
     if arguments.limit is not None and arguments.limit < 1:
         parser.error("--limit must be at least 1")
     arguments.parts = parts
+    known = (*PAIR_SETS, *PHOTO_FOLDERS)
+    arguments.sets = known if arguments.sets is None else tuple(n for n in arguments.sets.split(",") if n)
+    if not arguments.sets or set(arguments.sets) - set(known):
+        parser.error(f"--sets takes {', '.join(known)}; got {','.join(arguments.sets)!r}")
+    if set(arguments.sets) != set(known) and arguments.out == ROOT / RECORD_IN_REPOSITORY:
+        parser.error("--sets runs part of the record: name where it goes with --out (the committed record holds all)")
     return arguments
 
 
@@ -618,7 +631,7 @@ def _compare(record: dict[str, Any]) -> None:
 def _measure_pairs(arguments: argparse.Namespace) -> dict[str, Any]:
     measured: dict[str, Any] = {}
     with tempfile.TemporaryDirectory(prefix="real-data-") as scratch:
-        for name in PAIR_SETS:
+        for name in (n for n in PAIR_SETS if n in arguments.sets):
             _say(f"\npairs: {name}")
             root = arguments.data / "real-pairs" / name
             entry = measure_pair_set(root, arguments.limit, arguments.seed, Path(scratch))
@@ -629,7 +642,7 @@ def _measure_pairs(arguments: argparse.Namespace) -> dict[str, Any]:
 
 def _measure_photos(arguments: argparse.Namespace, network: DEN) -> dict[str, Any]:
     measured: dict[str, Any] = {}
-    for name in PHOTO_FOLDERS:
+    for name in (n for n in PHOTO_FOLDERS if n in arguments.sets):
         _say(f"\nphotos: {name}")
         folder = arguments.data / "real-lowlight" / "images" / name
         entry = measure_photo_folder(folder, arguments.limit, network, arguments.seed)

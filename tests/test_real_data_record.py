@@ -198,3 +198,18 @@ def test_a_clip_whose_lag1_cannot_show_persistence_is_neither_compared_nor_a_mis
     # At the bound a clip is compared.
     after["clips"]["clip142"]["lag1_response"] = real_data.MIN_LAG1_RESPONSE
     assert ("clips/clip142", "lag-1 gap (synthetic - real)") in _names(real_data.regressions(before, after))
+
+
+def test_sets_pick_part_of_the_record_only_where_out_says(
+    real_data: ModuleType, monkeypatch: pytest.MonkeyPatch, tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    monkeypatch.setattr(sys, "argv", ["real_data.py", "--sets", "nam-cc15,dicm", "--out", str(tmp_path / "r.json")])
+    assert real_data._arguments().sets == ("nam-cc15", "dicm")
+    # Part of the record never replaces the committed one, and a name that is no set is refused.
+    for argv in (["--sets", "nam-cc15"], ["--sets", "nam-cc16", "--out", str(tmp_path / "r.json")]):
+        monkeypatch.setattr(sys, "argv", ["real_data.py", *argv])
+        with pytest.raises(SystemExit):
+            real_data._arguments()
+        assert "--sets" in capsys.readouterr().err
+    monkeypatch.setattr(sys, "argv", ["real_data.py"])
+    assert set(real_data._arguments().sets) == {*real_data.PAIR_SETS, *real_data.PHOTO_FOLDERS}

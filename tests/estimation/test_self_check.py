@@ -97,9 +97,11 @@ def _spectral_values(level: float) -> NoiseValues:
     return NoiseValues.from_values({"level_curve": [level] * 24, "octave_power": [1.0] * 18}, dtype=torch.float32)
 
 
-def _reference(level: float, seed: int = 0) -> tuple[torch.Tensor, float]:
+def _reference(level: float, seed: int = 7) -> tuple[torch.Tensor, float]:
     """(3, 256, 320) the grey steps with white noise of std ``level`` on 8-bit levels, and the denoiser strength
-    the estimate would use (the noise in 8-bit levels)."""
+    the estimate would use (the noise in 8-bit levels). Its seed is not the check's (0): a reference drawn with the
+    check's own seed holds the very noise the check draws, which the denoised base keeps a little of and the
+    synthetic side then adds twice over (a true level read 1.1x)."""
     scene = _scene().float()
     noisy = quantised(
         add_noise(scene[None, None], _spectral_values(level), generator=torch.Generator().manual_seed(seed))
@@ -124,9 +126,10 @@ def test_a_level_the_reference_contradicts_is_scaled_to_what_it_supports(misread
     found = check_level(reference, _spectral_values(0.02 * misread), torch.full((3, 8), 0.02), strength, "ref.png")
     assert len(found.warnings) == 1 and found.warnings[0].startswith("ref.png: the measured noise put back")
     checked = found.curve[:, 1:5]  # the knots of the intensities the steps show (0.05-0.6)
-    # The denoised base keeps part of the noise (here about 0.7 of it: flat steps, a denoiser set to the noise), which
-    # the synthetic side carries under the profile's: the check settles up to 1.35x under the true level.
-    assert float((checked / 0.02).log().abs().max().exp()) < 1.4, found.curve
+    # A correction goes to the near edge of the consistent range, not to 1: the true level reads about 1.0 here
+    # (1.00-1.04), so the level settles at 0.8-0.85 of it from below and 1.2-1.25 from above.
+    low, high = (0.78, 0.9) if misread < 1 else (1.15, 1.3)
+    assert bool(((checked / 0.02 >= low) & (checked / 0.02 <= high)).all()), found.curve
     assert all(0.8 <= row["ratio"] <= 1.25 for row in found.meta["corrected"].values()), found.meta
 
 

@@ -7,8 +7,8 @@ the blocks whose denoised version is flattest and whose mean lies inside the 8-b
 of a lamp shows no noise). Real and synthetic hold the same denoised scene, so what the denoiser left of the scene
 counts on both sides alike; their ratio is 1 when the profile's noise is as strong as what the denoiser took off.
 What the denoiser left of the noise stays in the synthetic side's base under the profile's noise: a true level reads
-somewhat above 1 (white noise under a denoiser set to its level: about 1.1-1.2), inside the consistent range; a
-correction therefore moves a level only to the near edge of that range (:data:`CORRECTION_TARGET`).
+a little above 1 (white noise under a denoiser set to its level: 1.00-1.04), inside the consistent range; a
+correction moves a level only to the near edge of that range (:data:`CORRECTION_TARGET`).
 
 Pure functions on (3, H, W) frames in [0, 1].
 """
