@@ -43,7 +43,8 @@ summarise other pairs or photos than the record's and are left out of the compar
 figures are still compared.
 
 ``--sets nam-cc15,dicm --out FILE`` runs some pair sets and photo folders only (a look while developing; the committed
-record holds them all). ``--seed`` seeds the noise draws (each pair's synthesis, ``apply``'s draw, the static clip), not the estimate.
+record holds them all). ``--seed`` seeds the noise draws (each pair's synthesis, ``apply``'s draw, the static clip),
+not the estimate.
 Record: ``benchmarks/records/real_data.json`` (``--out``), with the commit measured, the tracked files that differed
 from it, the CPU, torch's threads and the run time (wall and processor seconds). It is compared with ``git show
 HEAD:benchmarks/records/real_data.json`` and every figure that moved further from its target by more than the
