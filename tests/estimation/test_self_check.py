@@ -133,6 +133,21 @@ def test_a_level_the_reference_contradicts_is_scaled_to_what_it_supports(misread
     assert all(0.8 <= row["ratio"] <= 1.25 for row in found.meta["corrected"].values()), found.meta
 
 
+def test_what_a_weak_denoiser_leaves_of_the_noise_is_not_read_as_the_profiles() -> None:
+    """Strong noise under a denoiser set to 0.6 of it (a phone at ISO 3200): the denoised base keeps about a third of
+    the noise's variance, which the synthetic side carries under the profile's. A level read 0.6x then shows 0.84x
+    the reference's block std, inside the consistent range; counting the leftover, the check reads it weak and raises
+    it, and keeps the true level as it is."""
+    reference, strength = _reference(0.06)
+    weak = check_level(reference, _spectral_values(0.036), torch.full((3, 8), 0.06), 0.6 * strength, "phone.png")
+    leftovers = [row["leftover"] for row in weak.meta["measured"].values()]
+    assert max(leftovers) > 0.25, weak.meta  # the denoiser left a sizeable share at the steps' intensities
+    assert weak.meta["kept"] == "measurement scaled to what the check supports", weak.meta
+    assert float((weak.curve[:, 2:5] / 0.06).min()) > 0.72, weak.curve  # raised from 0.6
+    true = check_level(reference, _spectral_values(0.06), torch.full((3, 8), 0.06), 0.6 * strength, "phone.png")
+    assert true.meta["kept"] == "measurement: its check passes" and true.warnings == [], true.meta
+
+
 def test_a_level_far_from_the_network_with_no_block_to_check_gives_way_to_the_network() -> None:
     frame = torch.zeros(3, 256, 256)
     frame[:, 100:140, 60:90] = 1.0  # a lamp on crushed black: no block between 8 and 247 levels

@@ -6,9 +6,12 @@ of a change on real data (over the whole reference: ``benchmarks/real_data.py``)
 the blocks whose denoised version is flattest and whose mean lies inside the 8-bit range (a block of crushed black or
 of a lamp shows no noise). Real and synthetic hold the same denoised scene, so what the denoiser left of the scene
 counts on both sides alike; their ratio is 1 when the profile's noise is as strong as what the denoiser took off.
-What the denoiser left of the noise stays in the synthetic side's base under the profile's noise: a true level reads
-a little above 1 (white noise under a denoiser set to its level: 1.00-1.04), inside the consistent range; a
-correction moves a level only to the near edge of that range (:data:`CORRECTION_TARGET`).
+What the denoiser left of the noise stays in the synthetic side's base under the profile's noise, and the real side
+does not have it twice: the synthetic side is read without it. How much it is (a share of the noise's variance: 0.02-0.1
+for noise the denoiser is set to, a third for a phone's ISO-3200 noise under a denoiser set to the level the
+estimate read) is read on noise of the profile's kind at the reference's level (:meth:`_CheckedWindow.leftovers`).
+A true level then reads about 1; a correction moves a level only to the near edge of the consistent range
+(:data:`CORRECTION_TARGET`).
 
 Pure functions on (3, H, W) frames in [0, 1].
 """
@@ -16,7 +19,7 @@ Pure functions on (3, H, W) frames in [0, 1].
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass
+from dataclasses import dataclass, field, replace
 from typing import Any
 
 import torch
@@ -45,19 +48,30 @@ MIN_CHECK_BLOCKS = 3
 
 @dataclass(frozen=True)
 class BlockCheck:
-    """The check on one set of blocks: the median over its blocks of the real and the synthetic std, and the median
-    variance of the denoised scene under the synthetic noise (what :meth:`supported_for` leaves out)."""
+    """The check on one set of blocks: the median over its blocks of the real and the synthetic std, the median
+    variance of the denoised reference under the synthetic noise (its scene and what the denoiser left of the
+    reference's noise: what :meth:`supported_for` leaves out), and the share of a noise's variance the denoiser
+    leaves (``leftover``, read on the profile's own noise; 0 where not read)."""
 
     blocks: int
     real_std: float
     synthetic_std: float
     scene_variance: float
+    leftover: float = 0.0
+
+    @property
+    def leftover_variance(self) -> float:
+        """What the denoiser left of the reference's noise in the denoised base (which the synthetic side carries
+        under the profile's noise and the real side does not): real = scene + noise and denoised = scene +
+        leftover * noise (variances) give noise = (real - denoised) / (1 - leftover)."""
+        noise = max(self.real_std**2 - self.scene_variance, 0.0) / (1.0 - self.leftover)
+        return self.leftover * noise
 
     def supported_for(self, target: float) -> float:
         """The level factor that brings the ratio to ``target``: real = scene + noise and synthetic = scene +
-        factor^2 * noise (variances); nan where the denoised scene alone is already as rough as that."""
+        leftover + factor^2 * noise (variances); nan where the denoised scene alone is already as rough as that."""
         noise_variance = self.synthetic_std**2 - self.scene_variance
-        wanted = (target * self.real_std) ** 2 - self.scene_variance
+        wanted = (target * self.real_std) ** 2 - self.scene_variance + self.leftover_variance
         return math.sqrt(wanted / noise_variance) if wanted > 0 and noise_variance > 0 else math.nan
 
     @property
@@ -86,8 +100,10 @@ class BlockCheck:
 
     @property
     def ratio(self) -> float:
-        """Synthetic over real std (1: the profile shows what the reference shows)."""
-        return self.synthetic_std / max(self.real_std, 1e-12)
+        """Synthetic over real std, the synthetic side without what the denoiser left of the reference's noise (1: the
+        profile shows what the reference shows)."""
+        synthetic = math.sqrt(max(self.synthetic_std**2 - self.leftover_variance, 0.0))
+        return synthetic / max(self.real_std, 1e-12)
 
     @property
     def consistent(self) -> bool:
@@ -164,6 +180,10 @@ CHECK_WINDOW = 1024
 """Side of the window of the reference the estimate checks itself on (its flattest unclipped one): a 4K frame's
 denoising would cost more than the rest of the estimate, and a 1024-px window holds about a thousand blocks."""
 
+LEFTOVER_BOUNDS = (0.0, 0.8)
+"""The shares of a noise's variance the denoiser may be read to leave: past 0.8 the reference's noise read through it
+(divided by 1 - share) would be mostly the reading's own error."""
+
 FACTOR_BOUNDS = (1.0 / 16.0, 4.0)
 """The level factors one step of a correction may take: a reference whose denoised scene alone is as rough as the
 reference supports no noise at all, which the lower bound stands for."""
@@ -231,28 +251,70 @@ def _within(checks: dict[int, BlockCheck], bounds: tuple[float, float]) -> bool:
 
 def _describe(checks: dict[int, BlockCheck]) -> dict[str, Any]:
     return {
-        _segment_label(s): {"blocks": c.blocks, "ratio": round(c.ratio, 3), "real_std_8bit": round(c.real_std * 255, 3)}
+        _segment_label(s): {
+            "blocks": c.blocks,
+            "ratio": round(c.ratio, 3),
+            "real_std_8bit": round(c.real_std * 255, 3),
+            "leftover": round(c.leftover, 3),
+        }
         for s, c in checks.items()
     }
 
 
 @dataclass(frozen=True)
 class _CheckedWindow:
-    """What every draw of a check shares: the window of the reference, its denoised version, the blocks per
-    segment, the profile's values and the seed."""
+    """What every draw of a check shares: the window of the reference, its denoised version (non-local means of
+    ``strength`` 8-bit levels), the blocks per segment, the profile's values and the seed."""
 
     frame: torch.Tensor
     denoised: torch.Tensor
+    strength: float
     strata: dict[int, torch.Tensor]
     values: NoiseValues
     seed: int
 
+    leftover: dict[int, float] = field(default_factory=dict)
+    """Per segment, the share of the reference's noise the denoiser left in the denoised window (:meth:`leftovers`;
+    0 where not read)."""
+
+    def _drawn(self, base: torch.Tensor, level: torch.Tensor, seed: int) -> torch.Tensor:
+        drawn = self.values.replace(level_curve=level.flatten()).to(dtype=torch.float32)
+        generator = torch.Generator().manual_seed(seed)
+        return quantised(add_noise(base[None, None], drawn, generator=generator)[0, 0])
+
     def checked(self, level: torch.Tensor) -> dict[int, BlockCheck]:
         """The check per segment of the profile with the level curve ``level`` (3, 8)."""
-        drawn = self.values.replace(level_curve=level.flatten()).to(dtype=torch.float32)
-        generator = torch.Generator().manual_seed(self.seed)
-        synthetic = quantised(add_noise(self.denoised[None, None], drawn, generator=generator)[0, 0])
-        return {s: block_check(self.frame, self.denoised, synthetic, b) for s, b in self.strata.items()}
+        synthetic = self._drawn(self.denoised, level, self.seed)
+        return {
+            s: replace(block_check(self.frame, self.denoised, synthetic, b), leftover=self.leftover.get(s, 0.0))
+            for s, b in self.strata.items()
+        }
+
+    def leftovers(self, level: torch.Tensor) -> dict[int, float]:
+        """Per segment, the share of a noise's variance the denoiser leaves, read on noise of the profile's kind (level
+        curve ``level`` (3, 8)) scaled per segment to the least noise the reference can hold (its block variance less
+        the denoised one's): drawn on the denoised window, denoised with the same strength, less the window denoised
+        twice, within :data:`LEFTOVER_BOUNDS`. Read at the reference's level, not the profile's: a denoiser set for
+        weaker noise leaves much of stronger noise (phones at ISO 3200: about a third), and a profile read 2x too
+        loud would otherwise be judged by the leftover of its own loud noise and pass."""
+        first = self.checked(level)
+        factors = {
+            s: math.sqrt((c.real_std**2 - c.scene_variance) / (c.synthetic_std**2 - c.scene_variance))
+            for s, c in first.items()
+            if c.real_std**2 > c.scene_variance and c.synthetic_std**2 > c.scene_variance
+        }
+        if not factors:
+            return {}
+        probe = self._drawn(self.denoised, level * _knot_factors(factors)[None, :], self.seed + 1)
+        left = nlm_denoise(probe[None], self.strength)[0] - nlm_denoise(self.denoised[None], self.strength)[0]
+        added = probe - self.denoised
+        shares = {}
+        for s in factors:
+            blocks = self.strata[s]
+            kept, drawn = (float(_block_std(x)[: blocks.numel()][blocks].square().median()) for x in (left, added))
+            # The probe's frame holds the base's leftover beside the drawn noise, as much noise as the reference.
+            shares[s] = min(max(kept / max(drawn + first[s].scene_variance, 1e-12), 0.0), LEFTOVER_BOUNDS[1])
+        return shares
 
 
 def check_level(
@@ -273,8 +335,9 @@ def check_level(
     top, left, height, width = analysis_window(reference, CHECK_WINDOW)
     frame = reference[:, top : top + height, left : left + width].to(torch.float32)
     denoised = nlm_denoise(frame[None], strength)[0]
-    window = _CheckedWindow(frame, denoised, checked_blocks_per_intensity(denoised), values, seed)
+    window = _CheckedWindow(frame, denoised, strength, checked_blocks_per_intensity(denoised), values, seed)
     curve = values["level_curve"].reshape(3, len(LEVEL_KNOTS)).to(torch.float64)
+    window = replace(window, leftover=window.leftovers(curve))
     network_curve = network_curve.to(curve)
     disagreement = over_network(curve, network_curve)
     meta: dict[str, Any] = {"window": [top, left, height, width], "over_network": round(disagreement, 3)}
