@@ -6,7 +6,8 @@ of a change on real data (over the whole reference: ``benchmarks/real_data.py``)
 the blocks whose denoised version is flattest and whose mean lies inside the 8-bit range (a block of crushed black or
 of a lamp shows no noise). The estimate reads it per channel, on blocks sorted by that channel's own mean (a cell:
 segment and channel); the judgement over the whole reference reads the mean over channels. Real and synthetic hold
-the same denoised scene, so what the denoiser left of the scene counts on both sides alike; their ratio is 1 when the profile's noise is as strong as what the denoiser took off.
+the same denoised scene, so what the denoiser left of the scene counts on both sides alike; their ratio is 1 when the
+profile's noise is as strong as what the denoiser took off.
 What the denoiser left of the noise stays in the synthetic side's base under the profile's noise, and the real side
 does not have it twice: the synthetic side is read without it. How much it is (a share of the noise's variance: 0.02-0.1
 for noise the denoiser is set to, a third for a phone's ISO-3200 noise under a denoiser set to the level the
