@@ -4,10 +4,8 @@ show on the flattest blocks the noise the reference shows there.
 One statistic serves the estimate (per intensity, to correct a level the reference contradicts) and the judgement
 of a change on real data (over the whole reference: ``benchmarks/real_data.py``): the std of 32-px blocks, read on
 the blocks whose denoised version is flattest and whose mean lies inside the 8-bit range (a block of crushed black or
-of a lamp shows no noise). The estimate reads it per channel, on blocks sorted by that channel's own mean (a cell:
-segment and channel); the judgement over the whole reference reads the mean over channels. Real and synthetic hold
-the same denoised scene, so what the denoiser left of the scene counts on both sides alike; their ratio is 1 when the
-profile's noise is as strong as what the denoiser took off.
+of a lamp shows no noise). Real and synthetic hold the same denoised scene, so what the denoiser left of the scene
+counts on both sides alike; their ratio is 1 when the profile's noise is as strong as what the denoiser took off.
 What the denoiser left of the noise stays in the synthetic side's base under the profile's noise, and the real side
 does not have it twice: the synthetic side is read without it. How much it is (a share of the noise's variance: 0.02-0.1
 for noise the denoiser is set to, a third for a phone's ISO-3200 noise under a denoiser set to the level the
@@ -43,11 +41,6 @@ scale (a camera's crushed black, a lamp) and the block shows less than the noise
 
 CONSISTENT_RANGE = (0.8, 1.25)
 """Synthetic over real std within this range: the profile reproduces what the reference shows."""
-
-Cell = tuple[int, int]
-"""What a check reads on: a segment of the level curve and a channel (0-2: red, green, blue)."""
-
-CHANNEL_NAMES = ("red", "green", "blue")
 
 MIN_CHECK_BLOCKS = 3
 """Fewest blocks an intensity needs before its ratio is read (one or two blocks are one patch of scene)."""
@@ -117,18 +110,16 @@ class BlockCheck:
         return CONSISTENT_RANGE[0] <= self.ratio <= CONSISTENT_RANGE[1]
 
 
-def _block_std(frame: torch.Tensor, channel: int | None = None) -> torch.Tensor:
-    """(rows * cols,) std of each whole 32-px block of ``frame`` (3, H, W) about the block's mean: of one
-    ``channel``, or the mean over channels of each channel's."""
-    chosen = frame if channel is None else frame[channel : channel + 1]
-    blocks = F.unfold(chosen[:, None].to(torch.float64), FLAT_BLOCK, stride=FLAT_BLOCK)
+def _block_std(frame: torch.Tensor) -> torch.Tensor:
+    """(rows * cols,) std of each whole 32-px block of ``frame`` (3, H, W), the mean over channels of each
+    channel's std about the block's mean."""
+    blocks = F.unfold(frame[:, None].to(torch.float64), FLAT_BLOCK, stride=FLAT_BLOCK)
     return blocks.std(dim=1).mean(0)
 
 
-def _block_means(frame: torch.Tensor, channel: int | None = None) -> torch.Tensor:
-    """(rows * cols,) the mean of each block of ``frame`` (3, H, W): of one ``channel``, or of the grey."""
-    plane = frame.mean(0) if channel is None else frame[channel]
-    return F.avg_pool2d(plane[None, None].to(torch.float64), FLAT_BLOCK)[0, 0].flatten()
+def _block_means(frame: torch.Tensor) -> torch.Tensor:
+    grey = frame.mean(0)[None, None].to(torch.float64)
+    return F.avg_pool2d(grey, FLAT_BLOCK)[0, 0].flatten()
 
 
 def _flattest(candidates: torch.Tensor, gradient: torch.Tensor, least: int) -> torch.Tensor:
@@ -140,13 +131,11 @@ def _flattest(candidates: torch.Tensor, gradient: torch.Tensor, least: int) -> t
     return chosen
 
 
-def _in_range_blocks(
-    denoised: torch.Tensor, channel: int | None = None
-) -> tuple[torch.Tensor, torch.Tensor, torch.Tensor]:
-    """(rows * cols,) each of the blocks of ``denoised`` (3, H, W): the gradient, the mean (of one ``channel``, or
-    of the grey), and whether the mean lies in :data:`CHECK_MEAN_RANGE`."""
+def _in_range_blocks(denoised: torch.Tensor) -> tuple[torch.Tensor, torch.Tensor, torch.Tensor]:
+    """(rows * cols,) each of the blocks of ``denoised`` (3, H, W): the gradient, the mean, and whether the mean
+    lies in :data:`CHECK_MEAN_RANGE`."""
     gradient = block_gradient(denoised).flatten().to(torch.float64)
-    means = _block_means(denoised, channel)[: gradient.numel()]
+    means = _block_means(denoised)[: gradient.numel()]
     return gradient, means, (means >= CHECK_MEAN_RANGE[0]) & (means <= CHECK_MEAN_RANGE[1])
 
 
@@ -157,12 +146,11 @@ def checked_blocks(denoised: torch.Tensor) -> torch.Tensor:
     return _flattest(inside, gradient, 1)
 
 
-def checked_blocks_per_intensity(denoised: torch.Tensor, channel: int | None = None) -> dict[int, torch.Tensor]:
+def checked_blocks_per_intensity(denoised: torch.Tensor) -> dict[int, torch.Tensor]:
     """Per segment of the level curve (:func:`~darksynth.estimation.noise.flat_blocks.level_stratum`) that holds
     :data:`MIN_CHECK_BLOCKS` blocks in :data:`CHECK_MEAN_RANGE`, the flattest :data:`CHECK_SHARE` of them (at least
-    :data:`MIN_CHECK_BLOCKS`): flat for the noise at that intensity. Intensity is one ``channel``'s block mean, or
-    the grey's."""
-    gradient, means, inside = _in_range_blocks(denoised, channel)
+    :data:`MIN_CHECK_BLOCKS`): flat for the noise at that intensity."""
+    gradient, means, inside = _in_range_blocks(denoised)
     stratum = level_stratum(means)
     chosen: dict[int, torch.Tensor] = {}
     for segment in sorted(set(stratum[inside].tolist())):
@@ -172,28 +160,12 @@ def checked_blocks_per_intensity(denoised: torch.Tensor, channel: int | None = N
     return chosen
 
 
-def checked_cells(denoised: torch.Tensor) -> dict[Cell, torch.Tensor]:
-    """Per channel, :func:`checked_blocks_per_intensity` of that channel: a channel's level curve is indexed by the
-    channel's own value, which on a coloured block lies far from the grey's (a red wall at grey 60 is red 150)."""
-    return {
-        (segment, channel): blocks
-        for channel in range(len(CHANNEL_NAMES))
-        for segment, blocks in checked_blocks_per_intensity(denoised, channel).items()
-    }
-
-
 def block_check(
-    reference: torch.Tensor,
-    denoised: torch.Tensor,
-    synthetic: torch.Tensor,
-    blocks: torch.Tensor,
-    channel: int | None = None,
+    reference: torch.Tensor, denoised: torch.Tensor, synthetic: torch.Tensor, blocks: torch.Tensor
 ) -> BlockCheck:
-    """The check on the ``blocks`` (rows * cols,) bool, of one ``channel`` or of the mean over channels:
-    ``synthetic`` is the profile's noise added to ``denoised`` (all three (3, H, W), the same size)."""
-    real, clean, made = (
-        _block_std(frame, channel)[: blocks.numel()][blocks] for frame in (reference, denoised, synthetic)
-    )
+    """The check on the ``blocks`` (rows * cols,) bool: ``synthetic`` is the profile's noise added to ``denoised``
+    (all three (3, H, W), the same size)."""
+    real, clean, made = (_block_std(frame)[: blocks.numel()][blocks] for frame in (reference, denoised, synthetic))
     real_std, synthetic_std = float(real.median()), float(made.median())
     return BlockCheck(int(blocks.sum()), real_std, synthetic_std, float(clean.square().median()))
 
@@ -247,20 +219,6 @@ def _segment_label(segment: int) -> str:
     return f"{low * 255:.0f}-{high * 255:.0f}"
 
 
-def _cell_label(cell: Cell) -> str:
-    return f"{_segment_label(cell[0])} levels in {CHANNEL_NAMES[cell[1]]}"
-
-
-def _curve_factors(factors: dict[Cell, float]) -> torch.Tensor:
-    """(3, 8) a factor per channel and level knot from the factors of the cells (:func:`_knot_factors` per channel;
-    1 for a channel with none)."""
-    rows = []
-    for channel in range(len(CHANNEL_NAMES)):
-        mine = {segment: f for (segment, c), f in factors.items() if c == channel}
-        rows.append(_knot_factors(mine) if mine else torch.ones(len(LEVEL_KNOTS), dtype=torch.float64))
-    return torch.stack(rows)
-
-
 def _knot_factors(factors: dict[int, float]) -> torch.Tensor:
     """(8,) a factor per level knot from the factors of the segments (knot k bounds segments k - 1 and k): the
     geometric mean of its checked neighbours, else the nearest checked segment's."""
@@ -274,12 +232,12 @@ def _knot_factors(factors: dict[int, float]) -> torch.Tensor:
     return knots
 
 
-def _worst(checks: dict[Cell, BlockCheck]) -> float:
+def _worst(checks: dict[int, BlockCheck]) -> float:
     """The largest departure from 1 over the checked segments, as a factor (1: all consistent)."""
     return max((math.exp(abs(math.log(max(c.ratio, 1e-12)))) for c in checks.values()), default=1.0)
 
 
-def _worst_said(checks: dict[Cell, BlockCheck]) -> str:
+def _worst_said(checks: dict[int, BlockCheck]) -> str:
     """:func:`_worst` as a warning says it: a segment left with no synthetic noise at all reads as such, not as a
     factor of a trillion."""
     if any(c.ratio <= 0.0 for c in checks.values()):
@@ -287,21 +245,20 @@ def _worst_said(checks: dict[Cell, BlockCheck]) -> str:
     return f"{_worst(checks):.2f}x"
 
 
-def _within(checks: dict[Cell, BlockCheck], bounds: tuple[float, float]) -> bool:
+def _within(checks: dict[int, BlockCheck], bounds: tuple[float, float]) -> bool:
     return all(bounds[0] <= c.ratio <= bounds[1] for c in checks.values())
 
 
-def _describe(checks: dict[Cell, BlockCheck]) -> dict[str, Any]:
-    """Per segment, per channel read there: its blocks, the ratio, the reference's std and the leftover."""
-    described: dict[str, Any] = {}
-    for (segment, channel), c in sorted(checks.items()):
-        described.setdefault(_segment_label(segment), {})[CHANNEL_NAMES[channel]] = {
+def _describe(checks: dict[int, BlockCheck]) -> dict[str, Any]:
+    return {
+        _segment_label(s): {
             "blocks": c.blocks,
             "ratio": round(c.ratio, 3),
             "real_std_8bit": round(c.real_std * 255, 3),
             "leftover": round(c.leftover, 3),
         }
-    return described
+        for s, c in checks.items()
+    }
 
 
 @dataclass(frozen=True)
@@ -312,31 +269,28 @@ class _CheckedWindow:
     frame: torch.Tensor
     denoised: torch.Tensor
     strength: float
-    strata: dict[Cell, torch.Tensor]
+    strata: dict[int, torch.Tensor]
     values: NoiseValues
     seed: int
 
-    leftover: dict[Cell, float] = field(default_factory=dict)
-    """Per segment and channel, the share of the reference's noise the denoiser left in the denoised window
-    (:meth:`leftovers`; 0 where not read)."""
+    leftover: dict[int, float] = field(default_factory=dict)
+    """Per segment, the share of the reference's noise the denoiser left in the denoised window (:meth:`leftovers`;
+    0 where not read)."""
 
     def _drawn(self, base: torch.Tensor, level: torch.Tensor, seed: int) -> torch.Tensor:
         drawn = self.values.replace(level_curve=level.flatten()).to(dtype=torch.float32)
         generator = torch.Generator().manual_seed(seed)
         return quantised(add_noise(base[None, None], drawn, generator=generator)[0, 0])
 
-    def checked(self, level: torch.Tensor) -> dict[Cell, BlockCheck]:
-        """The check per segment and channel of the profile with the level curve ``level`` (3, 8): a channel read
-        too weak and another too strong average to a pass (phones: red 0.64x and blue 1.36x the clean image's)."""
+    def checked(self, level: torch.Tensor) -> dict[int, BlockCheck]:
+        """The check per segment of the profile with the level curve ``level`` (3, 8)."""
         synthetic = self._drawn(self.denoised, level, self.seed)
         return {
-            cell: replace(
-                block_check(self.frame, self.denoised, synthetic, b, cell[1]), leftover=self.leftover.get(cell, 0.0)
-            )
-            for cell, b in self.strata.items()
+            s: replace(block_check(self.frame, self.denoised, synthetic, b), leftover=self.leftover.get(s, 0.0))
+            for s, b in self.strata.items()
         }
 
-    def leftovers(self, level: torch.Tensor) -> dict[Cell, float]:
+    def leftovers(self, level: torch.Tensor) -> dict[int, float]:
         """Per segment, the share of a noise's variance the denoiser leaves, read on noise of the profile's kind (level
         curve ``level`` (3, 8)) scaled per segment to the least noise the reference can hold (its block variance less
         the denoised one's): drawn on the denoised window, denoised with the same strength, less the window denoised
@@ -351,18 +305,15 @@ class _CheckedWindow:
         }
         if not factors:
             return {}
-        probe = self._drawn(self.denoised, level * _curve_factors(factors), self.seed + 1)
+        probe = self._drawn(self.denoised, level * _knot_factors(factors)[None, :], self.seed + 1)
         left = nlm_denoise(probe[None], self.strength)[0] - nlm_denoise(self.denoised[None], self.strength)[0]
         added = probe - self.denoised
         shares = {}
-        for s, channel in factors:
-            blocks = self.strata[(s, channel)]
-            kept, drawn = (
-                float(_block_std(x, channel)[: blocks.numel()][blocks].square().median()) for x in (left, added)
-            )
+        for s in factors:
+            blocks = self.strata[s]
+            kept, drawn = (float(_block_std(x)[: blocks.numel()][blocks].square().median()) for x in (left, added))
             # The probe's frame holds the base's leftover beside the drawn noise, as much noise as the reference.
-            share = kept / max(drawn + first[(s, channel)].scene_variance, 1e-12)
-            shares[(s, channel)] = min(max(share, 0.0), LEFTOVER_BOUNDS[1])
+            shares[s] = min(max(kept / max(drawn + first[s].scene_variance, 1e-12), 0.0), LEFTOVER_BOUNDS[1])
         return shares
 
 
@@ -384,7 +335,7 @@ def check_level(
     top, left, height, width = analysis_window(reference, CHECK_WINDOW)
     frame = reference[:, top : top + height, left : left + width].to(torch.float32)
     denoised = nlm_denoise(frame[None], strength)[0]
-    window = _CheckedWindow(frame, denoised, strength, checked_cells(denoised), values, seed)
+    window = _CheckedWindow(frame, denoised, strength, checked_blocks_per_intensity(denoised), values, seed)
     curve = values["level_curve"].reshape(3, len(LEVEL_KNOTS)).to(torch.float64)
     window = replace(window, leftover=window.leftovers(curve))
     network_curve = network_curve.to(curve)
@@ -423,7 +374,7 @@ def _unchecked(
 def _corrected(
     window: _CheckedWindow,
     curve: torch.Tensor,
-    first: dict[Cell, BlockCheck],
+    first: dict[int, BlockCheck],
     network_curve: torch.Tensor,
     meta: dict[str, Any],
     name: str,
@@ -434,18 +385,18 @@ def _corrected(
     for _ in range(CORRECTION_STEPS):
         # A segment's std follows both of its knots, and a knot serves two segments: a few steps settle them.
         step = {s: c.correction() for s, c in second.items()}
-        corrected = corrected * _curve_factors(step)
+        corrected = corrected * _knot_factors(step)[None, :]
         second = window.checked(corrected)
         if _within(second, CONSISTENT_RANGE):
             break
-    # Each checked cell's factor: the mean of its segment's two knots' in its channel.
-    knot_ratio = corrected / curve.clamp_min(1e-12)
-    factors = {(s, c): float(knot_ratio[c, s : s + 2].mean()) for s, c in first}
+    factors = {
+        s: float(v) for s, v in enumerate((corrected / curve.clamp_min(1e-12)).mean(0)[:-1].tolist()) if s in first
+    }
     meta = meta | {"corrected": _describe(second)}
     worst_first = max(first.items(), key=lambda item: abs(math.log(max(item[1].ratio, 1e-12))))
     said = (
         f"{name}: the measured noise put back on the denoised reference gives {worst_first[1].ratio:.2f}x the noise "
-        f"the reference shows at {_cell_label(worst_first[0])}"
+        f"the reference shows at {_segment_label(worst_first[0])} levels"
     )
     far = _far(curve, network_curve)
     if _within(second, FALLBACK_RANGE) and (
@@ -487,6 +438,6 @@ def _far(curve: torch.Tensor, network_curve: torch.Tensor) -> bool:
     return far_from_network(over_network(curve, network_curve))
 
 
-def _span(factors: dict[Cell, float]) -> str:
+def _span(factors: dict[int, float]) -> str:
     low, high = min(factors.values()), max(factors.values())
-    return f"{low:.2f}" if math.isclose(low, high, rel_tol=0.01) else f"{low:.2f}-{high:.2f} by intensity and channel"
+    return f"{low:.2f}" if math.isclose(low, high, rel_tol=0.01) else f"{low:.2f}-{high:.2f} by intensity"
