@@ -51,7 +51,7 @@ class BlockCheck:
     """The check on one set of blocks: the median over its blocks of the real and the synthetic std, the median
     variance of the denoised reference under the synthetic noise (its scene and what the denoiser left of the
     reference's noise: what :meth:`supported_for` leaves out), and the share of a noise's variance the denoiser
-    leaves (``leftover``, read on the profile's own noise; 0 where not read)."""
+    leaves (``leftover``, :meth:`_CheckedWindow.leftovers`; 0 where not read)."""
 
     blocks: int
     real_std: float
@@ -290,14 +290,14 @@ class _CheckedWindow:
             for s, b in self.strata.items()
         }
 
-    def leftovers(self, level: torch.Tensor) -> dict[int, float]:
+    def leftovers(self, first: dict[int, BlockCheck], level: torch.Tensor) -> dict[int, float]:
         """Per segment, the share of a noise's variance the denoiser leaves, read on noise of the profile's kind (level
-        curve ``level`` (3, 8)) scaled per segment to the least noise the reference can hold (its block variance less
-        the denoised one's): drawn on the denoised window, denoised with the same strength, less the window denoised
-        twice, within :data:`LEFTOVER_BOUNDS`. Read at the reference's level, not the profile's: a denoiser set for
-        weaker noise leaves much of stronger noise (phones at ISO 3200: about a third), and a profile read 2x too
-        loud would otherwise be judged by the leftover of its own loud noise and pass."""
-        first = self.checked(level)
+        curve ``level`` (3, 8), whose check without a leftover is ``first``) scaled per segment to the least noise
+        the reference can hold (its block variance less the denoised one's): drawn on the denoised window, denoised
+        with the same strength, less the window denoised twice, within :data:`LEFTOVER_BOUNDS`. Read at the
+        reference's level, not the profile's: a denoiser set for weaker noise leaves much of stronger noise (phones
+        at ISO 3200: about a third), and a profile read 2x too loud would otherwise be judged by the leftover of its
+        own loud noise and pass."""
         factors = {
             s: math.sqrt((c.real_std**2 - c.scene_variance) / (c.synthetic_std**2 - c.scene_variance))
             for s, c in first.items()
@@ -313,7 +313,8 @@ class _CheckedWindow:
             blocks = self.strata[s]
             kept, drawn = (float(_block_std(x)[: blocks.numel()][blocks].square().median()) for x in (left, added))
             # The probe's frame holds the base's leftover beside the drawn noise, as much noise as the reference.
-            shares[s] = min(max(kept / max(drawn + first[s].scene_variance, 1e-12), 0.0), LEFTOVER_BOUNDS[1])
+            share = kept / max(drawn + first[s].scene_variance, 1e-12)
+            shares[s] = min(max(share, LEFTOVER_BOUNDS[0]), LEFTOVER_BOUNDS[1])
         return shares
 
 
@@ -337,13 +338,15 @@ def check_level(
     denoised = nlm_denoise(frame[None], strength)[0]
     window = _CheckedWindow(frame, denoised, strength, checked_blocks_per_intensity(denoised), values, seed)
     curve = values["level_curve"].reshape(3, len(LEVEL_KNOTS)).to(torch.float64)
-    window = replace(window, leftover=window.leftovers(curve))
+    # One draw serves the first check and the leftover's scaling; the leftover then joins the window's every check.
+    unread = window.checked(curve)
+    window = replace(window, leftover=window.leftovers(unread, curve))
     network_curve = network_curve.to(curve)
     disagreement = over_network(curve, network_curve)
     meta: dict[str, Any] = {"window": [top, left, height, width], "over_network": round(disagreement, 3)}
     if not window.strata:
         return _unchecked(curve, network_curve, disagreement, meta, name)
-    first = window.checked(curve)
+    first = {s: replace(c, leftover=window.leftover.get(s, 0.0)) for s, c in unread.items()}
     meta["measured"] = _describe(first)
     if _within(first, CONSISTENT_RANGE):
         meta["kept"] = "measurement: its check passes"
