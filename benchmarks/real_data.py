@@ -96,9 +96,9 @@ import torch
 from darksynth.apply import ApplyOptions, synthesize_image
 from darksynth.errors import DarksynthError
 from darksynth.estimation.assemble import estimate
+from darksynth.estimation.noise.block_check import CONSISTENT_RANGE, self_consistency
 from darksynth.estimation.noise.flat_blocks import stated_denoiser_strength
 from darksynth.estimation.noise.nonlocal_means import nlm_denoise
-from darksynth.estimation.noise.self_check import CONSISTENT_RANGE, self_consistency
 from darksynth.estimation.reference import load_reference
 from darksynth.evaluation.measures.structure import BAND_LABELS, COMPONENTS
 from darksynth.evaluation.pairs import list_pair_set

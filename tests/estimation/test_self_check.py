@@ -8,15 +8,15 @@ import math
 import pytest
 import torch
 
-from darksynth.estimation.noise.self_check import (
+from darksynth.estimation.noise.block_check import (
     CHECK_MEAN_RANGE,
     FACTOR_BOUNDS,
     BlockCheck,
-    check_level,
     checked_blocks,
     checked_blocks_per_intensity,
     self_consistency,
 )
+from darksynth.estimation.noise.self_check import check_level
 from darksynth.estimation.noise.spectral_fit import quantised
 from darksynth.noise.simulate import add_noise
 from darksynth.noise.values import NoiseValues
@@ -157,3 +157,28 @@ def test_a_level_far_from_the_network_with_no_block_to_check_gives_way_to_the_ne
     assert len(found.warnings) == 1 and "no flat block of 8-247 levels can check it" in found.warnings[0]
     near = check_level(frame, _spectral_values(0.01), network, 3.0, "night.jpg")
     assert near.warnings == [] and near.meta["kept"] == "measurement, unchecked"
+
+
+def test_fine_texture_the_denoiser_takes_off_does_not_raise_a_true_level() -> None:
+    """Grain alike in every channel, as strong as the noise, on every block (fabric, a wall's render): the denoiser
+    takes much of it off with the noise, so the reference shows about 0.7x more on its flattest blocks than the true
+    level put back. What it took off is alike across channels, unlike the profile's noise: the level is not raised,
+    and the warning says so. Without the grain the same noise reads as noise."""
+    scene = _scene().float()
+    grain = 0.02 * torch.randn(scene.shape[1:], generator=torch.Generator().manual_seed(11))
+    textured = quantised(
+        add_noise(
+            (scene + grain[None]).clamp(0, 1)[None, None],
+            _spectral_values(0.02),
+            generator=torch.Generator().manual_seed(7),
+        )
+    )[0, 0]
+    found = check_level(textured, _spectral_values(0.02), torch.full((3, 8), 0.02), 0.02 * 255, "fabric.png")
+    measured = found.meta["measured"].values()
+    assert all(row["ratio"] < 0.8 and row["texture_like"] for row in measured), found.meta  # a raise, before
+    assert torch.allclose(found.curve, torch.full((3, 8), 0.02, dtype=torch.float64))
+    assert found.meta["kept"] == "measurement: its check passes"
+    assert len(found.warnings) == 1 and "alike across channels or smoother than noise" in found.warnings[0]
+    reference, strength = _reference(0.02)
+    plain = check_level(reference, _spectral_values(0.02), torch.full((3, 8), 0.02), strength, "ref.png")
+    assert not any(row["texture_like"] for row in plain.meta["measured"].values()), plain.meta
