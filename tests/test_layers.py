@@ -93,6 +93,7 @@ ESTIMATION_STAGES: dict[str, int] = {
     "spectral_statistics": 0,
     "texture_fit": 0,
     "spectral_fit": 1,
+    "block_check": 1,
     "self_check": 2,
     "coarse_anchor": 2,
     "camera_conditional": 2,
