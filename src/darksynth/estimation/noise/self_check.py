@@ -5,9 +5,9 @@ show on the flattest blocks of each intensity the noise the reference shows ther
 How much of the reference's noise the denoiser left in its output (a share of the noise's variance: 0.02-0.1 for
 noise the denoiser is set to, a third for a phone's ISO-3200 noise under a denoiser set to the level the estimate
 read) is read on noise of the profile's kind at the reference's level (:meth:`_CheckedWindow.leftovers`). A true
-level then reads about 1; a correction moves a level only to the near edge of the consistent range
-(:data:`~darksynth.estimation.noise.block_check.CORRECTION_TARGET`), and a weak reading on texture-like blocks moves
-nothing.
+level then reads about 1; a correction from below aims at 1, one from above at the near edge of the consistent
+range (:data:`~darksynth.estimation.noise.block_check.CORRECTION_TARGET`), and a weak reading on texture-like blocks
+moves nothing.
 
 Pure functions on (3, H, W) frames in [0, 1].
 """
