@@ -56,7 +56,7 @@ class BlockCheck:
     """The check on one set of blocks: the median over its blocks of the real and the synthetic std, the median
     variance of the denoised reference under the synthetic noise (its scene and what the denoiser left of the
     reference's noise: what :meth:`supported_for` leaves out), and the share of a noise's variance the denoiser
-    leaves (``leftover``, :meth:`_CheckedWindow.leftovers`; 0 where not read)."""
+    leaves (``leftover``, :meth:`darksynth.estimation.noise.self_check._CheckedWindow.leftovers`; 0 where not read)."""
 
     blocks: int
     real_std: float
@@ -79,18 +79,18 @@ class BlockCheck:
         )
 
     @property
-    def weakness_unread(self) -> bool:
+    def weak_on_texture(self) -> bool:
         """A ratio under 1 on texture-like blocks: the reference shows more than the profile there, but not noise."""
         return self.ratio < 1.0 and self.texture_like
 
     def within(self, bounds: tuple[float, float]) -> bool:
-        """The ratio within ``bounds``, or under them where :attr:`weakness_unread`."""
-        return self.ratio <= bounds[1] and (bounds[0] <= self.ratio or self.weakness_unread)
+        """The ratio within ``bounds``, or under them where :attr:`weak_on_texture`."""
+        return self.ratio <= bounds[1] and (bounds[0] <= self.ratio or self.weak_on_texture)
 
     @property
     def departure(self) -> float:
-        """How far the ratio lies from 1, as a factor; 1 where :attr:`weakness_unread`."""
-        return 1.0 if self.weakness_unread else math.exp(abs(math.log(max(self.ratio, 1e-12))))
+        """How far the ratio lies from 1, as a factor; 1 where :attr:`weak_on_texture`."""
+        return 1.0 if self.weak_on_texture else math.exp(abs(math.log(max(self.ratio, 1e-12))))
 
     @property
     def leftover_variance(self) -> float:

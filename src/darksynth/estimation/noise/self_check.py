@@ -205,7 +205,7 @@ def check_level(
             f"{name}: the measured level, {disagreement:.1f}x the network's, passes the self-check on the flattest "
             "blocks; where those are texture (foliage, stone), texture passes it too: look at a preview"
         )
-        not_raised = _unread_said(first)
+        not_raised = _not_raised_said(first)
         return SelfCheck(
             curve,
             meta,
@@ -215,12 +215,12 @@ def check_level(
     return _corrected(window, curve, first, network_curve, meta, name)
 
 
-def _unread_said(first: dict[int, BlockCheck]) -> str:
+def _not_raised_said(first: dict[int, BlockCheck]) -> str:
     """The intensities whose first check read weak on texture-like blocks, as a clause of a warning ('' if none)."""
-    unread = {s: c for s, c in first.items() if c.weakness_unread and c.ratio < CONSISTENT_RANGE[0]}
-    if not unread:
+    not_raised = {s: c for s, c in first.items() if c.weak_on_texture and c.ratio < CONSISTENT_RANGE[0]}
+    if not not_raised:
         return ""
-    where = ", ".join(f"{c.ratio:.2f}x at {_segment_label(s)}" for s, c in unread.items())
+    where = ", ".join(f"{c.ratio:.2f}x at {_segment_label(s)}" for s, c in not_raised.items())
     return (
         f"; where the profile shows less than the reference ({where} levels), what the denoiser took off is more "
         "alike across channels or smoother than noise (texture, or colour the profile has wrong): not raised"
@@ -267,7 +267,7 @@ def _corrected(
     worst_first = max(first.items(), key=lambda item: item[1].departure)
     said = (
         f"{name}: the measured noise put back on the denoised reference gives {worst_first[1].ratio:.2f}x the noise "
-        f"the reference shows at {_segment_label(worst_first[0])} levels{_unread_said(first)}"
+        f"the reference shows at {_segment_label(worst_first[0])} levels{_not_raised_said(first)}"
     )
     far = _far(curve, network_curve)
     if _within(second, FALLBACK_RANGE) and (
