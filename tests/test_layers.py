@@ -90,6 +90,7 @@ ESTIMATION_STAGES: dict[str, int] = {
     "nonlocal_means": 0,
     "flat_blocks": 0,
     "jpeg_grid": 0,
+    "jpeg_quality": 0,
     "spectral_statistics": 0,
     "texture_fit": 0,
     "spectral_fit": 1,

@@ -49,6 +49,7 @@ from darksynth.estimation.noise.flat_blocks import (
     denoiser_strength,
     flat_mask,
 )
+from darksynth.estimation.noise.jpeg_quality import read_compression
 from darksynth.estimation.noise.nonlocal_means import nlm_denoise
 from darksynth.estimation.noise.resynthesis import FittedReference, Resynthesis
 from darksynth.estimation.noise.spectral_fit import (
@@ -345,17 +346,18 @@ def _compression_search(
     target: SpectralStatistics,
     start: SpectralParameters,
     constrain: Callable[[SpectralParameters], SpectralParameters],
+    candidates: tuple[float, ...],
 ) -> tuple[dict[float, SpectralParameters], dict[float, float]]:
-    """Each JPEG strength fitted on the first frame from ``start``, with what each left over; a strength whose
-    first simulation matches the target :data:`CANDIDATE_RULED_OUT` times worse than the best one's is not fitted
-    further (its score is that first mismatch)."""
+    """Each JPEG strength of ``candidates`` fitted on the first frame from ``start``, with what each left over; a
+    strength whose first simulation matches the target :data:`CANDIDATE_RULED_OUT` times worse than the best one's
+    is not fitted further (its score is that first mismatch)."""
     start = constrain(start)
-    first = {c: resynthesis.simulator(c, 1)(start, 0) for c in COMPRESSION_CANDIDATES}
+    first = {c: resynthesis.simulator(c, 1)(start, 0) for c in candidates}
     first_mismatch = {c: mismatch(target, statistics) for c, statistics in first.items()}
     best = min(first_mismatch.values())
     fits: dict[float, SpectralParameters] = {}
     scores: dict[float, float] = {}
-    for compression in COMPRESSION_CANDIDATES:
+    for compression in candidates:
         if first_mismatch[compression] > CANDIDATE_RULED_OUT * best:
             fits[compression], scores[compression] = start, first_mismatch[compression]
             continue
@@ -429,7 +431,9 @@ def _fit(
             parameters.covariances = anchor.apply(parameters.covariances, first_unmeasured)
         return constrain_curve(parameters)
 
-    fits, scores = _compression_search(resynthesis, spatial_target, start, constrain)
+    lattice_read, meta["jpeg_lattice"] = read_compression(analysed[0], COMPRESSION_CANDIDATES)
+    candidates = COMPRESSION_CANDIDATES if lattice_read is None else (lattice_read,)
+    fits, scores = _compression_search(resynthesis, spatial_target, start, constrain, candidates)
     chosen = min(scores, key=lambda c: scores[c])
     # A knot's response is probed where the fit has brought the level: at the raw residual's level (too weak on
     # textured references) texture dominates every knot's statistic and none would seem to respond.
