@@ -45,11 +45,13 @@ def test_each_candidate_s_quality_is_read_at_any_grid_phase(
 def test_noise_never_encoded_and_other_qualities_read_nothing() -> None:
     for seed in range(3):
         frame = _noisy(seed)
-        for reference in (frame, jpeg_compress(frame, 95), jpeg_compress(frame, 40)):
-            chosen, meta = read_compression(reference, CANDIDATES)
-            assert chosen is None, meta
-            scores = [value["score"] for value in meta["lattice_scores"].values()]  # type: ignore[attr-defined]
-            assert max(scores) < 0.25 or reference is not frame, scores
+        chosen, meta = read_compression(frame, CANDIDATES)
+        scores = [value["score"] for value in meta["lattice_scores"].values()]  # type: ignore[attr-defined]
+        assert chosen is None and max(scores) < 0.2, meta
+        # 30 and 40 put some of their steps on quality 60's and 80's (scores about 0.6): still no read.
+        for quality in (30, 40, 50, 70, 95):
+            chosen, meta = read_compression(jpeg_compress(frame, quality), CANDIDATES)
+            assert chosen is None, (quality, meta)
 
 
 def test_a_resized_jpeg_and_a_tiny_or_black_frame_read_nothing() -> None:
