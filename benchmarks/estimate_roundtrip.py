@@ -77,6 +77,7 @@ MEASUREMENT_KEYS = (
     "read_octaves",
     "coarse_anchor",
     "level_by_compression_8bit",
+    "jpeg_lattice",
 )
 """What each case keeps of the estimate's record of its measurement (``meta.spectrum``), to tell why it missed."""
 
@@ -253,6 +254,19 @@ def summarise(cases: list[dict[str, Any]]) -> None:
         for c in cases:
             groups.setdefault(c[key], []).append(abs(c["std_ratio"] - 1.0))
         print(f"by {key}:", {k: f"{np.median(v):.3f} (n={len(v)})" for k, v in sorted(groups.items())})
+    compressed = [c for c in cases if c["jpeg"] > 0]
+    read = [c for c in compressed if (c["measurement"].get("jpeg_lattice") or {}).get("lattice_read") is not None]
+    right = [c for c in read if c["measurement"]["jpeg_lattice"]["lattice_read"] == c["jpeg"]]
+    misread = [
+        c["seed"]
+        for c in cases
+        if c["jpeg"] == 0 and (c["measurement"].get("jpeg_lattice") or {}).get("lattice_read") is not None
+    ]
+    print(
+        f"JPEG strength read off the DCT lattice: {len(read)} of {len(compressed)} JPEG cases, {len(right)} right; "
+        f"read where there was none: {misread}; chosen right by the fit or the read: "
+        f"{sum(c['measurement']['compression_chosen'] == c['jpeg'] for c in cases)} of {len(cases)}"
+    )
     dark = [abs(c["std_ratio"] - 1.0) for c in cases if c["mean_level"] < 0.06]
     if dark:
         print(f"mean level under 0.06: median {np.median(dark):.3f} (n={len(dark)})")
