@@ -254,14 +254,15 @@ def summarise(cases: list[dict[str, Any]]) -> None:
         for c in cases:
             groups.setdefault(c[key], []).append(abs(c["std_ratio"] - 1.0))
         print(f"by {key}:", {k: f"{np.median(v):.3f} (n={len(v)})" for k, v in sorted(groups.items())})
+
+    def lattice_read(case: dict[str, Any]) -> float | None:
+        read: float | None = (case["measurement"].get("jpeg_lattice") or {}).get("lattice_read")
+        return read
+
     compressed = [c for c in cases if c["jpeg"] > 0]
-    read = [c for c in compressed if (c["measurement"].get("jpeg_lattice") or {}).get("lattice_read") is not None]
-    right = [c for c in read if c["measurement"]["jpeg_lattice"]["lattice_read"] == c["jpeg"]]
-    misread = [
-        c["seed"]
-        for c in cases
-        if c["jpeg"] == 0 and (c["measurement"].get("jpeg_lattice") or {}).get("lattice_read") is not None
-    ]
+    read = [c for c in compressed if lattice_read(c) is not None]
+    right = [c for c in read if lattice_read(c) == c["jpeg"]]
+    misread = [c["seed"] for c in cases if c["jpeg"] == 0 and lattice_read(c) is not None]
     print(
         f"JPEG strength read off the DCT lattice: {len(read)} of {len(compressed)} JPEG cases, {len(right)} right; "
         f"read where there was none: {misread}; chosen right by the fit or the read: "

@@ -78,6 +78,15 @@ def _dct_matrix() -> torch.Tensor:
     return matrix
 
 
+DCT_8 = _dct_matrix()
+"""The orthonormal 8-point DCT-II (JPEG's transform, up to its integer rounding), rows the frequencies."""
+
+AC_COEFFICIENTS = torch.ones(8, 8, dtype=torch.bool)
+AC_COEFFICIENTS[0, 0] = False
+"""The coefficients a lattice is read on: all but the block mean (a flat dark region's block means all sit near one
+value, which a lattice holds or misses by chance)."""
+
+
 def _block_coefficients(luma: torch.Tensor, clipped: torch.Tensor, top: int, left: int) -> torch.Tensor:
     """Orthonormal DCT (n, 8, 8) of the 8x8 blocks of ``luma`` (H, W) cut from (top, left), but for the blocks with
     a ``clipped`` pixel (decoding clips a channel at 0 or 255 after the coefficients, which moves them off the
@@ -89,17 +98,14 @@ def _block_coefficients(luma: torch.Tensor, clipped: torch.Tensor, top: int, lef
         return cut.reshape(rows, 8, cols, 8).permute(0, 2, 1, 3).reshape(-1, 8, 8)
 
     kept = blocks(luma)[~blocks(clipped).flatten(1).any(1)]
-    dct = _dct_matrix()
-    return dct @ kept @ dct.T
+    return DCT_8 @ kept @ DCT_8.T
 
 
 def lattice_score(coefficients: torch.Tensor, table: torch.Tensor) -> tuple[float, int]:
     """How far the share of ``coefficients`` (n, 8, 8) on ``table``'s lattice rises from chance toward all of them
     (see the module), and how many coefficients it read."""
     steps = table.expand_as(coefficients)
-    alternating = torch.ones(8, 8, dtype=torch.bool)
-    alternating[0, 0] = False  # a flat dark region's block means all sit near one value, on a lattice or not
-    readable = alternating & (steps >= MIN_STEP) & (coefficients.abs() >= steps / 2)
+    readable = AC_COEFFICIENTS & (steps >= MIN_STEP) & (coefficients.abs() >= steps / 2)
     count = int(readable.sum())
     if count == 0:
         return 0.0, 0
