@@ -1,14 +1,14 @@
 """How much of the noise the denoiser's residual holds, on real pairs and on the estimate's re-synthesis, per band,
 on flat blocks: where the blind fit's correction by re-synthesis holds and where it does not.
 
-Makes: docs/spectral-noise.md, "What falls short, and what was tried", its bullets on polyu's colour on flat blocks
-and on the JPEG stage's base.
+Makes: docs/spectral-noise.md, "What falls short, and what was tried", its bullets on polyu's colour on flat blocks,
+on the JPEG stage's base and (``--channels``) on green on the DSLR pairs.
 
 Run from the repo root::
 
     .venv/bin/python scripts/noise/residual_capture_check.py --pairs ../shared/data/real-pairs/polyu --every 7
 
-Options: ``--pairs DIR [--every K] [--strengths F,F,...]``.
+Options: ``--pairs DIR [--every K] [--strengths F,F,...] [--channels]``.
 
 For each K-th pair in name order: the default ``estimate`` on the noisy image ``y``, its non-local means ``D(y)`` at
 the estimate's strength, and on the 30% flattest 32-px blocks of the clean image ``x``
@@ -29,6 +29,10 @@ With ``--strengths``, also the real residual over the re-synthesis's at the deno
 whether a second denoiser would show the real noise behaving unlike the model's where the fit cannot (it does not:
 docs/spectral-noise.md).
 
+Also ``x - D(y)`` over the real noise: what the residual holds besides the noise (the scene the denoiser took off,
+and, as less, the noise it left). With ``--channels`` every figure is per channel (red, green, blue) in place of
+brightness and colour.
+
 The fit makes the re-synthesis's residual match the real one, so where the re-synthesis captures more than the real,
 the profile's noise comes out weaker than the real by about that factor. Printed: one line per pair (colour), then
 the medians over pairs.
@@ -37,6 +41,7 @@ the medians over pairs.
 from __future__ import annotations
 
 import argparse
+import functools
 from pathlib import Path
 from typing import Any
 
@@ -58,17 +63,22 @@ from darksynth.training.weights import default_weights_path, load_weights
 FINE_BANDS = 3
 
 
-def flat_band_powers(noise: torch.Tensor, mask: np.ndarray[Any, Any]) -> np.ndarray[Any, Any]:
+def band_powers(noise: torch.Tensor, mask: np.ndarray[Any, Any], channels: bool = False) -> np.ndarray[Any, Any]:
     """(2, FINE_BANDS): brightness and colour (the mean of the two colour components) power per band of ``noise``
-    (3, H, W), band-passed over the whole image and averaged over ``mask``."""
-    components = brightness_colour_components(noise.permute(1, 2, 0).double().numpy())
+    (3, H, W), band-passed over the whole image and averaged over ``mask``; with ``channels``, (3, FINE_BANDS): red,
+    green and blue."""
+    if channels:
+        planes = noise.double().numpy()
+        components, groups = tuple(plane - plane.mean() for plane in planes), (0, 1, 2)
+    else:
+        components, groups = brightness_colour_components(noise.permute(1, 2, 0).double().numpy()), (0, 1, 1)
     index = band_index(*mask.shape)
-    powers = np.zeros((len(COMPONENTS), FINE_BANDS))
+    powers = np.zeros((max(groups) + 1, FINE_BANDS))
     for number, component in enumerate(components):
         spectrum = np.fft.fft2(component)
         for band in range(FINE_BANDS):
             passed = np.real(np.fft.ifft2(spectrum * (index == band)))
-            powers[min(number, 1), band] += np.mean(passed[mask] ** 2) / (1 if number == 0 else 2)
+            powers[groups[number], band] += np.mean(passed[mask] ** 2) / groups.count(groups[number])
     return powers
 
 
@@ -81,11 +91,14 @@ def _flat_mask(clean: torch.Tensor) -> np.ndarray[Any, Any]:
 
 
 def pair_ratios(
-    noisy_path: Path, clean_path: Path, network: Any, strengths: tuple[float, ...] = ()
+    noisy_path: Path, clean_path: Path, network: Any, strengths: tuple[float, ...] = (), channels: bool = False
 ) -> np.ndarray[Any, Any]:
-    """(5 + len(strengths), 2, FINE_BANDS): the real capture, the re-synthesis's capture, the applied profile over
-    the real, the same draw of the profile's noise on ``D(y)`` and on ``x`` over the real, then the real residual
-    over the re-synthesis's at each factor of the denoiser's strength."""
+    """(6 + len(strengths), 2 or 3 with ``channels``, FINE_BANDS): the real capture, the re-synthesis's capture, the
+    applied profile over the real, the same draw of the profile's noise on ``D(y)`` and on ``x`` over the real,
+    ``x - D(y)`` over the real (what the residual holds besides the noise: the scene the denoiser took off, and the
+    noise it left, as less), then the real residual over the re-synthesis's at each factor of the denoiser's
+    strength."""
+    flat_band_powers = functools.partial(band_powers, channels=channels)
     noisy, clean = load_reference(noisy_path)[0], load_reference(clean_path)[0]
     found = estimate(noisy[None], network, source=noisy_path.name)
     strength = found.profile.meta["spectrum"]["denoiser_strength_8bit"]
@@ -118,6 +131,7 @@ def pair_ratios(
             synthetic / real,
             resynthesis / real,
             on_clean / real,
+            flat_band_powers(clean - denoised, mask) / real,
             *at_strengths,
         ]
     )
@@ -128,24 +142,29 @@ def main() -> None:
     parser.add_argument("--pairs", type=Path, required=True)
     parser.add_argument("--every", type=int, default=1)
     parser.add_argument("--strengths", type=lambda text: tuple(float(part) for part in text.split(",")), default=())
+    parser.add_argument("--channels", action="store_true", help="red, green and blue in place of brightness, colour")
     arguments = parser.parse_args()
     torch.set_num_threads(1)
     network = load_weights(default_weights_path())
     rows = []
     for noisy_path in sorted((arguments.pairs / "noisy").iterdir())[:: arguments.every]:
-        ratios = pair_ratios(noisy_path, arguments.pairs / "clean" / noisy_path.name, network, arguments.strengths)
+        clean_path = arguments.pairs / "clean" / noisy_path.name
+        ratios = pair_ratios(noisy_path, clean_path, network, arguments.strengths, arguments.channels)
         rows.append(ratios)
+        shown = "green" if arguments.channels else "colour"
         print(
-            f"{noisy_path.name[:36]:36s} colour: capture real {np.round(ratios[0, 1], 2)}, re-synthesis "
+            f"{noisy_path.name[:36]:36s} {shown}: capture real {np.round(ratios[0, 1], 2)}, re-synthesis "
             f"{np.round(ratios[1, 1], 2)}; applied over real {np.round(ratios[2, 1], 2)}",
             flush=True,
         )
     median = np.median(np.stack(rows), axis=0)
     whats = ["capture of the real", "capture of the re-synthesis", "applied over real"]
-    whats += ["noise on D(y) over real", "same draw on x over real"]
+    whats += ["noise on D(y) over real", "same draw on x over real", "x - D(y) over real"]
     whats += [f"real/re-synthesis residual x{factor:g}" for factor in arguments.strengths]
+    names = ("red", "green", "blue") if arguments.channels else COMPONENTS
     for number, what in enumerate(whats):
-        print(f"median {what:28s} brightness {np.round(median[number, 0], 2)} colour {np.round(median[number, 1], 2)}")
+        parts = " ".join(f"{name} {np.round(median[number, index], 2)}" for index, name in enumerate(names))
+        print(f"median {what:28s} {parts}")
 
 
 if __name__ == "__main__":
