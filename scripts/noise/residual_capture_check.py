@@ -69,17 +69,17 @@ def band_powers(noise: torch.Tensor, mask: np.ndarray[Any, Any], channels: bool 
     green and blue."""
     if channels:
         planes = noise.double().numpy()
-        components, groups = tuple(plane - plane.mean() for plane in planes), (0, 1, 2)
+        planes = planes - planes.mean(axis=(1, 2), keepdims=True)
     else:
-        components, groups = brightness_colour_components(noise.permute(1, 2, 0).double().numpy()), (0, 1, 1)
+        planes = np.stack(brightness_colour_components(noise.permute(1, 2, 0).double().numpy()))
     index = band_index(*mask.shape)
-    powers = np.zeros((max(groups) + 1, FINE_BANDS))
-    for number, component in enumerate(components):
-        spectrum = np.fft.fft2(component)
+    powers = np.zeros((len(planes), FINE_BANDS))
+    for number, plane in enumerate(planes):
+        spectrum = np.fft.fft2(plane)
         for band in range(FINE_BANDS):
             passed = np.real(np.fft.ifft2(spectrum * (index == band)))
-            powers[groups[number], band] += np.mean(passed[mask] ** 2) / groups.count(groups[number])
-    return powers
+            powers[number, band] = np.mean(passed[mask] ** 2)
+    return powers if channels else np.stack([powers[0], powers[1:].mean(axis=0)])
 
 
 def _flat_mask(clean: torch.Tensor) -> np.ndarray[Any, Any]:
@@ -98,30 +98,28 @@ def pair_ratios(
     ``x - D(y)`` over the real (what the residual holds besides the noise: the scene the denoiser took off, and the
     noise it left, as less), then the real residual over the re-synthesis's at each factor of the denoiser's
     strength."""
-    flat_band_powers = functools.partial(band_powers, channels=channels)
+    powers = functools.partial(band_powers, channels=channels)
     noisy, clean = load_reference(noisy_path)[0], load_reference(clean_path)[0]
     found = estimate(noisy[None], network, source=noisy_path.name)
     strength = found.profile.meta["spectrum"]["denoiser_strength_8bit"]
     denoised = nlm_denoise(noisy[None], strength)[0]
     mask = _flat_mask(clean)
-    real = flat_band_powers(noisy - clean, mask)
-    real_residual = flat_band_powers(noisy - denoised, mask)
+    real = powers(noisy - clean, mask)
+    real_residual = powers(noisy - denoised, mask)
     values = found.profile.noise.to(dtype=torch.float32)
     generator = torch.Generator().manual_seed(3)
     resynthesised = quantised(add_noise(denoised[None, None], values, generator=generator)[0, 0])
-    resynthesis = flat_band_powers(resynthesised - denoised, mask)
-    resynthesis_residual = flat_band_powers(resynthesised - nlm_denoise(resynthesised[None], strength)[0], mask)
+    resynthesis = powers(resynthesised - denoised, mask)
+    resynthesis_residual = powers(resynthesised - nlm_denoise(resynthesised[None], strength)[0], mask)
     generator = torch.Generator().manual_seed(3)
-    on_clean = flat_band_powers(
-        quantised(add_noise(clean[None, None], values, generator=generator)[0, 0]) - clean, mask
-    )
+    on_clean = powers(quantised(add_noise(clean[None, None], values, generator=generator)[0, 0]) - clean, mask)
     pixels = (clean * 255).round().clamp(0, 255).to(torch.uint8)
     options = ApplyOptions(recipe=ClipRecipe(found.profile, darkening=None), seed=0)
     applied = hwc_to_chw(synthesize_image(chw_to_hwc(pixels), clean_path.name, options)[0]).float() / 255
-    synthetic = flat_band_powers(applied - clean, mask)
+    synthetic = powers(applied - clean, mask)
     at_strengths = [
-        flat_band_powers(noisy - nlm_denoise(noisy[None], strength * factor)[0], mask)
-        / flat_band_powers(resynthesised - nlm_denoise(resynthesised[None], strength * factor)[0], mask)
+        powers(noisy - nlm_denoise(noisy[None], strength * factor)[0], mask)
+        / powers(resynthesised - nlm_denoise(resynthesised[None], strength * factor)[0], mask)
         for factor in strengths
     ]
     return np.stack(
@@ -131,7 +129,7 @@ def pair_ratios(
             synthetic / real,
             resynthesis / real,
             on_clean / real,
-            flat_band_powers(clean - denoised, mask) / real,
+            powers(clean - denoised, mask) / real,
             *at_strengths,
         ]
     )
