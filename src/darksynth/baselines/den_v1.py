@@ -18,14 +18,13 @@ from dataclasses import asdict, dataclass
 from pathlib import Path
 
 import torch
-import torch.nn.functional as F
 from safetensors import safe_open
-from safetensors.torch import load_file, save_file
+from safetensors.torch import load_file
 from torch import nn
 
-from darksynth.baselines.starlight_model import RESIDUAL_SCALE, ResidualUNet
+from darksynth.baselines.starlight_model import ResidualUNet
 from darksynth.errors import DarksynthError
-from darksynth.io.atomic import atomic_output
+from darksynth.io.weights_file import write_weights_file
 from darksynth.models.den import DEN, DENConfig
 
 MODEL_NAME = "darksynth-den-v1"
@@ -102,14 +101,7 @@ class DENv1(nn.Module):
             (batch * frames, self.config.noise_channels, height, width), generator=generator, dtype=dark.dtype
         ).to(dark.device)
         codes = code.repeat_interleave(frames, dim=0)[:, :, None, None].expand(-1, -1, height, width)
-        inputs = torch.cat([flat, latent, codes.to(dark.dtype)], dim=1)
-        multiple = 2**self.config.depth
-        pad_h, pad_w = (-height) % multiple, (-width) % multiple
-        if pad_h or pad_w:
-            inputs = F.pad(inputs, (0, pad_w, 0, pad_h), mode="replicate")
-        residual: torch.Tensor = self.generator(inputs)[..., :height, :width] * RESIDUAL_SCALE
-        noisy = (flat + residual).clamp(0.0, 1.0)
-        noisy = noisy + ((noisy * 255.0).round() / 255.0 - noisy).detach()
+        noisy = self.generator.add_residual(flat, latent, codes.to(dark.dtype), quantize=True)
         return noisy.reshape(batch, frames, channels, height, width)
 
     def forward(
@@ -126,11 +118,8 @@ def default_den_v1_path() -> Path:
 
 def save_den_v1(path: Path, model: DENv1, *, training: dict[str, object] | None = None) -> None:
     """Write the weights and config as safetensors, atomically."""
-    state = {k: v.detach().cpu().contiguous() for k, v in model.state_dict().items()}
-    metadata = {"model": MODEL_NAME, "version": str(MODEL_VERSION), "config": json.dumps(model.config.to_dict())}
-    metadata["training"] = json.dumps(training or {})
-    with atomic_output(path) as temporary:
-        save_file(state, str(temporary), metadata=metadata)
+    config = model.config.to_dict()
+    write_weights_file(path, model, model=MODEL_NAME, version=MODEL_VERSION, config=config, training=training)
 
 
 def load_den_v1(path: Path | None = None, *, device: str | torch.device = "cpu") -> DENv1:

@@ -38,12 +38,11 @@ from typing import Any
 import torch
 import torch.nn.functional as F
 from safetensors import SafetensorError
-from safetensors.torch import load_file, save_file
+from safetensors.torch import load_file
 from torch import nn
 
 from darksynth.errors import DarksynthError
-from darksynth.io.atomic import atomic_output
-from darksynth.io.weights_file import read_checked_metadata
+from darksynth.io.weights_file import first_line, read_checked_metadata, write_weights_file
 from darksynth.noise.periodic import periodic_basis
 
 MODEL_NAME = "darksynth-starlight"
@@ -143,6 +142,23 @@ class ResidualUNet(nn.Module):
         if self.out.bias is not None:
             self.out.bias.zero_()
 
+    def add_residual(self, frames: torch.Tensor, *extra: torch.Tensor, quantize: bool) -> torch.Tensor:
+        """``frames`` (N, C, H, W) plus the residual the network makes of them and the ``extra`` channels beside
+        them, times :data:`RESIDUAL_SCALE`, clipped to [0, 1] and, with ``quantize``, rounded to 8-bit levels
+        (straight through for the gradient). Any H and W: the input is padded to a multiple of 2 ** depth and the
+        residual cropped back."""
+        height, width = frames.shape[-2:]
+        inputs = torch.cat([frames, *extra], dim=1)
+        multiple = 2 ** len(self.downs)
+        pad_h, pad_w = (-height) % multiple, (-width) % multiple
+        if pad_h or pad_w:
+            inputs = F.pad(inputs, (0, pad_w, 0, pad_h), mode="replicate")
+        residual: torch.Tensor = self(inputs)[..., :height, :width] * RESIDUAL_SCALE
+        out = (frames + residual).clamp(0.0, 1.0)
+        if quantize:
+            out = out + ((out * 255.0).round() / 255.0 - out).detach()
+        return out
+
     def forward(self, x: torch.Tensor) -> torch.Tensor:
         skips = []
         x = self.encoders[0](x)
@@ -180,9 +196,7 @@ class StarlightGenerator(nn.Module):
 
     def scale(self, name: str) -> torch.Tensor:
         """The positive scale(s) of one physics term: exp of its logarithm, shape (1,) or (3,) for periodic."""
-        if name not in PHYSICS_NAMES:
-            raise KeyError(f"unknown Starlight physics term {name!r}; known: {', '.join(PHYSICS_NAMES)}")
-        parameter: torch.Tensor = getattr(self, f"log_{name}")
+        parameter: torch.Tensor = getattr(self, f"log_{self._check_name(name)}")
         return parameter.exp()
 
     def physics_values(self) -> dict[str, float | list[float]]:
@@ -247,15 +261,7 @@ class StarlightGenerator(nn.Module):
         noisy = clip + self.physics_noise(clip, generator)
         frames_in = noisy.reshape(batch * frames, channels, height, width)
         latent = _normal((batch * frames, self.config.noise_channels, height, width), generator, clip.device)
-        multiple = 2**self.config.depth
-        pad_h, pad_w = (-height) % multiple, (-width) % multiple
-        inputs = torch.cat([frames_in, latent], dim=1)
-        if pad_h or pad_w:
-            inputs = F.pad(inputs, (0, pad_w, 0, pad_h), mode="replicate")
-        residual: torch.Tensor = self.net(inputs)[..., :height, :width] * RESIDUAL_SCALE
-        out = (frames_in + residual).clamp(0.0, 1.0)
-        if self.config.quantize:
-            out = out + ((out * 255.0).round() / 255.0 - out).detach()
+        out = self.net.add_residual(frames_in, latent, quantize=self.config.quantize)
         out = out.reshape(batch, frames, channels, height, width)
         return out.squeeze(1) if clean.dim() == 4 else out
 
@@ -270,20 +276,8 @@ def default_starlight_path() -> Path:
 
 def save_starlight(path: Path, model: StarlightGenerator, *, training: Mapping[str, Any] | None = None) -> None:
     """Write the generator's weights atomically, with its name, version and configuration in the metadata."""
-    metadata = {
-        "model": MODEL_NAME,
-        "version": str(MODEL_VERSION),
-        "config": json.dumps(model.config.to_dict()),
-        "training": json.dumps(dict(training or {})),
-    }
-    tensors = {name: tensor.detach().cpu().contiguous() for name, tensor in model.state_dict().items()}
-    with atomic_output(Path(path)) as temporary:
-        save_file(tensors, str(temporary), metadata=metadata)
-
-
-def _first_line(error: BaseException) -> str:
-    text = str(error).strip()
-    return text.splitlines()[0] if text else type(error).__name__
+    config = model.config.to_dict()
+    write_weights_file(Path(path), model, model=MODEL_NAME, version=MODEL_VERSION, config=config, training=training)
 
 
 def load_starlight(path: Path | str | None = None, device: torch.device | str = "cpu") -> StarlightGenerator:
@@ -299,7 +293,7 @@ def load_starlight(path: Path | str | None = None, device: torch.device | str = 
         model = StarlightGenerator(config)
         model.load_state_dict(load_file(str(path), device=str(device)))
     except (SafetensorError, KeyError, TypeError, ValueError, RuntimeError) as error:
-        raise DarksynthError(f"{path}: weights do not fit the Starlight generator ({_first_line(error)})") from None
+        raise DarksynthError(f"{path}: weights do not fit the Starlight generator ({first_line(error)})") from None
     if not all(bool(torch.isfinite(t).all()) for t in model.state_dict().values()):
         raise DarksynthError(f"{path}: Starlight weights hold non-finite values")
     return model.to(device).eval()

@@ -43,7 +43,7 @@ from darksynth.baselines.starlight_model import (
     save_starlight,
 )
 from darksynth.noise.components import model_parameters
-from darksynth.training.batches import TrainingBatch, synthesize_batch
+from darksynth.training.batches import TrainingBatch, random_noisy_version, synthesize_batch
 from darksynth.training.corpus import CleanCorpus
 from darksynth.training.scaffold import draw_validation_batches
 
@@ -127,8 +127,10 @@ def evaluate_starlight(
         target.append(batch.noisy - batch.dark)
         generated.append((model(dark, generator) - dark).cpu())
         physics_only.append((physics(dark, generator) - dark).cpu())
-        # The floor: the target's own law drawn again (new v, new noise) on the same dark crops.
-        second = _redraw_target(batch, redraw, absent_probability)
+        # The floor: the target's own law drawn again (new v, new noise) on the same dark crops, as 8-bit levels.
+        second, _ = random_noisy_version(
+            batch.dark, generator=redraw, absent_probability=absent_probability, noise_model="paper"
+        )
         second_draw.append(second - batch.dark)
     model.train(was_training)
     dark_all = torch.cat(darks)
@@ -152,16 +154,6 @@ def evaluate_starlight(
         "frames": int(target_all.shape[1]),
         "crop": int(target_all.shape[-1]),
     }
-
-
-def _redraw_target(batch: TrainingBatch, generator: torch.Generator, absent_probability: float) -> torch.Tensor:
-    """Another draw of the target's noise law on the same dark clips (new v, new noise), as 8-bit levels."""
-    from darksynth.training.batches import random_noisy_version
-
-    noisy, _ = random_noisy_version(
-        batch.dark, generator=generator, absent_probability=absent_probability, noise_model="paper"
-    )
-    return noisy
 
 
 def prior_mean_values(absent_probability: float = 0.15) -> dict[str, float]:

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import itertools
 from collections.abc import Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -40,12 +41,7 @@ def _rgb8(image: Image) -> np.ndarray:
 
 
 def _add_video(corpus: CleanCorpus, path: Path) -> None:
-    frames = []
-    for frame in iter_video_frames(path):
-        frames.append(frame)
-        if len(frames) == MAX_CLIP_FRAMES:
-            break
-    corpus.clips.append(np.stack(frames))
+    corpus.clips.append(np.stack(list(itertools.islice(iter_video_frames(path), MAX_CLIP_FRAMES))))
     corpus.sources.append(str(path))
 
 

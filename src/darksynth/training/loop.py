@@ -14,6 +14,7 @@ from typing import Any
 
 import torch
 import torch.nn.functional as F
+from safetensors import safe_open
 from safetensors.torch import load_file, save_file
 
 from darksynth.errors import DarksynthError
@@ -146,10 +147,6 @@ def evaluate(model: DEN, batches: list[TrainingBatch], device: torch.device) -> 
     }
 
 
-def _checkpoint_path(out: Path) -> Path:
-    return out.with_name(out.stem + ".checkpoint.safetensors")
-
-
 def _save_checkpoint(
     path: Path,
     model: DEN,
@@ -183,8 +180,6 @@ def _load_checkpoint(
     config: TrainConfig,
     ranks: Ranks = SINGLE_PROCESS,
 ) -> tuple[int, list[dict[str, Any]]]:
-    from safetensors import safe_open
-
     try:
         with safe_open(str(path), framework="pt") as handle:
             metadata = handle.metadata() or {}
@@ -338,7 +333,7 @@ def _train(
     model = initial_weights(config.seed, lambda: DEN(config.den)).to(device)
     optimizer = torch.optim.Adam(model.parameters(), lr=config.learning_rate, betas=config.betas)
     generator = seeded_generator(process_seed(config.seed, ranks))
-    checkpoint = _checkpoint_path(out)
+    checkpoint = out.with_name(out.stem + ".checkpoint.safetensors")
     step, history = 0, list[dict[str, Any]]()
     if resume:
         step, history = _load_checkpoint(checkpoint, model, optimizer, generator, config, ranks)

@@ -11,11 +11,10 @@ from typing import Any, Final
 
 import torch
 from safetensors import SafetensorError
-from safetensors.torch import load_file, save_file
+from safetensors.torch import load_file
 
 from darksynth.errors import DarksynthError
-from darksynth.io.atomic import atomic_output
-from darksynth.io.weights_file import read_checked_metadata
+from darksynth.io.weights_file import first_line, read_checked_metadata, write_weights_file
 from darksynth.models.den import DEN, MODEL_NAME, MODEL_VERSION, READABLE_MODEL_VERSIONS, DENConfig
 from darksynth.noise.components import NoiseModel
 
@@ -61,15 +60,8 @@ class DENChoice:
 
 def save_weights(path: Path, model: DEN, *, training: dict[str, Any] | None = None) -> None:
     """Write the model's weights atomically, with what is needed to rebuild and to trust it."""
-    metadata = {
-        "model": MODEL_NAME,
-        "version": str(MODEL_VERSION),
-        "config": json.dumps(model.config.to_dict()),
-        "training": json.dumps(training or {}),
-    }
-    tensors = {name: tensor.detach().cpu().contiguous() for name, tensor in model.state_dict().items()}
-    with atomic_output(path) as temporary:
-        save_file(tensors, str(temporary), metadata=metadata)
+    config = model.config.to_dict()
+    write_weights_file(path, model, model=MODEL_NAME, version=MODEL_VERSION, config=config, training=training)
 
 
 def read_metadata(path: Path) -> dict[str, str]:
@@ -100,8 +92,7 @@ def load_weights(path: Path, *, device: torch.device | str = "cpu") -> DEN:
         model.load_state_dict(load_file(str(path), device=str(device)))
     except (SafetensorError, KeyError, TypeError, ValueError, RuntimeError) as error:
         # torch lists every mismatched tensor on its own line; the first line says what is wrong.
-        first_line = str(error).strip().splitlines()[0] if str(error).strip() else type(error).__name__
-        raise DarksynthError(f"{path}: weights do not fit the DEN they describe ({first_line})") from None
+        raise DarksynthError(f"{path}: weights do not fit the DEN they describe ({first_line(error)})") from None
     return model.to(device).eval()
 
 
