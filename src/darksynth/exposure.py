@@ -83,7 +83,7 @@ def matched_darkening(
     keeps the profile's darkening)."""
     if tone is None:
         return None
-    clean = _unit_frame(frame)
+    clean = unit_float(frame.cpu())
     if clean.shape[0] == 1:
         clean = clean.expand(3, -1, -1)
     clean = clean[:3]
@@ -116,7 +116,7 @@ def matched_colour(
     """
     if tone is None or tone.colour is None or frame.shape[0] != 3:
         return None
-    own = colour_cast(darken(_unit_frame(frame), darkening.alpha, darkening.gamma))
+    own = colour_cast(darken(unit_float(frame.cpu()), darkening.alpha, darkening.gamma))
     if own is None or min(own) <= 0.0:
         return None
     gains = [target / have for target, have in zip(tone.colour, own, strict=True)]
@@ -125,11 +125,6 @@ def matched_colour(
     scale = (factors[0] / largest, factors[1] / largest, factors[2] / largest)
     adjusted = Darkening(alpha=min(1.0, darkening.alpha * largest ** (1.0 / darkening.gamma)), gamma=darkening.gamma)
     return scale, adjusted
-
-
-def _unit_frame(frame: torch.Tensor) -> torch.Tensor:
-    """A frame (C, H, W) of any pixel type as float32 values in [0, 1], on the CPU."""
-    return unit_float(frame.cpu())
 
 
 # --- the output's luminance quantiles, simulated on a sample of the input's pixels ----------------------------

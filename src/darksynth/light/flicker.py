@@ -12,7 +12,6 @@ from __future__ import annotations
 import math
 from collections.abc import Mapping
 
-import numpy as np
 import torch
 
 MIN_GAIN = 0.05
@@ -40,7 +39,8 @@ class FlickerGains:
         """The next frame's gain (1 when there is no flicker)."""
         if not self.active:
             return 1.0
-        draw = float(torch.randn((), generator=generator, device=_device(generator), dtype=torch.float64))
+        device = generator.device if generator is not None else None
+        draw = float(torch.randn((), generator=generator, device=device, dtype=torch.float64))
         if self._state is None:
             self._state = draw
         else:
@@ -59,14 +59,10 @@ def flicker_gains(
     """Per-frame gains (*batch, T, 1, 1, 1) on the darkened clips (*batch, T, C, H, W); 1 for single frames."""
     batch = clip.shape[:-4]
     frames = clip.shape[-4]
-    stds = values["flicker"].reshape(-1).expand(int(np.prod(batch, dtype=np.int64)))
+    stds = values["flicker"].reshape(-1).expand(math.prod(batch))
     correlations = values["flicker_correlation"].reshape(-1).expand(stds.shape[0])
     gains = torch.ones(stds.shape[0], frames, dtype=torch.float64)
     if frames > 1:
         for index in range(stds.shape[0]):
             gains[index] = FlickerGains(float(stds[index]), float(correlations[index])).sequence(frames, generator)
     return gains.reshape(*batch, frames, 1, 1, 1).to(device=clip.device, dtype=clip.dtype)
-
-
-def _device(generator: torch.Generator | None) -> torch.device | None:
-    return generator.device if generator is not None else None

@@ -95,11 +95,9 @@ def flow_image(frame: np.ndarray) -> tuple[np.ndarray, float]:
     """The 8-bit grey image the flow is computed on, and its scale (frame width / flow width)."""
     scale = max(1.0, frame.shape[1] / FLOW_MAX_WIDTH)
     levels = frame if frame.dtype == np.uint8 else np.round(unit_scale(frame).clip(0, 1) * 255.0).astype(np.uint8)
-    grey = (
-        (levels if levels.ndim == 2 else levels[..., 0])
-        if levels.ndim == 2 or levels.shape[-1] == 1
-        else cv2.cvtColor(np.ascontiguousarray(levels[..., :3]), cv2.COLOR_RGB2GRAY)
-    )
+    grey = levels if levels.ndim == 2 else levels[..., 0]
+    if levels.ndim == 3 and levels.shape[-1] > 1:
+        grey = cv2.cvtColor(np.ascontiguousarray(levels[..., :3]), cv2.COLOR_RGB2GRAY)
     if scale > 1.0:
         size = (max(1, round(frame.shape[1] / scale)), max(1, round(frame.shape[0] / scale)))
         grey = cv2.resize(grey, size, interpolation=cv2.INTER_AREA)

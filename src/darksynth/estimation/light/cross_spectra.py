@@ -45,8 +45,7 @@ def align_along(product: np.ndarray, motion: np.ndarray) -> np.ndarray:
     ring = np.broadcast_to(np.rint(radius).astype(int), product.shape[1:]).ravel()[use]
     membership = ring_membership(ring, int(ring.max()) + 1)
     membership = membership[:, membership.sum(axis=0) > 0]
-    ky_used = np.broadcast_to(ky, product.shape[1:]).ravel()[use]
-    kx_used = np.broadcast_to(kx, product.shape[1:]).ravel()[use]
+    ky_used, kx_used = (k.ravel()[use] for k in np.broadcast_arrays(ky, kx))
     values = product.reshape(product.shape[0], -1)[:, use]
     direction = motion / np.maximum(np.hypot(motion[:, 0], motion[:, 1]), 1e-9)[:, None]
     pattern = np.exp(-2j * np.pi * (motion[:, 0, None] * ky_used + motion[:, 1, None] * kx_used))
@@ -71,15 +70,6 @@ def align_along(product: np.ndarray, motion: np.ndarray) -> np.ndarray:
     best = start + ALONG_REFINE[np.argmin(fine, axis=0)]
     shift: np.ndarray = best[:, None] * direction
     return shift
-
-
-def box_transfer(length: np.ndarray) -> np.ndarray:
-    """The power transfer ``sinc^2(pi L k)`` of a box blur, given ``L k`` (the box's length times the frequency
-    along it, cycles): 1 at 0, 0 at every whole number."""
-    small = np.abs(length) < 1e-6
-    safe = np.where(small, 1.0, length)
-    transfer: np.ndarray = np.where(small, 1.0, (np.sin(np.pi * safe) / (np.pi * safe)) ** 2)
-    return transfer
 
 
 def phase_ramp(shift: np.ndarray, size: int) -> np.ndarray:
@@ -134,8 +124,7 @@ def align_phase(product: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     radius = np.hypot(ky, kx)
     # Low frequencies: high signal to noise, and no phase wrap for errors up to about a pixel.
     low = (radius >= 1.5 / size) & (radius <= 8.5 / size)
-    ky_low = np.broadcast_to(ky, low.shape)[low]
-    kx_low = np.broadcast_to(kx, low.shape)[low]
+    ky_low, kx_low = (k[low] for k in np.broadcast_arrays(ky, kx))
     total = np.zeros((product.shape[0], 2))
     for _ in range(2):
         values = product[:, low]

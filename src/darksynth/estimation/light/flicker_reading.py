@@ -59,7 +59,8 @@ def measure_flicker(luminance: np.ndarray, flows: list[PairFlow], frames: int) -
     by_first = {f.first: f for f in flows}
     stretches: list[list[int]] = []
     for t in range(frames):
-        if t - 1 in by_first and stretches and stretches[-1][-1] == t - 1:
+        # Every frame joins the last stretch or starts one: frame t - 1 ends the last stretch.
+        if t - 1 in by_first:
             stretches[-1].append(t)
         else:
             stretches.append([t])
@@ -74,7 +75,6 @@ def measure_flicker(luminance: np.ndarray, flows: list[PairFlow], frames: int) -
         )
     variance_sum = lag_sum = 0.0
     own_first = own_second = 0.0
-    used = 0
     lengths = []
     for stretch in stretches:
         halves = _gain_series(luminance, [by_first[t] for t in stretch[:-1]], stretch)
@@ -86,8 +86,8 @@ def measure_flicker(luminance: np.ndarray, flows: list[PairFlow], frames: int) -
         own_first += float((first**2).sum())
         own_second += float((second**2).sum())
         lag_sum += 0.5 * float((first[1:] * second[:-1]).sum() + (second[1:] * first[:-1]).sum())
-        used += len(stretch)
         lengths.append(len(stretch))
+    used = sum(lengths)
     if used == 0:
         return 0.0, 0.0, 0, "no part of the frame stays still through the clip"
     # The cross product's own scatter, from the two halves' variances (noise included): a gain whose variance is

@@ -118,6 +118,10 @@ MAX_BLOCKS = 256
 SHUTTER_LIMIT = 1.0
 """The longest blur a shutter gives: open for the whole frame interval."""
 
+BLOCKINESS_FRAMES, BLOCKINESS_SIZE = 8, 512
+"""JPEG's blocks are looked for on at most this many frames and this many px from the top left corner, where the
+8-px grid is anchored: enough rows and columns to average the grid out of the content, at a small cost."""
+
 
 @dataclass(frozen=True)
 class MotionEstimate:
@@ -204,7 +208,6 @@ def estimate_motion(
     if reference.dim() != 4 or reference.shape[1] not in (1, 3):
         raise ValueError(f"expected a reference shaped (T, 3, H, W), got shape {tuple(reference.shape)}")
     frames = reference.shape[0]
-    notes: list[str] = []
     skipped = set(uniform_frames(reference) if uniform is None else uniform) if frames > 1 else set()
     cut_before = set(scene_cuts(reference) if cuts is None else cuts)
     pairs = [t for t in range(frames - 1) if t not in skipped and t + 1 not in skipped and t + 1 not in cut_before]
@@ -215,13 +218,10 @@ def estimate_motion(
     # between unrelated frames does not invert.
     flows = [f for f in computed if f.valid.mean() >= MIN_CONSISTENT_SHARE]
 
-    moving_share = 0.0
-    if flows:
-        moving_share = float(
-            np.mean([(f.valid & (np.hypot(f.flow[..., 0], f.flow[..., 1]) >= MIN_SPEED)).mean() for f in flows])
-        )
+    moving = [(f.valid & (np.hypot(f.flow[..., 0], f.flow[..., 1]) >= MIN_SPEED)).mean() for f in flows]
+    moving_share = float(np.mean(moving)) if flows else 0.0
     exposure = _read_exposure(reference, flows, moving_share)
-    notes.extend(exposure.notes)
+    notes = list(exposure.notes)
     flicker, correlation, flicker_frames, why_not = measure_flicker(small, flows, frames)
     flicker_measured = why_not is None
     if why_not is not None:
@@ -268,7 +268,8 @@ def _read_exposure(reference: torch.Tensor, flows: list[PairFlow], moving_share:
         )
         return _Exposure(EXPOSURE_FRACTION_PRIOR, False, 0, 0.0, None, [f"{why}: {prior}"])
     spectra = _block_spectra(reference, flows)
-    fit = fit_exposure(spectra, _blockiness(reference)) if spectra is not None else None
+    corner = reference[:BLOCKINESS_FRAMES, :, :BLOCKINESS_SIZE, :BLOCKINESS_SIZE]
+    fit = fit_exposure(spectra, compression_blockiness(_luminance(corner))) if spectra is not None else None
     blocks, displacement = (fit.blocks, fit.speed) if fit is not None else (0, 0.0)
     if fit is None or fit.reading is None or fit.refused is not None:
         why = (fit.refused if fit is not None else None) or (
@@ -286,17 +287,6 @@ def _read_exposure(reference: torch.Tensor, flows: list[PairFlow], moving_share:
             "is held at 1"
         )
     return _Exposure(fit.reading, True, blocks, displacement, fit, notes)
-
-
-BLOCKINESS_FRAMES, BLOCKINESS_SIZE = 8, 512
-"""JPEG's blocks are looked for on at most this many frames and this many px from the top left corner, where the
-8-px grid is anchored: enough rows and columns to average the grid out of the content, at a small cost."""
-
-
-def _blockiness(reference: torch.Tensor) -> float:
-    """The frames' :func:`~darksynth.estimation.light.shutter_confidence.compression_blockiness`, on their luminance."""
-    corner = reference[:BLOCKINESS_FRAMES, :, :BLOCKINESS_SIZE, :BLOCKINESS_SIZE]
-    return compression_blockiness(_luminance(corner))
 
 
 def _luminance(frames: torch.Tensor) -> np.ndarray:
@@ -339,17 +329,12 @@ def _pair_flow(first: np.ndarray, second: np.ndarray, scale: float, t: int) -> P
     forward, backward = dense_flow(first, second), dense_flow(second, first)
     height, width = first.shape
     grid_x, grid_y = pixel_grid(height, width)
-    back_at = cv2.remap(
-        backward, grid_x + forward[..., 0], grid_y + forward[..., 1], cv2.INTER_LINEAR, borderMode=cv2.BORDER_REPLICATE
-    )
+    # Where each pixel lands in the second frame.
+    x, y = grid_x + forward[..., 0], grid_y + forward[..., 1]
+    back_at = cv2.remap(backward, x, y, cv2.INTER_LINEAR, borderMode=cv2.BORDER_REPLICATE)
     error = np.hypot(*(forward + back_at).transpose(2, 0, 1))
     speed = np.hypot(forward[..., 0], forward[..., 1])
-    inside = (
-        (grid_x + forward[..., 0] >= 0)
-        & (grid_x + forward[..., 0] <= width - 1)
-        & (grid_y + forward[..., 1] >= 0)
-        & (grid_y + forward[..., 1] <= height - 1)
-    )
+    inside = (x >= 0) & (x <= width - 1) & (y >= 0) & (y <= height - 1)
     # Half a pixel, or a tenth of the motion: DIS is less exact on fast motion, and the block pairing only needs
     # the shift to a fraction of a pixel at full resolution.
     valid = inside & (error <= 0.5 + 0.1 * speed) & np.isfinite(speed)
@@ -364,17 +349,16 @@ def _moving_blocks(flow: PairFlow, shape: tuple[int, int]) -> list[tuple[int, in
     """
     height, width = shape
     small_h, small_w = flow.valid.shape
-    factor_y = factor_x = flow.scale
-    size = (max(1, round(MOTION_BLOCK / factor_x)), max(1, round(MOTION_BLOCK / factor_y)))
+    side = max(1, round(MOTION_BLOCK / flow.scale))
     valid = flow.valid.astype(np.float32)
     fx, fy = flow.flow[..., 0] * valid, flow.flow[..., 1] * valid
     square = (flow.flow[..., 0] ** 2 + flow.flow[..., 1] ** 2) * valid
-    box = [cv2.blur(a, size, borderType=cv2.BORDER_REPLICATE) for a in (valid, fx, fy, square)]
+    box = [cv2.blur(a, (side, side), borderType=cv2.BORDER_REPLICATE) for a in (valid, fx, fy, square)]
     stride = MOTION_BLOCK // 2
     tops = np.arange(0, height - MOTION_BLOCK + 1, stride)
     lefts = np.arange(0, width - MOTION_BLOCK + 1, stride)
-    rows = np.clip(((tops + MOTION_BLOCK / 2) / factor_y).astype(int), 0, small_h - 1)
-    columns = np.clip(((lefts + MOTION_BLOCK / 2) / factor_x).astype(int), 0, small_w - 1)
+    rows = np.clip(((tops + MOTION_BLOCK / 2) / flow.scale).astype(int), 0, small_h - 1)
+    columns = np.clip(((lefts + MOTION_BLOCK / 2) / flow.scale).astype(int), 0, small_w - 1)
     share, sum_x, sum_y, sum_sq = (a[np.ix_(rows, columns)] for a in box)
     count = np.maximum(share, 1e-6)
     dx, dy = sum_x / count, sum_y / count

@@ -72,13 +72,19 @@ def reading_confidence(readings: np.ndarray, reading: float) -> float:
     return float(np.mean(np.abs(readings - reading) <= TOLERANCE + 1e-9))
 
 
+def box_transfer(length: np.ndarray) -> np.ndarray:
+    """The power transfer ``sinc^2(pi L k)`` of a box blur, given ``L k`` (the box's length times the frequency
+    along it, cycles): 1 at 0, 0 at every whole number."""
+    small = np.abs(length) < 1e-6
+    safe = np.where(small, 1.0, length)
+    transfer: np.ndarray = np.where(small, 1.0, (np.sin(np.pi * safe) / (np.pi * safe)) ** 2)
+    return transfer
+
+
 def discriminating(along: np.ndarray) -> np.ndarray:
     """How much the transfer ``sinc^2(pi s k.d)`` changes over s in [0, 1] at each frequency, given ``along`` =
     |k.d| (cycles per frame's displacement): 1 - sinc^2(pi k.d), 0 across the motion, near 1 from a cycle on."""
-    small = np.abs(along) < 1e-6
-    safe = np.where(small, 1.0, along)
-    spread: np.ndarray = np.where(small, 0.0, 1.0 - (np.sin(np.pi * safe) / (np.pi * safe)) ** 2)
-    return spread
+    return 1.0 - box_transfer(along)
 
 
 def contrast_along(cross: np.ndarray, noise: np.ndarray, along: np.ndarray) -> float:

@@ -13,13 +13,14 @@ from typing import NamedTuple
 
 import numpy as np
 
-from darksynth.estimation.light.cross_spectra import box_transfer, frequencies, ring_membership
+from darksynth.estimation.light.cross_spectra import frequencies, ring_membership
 from darksynth.estimation.light.shutter_confidence import (
     AMBIGUOUS_PEAK,
     BLOCKY,
     MIN_CONFIDENCE,
     MIN_CONFIDENCE_COMPRESSED,
     TOLERANCE,
+    box_transfer,
     contrast_along,
     motion_ambiguity,
     persistent_share,
@@ -149,8 +150,7 @@ def _rings(spectra: BlockSpectra) -> _Rings:
     signal, floor = cross @ membership, noise @ membership
     snr = np.clip(signal, 0, None) / np.maximum(floor, 1e-12 * max(float(np.abs(signal).max()), 1e-30))
     # The projection of each frequency on the motion: cycles per frame's displacement.
-    ky_flat = np.broadcast_to(ky, (MOTION_BLOCK, kx.shape[1])).ravel()[in_rings]
-    kx_flat = np.broadcast_to(kx, (MOTION_BLOCK, kx.shape[1])).ravel()[in_rings]
+    ky_flat, kx_flat = (k.ravel()[in_rings] for k in np.broadcast_arrays(ky, kx))
     motion = spectra.motion
     along = np.abs(motion[:, 0, None] * ky_flat[None] + motion[:, 1, None] * kx_flat[None]).astype(np.float32)
     return _Rings(cross, noise, persistent, along, membership, snr / (1.0 + snr))
@@ -255,14 +255,10 @@ def fit_exposure(spectra: BlockSpectra, blockiness: float = 1.0) -> ExposureFit:
         for part in (0, 1)
     ]
     if abs(halves[0] - halves[1]) > HALVES_DISAGREE:
-        return _refuse(fit, f"the two halves of the moving blocks read s = {halves[0]:.1f} and {halves[1]:.1f}")
+        return replace(fit, refused=f"the two halves of the moving blocks read s = {halves[0]:.1f} and {halves[1]:.1f}")
     if fit.confidence is not None and fit.confidence < fit.min_confidence:
-        return _refuse(fit, _why_unsure(fit))
+        return replace(fit, refused=_why_unsure(fit))
     return fit
-
-
-def _refuse(fit: ExposureFit, why: str) -> ExposureFit:
-    return replace(fit, refused=why)
 
 
 def _why_unsure(fit: ExposureFit) -> str:
