@@ -147,23 +147,18 @@ def plan(input_path: Path, output_path: Path, *, clip: bool) -> tuple[list[Task]
             )
         return [Task(kind, input_path.name, (input_path,), (output_path,))], [], output_path
     listing = scan_folder(input_path)
-    tasks: list[Task] = []
+
+    def task(kind: TaskKind, key: str, files: list[Path]) -> Task:
+        return Task(kind, key, tuple(input_path / f for f in files), tuple(output_path / f for f in files))
+
     if clip:
         by_folder: dict[Path, list[Path]] = {}
         for relative in listing.images:
             by_folder.setdefault(relative.parent, []).append(relative)
-        for folder, frames in sorted(by_folder.items()):
-            tasks.append(
-                Task(
-                    "clip",
-                    folder.as_posix() + "/",
-                    tuple(input_path / f for f in frames),
-                    tuple(output_path / f for f in frames),
-                )
-            )
+        tasks = [task("clip", folder.as_posix() + "/", frames) for folder, frames in sorted(by_folder.items())]
     else:
-        tasks.extend(Task("image", r.as_posix(), (input_path / r,), (output_path / r,)) for r in listing.images)
-    tasks.extend(Task("video", r.as_posix(), (input_path / r,), (output_path / r,)) for r in listing.videos)
+        tasks = [task("image", r.as_posix(), [r]) for r in listing.images]
+    tasks += [task("video", r.as_posix(), [r]) for r in listing.videos]
     tasks.sort(key=lambda t: t.key)
     return tasks, [r.as_posix() for r in listing.skipped], output_path
 
@@ -241,27 +236,21 @@ def _run_frames(
     first: Image,
 ) -> int:
     """An image, or a clip's frames in order (``first`` already read); a clip's frame is written once blurred."""
-    synthesizer: ClipSynthesizer | None = None
+    compile_kernel = _worth_compiling(options, len(task.inputs) * first.pixels.size)
+    name = str(task.inputs[0].parent if task.kind == "clip" else task.inputs[0])
+    synthesizer = ClipSynthesizer(
+        parameters, generator=generator, device=options.device, compile=compile_kernel, name=name
+    )
     pending: list[tuple[Path, Image]] = []
     for index, (source, target) in enumerate(zip(task.inputs, task.outputs, strict=True)):
         image = first if index == 0 else read_image(source)
-        if synthesizer is None:
-            compile_kernel = _worth_compiling(options, len(task.inputs) * image.pixels.size)
-            name = str(source.parent if task.kind == "clip" else source)
-            synthesizer = ClipSynthesizer(
-                parameters, generator=generator, device=options.device, compile=compile_kernel, name=name
-            )
         frame = hwc_to_chw(image.pixels)
-        if task.kind == "image":
-            write_image(target, dataclasses.replace(image, pixels=chw_to_hwc(synthesizer.image(frame))))
-            if progress:
-                progress(1)
-            continue
-        # A frame of another size is the synthesizer's to handle (it logs the change and goes on).
         pending.append((target, image))
-        for result in synthesizer.push(frame):
+        # A clip's frame of another size is the synthesizer's to handle (it logs the change and goes on).
+        results = [synthesizer.image(frame)] if task.kind == "image" else synthesizer.push(frame)
+        for result in results:
             _write_pending(pending, result, progress)
-    for result in synthesizer.finish() if synthesizer is not None else []:
+    for result in synthesizer.finish():
         _write_pending(pending, result, progress)
     return len(task.inputs)
 

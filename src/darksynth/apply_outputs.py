@@ -24,7 +24,6 @@ from typing import Any, Final
 
 from darksynth.errors import DarksynthError, error_reason
 from darksynth.io.atomic import remove_stale_temps, write_text_atomic
-from darksynth.profile import Profile, profile_to_dict
 
 STATE_FOLDER: Final = ".darksynth"
 """The folder of a run's state inside its output folder (``apply`` and ``convert`` alike)."""
@@ -53,13 +52,7 @@ def options_fingerprint(options: Any, *, left_out: frozenset[str] | set[str]) ->
             # manifest name them.
             fingerprint.update(value.to_json())
             continue
-        if isinstance(value, Profile):
-            value = profile_to_dict(value)
-        elif isinstance(value, Path):
-            value = str(value)
-        elif dataclasses.is_dataclass(value) and not isinstance(value, type):
-            value = dataclasses.asdict(value)
-        fingerprint[option.name] = value
+        fingerprint[option.name] = str(value) if isinstance(value, Path) else value
     return fingerprint
 
 

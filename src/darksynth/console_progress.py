@@ -35,8 +35,26 @@ class ProgressDisplay(Protocol):
         """Print one line (a warning, an error) without garbling the display; never suppressed."""
 
 
-class _RichBar:
+class _Silent:
+    """No progress, only the messages; the other displays add their progress to it."""
+
+    def __init__(self, console: Console) -> None:
+        self._console = console
+
+    def update(self, *, completed: float | None = None, total: float | None = None, description: str = "") -> None:
+        del completed, total, description
+
+    def advance(self, amount: float = 1) -> None:
+        del amount
+
+    def say(self, message: str) -> None:
+        # No markup, no highlighting, no wrapping: an error stays one line whatever it quotes.
+        self._console.print(message, markup=False, highlight=False, soft_wrap=True)
+
+
+class _RichBar(_Silent):
     def __init__(self, progress: Progress, label: str) -> None:
+        super().__init__(progress.console)
         self._progress = progress
         self._bar = progress.add_task(label, total=None)
 
@@ -46,15 +64,13 @@ class _RichBar:
     def advance(self, amount: float = 1) -> None:
         self._progress.advance(self._bar, amount)
 
-    def say(self, message: str) -> None:
-        _print(self._progress.console, message)
 
-
-class _LogLines:
+class _LogLines(_Silent):
     """Plain lines, at most one per ``interval`` seconds: ``apply: 120/400 frames (30%), 1m05s, about 2m32s left``."""
 
     def __init__(self, console: Console, label: str, unit: str, interval: float) -> None:
-        self._console, self._label, self._unit, self._interval = console, label, unit, interval
+        super().__init__(console)
+        self._label, self._unit, self._interval = label, unit, interval
         self._started = self._last = time.monotonic()
         self._completed = 0.0
         self._total: float | None = None
@@ -72,9 +88,6 @@ class _LogLines:
     def advance(self, amount: float = 1) -> None:
         self._completed += amount
         self._maybe_report()
-
-    def say(self, message: str) -> None:
-        _print(self._console, message)
 
     def _maybe_report(self) -> None:
         now = time.monotonic()
@@ -95,21 +108,7 @@ class _LogLines:
         if self._total and self._completed:
             left = elapsed * (self._total - self._completed) / self._completed
             parts[-1] += f", about {_duration(left)} left"
-        _print(self._console, " ".join(parts))
-
-
-class _Silent:
-    def __init__(self, console: Console) -> None:
-        self._console = console
-
-    def update(self, *, completed: float | None = None, total: float | None = None, description: str = "") -> None:
-        del completed, total, description
-
-    def advance(self, amount: float = 1) -> None:
-        del amount
-
-    def say(self, message: str) -> None:
-        _print(self._console, message)
+        self.say(" ".join(parts))
 
 
 @contextmanager
@@ -133,11 +132,6 @@ def progress_display(
             yield _RichBar(progress, label)
     else:
         yield _LogLines(console, label, unit, LOG_INTERVAL if interval is None else interval)
-
-
-def _print(console: Console, message: str) -> None:
-    # No markup, no highlighting, no wrapping: an error stays one line whatever it quotes.
-    console.print(message, markup=False, highlight=False, soft_wrap=True)
 
 
 def _duration(seconds: float) -> str:

@@ -151,10 +151,6 @@ def _darkening_value(value: Any, where: str, name: str) -> float:
     return number
 
 
-def _darkening_ranged(value: Any, where: str, *, name: str) -> float:
-    return _darkening_value(value, where, name)
-
-
 def _values(raw: Any, where: str, parameter: Parameter) -> tuple[float, ...]:
     if parameter.size == 1:
         return (_noise_value(raw, where, parameter),)
@@ -180,13 +176,10 @@ def _ranges(raw: Any) -> dict[str, tuple[Range, ...]]:
     for name, entry in raw.items():
         key = f"ranges.{_key(name)}"
         if name in DARKENING_LIMITS:
-            ranges[name] = (_interval(entry, key, functools.partial(_darkening_ranged, name=name)),)
+            ranges[name] = (_interval(entry, key, functools.partial(_darkening_value, name=name)),)
         elif name in parameters:
             parameter = parameters[name]
-
-            def check(v: Any, w: str, p: Parameter = parameter) -> float:
-                return _noise_value(v, w, p)
-
+            check = functools.partial(_noise_value, parameter=parameter)
             # A vector parameter takes one pair per value, or one pair shared by all of them.
             if parameter.size > 1 and isinstance(entry, list) and entry and isinstance(entry[0], list):
                 if len(entry) != parameter.size:
@@ -223,15 +216,13 @@ def _quantile_list(values: Any, where: str) -> tuple[float, ...]:
     return tuple(float(q) for q in values)
 
 
+_TONE_FIELDS = frozenset({"quantiles", "noise", "colour", "luminance"})
+
+
 def _tone(raw: Any) -> ToneTarget | None:
     if raw is None:
         return None
-    if not isinstance(raw, dict) or not {"quantiles", "noise"} <= set(raw) <= {
-        "quantiles",
-        "noise",
-        "colour",
-        "luminance",
-    }:
+    if not isinstance(raw, dict) or not {"quantiles", "noise"} <= set(raw) <= _TONE_FIELDS:
         raise _fail(f"tone must be an object with quantiles, noise and optionally colour and luminance, got {raw!r}")
     quantiles = _quantile_list(raw["quantiles"], "tone.quantiles")
     noise = raw["noise"]

@@ -217,7 +217,6 @@ def synthesize(
         TypeError: a keyword that is no choice of the recipe.
     """
     recipe = augmenting_recipe(profile, choices)
-    as_numpy = isinstance(clean, np.ndarray)
     if isinstance(clean, np.ndarray):
         clips, layout = clips_from_numpy(clean)
     else:
@@ -244,7 +243,7 @@ def synthesize(
             outputs.append(_synthesize_clip(clip, chosen, generator))
     result = torch.stack(outputs).reshape(clips.shape)
     record: dict[str, Any] | list[dict[str, Any]] = records[0] if not batch_shape else records
-    if as_numpy:
+    if isinstance(clean, np.ndarray):
         return LowLightResult(image=clips_to_numpy(result, layout), parameters=record)
     return LowLightResult(image=result[0] if layout == "image" else result, parameters=record)
 

@@ -6,7 +6,7 @@ from __future__ import annotations
 import dataclasses
 import logging
 from collections.abc import Sequence
-from typing import TYPE_CHECKING, Annotated, Any, get_args
+from typing import Annotated, Any, get_args
 
 import typer
 from rich.console import Console
@@ -16,15 +16,12 @@ from darksynth.light.darkening import Darkening
 from darksynth.models.den import Variant
 from darksynth.recipe import DarkeningChoice
 
-if TYPE_CHECKING:
-    pass
-
 console = Console(stderr=True)
 
 
-def say(message: str, target: Console = console) -> None:
+def say(message: str) -> None:
     """Print a message as is: no markup, no highlighting, never wrapped, so that an error stays one line."""
-    target.print(message, markup=False, highlight=False, soft_wrap=True)
+    console.print(message, markup=False, highlight=False, soft_wrap=True)
 
 
 class WarningLines(logging.Handler):
@@ -87,5 +84,6 @@ def darkening_choice(alpha: float | None, gamma: float | None, no_darken: bool) 
     return Darkening(alpha=alpha, gamma=gamma)
 
 
-QUIET_HELP = "No progress and no summary; warnings and errors are still printed."
-QuietOption = Annotated[bool, typer.Option("--quiet", "-q", help=QUIET_HELP)]
+QuietOption = Annotated[
+    bool, typer.Option("--quiet", "-q", help="No progress and no summary; warnings and errors are still printed.")
+]

@@ -8,7 +8,7 @@ from typing import Annotated, cast
 
 import typer
 
-from darksynth.cli.common import QUIET_HELP, VARIANTS, checked_choice, console, default_of, fail, say
+from darksynth.cli.common import VARIANTS, QuietOption, checked_choice, console, default_of, fail, say
 from darksynth.console_progress import progress_display
 from darksynth.errors import DarksynthError, error_reason
 from darksynth.estimation.assemble import EstimateOptions
@@ -74,7 +74,7 @@ def train_command(
     seed: Annotated[int, typer.Option()] = default_of(TrainConfig, "seed"),
     resume: Annotated[bool, typer.Option("--resume", help="Continue from OUT's checkpoint.")] = False,
     device: Annotated[str, typer.Option(help="torch device.")] = default_of(TrainConfig, "device"),
-    quiet: Annotated[bool, typer.Option("--quiet", "-q", help=QUIET_HELP)] = False,
+    quiet: QuietOption = False,
 ) -> None:
     from darksynth.training.corpus import load_corpus
     from darksynth.training.distributed import ranks_from_environment
@@ -169,7 +169,7 @@ def estimate_command(
             "of continuing the finer ones (docs/camera-prior.md).",
         ),
     ] = default_of(CameraPriorUse, "octaves"),
-    quiet: Annotated[bool, typer.Option("--quiet", "-q", help=QUIET_HELP)] = False,
+    quiet: QuietOption = False,
 ) -> None:
     import json
 

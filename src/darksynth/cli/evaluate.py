@@ -10,7 +10,7 @@ from typing import Annotated
 
 import typer
 
-from darksynth.cli.common import QUIET_HELP, console, default_of, fail, say
+from darksynth.cli.common import QuietOption, console, default_of, fail, say
 from darksynth.console_progress import progress_display
 from darksynth.errors import DarksynthError
 from darksynth.evaluation.run.options import EvaluationOptions
@@ -84,7 +84,7 @@ def evaluate_command(
             "dncnn (64 channels, 17 layers, DnCNN's; for a GPU with --device cuda and tens of thousands of steps)."
         ),
     ] = default_of(EvaluationOptions, "downstream_net"),
-    quiet: Annotated[bool, typer.Option("--quiet", "-q", help=QUIET_HELP)] = False,
+    quiet: QuietOption = False,
 ) -> None:
     from darksynth.evaluation.run.job import rank_by_kld, run_evaluation
 

@@ -44,22 +44,6 @@ from darksynth.profile import default_profile_path, load_profile
 from darksynth.recipe import ClipRecipe, DarkeningChoice
 
 
-def _profile_path(profile: Path | None, camera: str | None) -> Path:
-    """The profile to read: ``--profile``, or without it, when ``--camera`` draws the noise, the default profile
-    (its darkening and column noise stay).
-
-    Raises:
-        DarksynthError: neither is given, or ``--camera`` names no camera.
-    """
-    if camera is not None:
-        checked_choice("--camera", camera, CAMERA_CHOICES)
-    if profile is not None:
-        return profile
-    if camera is None:
-        raise DarksynthError("give --profile (a noise profile, e.g. from darksynth estimate) or --camera NAME")
-    return default_profile_path()
-
-
 def _recipe(
     profile: Path | None,
     camera: str | None,
@@ -70,9 +54,17 @@ def _recipe(
     flicker: bool,
     match_colour: bool,
 ) -> tuple[ClipRecipe, Path]:
-    """The recipe a command's options ask for, and the profile file it read (``--profile``, or the default profile
-    with ``--camera`` alone; kept for the manifest)."""
-    path = _profile_path(profile, camera)
+    """The recipe a command's options ask for, and the profile file it read (kept for the manifest): ``--profile``,
+    or without it, when ``--camera`` draws the noise, the default profile (its darkening and column noise stay).
+
+    Raises:
+        DarksynthError: neither is given, or ``--camera`` names no camera.
+    """
+    if camera is not None:
+        checked_choice("--camera", camera, CAMERA_CHOICES)
+    if profile is None and camera is None:
+        raise DarksynthError("give --profile (a noise profile, e.g. from darksynth estimate) or --camera NAME")
+    path = profile if profile is not None else default_profile_path()
     recipe = ClipRecipe(
         load_profile(path),
         darkening=darkening,
@@ -251,23 +243,19 @@ def convert_command(
 def _convert_summary(report: ConversionReport, *, quiet: bool) -> None:
     """The closing lines of a conversion (none with ``quiet``); exit 1 after them if anything failed."""
     if not quiet:
-        _convert_counts(report)
+        done = report.converted + report.already_done
+        say(
+            f"converted {done} file(s) ({report.converted} new, {report.already_done} already done), carried over "
+            f"{report.carried} file(s), {len(report.failures)} failure(s), in {report.seconds:.1f} s"
+        )
+        if report.other_shards:
+            say(f"left {report.other_shards} file(s) to other shards")
+        if report.manifest is not None:
+            say(f"manifest {report.manifest}")
+        else:
+            say(f"manifest not written yet: {report.pending} file(s) of other shards have no record yet")
     if report.failures:
         raise fail(f"{len(report.failures)} failure(s); see the messages above and the manifest")
-
-
-def _convert_counts(report: ConversionReport) -> None:
-    done = report.converted + report.already_done
-    say(
-        f"converted {done} file(s) ({report.converted} new, {report.already_done} already done), carried over "
-        f"{report.carried} file(s), {len(report.failures)} failure(s), in {report.seconds:.1f} s"
-    )
-    if report.other_shards:
-        say(f"left {report.other_shards} file(s) to other shards")
-    if report.manifest is not None:
-        say(f"manifest {report.manifest}")
-    else:
-        say(f"manifest not written yet: {report.pending} file(s) of other shards have no record yet")
 
 
 def preview_command(

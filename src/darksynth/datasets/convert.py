@@ -30,7 +30,7 @@ from typing import Any, Final
 import torch
 
 from darksynth import __version__
-from darksynth.apply import MANIFEST_NAME, ApplyOptions, check_video_options, execute, run_task
+from darksynth.apply import MANIFEST_NAME, check_video_options, execute, run_task
 from darksynth.apply_outputs import (
     STATE_FOLDER,
     changes_from_earlier_run,
@@ -79,16 +79,12 @@ def convert_item(item: MediaItem | Mapping[str, Any], options: ConvertOptions) -
         DarksynthError: only if the record itself cannot be written.
     """
     media = item if isinstance(item, MediaItem) else MediaItem.from_row(dict(item))
-    record = _convert(media, options.dataset, options.output, options.apply_options())
+    try:
+        record = _record(media, run_task(media.task(options.dataset, options.output), options.apply_options()), None)
+    except DarksynthError as error:
+        record = _record(media, None, str(error))
     _write_record(options.output, record)
     return record
-
-
-def _convert(item: MediaItem, dataset: Path, output: Path, apply_options: ApplyOptions) -> dict[str, Any]:
-    try:
-        return _record(item, run_task(item.task(dataset, output), apply_options), None)
-    except DarksynthError as error:
-        return _record(item, None, str(error))
 
 
 def _record(item: MediaItem, result: dict[str, Any] | None, error: str | None) -> dict[str, Any]:
@@ -242,14 +238,12 @@ def prepare_output(options: ConvertOptions, *, has_videos: bool = True) -> None:
             changed = changes_from_earlier_run(state_path, options, document)
             if changed is None:
                 return
-            if not changed:
-                # The same conversion, recorded in an earlier form: resumed, its state rewritten in this one.
-                write_text_atomic(state_path, json.dumps(document, indent=2, sort_keys=True) + "\n")
-                return
-            if not options.overwrite:
-                raise other_options_error(output, "a conversion", changed)
-            shutil.rmtree(output / STATE_FOLDER / _RECORDS, ignore_errors=True)
-            (output / MANIFEST_NAME).unlink(missing_ok=True)
+            # No option named: the same conversion recorded in an earlier form, resumed; its state is rewritten below.
+            if changed:
+                if not options.overwrite:
+                    raise other_options_error(output, "a conversion", changed)
+                shutil.rmtree(output / STATE_FOLDER / _RECORDS, ignore_errors=True)
+                (output / MANIFEST_NAME).unlink(missing_ok=True)
         elif output.is_dir() and any(output.iterdir()) and not options.overwrite:
             raise DarksynthError(
                 f"{output}: not empty and not the output of a conversion; choose an empty or new folder, or add "

@@ -273,12 +273,7 @@ def coco_image_roots(json_key: str, folders: Iterable[str], images_root: str | N
     named = [s for s in siblings if s.name.casefold() in words]
     ordered = [PurePosixPath(images_root)] if images_root is not None else []
     ordered += [*named, PurePosixPath("."), home, *siblings, *children]
-    seen: list[str] = []
-    for folder in ordered:
-        text = folder.as_posix()
-        if text not in seen:
-            seen.append(text)
-    return seen
+    return list(dict.fromkeys(folder.as_posix() for folder in ordered))
 
 
 def _check_coco(dataset: Path, files: list[str], images_root: Path | None) -> list[Problem]:
@@ -359,9 +354,7 @@ def _load_yaml(text: str) -> Any:
 def _is_yolo_yaml(path: Path) -> bool:
     try:
         document = _load_yaml(path.read_text(encoding="utf-8"))
-    except (OSError, UnicodeDecodeError):
-        return False
-    except Exception:  # a YAML syntax error: not a dataset file we can rewrite, so it is copied as it is
+    except Exception:  # unreadable, or a YAML syntax error: not a dataset file we can rewrite, so it is copied as is
         return False
     return isinstance(document, dict) and bool(_YOLO_YAML_KEYS & set(document))
 

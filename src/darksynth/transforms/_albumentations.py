@@ -52,21 +52,19 @@ SerializedDarkening = str | Mapping[str, float] | None
 """The darkening as it is stored for albumentations' serialisation: "profile", None or {"alpha", "gamma"}."""
 
 
-def _serializable_darkening(darkening: DarkeningChoice | Mapping[str, float]) -> SerializedDarkening:
+def _darkening_choice(darkening: DarkeningChoice | Mapping[str, float]) -> DarkeningChoice:
+    """The darkening as the recipe takes it, checked, from that or from its serialised form."""
     if isinstance(darkening, Mapping):
         if set(darkening) != {"alpha", "gamma"}:
             raise ValueError(f"darkening as a mapping must have alpha and gamma, got {dict(darkening)!r}")
-        return {"alpha": float(darkening["alpha"]), "gamma": float(darkening["gamma"])}
-    choice = check_darkening(darkening)
-    if isinstance(choice, Darkening):
-        return {"alpha": choice.alpha, "gamma": choice.gamma}
-    return choice
+        return Darkening(alpha=float(darkening["alpha"]), gamma=float(darkening["gamma"]))
+    return check_darkening(darkening)
 
 
-def _darkening_choice(stored: SerializedDarkening) -> DarkeningChoice:
-    if isinstance(stored, Mapping):
-        return Darkening(alpha=stored["alpha"], gamma=stored["gamma"])
-    return check_darkening(stored)
+def _serializable_darkening(darkening: DarkeningChoice) -> SerializedDarkening:
+    if isinstance(darkening, Darkening):
+        return {"alpha": darkening.alpha, "gamma": darkening.gamma}
+    return darkening
 
 
 def _hwc_to_tensor(image: np.ndarray, where: str) -> torch.Tensor:
@@ -111,7 +109,7 @@ class AlbumentationsLowLight(ImageOnlyTransform):  # type: ignore[misc]  # album
             raise ValueError(f"p must be a probability in [0, 1], got {p!r}")
         super().__init__(p=p)
         if "darkening" in choices:
-            choices["darkening"] = _darkening_choice(_serializable_darkening(choices["darkening"]))
+            choices["darkening"] = _darkening_choice(choices["darkening"])
         self.recipe = transform_recipe(profile, choices)
         # albumentations serialises the attributes its init arguments name: the recipe's choices as JSON values.
         self.profile = profile_to_dict(self.recipe.profile)

@@ -91,20 +91,6 @@ def check_camera_name(camera: object) -> str | None:
     raise ValueError(f"camera must be None or one of {', '.join(CAMERA_CHOICES)}, got {camera!r}")
 
 
-def check_value_range(low: float, high: float) -> None:
-    """Refuse float pixel values that are not on the [0, 1] scale (NaN included)."""
-    if not (low >= -FLOAT_RANGE_TOLERANCE and high <= 1.0 + FLOAT_RANGE_TOLERANCE):
-        raise ValueError(
-            f"float pixel values must lie in [0, 1], got min {low:.4g} and max {high:.4g}; "
-            "apply the low-light transform before normalising, and divide 0-255 floats by 255"
-        )
-
-
-def round_float_to_8bit(image: torch.Tensor) -> torch.Tensor:
-    """A float image on the 256 levels of an 8-bit file, in its own dtype; integer images unchanged."""
-    return to_8bit_levels(image).to(image.dtype) if image.dtype.is_floating_point else image
-
-
 def check_image(image: object) -> torch.Tensor:
     """The image, if it is a tensor LowLight can take; else a ValueError saying what is wrong with it."""
     if not isinstance(image, torch.Tensor):
@@ -122,8 +108,13 @@ def check_image(image: object) -> torch.Tensor:
     if image.numel() == 0:
         raise ValueError(f"empty image, shape {tuple(image.shape)}")
     if image.dtype.is_floating_point:
-        low, high = torch.aminmax(image.detach())
-        check_value_range(float(low), float(high))
+        low, high = (float(value) for value in torch.aminmax(image.detach()))
+        # Float values not on the [0, 1] scale are refused, NaN included (it fails both comparisons).
+        if not (low >= -FLOAT_RANGE_TOLERANCE and high <= 1.0 + FLOAT_RANGE_TOLERANCE):
+            raise ValueError(
+                f"float pixel values must lie in [0, 1], got min {low:.4g} and max {high:.4g}; "
+                "apply the low-light transform before normalising, and divide 0-255 floats by 255"
+            )
     elif image.dtype not in (torch.uint8, torch.uint16):
         raise ValueError(f"unsupported pixel type {image.dtype}; use uint8, uint16 or float in [0, 1]")
     return image
@@ -144,7 +135,9 @@ def low_light(
     choices = recipe_choices(recipe)
     result = synthesize(image, recipe.profile, generator=generator, device=device, parameters=parameters, **choices)
     assert isinstance(result.image, torch.Tensor)  # a tensor input gives a tensor result
-    output = round_float_to_8bit(result.image) if round_to_8bit else result.image
+    output = result.image
+    if round_to_8bit and output.dtype.is_floating_point:
+        output = to_8bit_levels(output).to(output.dtype)
     return LowLightResult(image=output, parameters=result.parameters)
 
 
