@@ -141,25 +141,29 @@ def _usable_images(clean_images: Sequence[np.ndarray], crop: int) -> list[np.nda
     return usable
 
 
+def _integer(high: int, generator: torch.Generator) -> int:
+    return int(torch.randint(0, high, (), generator=generator))
+
+
+def _randomly_flipped(image: torch.Tensor, generator: torch.Generator) -> torch.Tensor:
+    """The image (..., H, W) as it is, mirrored left to right, upside down or both, at random."""
+    flips = _integer(4, generator)
+    if flips & 1:
+        image = image.flip(-1)
+    if flips & 2:
+        image = image.flip(-2)
+    return image
+
+
 def _clean_crops(images: Sequence[np.ndarray], batch: int, crop: int, generator: torch.Generator) -> torch.Tensor:
     """(batch, 3, crop, crop) float64 crops on 8-bit levels, with random flips."""
-
-    def integer(high: int) -> int:
-        return int(torch.randint(0, high, (), generator=generator))
-
     out = torch.empty(batch, 3, crop, crop, dtype=torch.float64)
     for index in range(batch):
-        image = images[integer(len(images))]
-        top = integer(image.shape[0] - crop + 1)
-        left = integer(image.shape[1] - crop + 1)
+        image = images[_integer(len(images), generator)]
+        top = _integer(image.shape[0] - crop + 1, generator)
+        left = _integer(image.shape[1] - crop + 1, generator)
         patch = torch.from_numpy(np.ascontiguousarray(image[top : top + crop, left : left + crop]))
-        patch = patch.permute(2, 0, 1).to(torch.float64) / 255.0
-        flips = integer(4)
-        if flips & 1:
-            patch = patch.flip(-1)
-        if flips & 2:
-            patch = patch.flip(-2)
-        out[index] = patch
+        out[index] = _randomly_flipped(patch.permute(2, 0, 1).to(torch.float64) / 255.0, generator)
     return out
 
 
@@ -193,10 +197,6 @@ def _synthetic_batches(
 def _real_batches(pairs: Sequence[LoadedPair], settings: DownstreamSettings) -> Batch:
     """Random crops of real pairs, the same place in the noisy and the clean image, with the same random flips."""
     crops = seeded_generator(derive_seed("darksynth", settings.seed, "downstream/real-crops"))
-
-    def integer(high: int) -> int:
-        return int(torch.randint(0, high, (), generator=crops))
-
     usable = [pair for pair in pairs if min(pair.clean.shape[-2:]) >= settings.crop]
     if not usable:
         raise DarksynthError(f"no real pair has both sides of at least {settings.crop} pixels")
@@ -204,15 +204,11 @@ def _real_batches(pairs: Sequence[LoadedPair], settings: DownstreamSettings) -> 
     def batch() -> tuple[torch.Tensor, torch.Tensor]:
         noisy, clean = [], []
         for _ in range(settings.batch):
-            pair = usable[integer(len(usable))]
-            top = integer(pair.clean.shape[-2] - settings.crop + 1)
-            left = integer(pair.clean.shape[-1] - settings.crop + 1)
+            pair = usable[_integer(len(usable), crops)]
+            top = _integer(pair.clean.shape[-2] - settings.crop + 1, crops)
+            left = _integer(pair.clean.shape[-1] - settings.crop + 1, crops)
             both = torch.stack([pair.noisy, pair.clean])[..., top : top + settings.crop, left : left + settings.crop]
-            flips = integer(4)
-            if flips & 1:
-                both = both.flip(-1)
-            if flips & 2:
-                both = both.flip(-2)
+            both = _randomly_flipped(both, crops)
             noisy.append(both[0])
             clean.append(both[1])
         return torch.stack(noisy), torch.stack(clean)

@@ -36,6 +36,8 @@ import torch
 ArrayLike = np.ndarray[Any, Any] | torch.Tensor
 """A numpy array or a torch tensor; tensors are detached and moved to the CPU."""
 
+_Array = np.ndarray[Any, np.dtype[np.float64]]
+
 NOISE_FLOW_LIMIT = 0.1
 """Noise Flow histograms cover [-0.1, 0.1] on the [0, 1] scale, plus one overflow bin on each side."""
 
@@ -80,7 +82,7 @@ FID_IMAGINARY_TOLERANCE = 1e-3
 """Largest imaginary part tolerated on the diagonal of sqrtm(S_a S_b) before it is called a numerical failure."""
 
 
-def _flat(values: ArrayLike) -> np.ndarray[Any, np.dtype[np.float64]]:
+def _flat(values: ArrayLike) -> _Array:
     array = values.detach().cpu().double().numpy() if isinstance(values, torch.Tensor) else np.asarray(values)
     flat = np.asarray(array, dtype=np.float64).reshape(-1)
     if flat.size == 0:
@@ -90,7 +92,8 @@ def _flat(values: ArrayLike) -> np.ndarray[Any, np.dtype[np.float64]]:
     return flat
 
 
-def _matrix(features: ArrayLike, name: str) -> np.ndarray[Any, np.dtype[np.float64]]:
+def _matrix(features: ArrayLike, name: str, width: int | None = None) -> _Array:
+    """Feature vectors as a float64 (N, D) matrix, checked; ``width``: the D of the other set, which it must share."""
     array = features.detach().cpu().double().numpy() if isinstance(features, torch.Tensor) else np.asarray(features)
     matrix = np.asarray(array, dtype=np.float64)
     if matrix.ndim != 2:
@@ -99,16 +102,18 @@ def _matrix(features: ArrayLike, name: str) -> np.ndarray[Any, np.dtype[np.float
         raise ValueError(f"{name} needs at least 2 feature vectors, got {matrix.shape[0]}")
     if not np.isfinite(matrix).all():
         raise ValueError(f"{name} contains non-finite values")
+    if width is not None and matrix.shape[1] != width:
+        raise ValueError(f"feature dimensions differ: {width} and {matrix.shape[1]}")
     return matrix
 
 
-def _kl(p: np.ndarray[Any, np.dtype[np.float64]], q: np.ndarray[Any, np.dtype[np.float64]]) -> float:
+def _kl(p: _Array, q: _Array) -> float:
     """sum p log(p / q) over the bins where both p and q are non-zero."""
     both = (p > 0) & (q > 0)
     return float(np.sum(p[both] * np.log(p[both] / q[both])))
 
 
-def noise_flow_histogram(noise: ArrayLike) -> np.ndarray[Any, np.dtype[np.float64]]:
+def noise_flow_histogram(noise: ArrayLike) -> _Array:
     """The 66-bin probability histogram of the Noise Flow recipe, for [0, 1]-scale noise of any shape.
 
     Bin 0 holds the values below -0.1, bins 1..64 split [-0.1, 0.1] into 64 bins of width 0.2 / 64 (each
@@ -120,7 +125,7 @@ def noise_flow_histogram(noise: ArrayLike) -> np.ndarray[Any, np.dtype[np.float6
     below = np.count_nonzero(values < -NOISE_FLOW_LIMIT)
     above = np.count_nonzero(values > NOISE_FLOW_LIMIT)
     counts = np.concatenate(([below], inside, [above])).astype(np.float64)
-    probabilities: np.ndarray[Any, np.dtype[np.float64]] = counts / counts.sum()
+    probabilities: _Array = counts / counts.sum()
     return probabilities
 
 
@@ -137,7 +142,7 @@ def kl_divergence_noise_flow(real: ArrayLike, synthetic: ArrayLike) -> float:
     return _kl(noise_flow_histogram(real), noise_flow_histogram(synthetic))
 
 
-def srgb_histogram(noise: ArrayLike) -> np.ndarray[Any, np.dtype[np.float64]]:
+def srgb_histogram(noise: ArrayLike) -> _Array:
     """The add-one smoothed probability histogram of Kousha et al. 2022 for [0, 1]-scale noise of any shape.
 
     The noise is multiplied by 255 (8-bit units) and binned with the edges -260, -256, ..., 260; every bin
@@ -146,7 +151,7 @@ def srgb_histogram(noise: ArrayLike) -> np.ndarray[Any, np.dtype[np.float64]]:
     values = _flat(noise) * 255.0
     counts, _ = np.histogram(values, bins=SRGB_BIN_EDGES)
     smoothed = counts.astype(np.float64) + 1.0
-    probabilities: np.ndarray[Any, np.dtype[np.float64]] = smoothed / smoothed.sum()
+    probabilities: _Array = smoothed / smoothed.sum()
     return probabilities
 
 
@@ -160,7 +165,7 @@ def kl_divergence_srgb(real: ArrayLike, synthetic: ArrayLike) -> float:
     return _kl(srgb_histogram(real), srgb_histogram(synthetic))
 
 
-def naflow_histogram(noise: ArrayLike) -> np.ndarray[Any, np.dtype[np.float64]]:
+def naflow_histogram(noise: ArrayLike) -> _Array:
     """The 256-bin probability histogram of the NAFlow recipe, for [0, 1]-scale noise of any shape.
 
     The bins split [-1, 1] into 256 bins of width 2 / 256 (each closed on the left, the last also on the right, as
@@ -170,7 +175,7 @@ def naflow_histogram(noise: ArrayLike) -> np.ndarray[Any, np.dtype[np.float64]]:
     values = _flat(noise)
     counts, _ = np.histogram(values, bins=NAFLOW_BINS, range=(-NAFLOW_LIMIT, NAFLOW_LIMIT))
     smoothed = counts.astype(np.float64) / values.size + NAFLOW_EPS
-    probabilities: np.ndarray[Any, np.dtype[np.float64]] = smoothed / smoothed.sum()
+    probabilities: _Array = smoothed / smoothed.sum()
     return probabilities
 
 
@@ -253,7 +258,7 @@ def average_kl_divergence(real: ArrayLike, synthetic: ArrayLike) -> float:
     return float((0.5 * (ratio - 1.0 - torch.log(ratio))).mean())
 
 
-def channel_moments(noise: ArrayLike) -> np.ndarray[Any, np.dtype[np.float64]]:
+def channel_moments(noise: ArrayLike) -> _Array:
     """Per channel, the count, sum and sum of squares of a noise map: pooled over pairs, they give a pooled std.
 
     Args:
@@ -268,11 +273,11 @@ def channel_moments(noise: ArrayLike) -> np.ndarray[Any, np.dtype[np.float64]]:
     return torch.stack((count, tensor.sum(dim=1), (tensor**2).sum(dim=1)), dim=1).numpy()
 
 
-def pooled_std(moments: np.ndarray[Any, np.dtype[np.float64]]) -> np.ndarray[Any, np.dtype[np.float64]]:
+def pooled_std(moments: _Array) -> _Array:
     """Per channel, the (population) standard deviation of all values behind summed :func:`channel_moments`."""
     count, total, squares = moments[:, 0], moments[:, 1], moments[:, 2]
     mean = total / count
-    std: np.ndarray[Any, np.dtype[np.float64]] = np.sqrt(np.maximum(squares / count - mean**2, 0.0))
+    std: _Array = np.sqrt(np.maximum(squares / count - mean**2, 0.0))
     return std
 
 
@@ -326,9 +331,7 @@ def mean_and_interval(values: Sequence[float] | ArrayLike, confidence: float = 0
     return mean, mean - half, mean + half
 
 
-def _trace_sqrt_product_sqrtm(
-    sigma_a: np.ndarray[Any, np.dtype[np.float64]], sigma_b: np.ndarray[Any, np.dtype[np.float64]]
-) -> float:
+def _trace_sqrt_product_sqrtm(sigma_a: _Array, sigma_b: _Array) -> float:
     """tr sqrt(S_a S_b) with scipy.linalg.sqrtm, handled as pytorch-fid does.
 
     When the square root is not finite (singular product) it is recomputed with ``FID_EPS`` on both diagonals;
@@ -346,9 +349,7 @@ def _trace_sqrt_product_sqrtm(
     return float(np.trace(covmean))
 
 
-def _trace_sqrt_product_factors(
-    a: np.ndarray[Any, np.dtype[np.float64]], b: np.ndarray[Any, np.dtype[np.float64]]
-) -> float:
+def _trace_sqrt_product_factors(a: _Array, b: _Array) -> float:
     """tr sqrt(S_a S_b) from the feature vectors themselves, exactly, when N < D.
 
     With A and B the mean-centred features, S_a = AᵀA / (n_a - 1) and S_b = BᵀB / (n_b - 1). The non-zero
@@ -375,9 +376,7 @@ def frechet_distance(features_a: ArrayLike, features_b: ArrayLike) -> float:
     the singular values of the centred cross-product (see ``_trace_sqrt_product_factors``), in milliseconds.
     """
     a = _matrix(features_a, "features_a")
-    b = _matrix(features_b, "features_b")
-    if a.shape[1] != b.shape[1]:
-        raise ValueError(f"feature dimensions differ: {a.shape[1]} and {b.shape[1]}")
+    b = _matrix(features_b, "features_b", width=a.shape[1])
     mean_term = float(np.sum((a.mean(axis=0) - b.mean(axis=0)) ** 2))
     # tr S = the sum of the per-dimension variances: no need to form the (D, D) matrices for it.
     trace_term = float(a.var(axis=0, ddof=1).sum() + b.var(axis=0, ddof=1).sum())
@@ -390,7 +389,7 @@ def frechet_distance(features_a: ArrayLike, features_b: ArrayLike) -> float:
     return mean_term + trace_term - 2.0 * trace_sqrt
 
 
-def _polynomial_mmd2(x: np.ndarray[Any, np.dtype[np.float64]], y: np.ndarray[Any, np.dtype[np.float64]]) -> float:
+def _polynomial_mmd2(x: _Array, y: _Array) -> float:
     """Unbiased MMD² between equal-size samples with the kernel k(u, v) = (u·v / D + 1)³."""
     m, dim = x.shape
     k_xx = (x @ x.T / dim + 1.0) ** 3
@@ -418,9 +417,7 @@ def kernel_inception_distance(
     subset-to-subset spread only, not the uncertainty of the sets themselves.
     """
     a = _matrix(features_a, "features_a")
-    b = _matrix(features_b, "features_b")
-    if a.shape[1] != b.shape[1]:
-        raise ValueError(f"feature dimensions differ: {a.shape[1]} and {b.shape[1]}")
+    b = _matrix(features_b, "features_b", width=a.shape[1])
     if subsets < 1:
         raise ValueError(f"subsets must be at least 1, got {subsets}")
     size = min(KID_MAX_SUBSET, a.shape[0], b.shape[0]) if subset_size is None else subset_size

@@ -59,14 +59,23 @@ def _fixed(law: PoissonGaussian) -> Fit:
     return lambda noisy, clean: law
 
 
-def _poisson_gaussian_method(name: str, summary: str, fit: Fit, *, oracle: bool = False) -> NoiseMethod:
-    return NoiseMethod(
-        name=name,
-        summary=summary,
-        fit=fit,
-        synthesize=lambda clean, law, generator: add_poisson_gaussian(clean, law, generator),
-        oracle=oracle,
-    )
+POISSON_GAUSSIAN_METHODS: dict[str, tuple[str, Fit]] = {
+    "awgn": (f"Gaussian, fixed sigma {AWGN_SIGMA * 255:.0f}/255", _fixed(_gaussian([AWGN_SIGMA] * 3))),
+    "awgn-blind": (
+        "Gaussian, per-channel sigma from skimage.restoration.estimate_sigma on the noisy image",
+        lambda noisy, clean: _gaussian(blind_gaussian_sigma(noisy)),
+    ),
+    "pg": ("Poisson-Gaussian, fixed var = 8e-4 x + (2/255)^2", _fixed(PG_FIXED)),
+    "pg-blind": (
+        "Poisson-Gaussian fitted on the noisy image alone (smooth blocks, after Foi et al. 2008)",
+        lambda noisy, clean: blind_poisson_gaussian(noisy),
+    ),
+    "pg-oracle": (
+        "Poisson-Gaussian fitted with the clean image (variance against intensity, per channel)",
+        oracle_poisson_gaussian,
+    ),
+}
+"""The baselines that add Poisson-Gaussian (or Gaussian) noise: name -> (summary, fit); pg-oracle is an oracle."""
 
 
 def load_den_weights(name: str, weights: Path, device: str) -> DEN:
@@ -349,31 +358,9 @@ def build_method(name: str, *, weights: dict[str, Path] | None = None, device: s
         )
     if name == "den-v1":
         return _den_v1_method(weights.get(name), device)
-    if name == "awgn":
-        return _poisson_gaussian_method(
-            name, f"Gaussian, fixed sigma {AWGN_SIGMA * 255:.0f}/255", _fixed(_gaussian([AWGN_SIGMA] * 3))
-        )
-    if name == "awgn-blind":
-        return _poisson_gaussian_method(
-            name,
-            "Gaussian, per-channel sigma from skimage.restoration.estimate_sigma on the noisy image",
-            lambda noisy, clean: _gaussian(blind_gaussian_sigma(noisy)),
-        )
-    if name == "pg":
-        return _poisson_gaussian_method(name, "Poisson-Gaussian, fixed var = 8e-4 x + (2/255)^2", _fixed(PG_FIXED))
-    if name == "pg-blind":
-        return _poisson_gaussian_method(
-            name,
-            "Poisson-Gaussian fitted on the noisy image alone (smooth blocks, after Foi et al. 2008)",
-            lambda noisy, clean: blind_poisson_gaussian(noisy),
-        )
-    if name == "pg-oracle":
-        return _poisson_gaussian_method(
-            name,
-            "Poisson-Gaussian fitted with the clean image (variance against intensity, per channel)",
-            oracle_poisson_gaussian,
-            oracle=True,
-        )
+    if name in POISSON_GAUSSIAN_METHODS:
+        summary, fit = POISSON_GAUSSIAN_METHODS[name]
+        return NoiseMethod(name, summary, fit, add_poisson_gaussian, oracle=name == "pg-oracle")
     if name == "starlight":
         return _starlight_method(device)
     if name == "spectral-oracle":

@@ -255,23 +255,18 @@ def radial_power_spectrum(
     return rings / side, sums[rings] / counts[rings]
 
 
-def _panel_grid(count: int, panel: tuple[float, float]) -> tuple[Figure, list[Axes]]:
-    columns = min(3, count)
-    rows = math.ceil(count / columns)
-    figure = Figure(figsize=(panel[0] * columns, panel[1] * rows + 0.2), layout="constrained")
-    grid = figure.subplots(rows, columns, sharex=True, sharey=True, squeeze=False)
-    axes = [ax for row in grid for ax in row]
-    for ax in axes[count:]:
-        ax.set_visible(False)
-    return figure, axes[:count]
-
-
 def _method_panels(noise: Mapping[str, np.ndarray], methods: Sequence[str]) -> tuple[Figure, list[tuple[Axes, str]]]:
     """Small multiples, one panel per method of ``methods`` that has a noise map (the real noise's panel alone when
-    none has one), and the figure that holds them."""
+    none has one), three to a row, and the figure that holds them."""
     shown = [m for m in methods if m in noise] or ["real"]
-    figure, axes = _panel_grid(len(shown), (3.3, 2.35))
-    return figure, list(zip(axes, shown, strict=True))
+    columns = min(3, len(shown))
+    rows = math.ceil(len(shown) / columns)
+    figure = Figure(figsize=(3.3 * columns, 2.35 * rows + 0.2), layout="constrained")
+    grid = figure.subplots(rows, columns, sharex=True, sharey=True, squeeze=False)
+    axes = [ax for row in grid for ax in row]
+    for ax in axes[len(shown) :]:
+        ax.set_visible(False)
+    return figure, list(zip(axes[: len(shown)], shown, strict=True))
 
 
 def _method_title(ax: Axes, name: str, style: MethodStyle) -> str | None:

@@ -196,9 +196,7 @@ class _HtmlPage:
             scale = max(1, math.ceil(MIN_CROP_DISPLAY / max(width, 1)))
             size = (width * scale, clean.shape[0] * scale)
         crops = [_Crop("clean", None, [_Image(_data_uri(_crop_png(clean, f"{where}: clean")), f"{where}: clean crop")])]
-        for name in ["real", *[m for m in self.order if m in example.noisy]]:
-            if name not in example.noisy:
-                continue
+        for name in [m for m in ("real", *self.order) if m in example.noisy]:
             noisy = np.asarray(example.noisy[name])
             label = self.label(name)
             images = [(noisy, f"{where}: {label} noisy crop")]
@@ -219,26 +217,18 @@ class _HtmlPage:
 
     def render(self) -> str:
         results = self.results
-        sets = []
-        for name, entry in results.sets.items():
-            sets.append(
-                {
-                    "name": name,
-                    "id": self.set_ids[name],
-                    "entry": entry,
-                    "table": self.layout.set_table(name),
-                    "channels": self.layout.channel_table(name),
-                    "bands": self.layout.band_table(name),
-                    "band_figure": self.band_figure(name),
-                    "missing": results.not_evaluated(name),
-                    "radar": self.radar(name),
-                    "cameras": self.layout.camera_tables(name),
-                    "examples": [self.example(e) for e in self.examples if e.set_name == name],
-                }
-            )
+        sets = [
+            self.layout.set_tables(name)
+            | {
+                "id": self.set_ids[name],
+                "band_figure": self.band_figure(name),
+                "radar": self.radar(name),
+                "examples": [self.example(e) for e in self.examples if e.set_name == name],
+            }
+            for name in results.sets
+        ]
         orphans = [self.example(e) for e in self.examples if e.set_name not in results.sets]
         title = "darksynth evaluate" + (": " + ", ".join(results.sets) if results.sets else "")
-        methods = [self.layout.method(name) for name in ordered(results.methods, self.order)]
         template = template_environment(autoescape=True).get_template("report.html.j2")
         return template.render(
             **template_context(results),
@@ -246,7 +236,7 @@ class _HtmlPage:
             csp=CSP,
             sets=sets,
             orphans=orphans,
-            methods=methods,
+            methods=[self.layout.method(name) for name in results.methods],
             downstream_tables=self.layout.downstream_tables(),
             noise_gain=NOISE_GAIN,
         )

@@ -128,25 +128,15 @@ def render_markdown(results: EvaluationResults | Mapping[str, Any]) -> str:
     """The Markdown summary of a results document (see :func:`write_markdown`)."""
     typed = typed_results(results)
     layout = Layout(typed, typed.method_order)
-    sets = [
-        {
-            "name": name,
-            "entry": entry,
-            "table": layout.set_table(name),
-            "channels": layout.channel_table(name),
-            "bands": layout.band_table(name),
-            "missing": typed.not_evaluated(name),
-            "cameras": layout.camera_tables(name),
-        }
-        for name, entry in typed.sets.items()
-    ]
     runs = re.findall(r"`+", typed.command)
     fence = "`" * max(3, max((len(run) for run in runs), default=0) + 1)
-    methods = [layout.method(name) for name in typed.method_order if name in typed.methods]
     template = template_environment(autoescape=False).get_template("report.md.j2")
-    downstream = layout.downstream_tables()
     return template.render(
-        **template_context(typed), sets=sets, downstream_tables=downstream, methods=methods, fence=fence
+        **template_context(typed),
+        sets=[layout.set_tables(name) for name in typed.sets],
+        downstream_tables=layout.downstream_tables(),
+        methods=[layout.method(name) for name in typed.methods],
+        fence=fence,
     )
 
 

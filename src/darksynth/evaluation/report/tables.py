@@ -177,6 +177,19 @@ class Layout:
         oracle = name in self.results.oracles
         return Method(name, oracle, name in self.references, self.colours.get(name, "#888888"))
 
+    def set_tables(self, set_name: str) -> dict[str, Any]:
+        """What both reports show of a set besides the HTML page's figures: its tables, its results and the methods
+        not evaluated on it, as the templates read them."""
+        return {
+            "name": set_name,
+            "entry": self.results.sets[set_name],
+            "table": self.set_table(set_name),
+            "channels": self.channel_table(set_name),
+            "bands": self.band_table(set_name),
+            "missing": self.results.not_evaluated(set_name),
+            "cameras": self.camera_tables(set_name),
+        }
+
     def set_table(self, set_name: str) -> Table | None:
         methods = self.results.sets[set_name].methods
         if not methods:

@@ -48,6 +48,7 @@ from darksynth.evaluation.methods.catalogue import build_methods
 from darksynth.evaluation.methods.method import NoiseMethod
 from darksynth.evaluation.pairs import LoadedPair, PairSet, list_pair_sets, load_pair
 from darksynth.evaluation.report.html import ReportExample
+from darksynth.evaluation.report.results_model import CHANNELS, INTERVAL_METRICS
 from darksynth.evaluation.run.options import EvaluationOptions
 from darksynth.seeding import derive_seed, seeded_generator
 
@@ -102,17 +103,6 @@ class EvaluationOutcome:
 
 
 Progress = Callable[[str], None]
-
-
-def _summary(values: list[float]) -> tuple[float, list[float]]:
-    mean, low, high = mean_and_interval(values)
-    return float(mean), [float(low), float(high)]
-
-
-PAIR_METRICS = ("kld_naflow", "akld", "kld_srgb", "kld")
-"""Computed per pair, summarised per set and per camera by their mean and 95% interval."""
-
-CHANNELS = ("r", "g", "b")
 
 
 def _pair_metrics(real: torch.Tensor, synthetic: torch.Tensor) -> dict[str, float]:
@@ -183,10 +173,10 @@ class _ChannelStatistics:
 
 def _kl_summary(rows: list[dict[str, float]]) -> dict[str, Any]:
     summary: dict[str, Any] = {}
-    for metric in PAIR_METRICS:
-        mean, interval = _summary([row[metric] for row in rows])
-        summary[metric] = mean
-        summary[f"{metric}_ci95"] = interval
+    for metric in INTERVAL_METRICS:
+        mean, low, high = mean_and_interval([row[metric] for row in rows])
+        summary[metric] = float(mean)
+        summary[f"{metric}_ci95"] = [float(low), float(high)]
     return summary
 
 
