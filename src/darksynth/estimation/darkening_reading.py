@@ -97,14 +97,7 @@ def estimate_darkening_pooled_and_per_frame(
         medians.append(frame_medians)
         centres.append(centre)
         uppers.append(upper)
-        try:
-            per_frame.append(
-                fit_darkening(
-                    np.quantile(frame_medians, PROBABILITIES), noise_of_quantiles(centre, upper, side), source=source
-                )
-            )
-        except DarksynthError:
-            per_frame.append(None)
+        per_frame.append(_fit_or_none(found, side, source))
     centre_all, upper_all = torch.cat(centres), torch.cat(uppers)
     step = max(1, centre_all.shape[0] // NOISE_BLOCKS)
     pooled_noise = noise_of_quantiles(centre_all[::step], upper_all[::step], side)
@@ -140,16 +133,19 @@ def estimate_darkening_spread(
                 if min(part.shape[-2:]) < block:
                     continue
                 found = whole.region(top, bottom, left, right) or block_statistics(part, block)
-                quantiles = np.quantile(found.medians.flatten().numpy().astype(np.float64), PROBABILITIES)
-                try:
-                    estimates.append(
-                        fit_darkening(
-                            quantiles, noise_of_quantiles(*found.noise_quantiles(), found.side), source=source
-                        )
-                    )
-                except DarksynthError:
-                    continue
+                estimate = _fit_or_none(found, found.side, source)
+                if estimate is not None:
+                    estimates.append(estimate)
     return estimates
+
+
+def _fit_or_none(found: BlockStatistics, side: int, source: str) -> DarkeningEstimate | None:
+    """The darkening fitted to one frame's or region's blocks; None where they are too dark or too flat to fit."""
+    quantiles = np.quantile(found.medians.flatten().numpy().astype(np.float64), PROBABILITIES)
+    try:
+        return fit_darkening(quantiles, noise_of_quantiles(*found.noise_quantiles(), side), source=source)
+    except DarksynthError:
+        return None
 
 
 DARKENING_FRAMES = 3

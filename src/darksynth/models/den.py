@@ -78,12 +78,10 @@ def parameter_bounds(
 ) -> tuple[torch.Tensor, torch.Tensor, torch.Tensor]:
     """Low and high ends of every entry of a noise model's v, from the training ranges of the parameter table,
     and which entries are on a log scale (their low end is then the log floor)."""
-    parameters = model_parameters(noise_model, version)
-    logarithmic = [log_levels and p.log_floor is not None for p in parameters for _ in range(p.size)]
-    low = [
-        p.log_floor if log_levels and p.log_floor else p.training_range[0] for p in parameters for _ in range(p.size)
-    ]
-    high = [p.training_range[1] for p in parameters for _ in range(p.size)]
+    entries = [p for p in model_parameters(noise_model, version) for _ in range(p.size)]  # one per value of v
+    logarithmic = [log_levels and p.log_floor is not None for p in entries]
+    low = [p.log_floor if log_levels and p.log_floor else p.training_range[0] for p in entries]
+    high = [p.training_range[1] for p in entries]
     return (
         torch.tensor(low, device=device),
         torch.tensor(high, device=device),

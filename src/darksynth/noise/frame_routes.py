@@ -41,7 +41,6 @@ from darksynth.noise.simulate import (
     active_components,
     add_noise,
     apply_output_stages,
-    column_components_active,
     column_noise,
 )
 from darksynth.noise.spectral import clip_grid, octave_covariances
@@ -161,7 +160,7 @@ class SpectralRoute:
         """The frame's noisy version; not ``rounded``: the float32 result in [0, 1] before the rounding to 8 bits
         (a float image of 8-bit levels, as ``ToTensor`` gives it)."""
         state, values = self.state, self.state.values
-        columns = state.columns(frame.shape) if column_components_active(values) else None
+        columns = state.columns(frame.shape) if active_components(values, "column") else None
         if self._pass is None:
             channels, height, width = frame.shape
             white, order = _spectral_draws(values)
@@ -229,7 +228,7 @@ class CompiledSpectralRoute:
         if self._eager is not None:
             return self._eager(frame)
         state, values = self.state, self.state.values
-        columns = state.columns(frame.shape) * FULL_SCALE if column_components_active(values) else None
+        columns = state.columns(frame.shape) * FULL_SCALE if active_components(values, "column") else None
         try:
             if self._stream is None:
                 white = bool(_spectral_draws(values)[0])

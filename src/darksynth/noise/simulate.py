@@ -30,11 +30,6 @@ def active_components(values: NoiseValues, structure: str) -> tuple[NoiseCompone
     return tuple(c for c in noise_components() if c.structure == structure and values.is_active(c))
 
 
-def column_components_active(values: NoiseValues) -> bool:
-    """Whether any column component draws anything for ``values``."""
-    return bool(active_components(values, "column"))
-
-
 def column_noise(
     shape: torch.Size | tuple[int, ...],
     values: NoiseValues,

@@ -111,15 +111,14 @@ class SpectralPixelPass:
         values: Mapping[str, torch.Tensor] | None = None,
         order: DrawOrder | None = None,
     ) -> None:
-        self.shape = (channels, height, width)
+        self.shape, self.device = (channels, height, width), device
         # (texture_gain, texture_scale) when the noise follows texture: the std times the composer's factor, read
         # on the darkened signal before the column pattern is added, as the composer reads it.
         self.texture = texture
         # The white Gaussian components (their laws read ``values``), drawn and summed in ``order``.
         self.white, self.values = tuple(white), values
         self.order: DrawOrder = order if order is not None else (DRAW_SPECTRUM, DRAW_QUANTIZATION)
-        self.signal_table, self.std_table = level_tables(channels, darkening, curve, device=device)
-        self.white_tables = white_std_tables(self.signal_table, values or {}, self.white)
+        self.set_darkening(darkening, curve)
         self.signal = torch.empty(self.shape, dtype=torch.float32, device=device)
         self.noise = torch.empty_like(self.signal)
         self.white_normals = [torch.empty_like(self.signal) for _ in self.white]
@@ -133,9 +132,7 @@ class SpectralPixelPass:
 
     def set_darkening(self, darkening: Darkening | None, curve: torch.Tensor) -> None:
         """The tables of another darkening (a frame's flicker gain)."""
-        self.signal_table, self.std_table = level_tables(
-            self.shape[0], darkening, curve, device=self.signal_table.device
-        )
+        self.signal_table, self.std_table = level_tables(self.shape[0], darkening, curve, device=self.device)
         self.white_tables = white_std_tables(self.signal_table, self.values or {}, self.white)
 
     def draw(self, item: str | int, generator: torch.Generator | None) -> None:

@@ -115,10 +115,11 @@ def spectral_clips(
     signal: torch.Tensor,
     values: Mapping[str, torch.Tensor],
     generator: torch.Generator | None,
-    held: dict[str, Any] | None,
+    held: dict[str, Any] | None = None,
 ) -> torch.Tensor:
     """The spectral noise of ``signal`` (*batch, T, C, H, W), or a single frame (C, H, W), with ``values`` batched
-    like it; ``held``: a stream's state (see :func:`darksynth.noise.spectral.spectral_clip_noise`)."""
+    like it; ``held``: a stream's state (see :func:`darksynth.noise.spectral.spectral_clip_noise`). The component's
+    draw, and its draw in a stream with ``held``."""
     if generator is None:
         generator = torch.default_generator
     # A single frame (C, H, W), as streaming passes it, is a clip of one frame.
@@ -150,18 +151,6 @@ def spectral_clips(
     return torch.stack(noise).reshape(signal.shape)
 
 
-def _draw_spectral(
-    signal: torch.Tensor, values: Mapping[str, torch.Tensor], generator: torch.Generator | None
-) -> torch.Tensor:
-    return spectral_clips(signal, values, generator, None)
-
-
-def _draw_spectral_in_stream(
-    signal: torch.Tensor, values: Mapping[str, torch.Tensor], generator: torch.Generator | None, held: dict[str, Any]
-) -> torch.Tensor:
-    return spectral_clips(signal, values, generator, held)
-
-
 def _spectral_variance(values: Mapping[str, torch.Tensor], channel_means: torch.Tensor) -> torch.Tensor:
     # The unit noise has unit variance per channel; the level curve at each channel's mean gives its std.
     rows = [
@@ -175,8 +164,8 @@ SPECTRAL = NoiseComponent(
     name="spectral",
     parameters=_SPECTRAL_PARAMETERS,
     structure="pixel",
-    draw=_draw_spectral,
-    draw_in_stream=_draw_spectral_in_stream,
+    draw=spectral_clips,
+    draw_in_stream=spectral_clips,
     variance=_spectral_variance,
     reference="Lebrun, Colom and Morel 2015, The Noise Clinic; Norkin and Birkbeck 2018, AV1 film grain; "
     "docs/spectral-noise.md",

@@ -172,10 +172,8 @@ class NoiseValues(Mapping[str, torch.Tensor]):
 
 def stacked_values(items: Sequence[NoiseValues]) -> NoiseValues:
     """One batch from unbatched values (or concatenated batches when the items are batched)."""
-    names = table.noise_parameter_names()
-    if items[0].batch_shape:
-        return NoiseValues({name: torch.cat([item[name] for item in items]) for name in names})
-    return NoiseValues({name: torch.stack([item[name] for item in items]) for name in names})
+    join = torch.cat if items[0].batch_shape else torch.stack
+    return NoiseValues({name: join([item[name] for item in items]) for name in table.noise_parameter_names()})
 
 
 def values_from_vector(

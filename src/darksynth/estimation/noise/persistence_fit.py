@@ -69,7 +69,7 @@ from darksynth.estimation.findings import Findings
 from darksynth.estimation.noise.flat_blocks import FLAT_BLOCK
 from darksynth.estimation.noise.resynthesis import FittedReference, MeasuredValues
 from darksynth.estimation.noise.spectral_fit import SpectralParameters, quantised, uncensored_signal
-from darksynth.estimation.noise.spectral_statistics import band_masks
+from darksynth.estimation.noise.spectral_statistics import band_weights
 from darksynth.noise.simulate import add_noise
 from darksynth.noise.spectral import OCTAVES, level_std
 from darksynth.noise.values import NoiseValues
@@ -130,16 +130,6 @@ VIDEO_PRIOR_SOURCE = "median of this read on the shared real night clips (docs/s
 """Where :data:`VIDEO_PRIOR` comes from, as ``meta`` and the warning state it."""
 
 
-def _band_weights(height: int, width: int, device: torch.device) -> torch.Tensor:
-    """(OCTAVES, H, W // 2 + 1) which half-plane frequencies of an ``rfft2`` fall in each band of
-    :data:`~darksynth.estimation.noise.spectral_statistics.BANDS`, counted twice where the half-plane stands for two."""
-    twice = torch.full((height, width // 2 + 1), 2.0, dtype=torch.float64, device=device)
-    twice[:, 0] = 1.0
-    if width % 2 == 0:
-        twice[:, -1] = 1.0
-    return band_masks(height, width, device) * twice
-
-
 def without_block_planes(differences: torch.Tensor, mask: torch.Tensor) -> torch.Tensor:
     """Differences of frames (P, 3, H, W) float64, masked, with each :data:`FLAT_BLOCK` block's least-squares plane per
     channel taken out: a change of exposure or light between frames moves each block's level and, on its shading,
@@ -169,7 +159,7 @@ def difference_powers(frames: torch.Tensor, mask: torch.Tensor) -> torch.Tensor:
     mask = mask.to(device=frames.device, dtype=torch.float64)
     frames = frames.to(torch.float64)
     count, height, width = frames.shape[0], frames.shape[-2], frames.shape[-1]
-    weights = _band_weights(height, width, frames.device)
+    weights = band_weights(height, width, frames.device)
     powers = torch.zeros(count - 1, OCTAVES, dtype=torch.float64, device=frames.device)
     for lag in range(1, count):
         differences = without_block_planes(frames[lag:] - frames[:-lag], mask)

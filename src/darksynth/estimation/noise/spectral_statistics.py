@@ -23,7 +23,7 @@ from dataclasses import dataclass
 
 import torch
 
-from darksynth.noise.spectral import LEVEL_KNOTS, OPPONENT_BASIS
+from darksynth.noise.spectral import LEVEL_KNOTS, OPPONENT_BASIS, grid_radius
 
 BANDS: tuple[tuple[float, float], ...] = (
     (1 / 4, 0.71),
@@ -59,10 +59,18 @@ class SpectralStatistics:
 def band_masks(height: int, width: int, device: torch.device) -> torch.Tensor:
     """(len(BANDS), H, W // 2 + 1) float64, 1 where a frequency of an ``rfft2`` of an (H, W) map falls in a band.
     Cached: a fit measures dozens of maps of one size (the tensor is only read, never written)."""
-    fy = torch.fft.fftfreq(height, dtype=torch.float64, device=device)
-    fx = torch.fft.rfftfreq(width, dtype=torch.float64, device=device)
-    radius = torch.sqrt(fy[:, None] ** 2 + fx[None, :] ** 2)
+    radius = grid_radius(height, width, device)
     return torch.stack([((radius >= low) & (radius < high)).to(torch.float64) for low, high in BANDS])
+
+
+def band_weights(height: int, width: int, device: torch.device) -> torch.Tensor:
+    """(len(BANDS), H, W // 2 + 1) :func:`band_masks` with each frequency counted twice where the ``rfft2`` half-plane
+    stands for two (every column but the first and, for an even width, the last)."""
+    twice = torch.full((height, width // 2 + 1), 2.0, dtype=torch.float64, device=device)
+    twice[:, 0] = 1.0
+    if width % 2 == 0:
+        twice[:, -1] = 1.0
+    return band_masks(height, width, device) * twice
 
 
 def band_fields(noise: torch.Tensor) -> tuple[torch.Tensor, torch.Tensor]:
@@ -77,11 +85,7 @@ def band_fields(noise: torch.Tensor) -> tuple[torch.Tensor, torch.Tensor]:
     masks = band_masks(height, width, noise.device)
     spectrum = torch.fft.rfft2(components)
     fields = torch.stack([torch.fft.irfft2(spectrum * mask, s=(height, width)) for mask in masks], dim=-4)
-    weights = torch.full(masks.shape[-2:], 2.0, dtype=torch.float64, device=noise.device)
-    weights[:, 0] = 1.0
-    if width % 2 == 0:
-        weights[:, -1] = 1.0
-    share = (masks * weights).sum(dim=(-2, -1)) / float(height * width)
+    share = band_weights(height, width, noise.device).sum(dim=(-2, -1)) / float(height * width)
     return fields, share
 
 
