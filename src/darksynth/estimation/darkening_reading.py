@@ -97,7 +97,7 @@ def estimate_darkening_pooled_and_per_frame(
         medians.append(frame_medians)
         centres.append(centre)
         uppers.append(upper)
-        per_frame.append(_fit_or_none(found, side, source))
+        per_frame.append(_fit_or_none(frame_medians, centre, upper, side, source))
     centre_all, upper_all = torch.cat(centres), torch.cat(uppers)
     step = max(1, centre_all.shape[0] // NOISE_BLOCKS)
     pooled_noise = noise_of_quantiles(centre_all[::step], upper_all[::step], side)
@@ -133,17 +133,21 @@ def estimate_darkening_spread(
                 if min(part.shape[-2:]) < block:
                     continue
                 found = whole.region(top, bottom, left, right) or block_statistics(part, block)
-                estimate = _fit_or_none(found, found.side, source)
+                block_medians = found.medians.flatten().numpy().astype(np.float64)
+                estimate = _fit_or_none(block_medians, *found.noise_quantiles(), found.side, source)
                 if estimate is not None:
                     estimates.append(estimate)
     return estimates
 
 
-def _fit_or_none(found: BlockStatistics, side: int, source: str) -> DarkeningEstimate | None:
-    """The darkening fitted to one frame's or region's blocks; None where they are too dark or too flat to fit."""
-    quantiles = np.quantile(found.medians.flatten().numpy().astype(np.float64), PROBABILITIES)
+def _fit_or_none(
+    block_medians: np.ndarray, centre: torch.Tensor, upper: torch.Tensor, side: int, source: str
+) -> DarkeningEstimate | None:
+    """The darkening fitted to one frame's or region's blocks (their medians and noise quantiles, as
+    :class:`~darksynth.light.tone_blocks.BlockStatistics` gives them); None where they are too dark or too flat."""
+    quantiles = np.quantile(block_medians, PROBABILITIES)
     try:
-        return fit_darkening(quantiles, noise_of_quantiles(*found.noise_quantiles(), side), source=source)
+        return fit_darkening(quantiles, noise_of_quantiles(centre, upper, side), source=source)
     except DarksynthError:
         return None
 

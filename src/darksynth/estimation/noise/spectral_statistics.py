@@ -63,9 +63,11 @@ def band_masks(height: int, width: int, device: torch.device) -> torch.Tensor:
     return torch.stack([((radius >= low) & (radius < high)).to(torch.float64) for low, high in BANDS])
 
 
+@functools.lru_cache(maxsize=4)
 def band_weights(height: int, width: int, device: torch.device) -> torch.Tensor:
     """(len(BANDS), H, W // 2 + 1) :func:`band_masks` with each frequency counted twice where the ``rfft2`` half-plane
-    stands for two (every column but the first and, for an even width, the last)."""
+    stands for two (every column but the first and, for an even width, the last). Cached as :func:`band_masks` is:
+    every map of the fit and every lag of the frame differences reads it, never writes it."""
     twice = torch.full((height, width // 2 + 1), 2.0, dtype=torch.float64, device=device)
     twice[:, 0] = 1.0
     if width % 2 == 0:
