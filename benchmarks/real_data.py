@@ -45,10 +45,14 @@ figures are still compared.
 ``--sets nam-cc15,dicm --out FILE`` runs some pair sets and photo folders only (a look while developing; the committed
 record holds them all). ``--seed`` seeds the noise draws (each pair's synthesis, ``apply``'s draw, the static clip),
 not the estimate.
-Record: ``benchmarks/records/real_data.json`` (``--out``), with the commit measured, the tracked files that differed
-from it, the CPU, torch's threads and the run time (wall and processor seconds). It is compared with ``git show
-HEAD:benchmarks/records/real_data.json`` and every figure that moved further from its target by more than the
-draws' own spread is printed, then their count (the exit code stays 0: it is a report). Further from the target: a
+Record: one per processor (:func:`record_path`), ``benchmarks/records/real_data.json`` for the first (an AMD EPYC)
+and ``real_data.<processor>.json`` beside it for each other (``--out`` to write elsewhere), with the commit
+measured, the tracked files that differed from it, the CPU, torch's threads and the run time (wall and processor
+seconds). The same code reads differently on another processor (FFT and reduction bits differ; docs/spectral-noise.md,
+"The same code on two processors"), so a run is compared with the record committed at HEAD for this machine's CPU
+line, or, where none is, with the first record, said to be another processor's; every figure that moved further
+from its target by more than the draws' own spread is printed, then their count (the exit code stays 0: it is a
+report). Further from the target: a
 synthetic-over-real ratio (level, band, each photo's self-consistency ratio, a folder's median) in log terms from
 1; a gap (correlation, lag-1) from 0; KLD, AKLD and the band RMS log error larger; fewer photos within 0.8-1.25;
 more beyond 0.5-2.
@@ -79,6 +83,7 @@ import argparse
 import importlib.util
 import json
 import math
+import re
 import resource
 import statistics
 import subprocess
@@ -111,7 +116,9 @@ from darksynth.training.weights import default_weights_path, load_weights
 from machine import cpu_summary
 
 ROOT = Path(__file__).resolve().parents[1]
-RECORD_IN_REPOSITORY = "benchmarks/records/real_data.json"
+RECORDS = "benchmarks/records"
+FIRST_RECORD = f"{RECORDS}/real_data.json"
+"""The first processor's record (an AMD EPYC); every other processor's is ``real_data.<processor>.json`` beside it."""
 DEFAULT_DATA = ROOT.parent / "shared" / "data"
 TEMPORAL_CHECK = ROOT / "scripts" / "noise" / "spectral_temporal_check.py"
 
@@ -561,10 +568,28 @@ def _git(*arguments: str) -> str | None:
         return None
 
 
-def committed_record() -> dict[str, Any] | None:
-    """The record of the last commit (None before the first one is committed)."""
-    text = _git("show", f"HEAD:{RECORD_IN_REPOSITORY}")
-    return json.loads(text) if text else None
+def committed_records() -> dict[str, dict[str, Any]]:
+    """The records of the last commit by path, one per processor (none before the first is committed)."""
+    listing = _git("ls-tree", "--name-only", "HEAD", f"{RECORDS}/") or ""
+    found = {}
+    for path in listing.split():
+        name = Path(path).name
+        text = _git("show", f"HEAD:{path}") if name.startswith("real_data") and name.endswith(".json") else None
+        if text:
+            found[path] = json.loads(text)
+    return found
+
+
+def record_path(records: dict[str, dict[str, Any]], cpu: str) -> str:
+    """Where the record of the processor with this CPU line goes: the committed record made on it, the first record
+    while none is committed, else a new file named after the processor."""
+    mine = next((path for path, record in records.items() if record.get("cpu") == cpu), None)
+    if mine is not None:
+        return mine
+    if FIRST_RECORD not in records:
+        return FIRST_RECORD
+    model = re.sub(r"\(\w+\)", " ", cpu.split(";")[0].removeprefix("cpu:").lower())  # (R), (TM)
+    return f"{RECORDS}/real_data.{'-'.join(re.findall('[a-z0-9]+', model))}.json"
 
 
 def _provenance() -> dict[str, Any]:
@@ -583,7 +608,7 @@ def _arguments() -> argparse.Namespace:
     parser.add_argument("--only", default=",".join(PARTS), help="comma-separated parts: pairs, photos, clips")
     parser.add_argument("--limit", type=int, default=None, help="pairs, photos per set or folder, clips")
     parser.add_argument("--seed", type=int, default=0, help="seed of the noise draws (not of the estimate)")
-    parser.add_argument("--out", type=Path, default=ROOT / RECORD_IN_REPOSITORY)
+    parser.add_argument("--out", type=Path, default=None, help="default: this processor's record (record_path)")
     parser.add_argument("--no-compare", action="store_true", help="do not compare with the committed record")
     parser.add_argument(
         "--sets",
@@ -603,8 +628,10 @@ def _arguments() -> argparse.Namespace:
     arguments.sets = known if arguments.sets is None else tuple(n for n in arguments.sets.split(",") if n)
     if not arguments.sets or set(arguments.sets) - set(known):
         parser.error(f"--sets takes {', '.join(known)}; got {','.join(arguments.sets)!r}")
-    if set(arguments.sets) != set(known) and arguments.out == ROOT / RECORD_IN_REPOSITORY:
+    if set(arguments.sets) != set(known) and arguments.out is None:
         parser.error("--sets runs part of the record: name where it goes with --out (the committed record holds all)")
+    if arguments.out is None:
+        arguments.out = ROOT / record_path(committed_records(), cpu_summary())
     return arguments
 
 
@@ -614,11 +641,20 @@ def _cpu_seconds() -> float:
 
 
 def _compare(record: dict[str, Any]) -> None:
-    before = committed_record()
+    records = committed_records()
+    path = record_path(records, record["cpu"])
+    before, other_processor = records.get(path), False
+    if before is None and FIRST_RECORD in records:
+        before, other_processor = records[FIRST_RECORD], True
     if before is None:
-        _say(f"\nno committed {RECORD_IN_REPOSITORY} to compare with (the first record)")
+        _say(f"\nno committed record in {RECORDS}/ to compare with (the first record)")
         return
     _say(f"\ncompared with the committed record (measured at {before.get('commit')}, seed {before.get('seed')}):")
+    if other_processor:
+        _say(
+            f"  made on another processor ({before.get('cpu')}): the same code reads differently on two processors, "
+            f"so a WORSE below may be the processor's; commit this run as {path} to judge changes on this one"
+        )
     for note in not_compared(before, record):
         _say(f"  not compared, other pairs or photos: {note}")
     for note in unmeasurable_clips(record):

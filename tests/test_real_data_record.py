@@ -213,3 +213,18 @@ def test_sets_pick_part_of_the_record_only_where_out_says(
         assert "--sets" in capsys.readouterr().err
     monkeypatch.setattr(sys, "argv", ["real_data.py"])
     assert set(real_data._arguments().sets) == {*real_data.PAIR_SETS, *real_data.PHOTO_FOLDERS}
+
+
+def test_each_processor_is_judged_against_its_own_record(real_data: ModuleType) -> None:
+    amd = "cpu: AMD EPYC; 2 cores; vector extensions: avx2 avx512f; torch uses AVX512; compiled kernels: avx512"
+    intel = "cpu: Intel(R) Xeon(R) Processor @ 2.80GHz; 2 cores; vector extensions: avx2 avx512f; torch uses AVX512"
+    first, intel_path = real_data.FIRST_RECORD, f"{real_data.RECORDS}/real_data.intel-xeon-processor-2-80ghz.json"
+    # The first record goes where the first always went, whatever its processor.
+    assert real_data.record_path({}, intel) == first
+    # Another processor gets a file of its own, named after its model, and is judged against it once committed.
+    assert real_data.record_path({first: {"cpu": amd}}, intel) == intel_path
+    both = {first: {"cpu": amd}, intel_path: {"cpu": intel}}
+    assert real_data.record_path(both, intel) == intel_path
+    assert real_data.record_path(both, amd) == first
+    # The same model with other extensions or threads is another line, so another record.
+    assert real_data.record_path(both, amd.replace("2 cores", "4 cores")) != first
