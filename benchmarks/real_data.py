@@ -588,8 +588,11 @@ def record_path(records: dict[str, dict[str, Any]], cpu: str) -> str:
         return mine
     if FIRST_RECORD not in records:
         return FIRST_RECORD
+    # The model and the instruction set torch's kernels use (an AVX2 run on an AVX-512 machine is another record).
     model = re.sub(r"\(\w+\)", " ", cpu.split(";")[0].removeprefix("cpu:").lower())  # (R), (TM)
-    return f"{RECORDS}/real_data.{'-'.join(re.findall('[a-z0-9]+', model))}.json"
+    capability = re.search(r"torch uses (\w+)", cpu)
+    words = re.findall("[a-z0-9]+", model) + ([capability.group(1).lower()] if capability else [])
+    return f"{RECORDS}/real_data.{'-'.join(words)}.json"
 
 
 def _provenance() -> dict[str, Any]:
@@ -628,10 +631,12 @@ def _arguments() -> argparse.Namespace:
     arguments.sets = known if arguments.sets is None else tuple(n for n in arguments.sets.split(",") if n)
     if not arguments.sets or set(arguments.sets) - set(known):
         parser.error(f"--sets takes {', '.join(known)}; got {','.join(arguments.sets)!r}")
-    if set(arguments.sets) != set(known) and arguments.out is None:
+    records = committed_records()
+    partial = set(arguments.sets) != set(known)
+    if partial and (arguments.out is None or arguments.out.resolve() in {ROOT / path for path in records}):
         parser.error("--sets runs part of the record: name where it goes with --out (the committed record holds all)")
     if arguments.out is None:
-        arguments.out = ROOT / record_path(committed_records(), cpu_summary())
+        arguments.out = ROOT / record_path(records, cpu_summary())
     return arguments
 
 

@@ -206,7 +206,9 @@ def test_sets_pick_part_of_the_record_only_where_out_says(
     monkeypatch.setattr(sys, "argv", ["real_data.py", "--sets", "nam-cc15,dicm", "--out", str(tmp_path / "r.json")])
     assert real_data._arguments().sets == ("nam-cc15", "dicm")
     # Part of the record never replaces the committed one, and a name that is no set is refused.
-    for argv in (["--sets", "nam-cc15"], ["--sets", "nam-cc16", "--out", str(tmp_path / "r.json")]):
+    committed = str(real_data.ROOT / real_data.FIRST_RECORD)
+    refused = (["--sets", "nam-cc15"], ["--sets", "nam-cc15", "--out", committed], ["--sets", "nam-cc16", "--out", "r"])
+    for argv in refused:
         monkeypatch.setattr(sys, "argv", ["real_data.py", *argv])
         with pytest.raises(SystemExit):
             real_data._arguments()
@@ -218,7 +220,8 @@ def test_sets_pick_part_of_the_record_only_where_out_says(
 def test_each_processor_is_judged_against_its_own_record(real_data: ModuleType) -> None:
     amd = "cpu: AMD EPYC; 2 cores; vector extensions: avx2 avx512f; torch uses AVX512; compiled kernels: avx512"
     intel = "cpu: Intel(R) Xeon(R) Processor @ 2.80GHz; 2 cores; vector extensions: avx2 avx512f; torch uses AVX512"
-    first, intel_path = real_data.FIRST_RECORD, f"{real_data.RECORDS}/real_data.intel-xeon-processor-2-80ghz.json"
+    first = real_data.FIRST_RECORD
+    intel_path = f"{real_data.RECORDS}/real_data.intel-xeon-processor-2-80ghz-avx512.json"
     # The first record goes where the first always went, whatever its processor.
     assert real_data.record_path({}, intel) == first
     # Another processor gets a file of its own, named after its model, and is judged against it once committed.
@@ -226,5 +229,8 @@ def test_each_processor_is_judged_against_its_own_record(real_data: ModuleType) 
     both = {first: {"cpu": amd}, intel_path: {"cpu": intel}}
     assert real_data.record_path(both, intel) == intel_path
     assert real_data.record_path(both, amd) == first
-    # The same model with other extensions or threads is another line, so another record.
+    # The same model with other extensions or threads is another line, so another record; with torch on another
+    # instruction set, a file of another name.
     assert real_data.record_path(both, amd.replace("2 cores", "4 cores")) != first
+    emulated = amd.replace("torch uses AVX512", "torch uses AVX2")
+    assert real_data.record_path(both, emulated) == f"{real_data.RECORDS}/real_data.amd-epyc-avx2.json"
